@@ -1,0 +1,3 @@
+from ilic_cli.cli import main
+
+main()

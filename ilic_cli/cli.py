@@ -1,0 +1,112 @@
+"""The ``ilic`` command line: a thin layer that parses, calls and renders.
+
+Subcommands live in :mod:`ilic_cli.commands` and are imported only when run,
+so ``ilic --help`` stays instant. Errors follow one contract: bad input or
+usage -> ``ilic: error: FILE: problem`` on stderr and exit 2; an internal
+failure -> exit 1 (``--debug`` shows the traceback); Ctrl-C -> 130;
+SIGTERM -> 143. Output files are written atomically by the commands.
+"""
+
+from __future__ import annotations
+
+import importlib
+import signal
+import sys
+import traceback
+from typing import Any
+
+import click
+
+from ilic_cli import __version__
+from ilic_cli.errors import IlicError
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("ilic_cli.commands.simulate", "Simulate the EMPS axis in closed loop and write a log."),
+    "replay": ("ilic_cli.commands.replay", "Replay a log's recorded reference through the plant."),
+    "identify": ("ilic_cli.commands.identify", "Identify M, Fv, Fc, offset by IDIM-LS and IDIM-ILIC."),
+    "diagnose": ("ilic_cli.commands.diagnose", "Find and model the physics a simulation leaves out."),
+    "convert": ("ilic_cli.commands.convert", "Convert a log between .mat, CSV, MCAP and ROS bags."),
+    "info": ("ilic_cli.commands.info", "Summarise a log: duration, rate, channels, ranges, quality."),
+}
+
+
+class Terminated(BaseException):
+    """Raised from the SIGTERM handler so that atomic writers clean up."""
+
+
+class LazyGroup(click.Group):
+    """A click group whose subcommands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        module = importlib.import_module(COMMANDS[cmd_name][0])
+        command: click.Command = module.command
+        return command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        with formatter.section("Commands"):
+            formatter.write_dl([(name, help_) for name, (_, help_) in COMMANDS.items()])
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="ilic")
+@click.option("--debug", is_flag=True, help="Show the full traceback of an error.")
+def cli(debug: bool) -> None:
+    """Identify, simulate and diagnose a drive axis from its logged runs.
+
+    \b
+    Typical use:
+      ilic info run.mcap                       what is in a log
+      ilic identify run.mat --out report/      IDIM-LS and IDIM-ILIC estimates
+      ilic simulate --scenario paper-sim -o sim.mcap
+      ilic diagnose run.mat                    what the model leaves out
+
+    Logs: EMPS .mat, CSV, MCAP, ROS 1 .bag, ROS 2 bag folders.
+    """
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    raise Terminated()
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run the command line and exit with the status of the error contract."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in args
+    try:
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not in the main thread (tests)
+        pass
+    status = 0
+    try:
+        cli.main(args=args, prog_name="ilic", standalone_mode=False)
+    except IlicError as exc:
+        if debug:
+            traceback.print_exc()
+        click.echo(f"ilic: error: {exc.message()}", err=True)
+        status = 2
+    except click.UsageError as exc:
+        hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx else ""
+        click.echo(f"ilic: error: {exc.format_message()}{hint}", err=True)
+        status = 2
+    except click.ClickException as exc:
+        click.echo(f"ilic: error: {exc.format_message()}", err=True)
+        status = exc.exit_code if exc.exit_code else 1
+    except (KeyboardInterrupt, click.Abort):
+        click.echo("ilic: interrupted", err=True)
+        status = 130
+    except Terminated:
+        click.echo("ilic: terminated", err=True)
+        status = 143
+    except BrokenPipeError:
+        status = 0
+    except Exception as exc:  # internal failure
+        if debug:
+            traceback.print_exc()
+        click.echo(f"ilic: error: internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)", err=True)
+        status = 1
+    sys.exit(status)

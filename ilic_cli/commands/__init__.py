@@ -1,0 +1,1 @@
+"""Subcommands; each module exposes ``command`` (a click command)."""

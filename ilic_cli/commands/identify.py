@@ -1,0 +1,81 @@
+"""``ilic identify``: parse, call :func:`ilic_cli.identify.identify`, render."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ilic_cli.commands.common import input_options, load, note
+
+
+@click.command("identify")
+@click.argument("log", type=click.Path(path_type=Path))
+@click.option("--method", type=click.Choice(["ls", "ilic", "both"]), default="both", show_default=True, help="IDIM-LS, IDIM-ILIC per window, or both.")
+@click.option("--model", "model", type=click.Choice(["rigid", "rigid-offset", "asymmetric"]), default="rigid-offset", show_default=True, help="Model structure (regressor columns).")
+@click.option("--validate", "validate", multiple=True, type=click.Path(path_type=Path), help="Apply the estimates to this log too (cross-test validation); repeatable.")
+@click.option("--window", "window_s", type=click.FloatRange(min=0, min_open=True), default=6.2, show_default=True, help="IDIM-ILIC window T_obs (s).")
+@click.option("--sigma-max", "sigma_max", type=click.FloatRange(min=0, min_open=True), default=15.0, show_default=True, help="%σ_max: parameters above it are not essential.")
+@click.option("--ilic-cutoff", type=click.FloatRange(min=0, min_open=True), default=5.0, show_default=True, help="IDIM-ILIC force/regressor low-pass cut-off (Hz).")
+@click.option("--ilic-decimation", type=click.IntRange(min=1), default=None, help="IDIM-ILIC decimation factor [default: from the cut-off, 0.8·fs/2/cut-off].")
+@click.option("--cutoff", type=click.FloatRange(min=0, min_open=True), default=100.0, show_default=True, help="IDIM-LS position low-pass cut-off (Hz).")
+@click.option("--order", type=click.IntRange(min=1, max=12), default=4, show_default=True, help="IDIM-LS Butterworth order.")
+@click.option("--decimation", type=click.IntRange(min=1), default=10, show_default=True, help="IDIM-LS parallel decimation factor.")
+@click.option("--trim", type=click.IntRange(min=0), default=49, show_default=True, help="IDIM-LS samples dropped at the start.")
+@click.option("--filtering", type=click.Choice(["matlab", "scipy"]), default="matlab", show_default=True, help="MATLAB-compatible filtering (reproduces published digits) or SciPy second-order sections.")
+@click.option("--format", "out_format", type=click.Choice(["md", "csv", "json"]), default="md", show_default=True, help="What to print on stdout.")
+@click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
+@click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
+@input_options
+def command(log: Path, method: str, model: str, validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+    """Identify the axis's parameters from LOG by IDIM-LS and IDIM-ILIC.
+
+    IDIM-LS (paper section III) filters and differentiates the measured
+    position; IDIM-ILIC (section V) regresses each window of the force on the
+    noise-free reference trajectory. Defaults reproduce the published EMPS
+    benchmark tables. With --format json stdout holds only the JSON document.
+
+    \b
+    Examples:
+      ilic identify DATA_EMPS.mat --method ls
+      ilic identify DATA_EMPS.mat --model asymmetric --validate DATA_EMPS_PULSES.mat
+      ilic identify sim.mcap --format json --out report/
+    """
+    from ilic_cli import report as render
+    from ilic_cli.errors import IlicError
+    from ilic_cli.idim_ilic import ILICSettings
+    from ilic_cli.idim_ls import LSSettings
+    from ilic_cli.identify import identify
+
+    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
+        raise IlicError(out_dir, "--out must be a folder")
+    run = load(log, input_format, topic, ref_topic, joint)
+    others = [load(p, None, topic, ref_topic, joint) for p in validate]
+    ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
+    ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max)
+    result = identify(run, method=method, model=model, ls_settings=ls_settings, ilic_settings=ilic_settings, validate=others)
+    for w in result.warnings:
+        note(f"ilic: warning: {w}")
+    text = {"md": render.to_markdown, "csv": render.to_csv, "json": lambda r: render.to_json(r.to_dict())}[out_format](result)
+    if out_dir is not None:
+        _write_outputs(result, run, out_dir, plot_format, inputs=(log, *validate))
+    click.echo(text, nl=False)
+
+
+def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
+    from ilic_cli import report as render
+    from ilic_cli.io.atomic import atomic_write_text
+    from ilic_cli.modelfile import model_document
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out_dir / "report.md", render.to_markdown(result), inputs=inputs)
+    atomic_write_text(out_dir / "report.csv", render.to_csv(result), inputs=inputs)
+    atomic_write_text(out_dir / "report.json", render.to_json(result.to_dict()), inputs=inputs)
+    method = "IDIM-LS" if result.ls is not None else "IDIM-ILIC"
+    atomic_write_text(out_dir / "model.json", render.to_json(model_document(result.model, result.model_parameters(), method=method, source=result.source)), inputs=inputs)
+    written = [out_dir / n for n in ("report.md", "report.csv", "report.json", "model.json")]
+    if plot_format != "none":
+        from ilic_cli.plotting import plot_identify
+
+        written += plot_identify(result, run, out_dir, plot_format)
+    note(f"ilic: wrote {', '.join(str(p) for p in written)}")

@@ -1,0 +1,44 @@
+"""Error classes shared by every module.
+
+Every error a user can cause (bad file, bad option value, unusable data) is an
+:class:`IlicError`; the command line prints it as one line
+``ilic: error: FILE: problem`` and exits with status 2.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class IlicError(Exception):
+    """A problem with the user's input; printed as one line, exit status 2.
+
+    Parameters
+    ----------
+    where : str or Path or None
+        The file (or option) the problem is about; ``None`` when it has none.
+    problem : str
+        What is wrong and, where possible, what to do about it.
+    """
+
+    def __init__(self, where: str | Path | None, problem: str) -> None:
+        self.where = None if where is None else str(where)
+        self.problem = problem
+        super().__init__(self.message())
+
+    def message(self) -> str:
+        """Return the one-line message without the ``ilic: error:`` prefix."""
+        text = " ".join(self.problem.split())
+        return f"{self.where}: {text}" if self.where else text
+
+
+class LogError(IlicError):
+    """A log file cannot be read or written, or its samples are unusable."""
+
+
+class IdentificationError(IlicError):
+    """Identification cannot proceed on the given data."""
+
+
+class SimulationError(IlicError):
+    """A simulation request is inconsistent (bad parameter, unknown scenario)."""

@@ -1,0 +1,104 @@
+"""Data filtering for identification (paper section III; benchmark procedure).
+
+Pure functions on arrays. The ``matlab`` helpers reproduce MATLAB's
+``filtfilt`` and ``decimate`` exactly where that decides published digits
+(see ``../shared/reference/emps-benchmark.md``): odd-reflection padding of
+length ``3*(max(len(a), len(b)) - 1)`` and decimation that keeps the samples
+aligned on the end of the record.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def filtfilt_matlab(b: np.ndarray, a: np.ndarray, x: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Zero-phase filtering as MATLAB ``filtfilt`` (odd padding of 3*(order) samples)."""
+    from scipy.signal import filtfilt
+
+    padlen = 3 * (max(len(a), len(b)) - 1)
+    return filtfilt(b, a, x, axis=axis, padtype="odd", padlen=padlen)
+
+
+def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 4, *, matlab: bool = True, axis: int = 0) -> np.ndarray:
+    """Butterworth low-pass applied forward-backward (zero phase).
+
+    Parameters
+    ----------
+    x : ndarray
+        Signal(s), filtered along ``axis``.
+    cutoff_hz, fs_hz : float
+        Cut-off and sampling frequency (Hz).
+    order : int
+        Butterworth order (benchmark: 4).
+    matlab : bool
+        Transfer-function form with MATLAB's padding (default, reproduces
+        published digits); otherwise second-order sections with SciPy's
+        default padding (numerically safer at very low cut-offs).
+    """
+    from scipy import signal
+
+    wn = cutoff_hz / (fs_hz / 2.0)
+    if not 0.0 < wn < 1.0:
+        raise ValueError(f"cut-off {cutoff_hz} Hz must lie between 0 and the Nyquist frequency {fs_hz / 2} Hz")
+    if matlab:
+        b, a = signal.butter(order, wn)
+        return filtfilt_matlab(b, a, x, axis=axis)
+    sos = signal.butter(order, wn, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=axis)
+
+
+def central_difference(x: np.ndarray, dt_s: float) -> np.ndarray:
+    """Derivative by central differences, one-sided at both ends (MATLAB ``gradient``)."""
+    return np.gradient(x, dt_s, axis=0)
+
+
+def decimation_factor(fs_hz: float, cutoff_hz: float) -> int:
+    """Decimation factor whose anti-alias cut-off ``0.8*fs/(2r)`` is ``cutoff_hz``.
+
+    The benchmark uses ``round(0.8*500/40) = 10`` at 1 kHz.
+    """
+    return max(1, int(round(0.8 * (fs_hz / 2.0) / cutoff_hz)))
+
+
+def kept_indices(n: int, r: int) -> np.ndarray:
+    """Indices kept by end-aligned decimation of ``n`` samples by ``r`` (MATLAB ``decimate``)."""
+    nout = math.ceil(n / r)
+    return np.arange(r - (r * nout - n) - 1, n, r)
+
+
+def decimate_matlab(x: np.ndarray, r: int, axis: int = 0) -> np.ndarray:
+    """Parallel decimation as MATLAB ``decimate(x, r)`` (IIR mode).
+
+    Chebyshev type I low-pass, order 8, 0.05 dB ripple, cut-off 0.8/r of
+    Nyquist, applied forward-backward; keeps one sample in ``r`` aligned on the
+    end of the record (first kept sample, 1-based: ``r - (r*nout - nd)``).
+    Applied column-wise to a 2-D array, this is the parallel decimation of
+    the observation matrix (paper section III).
+    """
+    from scipy import signal
+
+    if r == 1:
+        return np.asarray(x)
+    b, a = signal.cheby1(8, 0.05, 0.8 / r)
+    y = filtfilt_matlab(b, a, x, axis=axis)
+    return np.take(y, kept_indices(y.shape[axis], r), axis=axis)
+
+
+def lowpass_decimate(x: np.ndarray, r: int, cutoff_hz: float, fs_hz: float, order: int = 4, axis: int = -1) -> np.ndarray:
+    """Zero-phase Butterworth low-pass (second-order sections) then keep one sample in ``r``.
+
+    Used for the force and the reference regressor of IDIM-ILIC windows
+    (paper eq. 24: "filtering and down-sampling"); stable at the very low
+    cut-offs (5 Hz at 1 kHz) where the transfer-function form is not. Kept
+    samples are aligned on the end of the record, as :func:`decimate_matlab`.
+    """
+    from scipy import signal
+
+    sos = signal.butter(order, cutoff_hz / (fs_hz / 2.0), output="sos")
+    n = x.shape[axis]
+    padlen = min(n - 1, 3 * (2 * len(sos) + 1))
+    y = signal.sosfiltfilt(sos, x, axis=axis, padlen=padlen)
+    return np.take(y, kept_indices(n, r), axis=axis)

@@ -1,0 +1,157 @@
+"""``ilic identify`` logic: IDIM-LS and per-window IDIM-ILIC on a run log.
+
+Takes a :class:`~ilic_cli.runlog.RunLog`, returns an :class:`IdentifyReport`
+(no file I/O here); renderers live in :mod:`ilic_cli.report` and plots in
+:mod:`ilic_cli.plotting`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.errors import IdentificationError
+from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic
+from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, idim_ls
+from ilic_cli.lsq import LSResult
+from ilic_cli.regressor import get_model
+from ilic_cli.runlog import RunLog
+
+
+@dataclass(frozen=True)
+class Validation:
+    """Estimates of one log applied to another (cross-test validation)."""
+
+    source: str
+    method: str
+    result: LSResult
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self.result.to_dict()
+        d.pop("parameters")
+        return {"source": self.source, "method": self.method, **d}
+
+
+@dataclass
+class IdentifyReport:
+    """Everything ``ilic identify`` found on one log."""
+
+    source: str
+    model: str
+    fs_hz: float
+    samples: int
+    ls: IDIMLSResult | None = None
+    ilic: ILICResult | None = None
+    validation: list[Validation] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "source": self.source,
+            "model": self.model,
+            "sample_rate_hz": self.fs_hz,
+            "samples": self.samples,
+            "ls": None if self.ls is None else self.ls.to_dict(),
+            "ilic": None if self.ilic is None else self.ilic.to_dict(),
+            "validation": [v.to_dict() for v in self.validation],
+            "warnings": list(self.warnings),
+        }
+
+    def to_frame(self) -> Any:
+        """Tidy table: one row per method, window and parameter."""
+        import pandas as pd
+
+        rows: list[dict[str, Any]] = []
+        if self.ls is not None:
+            r = self.ls.result
+            for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True):
+                rows.append({"method": "IDIM-LS", "k": None, "t_start": None, "t_end": None, "parameter": n, "value": v, "std": s, "rel_std_pct": p, "essential": None, "relative_error_pct": r.relative_error_pct, "tracking_error_ratio": None})
+        if self.ilic is not None:
+            for w in self.ilic.windows:
+                r = w.result
+                for n, v, s, p, e in zip(r.names, r.theta, r.std, r.rel_std_pct, w.essential, strict=True):
+                    rows.append({"method": "IDIM-ILIC", "k": w.k, "t_start": w.t_start, "t_end": w.t_end, "parameter": n, "value": v, "std": s, "rel_std_pct": p, "essential": bool(e), "relative_error_pct": r.relative_error_pct, "tracking_error_ratio": w.tracking_error_ratio})
+        return pd.DataFrame(rows)
+
+    def model_parameters(self) -> dict[str, float]:
+        """Parameters for a model file: IDIM-LS when run, else the last window's essential estimates."""
+        if self.ls is not None:
+            return dict(zip(self.ls.result.names, map(float, self.ls.result.theta), strict=True))
+        if self.ilic is not None and self.ilic.windows:
+            w = self.ilic.windows[-1]
+            return {n: float(v) for n, v, e in zip(w.result.names, w.result.theta, w.essential, strict=True) if e}
+        return {}
+
+
+def sample_rate(log: RunLog) -> float:
+    """Nominal sampling frequency (Hz) of a log."""
+    return 1.0 / log.dt_s
+
+
+def identify(
+    log: RunLog,
+    *,
+    method: str = "both",
+    model: str = "rigid-offset",
+    ls_settings: LSSettings = LSSettings(),
+    ilic_settings: ILICSettings = ILICSettings(),
+    validate: list[RunLog] | None = None,
+) -> IdentifyReport:
+    """Run IDIM-LS and/or IDIM-ILIC on ``log`` and validate on other logs.
+
+    Parameters
+    ----------
+    log : RunLog
+        Needs ``t``, ``q``, ``tau``; IDIM-ILIC also needs ``q_ref``
+        (``qd_ref``/``qdd_ref`` are derived from it when absent).
+    method : {"ls", "ilic", "both"}
+    model : {"rigid", "rigid-offset", "asymmetric"}
+    validate : list of RunLog
+        Logs to apply the estimates to (same processing).
+    """
+    src = str(log.meta.get("source", ""))
+    try:
+        structure = get_model(model)
+    except ValueError as exc:
+        raise IdentificationError(None, str(exc)) from None
+    fs = sample_rate(log)
+    report = IdentifyReport(source=src, model=model, fs_hz=fs, samples=len(log))
+    if method in ("ls", "both"):
+        try:
+            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, structure, ls_settings)
+        except ValueError as exc:
+            raise IdentificationError(src, str(exc)) from None
+        if not report.ls.result.full_rank:
+            report.warnings.append("IDIM-LS: the observation matrix is rank-deficient; the trajectory does not excite every parameter")
+    if method in ("ilic", "both"):
+        log.require("q_ref")
+        try:
+            report.ilic = identify_ilic(
+                log.t,
+                log["q_ref"],
+                log["tau"],
+                fs,
+                structure,
+                ilic_settings,
+                qd_ref=log.channels.get("qd_ref"),
+                qdd_ref=log.channels.get("qdd_ref"),
+                q=log["q"],
+            )
+        except ValueError as exc:
+            raise IdentificationError(src, str(exc)) from None
+        for w in report.ilic.windows:
+            if w.note:
+                report.warnings.append(f"IDIM-ILIC window k={w.k}: {w.note}")
+    for other in validate or []:
+        osrc = str(other.meta.get("source", ""))
+        if report.ls is not None:
+            res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings)
+            report.validation.append(Validation(osrc, "IDIM-LS", res))
+        if report.ilic is not None and report.ilic.windows:
+            theta = report.ilic.windows[-1].result.theta
+            if np.all(np.isfinite(theta)):
+                res = cross_validate(theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings)
+                report.validation.append(Validation(osrc, f"IDIM-ILIC (k={report.ilic.windows[-1].k})", res))
+    return report

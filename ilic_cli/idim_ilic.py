@@ -1,0 +1,255 @@
+"""IDIM-ILIC: per-window least squares on the reference trajectory (paper section V).
+
+The estimation step (eq. 24) is :func:`estimate_windows`: the observation
+matrix ``W_r(q_r, qd_r, qdd_r)`` is built from the noise-free reference, the
+actual force and every column of ``W_r`` are low-pass filtered and decimated
+in parallel, and each window is solved by least squares with standard
+deviations (eqs. 8-10). Parameters with ``%sigma <= %sigma_max`` are
+*essential* and only those are updated (section V-E, :func:`update_parameters`).
+The closed-loop plant calls :func:`estimate_window` online; ``ilic identify``
+calls :func:`identify_ilic` on a log. Both go through :func:`estimate_windows`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.filtering import central_difference, decimation_factor, lowpass_decimate
+from ilic_cli.lsq import LSResult, _num, solve_batch
+from ilic_cli.regressor import Kinematics, Model
+
+
+@dataclass(frozen=True)
+class ILICSettings:
+    """Settings of the IDIM-ILIC estimation.
+
+    Attributes
+    ----------
+    window_s : float
+        Observation window T_obs (paper: T_cycle = 6.2 s).
+    cutoff_hz : float
+        Low-pass cut-off for the force and the regressor (paper: 5 Hz).
+    decimation : int or None
+        Down-sampling factor; ``None``: ``round(0.8*fs/2/cutoff)`` (80 at 1 kHz).
+    sigma_max_pct : float
+        Parameters with a larger relative standard deviation are not
+        essential and not updated (paper: 15; "between 10 and 30").
+    filter_order : int
+        Butterworth order of the low-pass.
+    """
+
+    window_s: float = 6.2
+    cutoff_hz: float = 5.0
+    decimation: int | None = None
+    sigma_max_pct: float = 15.0
+    filter_order: int = 4
+
+    def factor(self, fs_hz: float) -> int:
+        return self.decimation or decimation_factor(fs_hz, self.cutoff_hz)
+
+
+@dataclass(frozen=True)
+class WindowEstimate:
+    """The estimate of one window (iteration k of the paper)."""
+
+    k: int
+    t_start: float
+    t_end: float
+    result: LSResult
+    essential: np.ndarray
+    tracking_error_ratio: float | None = None
+    note: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "k": self.k,
+            "t_start": self.t_start,
+            "t_end": self.t_end,
+            "parameters": self.result.parameters(),
+            "essential": {n: bool(e) for n, e in zip(self.result.names, self.essential, strict=True)},
+            "relative_error_pct": _num(self.result.relative_error_pct),
+            "condition_number": _num(self.result.condition_number),
+            "tracking_error_ratio": None if self.tracking_error_ratio is None else _num(self.tracking_error_ratio),
+            "note": self.note,
+        }
+
+
+@dataclass(frozen=True)
+class ILICResult:
+    """IDIM-ILIC estimates of every window of a log, in time order."""
+
+    model: str
+    names: tuple[str, ...]
+    settings: ILICSettings
+    windows: list[WindowEstimate] = field(default_factory=list)
+    dropped_s: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "method": "IDIM-ILIC",
+            "model": self.model,
+            "window_s": self.settings.window_s,
+            "cutoff_hz": self.settings.cutoff_hz,
+            "sigma_max_pct": self.settings.sigma_max_pct,
+            "windows": [w.to_dict() for w in self.windows],
+            "dropped_tail_s": self.dropped_s,
+        }
+
+    def to_frame(self) -> Any:
+        import pandas as pd
+
+        rows = []
+        for w in self.windows:
+            row: dict[str, Any] = {"k": w.k, "t_start": w.t_start, "t_end": w.t_end}
+            for n, v, s, r, e in zip(w.result.names, w.result.theta, w.result.std, w.result.rel_std_pct, w.essential, strict=True):
+                row[n] = v
+                row[f"{n}_std"] = s
+                row[f"{n}_rel_std_pct"] = r
+                row[f"{n}_essential"] = bool(e)
+            row["relative_error_pct"] = w.result.relative_error_pct
+            row["tracking_error_ratio"] = w.tracking_error_ratio
+            rows.append(row)
+        return pd.DataFrame(rows)
+
+
+def essential_mask(result: LSResult, sigma_max_pct: float) -> np.ndarray:
+    """Parameters whose relative standard deviation is at most ``sigma_max_pct`` (section V-E)."""
+    rel = np.asarray(result.rel_std_pct)
+    return np.isfinite(rel) & (rel <= sigma_max_pct)
+
+
+def update_parameters(chi: np.ndarray, estimate: WindowEstimate) -> np.ndarray:
+    """Return ``chi`` with only the essential parameters replaced by the new estimate."""
+    return np.where(estimate.essential, estimate.result.theta, chi)
+
+
+def tracking_error_ratio(q_ref: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``||e_q|| / ||q - mean(q)||`` along the last axis (paper Table II, last line)."""
+    e = np.linalg.norm(q_ref - q, axis=-1)
+    spread = np.linalg.norm(q - q.mean(axis=-1, keepdims=True), axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(spread > 0, e / spread, np.inf)
+
+
+def estimate_windows(
+    model: Model,
+    qd_ref: np.ndarray,
+    qdd_ref: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    settings: ILICSettings,
+    *,
+    q_ref: np.ndarray | None = None,
+    q: np.ndarray | None = None,
+    t: np.ndarray | None = None,
+    k0: int = 1,
+) -> list[WindowEstimate]:
+    """Estimate the parameters of K windows at once (paper eq. 24).
+
+    Parameters
+    ----------
+    model : Model
+        Regressor columns.
+    qd_ref, qdd_ref, tau : ndarray, shape (K, n)
+        Reference velocity and acceleration (noise-free) and actual force,
+        one row per window.
+    fs_hz : float
+        Sampling frequency.
+    settings : ILICSettings
+        Filter, decimation and %sigma_max.
+    q_ref, q : ndarray, shape (K, n), optional
+        Reference and measured position, for the tracking error ratio (and
+        for position-dependent columns).
+    t : ndarray, shape (K, n), optional
+        Time, for the window bounds and time-dependent columns.
+    k0 : int
+        Index of the first window (``k`` counts from 1).
+    """
+    qd_ref, qdd_ref, tau = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (qd_ref, qdd_ref, tau))
+    kin = Kinematics(qd=qd_ref, qdd=qdd_ref, q=None if q_ref is None else np.atleast_2d(q_ref), t=None if t is None else np.atleast_2d(t))
+    W = model.matrix(kin)
+    r = settings.factor(fs_hz)
+    Wd = lowpass_decimate(W, r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
+    yd = lowpass_decimate(tau, r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
+    results = solve_batch(Wd, yd, model.names, sigma="eq8")
+    ratios = tracking_error_ratio(np.atleast_2d(q_ref), np.atleast_2d(q)) if q_ref is not None and q is not None else None
+    out = []
+    for i, res in enumerate(results):
+        ess = essential_mask(res, settings.sigma_max_pct)
+        note = ""
+        if not res.full_rank:
+            missing = [n for n, s in zip(res.names, res.std, strict=True) if not np.isfinite(s)]
+            note = f"rank-deficient: {', '.join(missing)} not excited in this window"
+        elif not ess.all():
+            note = "not essential: " + ", ".join(n for n, e in zip(res.names, ess, strict=True) if not e)
+        t0 = float(t[i, 0]) if t is not None else float("nan")
+        t1 = float(t[i, -1]) if t is not None else float("nan")
+        out.append(
+            WindowEstimate(
+                k=k0 + i,
+                t_start=t0,
+                t_end=t1,
+                result=res,
+                essential=ess,
+                tracking_error_ratio=None if ratios is None else float(ratios[i]),
+                note=note,
+            )
+        )
+    return out
+
+
+def estimate_window(
+    model: Model,
+    qd_ref: np.ndarray,
+    qdd_ref: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    settings: ILICSettings,
+    *,
+    q_ref: np.ndarray | None = None,
+    q: np.ndarray | None = None,
+    t: np.ndarray | None = None,
+    k: int = 1,
+) -> WindowEstimate:
+    """Estimate one window (the online step of the closed loop); see :func:`estimate_windows`."""
+    stack = (lambda a: None if a is None else np.asarray(a, dtype=np.float64)[None])
+    return estimate_windows(model, stack(qd_ref), stack(qdd_ref), stack(tau), fs_hz, settings, q_ref=stack(q_ref), q=stack(q), t=stack(t), k0=k)[0]
+
+
+def reference_derivatives(q_ref: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity and acceleration of a noise-free reference by central differences."""
+    qd = central_difference(q_ref, dt_s)
+    return qd, central_difference(qd, dt_s)
+
+
+def identify_ilic(
+    t: np.ndarray,
+    q_ref: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    model: Model,
+    settings: ILICSettings,
+    *,
+    qd_ref: np.ndarray | None = None,
+    qdd_ref: np.ndarray | None = None,
+    q: np.ndarray | None = None,
+) -> ILICResult:
+    """IDIM-ILIC estimates over consecutive windows of ``settings.window_s``.
+
+    Windows hold ``round(window_s*fs)`` samples; a trailing part shorter than
+    a window is left out (reported as ``dropped_s``). Missing reference
+    derivatives are computed from ``q_ref`` by central differences.
+    """
+    n = int(round(settings.window_s * fs_hz))
+    K = len(t) // n if n > 0 else 0
+    if K == 0:
+        raise ValueError(f"the log ({len(t) / fs_hz:.3g} s) is shorter than one window ({settings.window_s:g} s); pass a shorter --window")
+    if qd_ref is None or qdd_ref is None:
+        qd_ref, qdd_ref = reference_derivatives(q_ref, 1.0 / fs_hz)
+    m = K * n
+    cut = (lambda a: None if a is None else np.asarray(a[:m], dtype=np.float64).reshape(K, n))
+    windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut(q), t=cut(t))
+    return ILICResult(model=model.name, names=model.names, settings=settings, windows=windows, dropped_s=float((len(t) - m) / fs_hz))

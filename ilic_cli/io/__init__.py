@@ -1,0 +1,119 @@
+"""Readers and writers for run logs, chosen by path or by an explicit format.
+
+The registry maps a format name to a module with ``read(path, selection)`` and
+``write(log, path, options)``; :func:`detect_format` picks the format from the
+path (``.mat``, ``.csv``, ``.mcap``, ``.bag``, a ROS 2 bag folder).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
+
+from ilic_cli.errors import LogError
+
+if TYPE_CHECKING:
+    from ilic_cli.runlog import RunLog
+
+FORMATS: dict[str, str] = {
+    "mat": "ilic_cli.io.mat",
+    "csv": "ilic_cli.io.csvlog",
+    "mcap": "ilic_cli.io.mcaplog",
+    "rosbag1": "ilic_cli.io.rosbag1",
+    "rosbag2": "ilic_cli.io.rosbag2",
+}
+"""Format name -> module implementing ``read`` and ``write``."""
+
+EXTENSIONS: dict[str, str] = {".mat": "mat", ".csv": "csv", ".mcap": "mcap", ".bag": "rosbag1"}
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which part of a multi-topic, multi-joint log to read.
+
+    Attributes
+    ----------
+    topic : str or None
+        Topic with the measured ``sensor_msgs/JointState``; ``None``: the only one
+        (or ``/joint_states``).
+    ref_topic : str or None
+        Topic with the reference; ``None``: ``/joint_reference`` when present.
+    joint : str or None
+        Joint name; ``None``: the only joint.
+    """
+
+    topic: str | None = None
+    ref_topic: str | None = None
+    joint: str | None = None
+
+
+@dataclass(frozen=True)
+class WriteOptions:
+    """Options for writers: ``storage`` is ``sqlite3`` or ``mcap`` (rosbag2 only)."""
+
+    storage: str = "sqlite3"
+    joint: str = "axis"
+
+
+class LogFormat(Protocol):
+    """What a format module provides: ``read`` and ``write``."""
+
+    def read(self, path: Path, selection: Selection) -> RunLog: ...
+
+    def write(self, log: RunLog, path: Path, options: WriteOptions) -> None: ...
+
+
+def detect_format(path: str | Path, fmt: str | None = None, *, for_writing: bool = False) -> str:
+    """Return the format name for ``path`` (or check the explicit ``fmt``)."""
+    p = Path(path)
+    if fmt:
+        if fmt not in FORMATS:
+            raise LogError(p, f"unknown format '{fmt}' (choose from {', '.join(FORMATS)})")
+        return fmt
+    if p.is_dir() or (not for_writing and (p / "metadata.yaml").exists()):
+        return "rosbag2"
+    ext = p.suffix.lower()
+    if ext in EXTENSIONS:
+        return EXTENSIONS[ext]
+    if for_writing and ext == "":
+        return "rosbag2"
+    known = ", ".join([*EXTENSIONS, "a ROS 2 bag folder"])
+    raise LogError(p, f"unknown log extension '{ext or '(none)'}' (known: {known}; or pass --format)")
+
+
+def _module(fmt: str) -> LogFormat:
+    return importlib.import_module(FORMATS[fmt])  # type: ignore[return-value]
+
+
+def read_log(path: str | Path, fmt: str | None = None, selection: Selection | None = None, *, validate: bool = True) -> RunLog:
+    """Read a log file into a :class:`~ilic_cli.runlog.RunLog`.
+
+    Raises :class:`LogError` (one line, naming the file) for a missing, empty,
+    corrupt or unusable file.
+    """
+    from ilic_cli.runlog import validate_samples
+
+    p = Path(path)
+    if not p.exists():
+        raise LogError(p, "no such file or folder")
+    if p.is_file() and p.stat().st_size == 0:
+        raise LogError(p, "file is empty")
+    name = detect_format(p, fmt)
+    log = _module(name).read(p, selection or Selection())
+    log.meta.setdefault("source", str(p))
+    if validate:
+        validate_samples(log, str(p))
+    return log
+
+
+def write_log(log: RunLog, path: str | Path, fmt: str | None = None, options: WriteOptions | None = None, *, inputs: tuple[str | Path, ...] = ()) -> Path:
+    """Write ``log`` to ``path`` atomically (temporary sibling, then rename)."""
+    from ilic_cli.io.atomic import atomic_path
+
+    p = Path(path)
+    name = detect_format(p, fmt, for_writing=True)
+    with atomic_path(p, directory=(name == "rosbag2"), inputs=inputs) as tmp:
+        _module(name).write(log, tmp, options or WriteOptions())
+    return p

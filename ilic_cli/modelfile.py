@@ -1,0 +1,74 @@
+"""Model parameter files (``--model PARAMS.json``) shared by identify, simulate, replay and diagnose.
+
+Format written by ``ilic identify --out DIR`` (``DIR/model.json``) and
+``ilic diagnose``::
+
+    {"ilic_model": 1, "model": "rigid-offset", "method": "IDIM-LS",
+     "parameters": {"M": 95.1089, "Fv": 203.50, "Fc": 20.39, "offset": -3.16},
+     "effects": {"stribeck": {"Fs": 5.0, "vs": 0.01}}, "source": "run.mat"}
+
+Also accepted: the JSON printed by ``ilic identify --format json`` (the IDIM-LS
+parameters are used) and a flat ``{"M": 95, "Fv": 200, ...}``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from ilic_cli.errors import IlicError
+
+MODEL_FILE_VERSION = 1
+
+
+def parse_model(doc: Any, where: str | None = None) -> dict[str, Any]:
+    """Return ``{"model": str|None, "parameters": {name: float}, "effects": {...}}`` from any accepted layout."""
+    if not isinstance(doc, dict):
+        raise IlicError(where, "model file must hold a JSON object")
+    section = doc
+    if "parameters" not in doc:
+        for key in ("ls", "idim_ls"):
+            if isinstance(doc.get(key), dict) and "parameters" in doc[key]:
+                section = doc[key]
+                break
+    params_raw = section.get("parameters", doc if "parameters" not in doc and all(isinstance(v, (int, float)) for v in doc.values()) else None)
+    if not isinstance(params_raw, dict) or not params_raw:
+        raise IlicError(where, "no 'parameters' in the model file (expected ilic identify output or {\"M\": ..., ...})")
+    params: dict[str, float] = {}
+    for name, value in params_raw.items():
+        if isinstance(value, dict):
+            value = value.get("value")
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise IlicError(where, f"parameter '{name}' has no numeric value")
+        params[str(name)] = float(value)
+    effects = doc.get("effects", {}) or {}
+    if not isinstance(effects, dict):
+        raise IlicError(where, "'effects' must be an object of effect id -> parameters")
+    return {"model": section.get("model", doc.get("model")), "parameters": params, "effects": effects}
+
+
+def load_model_file(path: str | Path) -> dict[str, Any]:
+    """Read a model file; :class:`IlicError` (exit 2) for a missing or malformed one."""
+    p = Path(path)
+    try:
+        doc = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise IlicError(p, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise IlicError(p, f"cannot read: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise IlicError(p, f"not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    return parse_model(doc, str(p))
+
+
+def model_document(model: str, parameters: dict[str, float], *, method: str, effects: dict[str, Any] | None = None, source: str | None = None) -> dict[str, Any]:
+    """Build the JSON document of a model file."""
+    return {
+        "ilic_model": MODEL_FILE_VERSION,
+        "model": model,
+        "method": method,
+        "parameters": {k: float(v) for k, v in parameters.items()},
+        "effects": effects or {},
+        "source": source,
+    }

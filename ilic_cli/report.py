@@ -1,0 +1,129 @@
+"""Renderers: identification results as Markdown, CSV and JSON text.
+
+Pure functions from result objects to strings; the CLI decides where they go.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ilic_cli.identify import IdentifyReport
+
+MAX_WINDOW_COLUMNS = 8
+UNITS = {"M": "kg", "Fv": "N·s/m", "Fc": "N", "offset": "N", "Fv_pos": "N·s/m", "Fc_pos": "N", "Fv_neg": "N·s/m", "Fc_neg": "N"}
+
+
+def fmt(x: float | None, decimals: int = 4) -> str:
+    """Fixed-point number, or an em dash for a missing or infinite value."""
+    if x is None or not math.isfinite(float(x)):
+        return "—"
+    return f"{float(x):.{decimals}f}"
+
+
+def fmt_sig(x: float | None, digits: int = 4) -> str:
+    """Number with ``digits`` significant digits (paper-table style)."""
+    if x is None or not math.isfinite(float(x)):
+        return "—"
+    x = float(x)
+    if x == 0:
+        return "0"
+    if abs(x) >= 1e5 or abs(x) < 1e-3:
+        return f"{x:.{digits - 1}e}"
+    return f"{x:.{digits}g}" if abs(x) >= 10 ** (digits - 1) else f"{x:.{max(digits - 1 - int(math.floor(math.log10(abs(x)))), 0)}f}"
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(" --- " for _ in header) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return lines
+
+
+def _label(name: str) -> str:
+    unit = UNITS.get(name)
+    return f"{name} ({unit})" if unit else name
+
+
+def to_markdown(report: IdentifyReport) -> str:
+    """The report as Markdown: IDIM-LS table, Table II layout, validation."""
+    out: list[str] = [f"# Identification of {report.source or 'log'}", ""]
+    out.append(f"Model `{report.model}`; {report.samples} samples at {report.fs_hz:g} Hz.")
+    out.append("")
+    if report.ls is not None:
+        r = report.ls.result
+        out += ["## IDIM-LS", ""]
+        out += _table(["parameter", "value", "std", "rel. std %"], [[_label(n), fmt(v), fmt(s), fmt(p)] for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True)])
+        out += ["", f"Condition number {fmt(r.condition_number)}; error norm {fmt(r.error_norm)}; relative error {fmt(r.relative_error_pct)} %; error std {fmt(r.sigma_rho)}.", ""]
+    if report.ilic is not None:
+        wins = report.ilic.windows
+        shown = wins[:MAX_WINDOW_COLUMNS]
+        s = report.ilic.settings
+        out += ["## IDIM-ILIC per window" + (" next to IDIM-LS" if report.ls is not None else ""), ""]
+        out.append(f"Windows of {s.window_s:g} s on the reference trajectory; force low-pass {s.cutoff_hz:g} Hz and decimated; %σ_max = {s.sigma_max_pct:g} (a † marks a parameter that is not essential and would not be updated).")
+        out.append("")
+        header = ["parameter"]
+        for w in shown:
+            header += [f"χ̂{_sup(w.k)}", "%σ"]
+        if report.ls is not None:
+            header += ["IDIM-LS", "%σ"]
+        rows: list[list[str]] = []
+        names = report.ilic.names
+        for i, n in enumerate(names):
+            row = [_label(n)]
+            for w in shown:
+                mark = "" if w.essential[i] else " †"
+                row += [fmt_sig(w.result.theta[i]) + mark, fmt_sig(w.result.rel_std_pct[i], 2)]
+            if report.ls is not None:
+                row += [fmt_sig(report.ls.result.theta[i]), fmt_sig(report.ls.result.rel_std_pct[i], 2)]
+            rows.append(row)
+        err = ["‖Y−Wχ̂‖/‖Y‖"]
+        for w in shown:
+            err += [fmt_sig(w.result.relative_error_pct, 2) + " %", ""]
+        if report.ls is not None:
+            err += [fmt_sig(report.ls.result.relative_error_pct, 2) + " %", ""]
+        rows.append(err)
+        track = ["‖e_q‖/‖q−q̄‖"]
+        for w in shown:
+            track += [fmt_sig(w.tracking_error_ratio, 2), ""]
+        if report.ls is not None:
+            track += ["", ""]
+        rows.append(track)
+        out += _table(header, rows)
+        if len(wins) > len(shown):
+            out += ["", f"({len(wins) - len(shown)} more windows: use --format csv or json.)"]
+        if report.ilic.dropped_s > 0:
+            out += ["", f"The last {report.ilic.dropped_s:.3g} s (shorter than a window) were not used."]
+        out.append("")
+    if report.validation:
+        out += ["## Cross-test validation", ""]
+        out += _table(["log", "estimates", "relative error %", "error norm", "error std", "condition number"], [[v.source, v.method, fmt(v.result.relative_error_pct), fmt(v.result.error_norm), fmt(v.result.sigma_rho), fmt(v.result.condition_number)] for v in report.validation])
+        out.append("")
+    if report.warnings:
+        out += ["## Warnings", ""] + [f"- {w}" for w in report.warnings] + [""]
+    return "\n".join(out)
+
+
+def _sup(k: int) -> str:
+    return str(k).translate(str.maketrans("0123456789", "⁰¹²³⁴⁵⁶⁷⁸⁹"))
+
+
+def to_json(doc: Any) -> str:
+    """JSON text (non-finite numbers already mapped to null by ``to_dict``)."""
+    return json.dumps(doc, indent=2, allow_nan=False, default=_default) + "\n"
+
+
+def _default(obj: Any) -> Any:
+    import numpy as np
+
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def to_csv(report: IdentifyReport) -> str:
+    """Tidy CSV: one row per method, window and parameter."""
+    return str(report.to_frame().to_csv(index=False, float_format="%.10g"))

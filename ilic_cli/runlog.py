@@ -1,0 +1,187 @@
+"""The one run-log model: time-indexed samples of one axis plus metadata.
+
+A :class:`RunLog` holds equally long float64 arrays (channels) keyed by name,
+their units, and a JSON-serialisable metadata dictionary. Every reader returns
+one and every writer takes one, so simulation, identification and diagnosis
+share one shape of data.
+
+Channels
+--------
+``t`` (s), ``q`` measured position (m or rad), ``tau`` joint force/torque
+(N or N·m) are required. ``q_ref``, ``qd_ref``, ``qdd_ref`` (reference position,
+velocity, acceleration), ``qd`` (measured velocity), ``vir`` (drive command, V)
+and ``pulses`` are optional, and any other named channel may be added.
+
+Metadata keys (all optional)
+----------------------------
+``sample_rate_hz`` nominal rate; ``drive_gain`` force per volt (N/V);
+``controller`` dict with ``kind`` (``"pd"``, ``"ctc"``) and its gains;
+``true_parameters`` dict when simulated; ``scenario`` and ``simulation``
+dicts written by ``ilic simulate``; ``source`` the file it was read from;
+``joint`` the joint name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ilic_cli.errors import LogError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+REQUIRED: tuple[str, ...] = ("t", "q", "tau")
+"""Channels every log must have."""
+
+DEFAULT_UNITS: dict[str, str] = {
+    "t": "s",
+    "q": "m",
+    "qd": "m/s",
+    "q_ref": "m",
+    "qd_ref": "m/s",
+    "qdd_ref": "m/s^2",
+    "tau": "N",
+    "vir": "V",
+    "pulses": "1",
+}
+"""Units assumed for the standard channels when a file does not say."""
+
+CANONICAL_ORDER: tuple[str, ...] = ("t", "q", "qd", "q_ref", "qd_ref", "qdd_ref", "tau", "vir", "pulses")
+
+
+@dataclass
+class RunLog:
+    """Samples of one axis over one run.
+
+    Parameters
+    ----------
+    channels : dict of str to ndarray
+        Equally long one-dimensional float64 arrays; must include ``t``, ``q``
+        and ``tau``.
+    units : dict of str to str
+        Unit of each channel; missing entries default to :data:`DEFAULT_UNITS`.
+    meta : dict
+        JSON-serialisable metadata (see the module docstring).
+    """
+
+    channels: dict[str, np.ndarray]
+    units: dict[str, str] = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        chans: dict[str, np.ndarray] = {}
+        for name in sorted(self.channels, key=_channel_sort_key):
+            chans[name] = np.ascontiguousarray(np.asarray(self.channels[name], dtype=np.float64).reshape(-1))
+        self.channels = chans
+        lengths = {len(v) for v in chans.values()}
+        if len(lengths) > 1:
+            detail = ", ".join(f"{k}={len(v)}" for k, v in chans.items())
+            raise LogError(self.meta.get("source"), f"channels differ in length ({detail})")
+        for name in chans:
+            self.units.setdefault(name, DEFAULT_UNITS.get(name, ""))
+        self.units = {k: self.units[k] for k in chans}
+
+    # -- access -----------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.channels["t"]) if "t" in self.channels else 0
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.channels
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.channels[name]
+        except KeyError:
+            raise LogError(self.meta.get("source"), f"missing required channel '{name}'") from None
+
+    @property
+    def t(self) -> np.ndarray:
+        """Time stamps (s)."""
+        return self["t"]
+
+    @property
+    def dt_s(self) -> float:
+        """Nominal sample period (s): from ``sample_rate_hz`` or the median step."""
+        rate = self.meta.get("sample_rate_hz")
+        if rate:
+            return 1.0 / float(rate)
+        t = self.t
+        if len(t) < 2:
+            raise LogError(self.meta.get("source"), "fewer than two samples: no sample period")
+        return float(np.median(np.diff(t)))
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first to the last sample (s)."""
+        t = self.t
+        return float(t[-1] - t[0]) if len(t) else 0.0
+
+    def require(self, *names: str) -> None:
+        """Raise :class:`LogError` naming the first channel in ``names`` that is missing."""
+        for name in names:
+            if name not in self.channels:
+                raise LogError(self.meta.get("source"), f"missing required channel '{name}'")
+
+    def with_channels(self, **arrays: np.ndarray) -> RunLog:
+        """Return a copy with channels added or replaced."""
+        chans = dict(self.channels)
+        chans.update(arrays)
+        return RunLog(chans, dict(self.units), dict(self.meta))
+
+    def slice(self, start: int, stop: int) -> RunLog:
+        """Return the samples ``start:stop`` as a new log (metadata copied)."""
+        return RunLog({k: v[start:stop] for k, v in self.channels.items()}, dict(self.units), dict(self.meta))
+
+    # -- conversions ------------------------------------------------------
+    def to_frame(self) -> pd.DataFrame:
+        """Return the samples as a DataFrame indexed by ``t``."""
+        import pandas as pd
+
+        frame = pd.DataFrame({k: v for k, v in self.channels.items() if k != "t"}, index=pd.Index(self.t, name="t"))
+        return frame
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-serialisable summary (no samples)."""
+        return {
+            "samples": len(self),
+            "channels": list(self.channels),
+            "units": dict(self.units),
+            "meta": self.meta,
+        }
+
+
+def _channel_sort_key(name: str) -> tuple[int, str]:
+    try:
+        return (CANONICAL_ORDER.index(name), name)
+    except ValueError:
+        return (len(CANONICAL_ORDER), name)
+
+
+def validate_samples(log: RunLog, where: str | None = None) -> None:
+    """Refuse logs whose samples cannot be used.
+
+    Raises :class:`LogError` for: a missing ``t``/``q``/``tau`` channel, fewer
+    than two samples, NaN or infinite samples, and non-increasing (duplicated
+    or backwards) timestamps. Irregular but increasing sampling is accepted
+    here and reported by the quality checks.
+    """
+    src = where or log.meta.get("source")
+    for name in REQUIRED:
+        if name not in log.channels:
+            raise LogError(src, f"missing required channel '{name}'")
+    if len(log) < 2:
+        raise LogError(src, f"only {len(log)} sample(s): a log needs at least two")
+    for name, values in log.channels.items():
+        bad = ~np.isfinite(values)
+        if bad.any():
+            i = int(np.argmax(bad))
+            kind = "NaN" if np.isnan(values[i]) else "infinite"
+            raise LogError(src, f"channel '{name}' has {int(bad.sum())} NaN/inf sample(s), first {kind} at index {i}")
+    step = np.diff(log.t)
+    if (step <= 0).any():
+        i = int(np.argmax(step <= 0))
+        what = "duplicated" if step[i] == 0 else "non-monotonic"
+        raise LogError(src, f"{what} timestamps at index {i + 1} (t = {log.t[i + 1]:.9g} s)")
