@@ -114,6 +114,18 @@ def write_log(log: RunLog, path: str | Path, fmt: str | None = None, options: Wr
 
     p = Path(path)
     name = detect_format(p, fmt, for_writing=True)
+    if p.is_dir() and (name != "rosbag2" or p.is_symlink() or not (p / "metadata.yaml").is_file()):
+        raise LogError(p, "is an existing folder that is not a ROS 2 bag; will not replace it (choose another output path)")
+    if name == "rosbag2" and p.exists() and not p.is_dir():
+        raise LogError(p, "a ROS 2 bag is a folder, but this path is an existing file; choose another output path")
     with atomic_path(p, directory=(name == "rosbag2"), inputs=inputs) as tmp:
-        _module(name).write(log, tmp, options or WriteOptions())
+        try:
+            _module(name).write(log, tmp, options or WriteOptions())
+        except LogError as exc:
+            # writers only know the temporary path: name the target instead
+            if exc.where is None or exc.where == str(tmp):
+                raise LogError(p, exc.problem) from None
+            raise
+        except OSError as exc:
+            raise LogError(p, f"cannot write: {exc.strerror or exc}") from None
     return p

@@ -45,6 +45,9 @@ def atomic_path(target: str | Path, *, directory: bool = False, inputs: tuple[st
         tmp = Path(name)
     try:
         yield tmp
+        if tmp.is_file():
+            # mkstemp creates 0600; give the output the usual permissions
+            os.chmod(tmp, 0o666 & ~_umask())
         if target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
         os.replace(tmp, target)
@@ -54,6 +57,12 @@ def atomic_path(target: str | Path, *, directory: bool = False, inputs: tuple[st
         else:
             tmp.unlink(missing_ok=True)
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def atomic_write_text(target: str | Path, text: str, *, inputs: tuple[str | Path, ...] = ()) -> None:

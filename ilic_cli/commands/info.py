@@ -1,0 +1,150 @@
+"""``ilic info``: what is in a log, and whether it is fit for identification."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import click
+
+from ilic_cli.commands.common import input_options, load
+
+if TYPE_CHECKING:
+    from ilic_cli.runlog import RunLog
+
+
+def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
+    """Return the facts ``ilic info`` reports, as a JSON-serialisable dict.
+
+    Parameters
+    ----------
+    log : RunLog
+        The log that was read.
+    path : str or Path
+        The file it came from.
+    fmt : str
+        Its format name.
+
+    Returns
+    -------
+    dict
+        ``file``, ``format``, ``samples``, ``duration_s``, ``sample_rate_hz``,
+        ``channels`` (name, unit, min, max), ``drive_gain``, ``controller``,
+        ``scenario``, ``true_parameters``, ``joint``, ``meta`` (the rest) and
+        ``quality`` (:meth:`QualityReport.to_dict`).
+    """
+    from ilic_cli.quality import assess_log, nominal_rate_hz
+
+    meta = log.meta
+    rate = meta.get("sample_rate_hz")
+    if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not rate > 0:
+        rate = nominal_rate_hz(log.t)
+    channels = [
+        {"name": name, "unit": log.units.get(name, ""), "min": float(values.min()), "max": float(values.max())}
+        for name, values in log.channels.items()
+    ]
+    shown = {"sample_rate_hz", "drive_gain", "controller", "scenario", "true_parameters", "joint", "source"}
+    return {
+        "file": str(path),
+        "format": fmt,
+        "samples": len(log),
+        "duration_s": log.duration_s,
+        "sample_rate_hz": float(rate) if rate else None,
+        "channels": channels,
+        "drive_gain": meta.get("drive_gain"),
+        "controller": meta.get("controller"),
+        "scenario": meta.get("scenario"),
+        "true_parameters": meta.get("true_parameters"),
+        "joint": meta.get("joint"),
+        "meta": {k: v for k, v in meta.items() if k not in shown},
+        "quality": assess_log(log).to_dict(),
+    }
+
+
+def _num(value: Any) -> str:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return str(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    return f"{value:.6g}"
+
+
+def _rate_text(rate: float | None) -> str:
+    if not rate:
+        return "unknown"
+    if rate >= 1000 and rate % 1000 == 0:
+        return f"{rate:g} Hz ({rate / 1000:g} kHz, nominal)"
+    return f"{rate:.6g} Hz (nominal)"
+
+
+def _mapping(value: Any) -> str:
+    if isinstance(value, dict):
+        return ", ".join(f"{k}={_num(v) if not isinstance(v, (dict, list)) else v}" for k, v in value.items())
+    return str(value)
+
+
+def render_markdown(summary: dict[str, Any]) -> str:
+    """Render :func:`summarize` output as Markdown text."""
+    lines = [f"# {summary['file']}", ""]
+    gain = summary["drive_gain"]
+    lines += [
+        f"- format: {summary['format']}",
+        f"- samples: {summary['samples']}",
+        f"- duration: {summary['duration_s']:.6g} s",
+        f"- sample rate: {_rate_text(summary['sample_rate_hz'])}",
+        f"- drive gain: {_num(gain) + ' N/V' if gain is not None else 'unknown'}",
+        f"- controller: {_mapping(summary['controller']) if summary['controller'] else 'unknown'}",
+    ]
+    if summary["joint"]:
+        lines.append(f"- joint: {summary['joint']}")
+    if summary["scenario"] is not None:
+        lines.append(f"- scenario: {_mapping(summary['scenario'])}")
+    if summary["true_parameters"] is not None:
+        lines.append(f"- true parameters: {_mapping(summary['true_parameters'])}")
+    lines += ["", "## Channels", "", "| channel | unit | min | max |", "| --- | --- | --- | --- |"]
+    for ch in summary["channels"]:
+        lines.append(f"| {ch['name']} | {ch['unit']} | {_num(ch['min'])} | {_num(ch['max'])} |")
+    q = summary["quality"]
+    lines += ["", "## Data quality", ""]
+    lines.append(f"- steps: median {_num(q['median_step_s'])} s, max {_num(q['max_step_s'])} s, jitter {100 * q['jitter']:.3g} %")
+    lines.append(f"- gaps: {q['gaps']} (about {q['dropped_samples']} dropped samples)")
+    if q["saturation_share"] is not None:
+        state = f"saturated at +/-{_num(q['saturation_limit'])}" if q["saturation_limit"] is not None else "not saturated"
+        lines.append(f"- drive command: {state} ({100 * q['saturation_share']:.3g} % of samples at max |vir|)")
+    lines.append(f"- frozen sensor runs: {len(q['frozen_runs'])}")
+    warnings = [f["message"] for f in q["findings"] if f["severity"] == "warning"]
+    if warnings:
+        lines += ["", "Warnings:"] + [f"- {w}" for w in warnings]
+    else:
+        lines.append("- no problems found")
+    return "\n".join(lines) + "\n"
+
+
+@click.command("info", help="Summarise a log: duration, rate, channels, ranges, drive gain, data quality.")
+@click.argument("log_path", metavar="LOG", type=click.Path(path_type=Path))
+@click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="Markdown text or JSON (JSON only on stdout).")
+@input_options
+def command(log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+    """Print the summary of LOG on stdout."""
+    import json
+
+    from ilic_cli.io import detect_format
+
+    fmt = detect_format(log_path, input_format)
+    log = load(log_path, input_format, topic, ref_topic, joint)
+    summary = summarize(log, log_path, fmt)
+    if out_format == "json":
+        click.echo(json.dumps(summary, indent=2, default=_json_default))
+    else:
+        click.echo(render_markdown(summary), nl=False)
+
+
+def _json_default(obj: Any) -> Any:
+    import numpy as np
+
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)

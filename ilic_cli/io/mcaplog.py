@@ -1,0 +1,257 @@
+"""MCAP files with ROS 2 (CDR) messages, read and written with the ``mcap`` package.
+
+Writing: one schema per message type (encoding ``ros2msg``, the concatenated
+``.msg`` text that Foxglove and other MCAP viewers decode), channels with
+message encoding ``cdr``, zstd-compressed chunks (lz4 or none when the
+compressor is not importable) with chunk and data-section CRCs, library string
+``ilic <version>``: the same log always gives the same bytes. Message bodies
+come from :mod:`ilic_cli.io.rosmsgs`.
+
+Reading streams the file once with :class:`mcap.stream_reader.StreamReader`
+(CRC validation on). Before a chunk is decompressed its declared size is
+checked against ``min(2 GiB, 64 x file size)`` and the decompressor is capped
+at that size, so a hostile file cannot exhaust memory. ``ros1`` encoded
+channels are decoded too; other encodings are refused.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ilic_cli.errors import LogError
+from ilic_cli.io import rosmsgs
+
+if TYPE_CHECKING:
+    from ilic_cli.io import Selection, WriteOptions
+    from ilic_cli.runlog import RunLog
+
+MAX_CHUNK_BYTES = 2 * 2**30
+"""Largest uncompressed chunk accepted (bytes)."""
+
+MAX_EXPANSION = 64
+"""Largest accepted ratio of a chunk's uncompressed size to the file size."""
+
+
+def _compression() -> Any:
+    from mcap.writer import CompressionType
+
+    try:
+        import zstandard  # noqa: F401
+
+        return CompressionType.ZSTD
+    except ImportError:
+        pass
+    try:
+        import lz4.frame  # noqa: F401
+
+        return CompressionType.LZ4
+    except ImportError:
+        return CompressionType.NONE
+
+
+def write(log: RunLog, path: Path, options: WriteOptions) -> None:
+    """Write ``log`` to ``path`` as an MCAP file with ROS 2 CDR messages.
+
+    Parameters
+    ----------
+    log : RunLog
+        The log to write.
+    path : Path
+        Destination file (a temporary path chosen by ``write_log``).
+    options : WriteOptions
+        ``options.joint`` names the joint unless ``log.meta["joint"]`` does.
+    """
+    from mcap.writer import Writer
+
+    from ilic_cli import __version__
+
+    joint = rosmsgs.writer_joint(log, options.joint)
+    topics, messages = rosmsgs.encode(log, joint, rosmsgs.ROS2)
+    with open(path, "wb") as stream:
+        writer = Writer(stream, compression=_compression(), enable_crcs=True, enable_data_crcs=True)
+        writer.start(profile="ros2", library=f"ilic {__version__}")
+        schema_ids: dict[str, int] = {}
+        channel_ids: dict[str, int] = {}
+        for spec in topics:
+            if spec.msgtype not in schema_ids:
+                text, _ = rosmsgs.message_definition(spec.msgtype, rosmsgs.ROS2)
+                schema_ids[spec.msgtype] = writer.register_schema(name=spec.msgtype, encoding="ros2msg", data=text.encode("utf-8"))
+            channel_ids[spec.topic] = writer.register_channel(topic=spec.topic, message_encoding="cdr", schema_id=schema_ids[spec.msgtype])
+        counts: dict[str, int] = {}
+        for topic, log_ns, data in messages:
+            seq = counts.get(topic, 0)
+            counts[topic] = seq + 1
+            writer.add_message(channel_id=channel_ids[topic], log_time=log_ns, publish_time=log_ns, data=data, sequence=seq)
+        writer.finish()
+
+
+@dataclass
+class McapContent:
+    """Topics and raw messages of an MCAP file (see :func:`scan`)."""
+
+    topics: dict[str, rosmsgs.RawTopic] = field(default_factory=dict)
+    raw: dict[str, list[tuple[int, bytes]]] = field(default_factory=dict)
+
+    def messages(self, topic: str) -> Iterable[tuple[int, bytes]]:
+        """Yield ``(log_time_ns, data)`` of ``topic`` in log-time order."""
+        return iter(self.raw.get(topic, []))
+
+
+def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
+    size = int(chunk.uncompressed_size)
+    if size > limit:
+        raise LogError(path, f"MCAP chunk declares {size} uncompressed bytes (limit {limit}); file is corrupt or hostile")
+    if chunk.compression == "":
+        data = bytes(chunk.data)
+    elif chunk.compression == "zstd":
+        import zstandard
+
+        import io
+
+        # a streaming read stops at size + 1 bytes whatever the frame header claims
+        with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data)) as reader:
+            data = reader.read(size + 1)
+    elif chunk.compression == "lz4":
+        import lz4.frame
+
+        data = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=size + 1)
+    else:
+        raise LogError(path, f"MCAP chunk compression '{chunk.compression}' is not supported")
+    if len(data) != size:
+        raise LogError(path, f"MCAP chunk decompresses to {len(data)} bytes, not the declared {size}; file is corrupt")
+    return data
+
+
+def scan(path: Path) -> McapContent:
+    """Read every schema, channel and message of an MCAP file, checking CRCs.
+
+    Parameters
+    ----------
+    path : Path
+        The MCAP file.
+
+    Returns
+    -------
+    McapContent
+        Topics (ROS message types normalised to ``pkg/msg/Type``) and raw
+        messages per topic sorted by log time.
+
+    Raises
+    ------
+    LogError
+        For a truncated, corrupt (CRC mismatch) or hostile file.
+    """
+    try:
+        return _scan(path)
+    except LogError:
+        raise
+    except MemoryError:
+        raise LogError(path, "MCAP file needs more memory than available; file is corrupt or too large") from None
+    except Exception as exc:  # noqa: BLE001 - every library failure is bad input
+        raise LogError(path, f"not a readable MCAP file: {_describe(exc)}") from None
+
+
+def _describe(exc: BaseException) -> str:
+    import struct
+
+    from mcap.exceptions import EndOfFile, InvalidMagic, RecordLengthLimitExceeded
+    from mcap.stream_reader import CRCValidationError
+
+    if isinstance(exc, CRCValidationError):
+        return f"CRC check failed in {type(exc.record).__name__} record (file is corrupt)"
+    if isinstance(exc, (EndOfFile, struct.error, EOFError)):
+        return "file is truncated or corrupt (unexpected end of data)"
+    if isinstance(exc, InvalidMagic):
+        return "bad magic bytes (not MCAP, or truncated)"
+    if isinstance(exc, RecordLengthLimitExceeded):
+        return "file is truncated or corrupt (a record runs past the end of the file)"
+    text = " ".join(str(exc).split())[:160]
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _scan(path: Path) -> McapContent:
+    from mcap.records import Channel, Chunk, Message, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    file_size = path.stat().st_size
+    limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(file_size, 1))
+    schemas: dict[int, Any] = {}
+    channels: dict[int, Any] = {}
+    messages: list[Any] = []
+
+    def take(record: Any) -> None:
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels[record.id] = record
+        elif isinstance(record, Message):
+            # keep only messages that can matter (bounded memory with e.g. camera topics)
+            channel = channels.get(record.channel_id)
+            schema = schemas.get(channel.schema_id) if channel is not None else None
+            if channel is None or schema is None or rosmsgs.normalize_msgtype(schema.name) in rosmsgs.READ_TYPES:
+                messages.append(record)
+
+    with open(path, "rb") as stream:
+        reader = StreamReader(stream, emit_chunks=True, validate_crcs=True, record_size_limit=file_size)
+        for record in reader.records:
+            if isinstance(record, Chunk):
+                try:
+                    data = _decompress(record, limit, path)
+                except LogError:
+                    raise
+                except Exception as exc:  # noqa: BLE001 - zstd/lz4 errors on damaged data
+                    raise LogError(path, f"not a readable MCAP file: a {record.compression} chunk cannot be decompressed (file is corrupt: {_describe(exc)})") from None
+                plain = Chunk(
+                    compression="",
+                    data=data,
+                    message_start_time=record.message_start_time,
+                    message_end_time=record.message_end_time,
+                    uncompressed_crc=record.uncompressed_crc,
+                    uncompressed_size=record.uncompressed_size,
+                )
+                for inner in breakup_chunk(plain, validate_crc=True):
+                    take(inner)
+            else:
+                take(record)
+    content = McapContent()
+    for channel_id, channel in channels.items():
+        schema = schemas.get(channel.schema_id)
+        if schema is None:
+            continue
+        encoding = channel.message_encoding
+        kind = rosmsgs.ROS2 if encoding == "cdr" else rosmsgs.ROS1 if encoding == "ros1" else encoding
+        topic = rosmsgs.RawTopic(channel.topic, rosmsgs.normalize_msgtype(schema.name), kind)
+        if channel.topic in content.topics and content.topics[channel.topic] != topic:
+            raise LogError(path, f"topic {channel.topic} appears with two message types")
+        content.topics[channel.topic] = topic
+        content.raw.setdefault(channel.topic, [])
+    by_channel = {cid: channels[cid].topic for cid in channels if channels[cid].topic in content.topics}
+    for message in messages:
+        topic_name = by_channel.get(message.channel_id)
+        if topic_name is not None:
+            content.raw[topic_name].append((int(message.log_time), bytes(message.data)))
+    for lst in content.raw.values():
+        lst.sort(key=lambda item: item[0])
+    return content
+
+
+def read(path: Path, selection: Selection) -> RunLog:
+    """Read a run log from an MCAP file.
+
+    Parameters
+    ----------
+    path : Path
+        The MCAP file.
+    selection : Selection
+        Topic, reference topic and joint (for files not written by ilic).
+
+    Returns
+    -------
+    RunLog
+    """
+    content = scan(path)
+    return rosmsgs.decode_guarded(content, selection, path, "MCAP")
+

@@ -1,0 +1,148 @@
+"""ROS 1 bags (``.bag``, format 2.0) through ``rosbags.rosbag1``.
+
+Messages use the ROS 1 Noetic types of the ``rosbags`` type store (the same
+topics as every ROS container, see :mod:`ilic_cli.io.rosmsgs`), uncompressed
+chunks, no caller id: the same log always gives the same bytes.
+
+Reading refuses connections whose MD5 sum differs from the built-in
+definition (a differently defined message of the same name), and caps chunk
+decompression at ``min(2 GiB, 64 x file size)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ilic_cli.errors import LogError
+from ilic_cli.io import rosmsgs
+
+if TYPE_CHECKING:
+    from ilic_cli.io import Selection, WriteOptions
+    from ilic_cli.runlog import RunLog
+
+MAX_CHUNK_BYTES = 2 * 2**30
+MAX_EXPANSION = 64
+
+
+def write(log: RunLog, path: Path, options: WriteOptions) -> None:
+    """Write ``log`` to a ROS 1 bag.
+
+    Parameters
+    ----------
+    log : RunLog
+        The log to write.
+    path : Path
+        Destination file (a temporary path chosen by ``write_log``; it may
+        exist empty and is replaced).
+    options : WriteOptions
+        ``options.joint`` names the joint unless ``log.meta["joint"]`` does.
+    """
+    from rosbags.rosbag1 import Writer
+
+    joint = rosmsgs.writer_joint(log, options.joint)
+    topics, messages = rosmsgs.encode(log, joint, rosmsgs.ROS1)
+    ts = rosmsgs.typestore(rosmsgs.ROS1)
+    path.unlink(missing_ok=True)  # rosbags refuses to overwrite the placeholder
+    writer = Writer(path)
+    writer.open()
+    try:
+        connections = {spec.topic: writer.add_connection(spec.topic, spec.msgtype, typestore=ts) for spec in topics}
+        for topic, log_ns, data in messages:
+            writer.write(connections[topic], log_ns, data)
+    except BaseException:
+        writer.abort()
+        raise
+    writer.close()
+
+
+def _bounded(decompress: Any, limit: int, path: Path) -> Any:
+    """Wrap a chunk decompressor so that it never returns more than ``limit`` bytes."""
+    import bz2
+
+    import lz4.frame
+
+    def run(data: bytes) -> bytes:
+        if decompress is bz2.decompress:
+            out = bz2.BZ2Decompressor().decompress(data, max_length=limit + 1)
+        elif decompress is lz4.frame.decompress:
+            out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=limit + 1)
+        else:  # uncompressed: the data already is in memory
+            out = decompress(data)
+        if len(out) > limit:
+            raise LogError(path, f"a bag chunk decompresses to more than {limit} bytes; file is corrupt or hostile")
+        return out
+
+    return run
+
+
+class _BagSource:
+    """:class:`rosmsgs.RawSource` over an open ``rosbags`` ROS 1 reader."""
+
+    def __init__(self, reader: Any, path: Path) -> None:
+        self.reader = reader
+        self.path = path
+        self.topics: dict[str, rosmsgs.RawTopic] = {}
+        self._connections: dict[str, list[Any]] = {}
+        for conn in reader.connections:
+            topic = rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), rosmsgs.ROS1)
+            if conn.topic in self.topics and self.topics[conn.topic] != topic:
+                raise LogError(path, f"topic {conn.topic} appears with two message types")
+            self.topics[conn.topic] = topic
+            self._connections.setdefault(conn.topic, []).append(conn)
+
+    def messages(self, topic: str) -> Iterable[tuple[int, bytes]]:
+        conns = self._connections.get(topic, [])
+        ts = rosmsgs.typestore(rosmsgs.ROS1)
+        msgtype = self.topics[topic].msgtype
+        if msgtype in ts.types:
+            _, md5 = ts.generate_msgdef(msgtype)
+            for conn in conns:
+                if conn.digest and conn.digest != md5:
+                    raise LogError(self.path, f"topic {topic}: definition of {msgtype} differs from the standard one (md5 {conn.digest})")
+        for _conn, log_ns, data in self.reader.messages(connections=conns):
+            yield log_ns, data
+
+
+def read(path: Path, selection: Selection) -> RunLog:
+    """Read a run log from a ROS 1 bag.
+
+    Parameters
+    ----------
+    path : Path
+        The ``.bag`` file.
+    selection : Selection
+        Topic, reference topic and joint (for bags not written by ilic).
+
+    Returns
+    -------
+    RunLog
+    """
+    from rosbags.rosbag1 import Reader
+
+    limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(path.stat().st_size, 1))
+    try:
+        reader = Reader(path)
+        reader.open()
+    except LogError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds (incl. AssertionError) on bad files
+        raise LogError(path, f"not a readable ROS 1 bag ({_describe(exc)})") from None
+    try:
+        for pos, chunk in list(reader.chunks.items()):
+            reader.chunks[pos] = chunk._replace(decompressor=_bounded(chunk.decompressor, limit, path))
+        source = _BagSource(reader, path)
+        return rosmsgs.decode_guarded(source, selection, path, "ROS 1 bag")
+    finally:
+        try:
+            reader.close()
+        except Exception:  # noqa: BLE001, S110 - closing a broken reader must not mask the real error
+            pass
+
+
+def _describe(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())[:160]
+    if isinstance(exc, (EOFError,)) or "unexpected end" in text.lower() or "truncat" in text.lower():
+        return "file is truncated"
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
