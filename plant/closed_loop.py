@@ -1,0 +1,536 @@
+"""The closed loop: compiled inner loop (controller per period, fixed-step RK4) and its drivers.
+
+One function, :func:`run_periods`, advances the closed loop over control
+periods ``k0 .. k1-1``. Everything it needs is in flat float64 vectors
+(``plant.dynamics.plant_vector``, ``plant.controllers`` ``vector()``), so it
+compiles once with numba (``cache=True``: the machine code is cached in
+``__pycache__``; the first compile takes a few seconds).
+
+Integration
+-----------
+Each control period is split into ``substeps`` equal RK4 steps with the
+control force held constant. The friction direction ``s`` is frozen over a
+step (so each step integrates smooth dynamics) and chosen at its start:
+
+* ``|qd| > STICK_VELOCITY``: ``s = sign(qd)`` (sliding);
+* otherwise (Karnopp stick/slip): the net non-friction force ``f`` on the
+  motor is compared with the static level (``Fc + Fs`` in the direction of
+  ``f``): beyond it ``s = sign(f)`` (break-away), within it the axis sticks
+  (``s = 0``: ``qd = 0`` and no motion of the motor side over the step).
+
+If a sliding step ends with the velocity of the opposite sign, the step is
+redone up to the zero crossing (located by linear interpolation of the
+velocity), the velocity is set to exactly 0 and the rest of the step starts
+with a new stick/slip decision. The result is deterministic and does not
+depend on luck at zero crossings.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numba import njit
+
+from ilic_cli.errors import SimulationError
+
+from plant.controllers import (C_ALPHA, C_ASYM, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_VMAX, CTCSettings, PDSettings,
+                               chi_vector)
+from plant.dynamics import (P_DM, P_FC_NEG, P_FC_POS, P_FLEX_C, P_FLEX_K, P_FLEX_R, P_FMAX, P_FS, P_FV_NEG, P_FV_POS, P_K,
+                            P_M, P_OFFSET, P_Q0, P_RES, P_RIP_A, P_RIP_L, P_RIP_PH, P_TCH, P_VEPS, P_VS, STICK_VELOCITY, AsymmetricFriction,
+                            Effect, Effects, RigidParameters, effects_to_dict, make_effects, plant_vector)
+
+if TYPE_CHECKING:
+    from ilic_cli.runlog import RunLog
+
+TWO_PI = 2.0 * math.pi
+TWO_OVER_PI = 2.0 / math.pi
+
+
+@njit(cache=True)
+def _nonfriction(p, u, x0, x1, x2, x3, flex):
+    """Net force on the motor side without friction, and the coupling force on the load."""
+    f = u - p[P_OFFSET]
+    if p[P_RIP_A] != 0.0:
+        f -= p[P_RIP_A] * math.sin(TWO_PI * x0 / p[P_RIP_L] + p[P_RIP_PH])
+    if p[P_K] != 0.0:
+        f -= p[P_K] * (x0 - p[P_Q0])
+    fc = 0.0
+    if flex:
+        fc = p[P_FLEX_K] * (x0 - x2) + p[P_FLEX_C] * (x1 - x3)
+        f -= fc
+    return f, fc
+
+
+@njit(cache=True)
+def _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex):
+    f, fc = _nonfriction(p, u, x0, x1, x2, x3, flex)
+    al = fc / ml if flex else 0.0
+    if s == 0:
+        return 0.0, 0.0, x3, al
+    if s > 0:
+        fr = p[P_FV_POS] * x1 + p[P_FC_POS]
+    else:
+        fr = p[P_FV_NEG] * x1 - p[P_FC_NEG]
+    if p[P_FS] != 0.0:
+        r = x1 / p[P_VS]
+        fr += s * p[P_FS] * math.exp(-r * r)
+    return x1, (f - fr) / mm, x3, al
+
+
+@njit(cache=True)
+def _rk4(p, s, u, x0, x1, x2, x3, h, mm, ml, flex):
+    a0, a1, a2, a3 = _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex)
+    hh = 0.5 * h
+    b0, b1, b2, b3 = _deriv(p, s, u, x0 + hh * a0, x1 + hh * a1, x2 + hh * a2, x3 + hh * a3, mm, ml, flex)
+    c0, c1, c2, c3 = _deriv(p, s, u, x0 + hh * b0, x1 + hh * b1, x2 + hh * b2, x3 + hh * b3, mm, ml, flex)
+    d0, d1, d2, d3 = _deriv(p, s, u, x0 + h * c0, x1 + h * c1, x2 + h * c2, x3 + h * c3, mm, ml, flex)
+    h6 = h / 6.0
+    return (x0 + h6 * (a0 + 2.0 * b0 + 2.0 * c0 + d0), x1 + h6 * (a1 + 2.0 * b1 + 2.0 * c1 + d1),
+            x2 + h6 * (a2 + 2.0 * b2 + 2.0 * c2 + d2), x3 + h6 * (a3 + 2.0 * b3 + 2.0 * c3 + d3))
+
+
+@njit(cache=True)
+def _direction(p, u, x0, x1, x2, x3, flex):
+    """Friction direction for the next step (sliding sign, or the Karnopp stick/slip decision)."""
+    if x1 > p[P_VEPS]:
+        return 1
+    if x1 < -p[P_VEPS]:
+        return -1
+    f, _ = _nonfriction(p, u, x0, x1, x2, x3, flex)
+    if f > p[P_FC_POS] + p[P_FS]:
+        return 1
+    if f < -(p[P_FC_NEG] + p[P_FS]):
+        return -1
+    return 0
+
+
+@njit(cache=True)
+def _step(p, u, x0, x1, x2, x3, h, mm, ml, flex):
+    s = _direction(p, u, x0, x1, x2, x3, flex)
+    if s == 0:
+        x1 = 0.0
+    y0, y1, y2, y3 = _rk4(p, s, u, x0, x1, x2, x3, h, mm, ml, flex)
+    if s != 0 and y1 * s < 0.0:
+        th = x1 / (x1 - y1)
+        if th < 0.0:
+            th = 0.0
+        elif th > 1.0:
+            th = 1.0
+        y0, y1, y2, y3 = _rk4(p, s, u, x0, x1, x2, x3, th * h, mm, ml, flex)
+        y1 = 0.0
+        s2 = _direction(p, u, y0, y1, y2, y3, flex)
+        y0, y1, y2, y3 = _rk4(p, s2, u, y0, y1, y2, y3, (1.0 - th) * h, mm, ml, flex)
+        if s2 == 0 or y1 * s2 < 0.0:
+            y1 = 0.0
+    return y0, y1, y2, y3
+
+
+@njit(cache=True)
+def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T,
+                out_q, out_u, out_vir, out_qtrue):
+    """Advance the closed loop over periods ``k0 <= k < k1``.
+
+    ``x`` (motor q, qd, load q, qd) and ``cs`` (previous measured q, previous
+    filtered q, previous PD output, initialised flag) are updated in place.
+    Returns -1, or the index of the first period whose state is not finite.
+    """
+    flex = p[P_FLEX_K] > 0.0
+    h = T / substeps
+    x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
+    pd = c[C_KIND] == 1.0
+    res = p[P_RES]
+    fmax = p[P_FMAX]
+    for k in range(k0, k1):
+        qm = x0 + noise_q[k]
+        if res > 0.0:
+            qm = math.floor(qm / res + 0.5) * res
+        if cs[3] == 0.0:
+            cs[0] = qm
+            cs[1] = qm
+            cs[2] = 0.0
+            cs[3] = 1.0
+        if pd:
+            qfm = 0.5 * qm + 0.5 * cs[0]
+            qdm = (qfm - cs[1]) / T
+            v = c[C_PD_KV] * (c[C_PD_KP] * (q_r[k] - qm) - qdm)
+            vd = cs[2]
+            if vd > c[C_VMAX]:
+                vd = c[C_VMAX]
+            elif vd < -c[C_VMAX]:
+                vd = -c[C_VMAX]
+            vir = vd + pulses[k]
+            u = c[C_GTAU] * vir
+            cs[1] = qfm
+            cs[2] = v
+        else:
+            qd_hat = (qm - cs[0]) / T
+            w = c[C_KP] * (q_r[k] - qm) + c[C_KV] * (qd_r[k] - qd_hat) + qdd_r[k]
+            sg = TWO_OVER_PI * math.atan(c[C_ALPHA] * qd_r[k])
+            if c[C_ASYM] != 0.0:
+                P = 0.5 * (1.0 + sg)
+                N = 0.5 * (1.0 - sg)
+                u = chi[0] * w + (chi[4] * qd_r[k] + chi[5] * sg) * P + (chi[6] * qd_r[k] + chi[7] * sg) * N
+            else:
+                u = chi[0] * w + chi[1] * qd_r[k] + chi[2] * sg + chi[3]
+            vir = u
+        cs[0] = qm
+        if u > fmax:
+            u = fmax
+        elif u < -fmax:
+            u = -fmax
+        out_q[k] = qm
+        out_u[k] = u
+        out_vir[k] = vir
+        out_qtrue[k] = x0
+        tk = k * T
+        for j in range(substeps):
+            dm = p[P_DM] if tk + j * h >= p[P_TCH] - 1e-12 else 0.0
+            if flex:
+                mm = (1.0 - p[P_FLEX_R]) * p[P_M]
+                ml = p[P_FLEX_R] * p[P_M] + dm
+            else:
+                mm = p[P_M] + dm
+                ml = 1.0
+            x0, x1, x2, x3 = _step(p, u, x0, x1, x2, x3, h, mm, ml, flex)
+        if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
+            x[0], x[1], x[2], x[3] = x0, x1, x2, x3
+            return k
+    x[0], x[1], x[2], x[3] = x0, x1, x2, x3
+    return -1
+
+
+def held_signal(u: np.ndarray, T: float, times: np.ndarray, width: float) -> np.ndarray:
+    """Sample the zero-order-held force ``u`` (``u[k]`` on ``[kT, (k+1)T)``, 0 before 0, last value after).
+
+    ``width == 0``: the value at ``times`` (right-continuous); otherwise the mean
+    over ``[times - width/2, times + width/2]`` (``0 < width <= T``: at most two
+    held values, weighted by their share of the interval; local, so a sample's
+    value does not depend on how much of the record is passed).
+    """
+    u = np.asarray(u, dtype=np.float64)
+    n = len(u)
+
+    def value(i: np.ndarray) -> np.ndarray:
+        return np.where(i >= 0, u[np.clip(i, 0, n - 1)], 0.0)
+
+    if width <= 0:
+        return value(np.floor(times / T + 1e-9).astype(np.int64))
+    if width > T * (1 + 1e-12):
+        raise ValueError("sensor width above one period")
+    lo = times - 0.5 * width
+    i = np.floor(lo / T + 1e-9).astype(np.int64)
+    edge = (i + 1) * T
+    first = np.clip(edge - lo, 0.0, width)
+    return (first * value(i) + (width - first) * value(i + 1)) / width
+
+
+# ---------------------------------------------------------------------------
+# drivers
+# ---------------------------------------------------------------------------
+TAU_SENSORS = ("centred", "command")
+"""How the logged force samples the held drive force: ``centred`` = mean over the
+sample interval centred on ``t_k`` (an integrating sensor; removes the half-period
+misalignment of a zero-order hold against the reference), ``command`` = the value
+applied from ``t_k`` (``gtau*vir``, the benchmark's definition)."""
+
+
+@dataclass
+class LoopResult:
+    """Samples of one closed-loop run (all arrays of length n)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    q_true: np.ndarray
+    u: np.ndarray
+    vir: np.ndarray
+    tau: np.ndarray
+    chi: np.ndarray
+    names: tuple[str, ...]
+    windows: list[Any] = field(default_factory=list)
+
+
+def measured_force(u: np.ndarray, T: float, n: int, effects: Effects, sensor: str, noise_tau: np.ndarray, start: int = 0) -> np.ndarray:
+    """The logged force of samples ``start .. n-1``: held force seen by the sensor, delayed, plus noise."""
+    delay = effects["delay"].delay if "delay" in effects else 0.0  # type: ignore[attr-defined]
+    width = T if sensor == "centred" else 0.0
+    times = np.arange(start, n) * T - delay
+    return held_signal(u, T, times, width) + noise_tau[start:n]
+
+
+def draw_noise(n: int, seed: int, effects: Effects) -> tuple[np.ndarray, np.ndarray]:
+    """Force and position noise, drawn up front from PCG64(seed): force first, then position."""
+    rng = np.random.Generator(np.random.PCG64(seed))
+    n_tau = rng.standard_normal(n)
+    n_q = rng.standard_normal(n)
+    e = effects.get("noise")
+    tau_std = e.tau_std if e is not None else 0.0  # type: ignore[attr-defined]
+    q_std = e.q_std if e is not None else 0.0  # type: ignore[attr-defined]
+    return n_tau * tau_std, n_q * q_std
+
+
+def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, params: RigidParameters, effects: Effects,
+                  controller: CTCSettings | PDSettings, fs_hz: float = 1000.0, substeps: int = 10, seed: int = 0,
+                  qd_log: np.ndarray | None = None, qdd_log: np.ndarray | None = None, pulses: np.ndarray | None = None,
+                  tau_sensor: str = "centred", chi_schedule: np.ndarray | None = None, x0: tuple[float, float] | None = None,
+                  progress: Callable[[int, int], None] | None = None) -> LoopResult:
+    """Run the closed loop over ``len(q_r)`` control periods.
+
+    Parameters
+    ----------
+    q_r, qd_r, qdd_r : ndarray
+        Reference used by the controller at each sample (PD: only ``q_r``).
+    params, effects : plant parameters and effects.
+    controller : CTCSettings or PDSettings
+        With ``CTCSettings.ilic`` the parameters are re-estimated online every
+        ``window_s`` by :func:`ilic_cli.idim_ilic.estimate_window` on the
+        window's logged reference (``qd_log, qdd_log``, default ``qd_r, qdd_r``)
+        and measured force, and updated by
+        :func:`ilic_cli.idim_ilic.update_parameters` (essential ones only).
+    chi_schedule : ndarray (n, b), optional
+        CTC parameters in force at each sample (replaying a logged controller);
+        disables the online update.
+    tau_sensor : ``centred`` or ``command`` (see :data:`TAU_SENSORS`).
+    x0 : (q, qd), optional
+        Initial state; default on the reference, ``(q_r[0], qd_r[0])``, with
+        the controller's memory (previous measured position) consistent with it.
+    """
+    from ilic_cli.idim_ilic import ILICSettings, estimate_window, update_parameters
+    from ilic_cli.regressor import get_model
+
+    n = len(q_r)
+    if n < 2:
+        raise SimulationError("--duration", "the simulation needs at least two control periods")
+    if not isinstance(substeps, (int, np.integer)) or substeps < 1:
+        raise SimulationError("--substeps", f"must be a positive integer (got {substeps})")
+    if tau_sensor not in TAU_SENSORS:
+        raise SimulationError("--tau-sensor", f"unknown sensor '{tau_sensor}' (choose from {', '.join(TAU_SENSORS)})")
+    controller.validate()
+    T = 1.0 / fs_hz
+    p = plant_vector(params, effects)
+    c = controller.vector()
+    q_r, qd_r, qdd_r = (np.ascontiguousarray(a, dtype=np.float64) for a in (q_r, qd_r, qdd_r))
+    qd_log = qd_r if qd_log is None else np.asarray(qd_log, dtype=np.float64)
+    qdd_log = qdd_r if qdd_log is None else np.asarray(qdd_log, dtype=np.float64)
+    pul = np.zeros(n) if pulses is None else np.ascontiguousarray(pulses, dtype=np.float64)
+    noise_tau, noise_q = draw_noise(n, seed, effects)
+    if x0 is None:
+        x0 = (float(q_r[0]), float(qd_r[0]))
+    x = np.array([x0[0], x0[1], x0[0], x0[1]], dtype=np.float64)
+    # controller memory as if the axis had been moving at qd0 before t = 0
+    q_prev = x0[0] - x0[1] * T
+    cs = np.array([q_prev, q_prev, 0.0, 1.0])
+    out_q, out_u, out_vir, out_qt = (np.zeros(n) for _ in range(4))
+
+    if isinstance(controller, CTCSettings):
+        model = get_model(controller.model)
+        names = model.names
+        init = controller.initial()
+        chi = np.array([init[nm] for nm in names], dtype=np.float64)
+    else:
+        model, names, chi = None, (), np.zeros(0)
+    chi_hist = np.zeros((n, len(names)))
+    windows: list[Any] = []
+
+    def run(a: int, b: int, chi_now: np.ndarray) -> None:
+        chi8 = chi_vector(names, chi_now) if len(names) else np.zeros(8)
+        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt)
+        if bad >= 0:
+            raise SimulationError("simulation", f"the closed loop diverged at t = {bad * T:.6g} s (non-finite state); check the parameters and gains")
+
+    if isinstance(controller, CTCSettings) and chi_schedule is not None:
+        sched = np.asarray(chi_schedule, dtype=np.float64)
+        change = np.flatnonzero(np.any(np.diff(sched, axis=0) != 0, axis=1)) + 1
+        bounds = [0, *change.tolist(), n]
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+            run(a, b, sched[a])
+        chi_hist[:] = sched
+    elif isinstance(controller, CTCSettings) and controller.ilic:
+        settings = ILICSettings(window_s=controller.window_s, cutoff_hz=controller.cutoff_hz, sigma_max_pct=controller.sigma_max_pct)
+        nwin = int(round(controller.window_s * fs_hz))
+        a, k = 0, 1
+        t_all = np.arange(n) * T
+        while a < n:
+            b = min(a + nwin, n)
+            run(a, b, chi)
+            chi_hist[a:b] = chi
+            if b - a == nwin:
+                tau_w = measured_force(out_u[:b], T, b, effects, tau_sensor, noise_tau[:b], start=a)
+                est = estimate_window(model, qd_log[a:b], qdd_log[a:b], tau_w, fs_hz, settings,  # type: ignore[arg-type]
+                                      q_ref=q_r[a:b], q=out_q[a:b], t=t_all[a:b], k=k)
+                windows.append(est)
+                chi = update_parameters(chi, est)
+                k += 1
+            if progress is not None:
+                progress(b, n)
+            a = b
+    else:
+        step = max(1, n // 50) if progress is not None else n
+        for a in range(0, n, step):
+            b = min(a + step, n)
+            run(a, b, chi)
+            if progress is not None:
+                progress(b, n)
+        chi_hist[:] = chi
+    tau = measured_force(out_u, T, n, effects, tau_sensor, noise_tau)
+    return LoopResult(t=np.arange(n) * T, q=out_q, q_true=out_qt, u=out_u, vir=out_vir, tau=tau, chi=chi_hist, names=names, windows=windows)
+
+
+# ---------------------------------------------------------------------------
+# logs
+# ---------------------------------------------------------------------------
+def loop_log(res: LoopResult, *, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, controller: CTCSettings | PDSettings,
+             params: RigidParameters, effects: Effects, fs_hz: float, substeps: int, seed: int, tau_sensor: str,
+             pulses: np.ndarray | None = None, meta: dict[str, Any] | None = None) -> RunLog:
+    """Build the run log of a closed-loop result (channels and metadata, see ``plant``)."""
+    from ilic_cli.runlog import RunLog
+
+    chans: dict[str, np.ndarray] = {"t": res.t, "q": res.q, "q_ref": q_ref, "qd_ref": qd_ref, "qdd_ref": qdd_ref, "tau": res.tau}
+    units: dict[str, str] = {}
+    if isinstance(controller, PDSettings):
+        chans["vir"] = res.vir
+    if pulses is not None:
+        chans["pulses"] = np.asarray(pulses, dtype=np.float64)
+        units["pulses"] = "V"
+    from ilic_cli.regressor import get_model
+
+    if isinstance(controller, CTCSettings):
+        model = get_model(controller.model)
+        for i, name in enumerate(res.names):
+            chans[f"{name}_hat"] = res.chi[:, i]
+            units[f"{name}_hat"] = model.units[i]
+    m: dict[str, Any] = {
+        "sample_rate_hz": fs_hz,
+        "true_parameters": params.to_dict(),
+        "effects": effects_to_dict(effects),
+        "controller": controller.to_dict(),
+        "simulation": {"seed": int(seed), "substeps": int(substeps), "dt": 1.0 / fs_hz / substeps, "control_period": 1.0 / fs_hz,
+                       "integrator": "RK4, fixed step, control held per period, Karnopp stick/slip with zero-crossing location",
+                       "stick_velocity": STICK_VELOCITY, "tau_sensor": tau_sensor, "samples": len(res.t),
+                       "duration_s": len(res.t) / fs_hz, "plant": "plant (ilic)"},
+    }
+    if isinstance(controller, PDSettings):
+        m["drive_gain"] = controller.gtau
+    if res.windows:
+        m["ilic_windows"] = [w.to_dict() for w in res.windows]
+    m.update(meta or {})
+    return RunLog(chans, units, m)
+
+
+def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
+    ctl = dict(log.meta.get("controller") or {})
+    kind = str(ctl.get("kind", "")).lower()
+    if kind == "pd" or (not kind and "vir" in log):
+        gtau = log.meta.get("drive_gain", ctl.get("gtau"))
+        try:
+            return PDSettings(kp=float(ctl.get("kp", log.meta.get("kp"))), kv=float(ctl.get("kv", log.meta.get("kv"))),
+                              gtau=float(gtau), vmax=float(ctl.get("vmax", 10.0)))
+        except (TypeError, ValueError):
+            raise SimulationError(log.meta.get("source"), "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
+    keys = {"omega", "xi", "alpha", "model", "window_s", "sigma_max_pct", "cutoff_hz"}
+    kw = {k: ctl[k] for k in keys if k in ctl}
+    return CTCSettings(**kw, ilic=False)
+
+
+def simulate_replay(log: RunLog, params: RigidParameters | dict[str, float], effects: Effects | dict[str, Any] | None = None,
+                    controller: CTCSettings | PDSettings | None = None, *, substeps: int = 10, seed: int = 0,
+                    tau_sensor: str | None = None) -> RunLog:
+    """Replay ``log``'s recorded reference (and pulses) through the plant; return the simulated log.
+
+    Parameters
+    ----------
+    log : RunLog
+        Needs ``t`` and ``q_ref`` (``qd_ref, qdd_ref`` are used when present,
+        else central differences of ``q_ref``); ``pulses`` are added to the PD
+        output as in the benchmark. A log written by ``ilic simulate`` carries
+        its trajectory in ``meta["scenario"]["trajectory"]``: the controller
+        then gets the exact point reference it had (the logged ``qd_ref,
+        qdd_ref`` are centred averages, see ``plant.trajectories``).
+    params : RigidParameters or dict
+        Plant parameters ``M, Fv, Fc, offset``; with ``Fv_pos/Fc_pos/Fv_neg/Fc_neg``
+        in the dict the ``asymmetric_friction`` effect is made from them.
+    effects : dict
+        Effect id -> parameters or :class:`~plant.dynamics.Effect`.
+    controller : CTCSettings or PDSettings, optional
+        Default: the log's controller (``meta["controller"]``): PD with its
+        ``kp, kv`` and ``drive_gain``; otherwise CTC with the log's gains and,
+        when the log has ``*_hat`` channels, the parameters in force at each
+        sample (else the given plant parameters, no online update).
+    substeps, seed : integration substeps per period; noise seed.
+    tau_sensor : ``centred`` or ``command``; default ``command`` for PD
+        (``tau = gtau*vir``), ``centred`` for CTC.
+
+    Returns
+    -------
+    RunLog
+        Same time base; ``q`` simulated, ``q_ref`` etc. from the log, ``tau``
+        simulated (and ``vir`` for PD); metadata as ``ilic simulate`` with
+        ``meta["replay_of"]`` the source.
+    """
+    from ilic_cli.filtering import central_difference
+
+    eff = make_effects(effects) if not all(isinstance(v, Effect) for v in (effects or {}).values()) else dict(effects or {})
+    if isinstance(params, dict):
+        pd_ = {k: float(v) for k, v in params.items()}
+        asym = {k: pd_.pop(k) for k in ("Fv_pos", "Fc_pos", "Fv_neg", "Fc_neg") if k in pd_}
+        if asym:
+            if len(asym) != 4:
+                raise SimulationError("--model", "asymmetric friction needs all of Fv_pos, Fc_pos, Fv_neg, Fc_neg")
+            eff.setdefault("asymmetric_friction", AsymmetricFriction(**asym))
+            pd_.setdefault("Fv", 0.0)
+            pd_.setdefault("Fc", 0.0)
+        if "M" not in pd_:
+            raise SimulationError("--model", "the model has no mass M")
+        unknown = sorted(set(pd_) - set(RigidParameters.NAMES))
+        if unknown:
+            raise SimulationError("--model", f"unknown plant parameter(s) {', '.join(unknown)} (known: M, Fv, Fc, offset, Fv_pos, Fc_pos, Fv_neg, Fc_neg)")
+        params = RigidParameters(**pd_)
+    log.require("t", "q_ref")
+    ctl = controller or _controller_from_log(log)
+    fs = 1.0 / log.dt_s
+    q_ref = log["q_ref"]
+    dt = 1.0 / fs
+    qd_ref = log["qd_ref"] if "qd_ref" in log else central_difference(q_ref, dt)
+    qdd_ref = log["qdd_ref"] if "qdd_ref" in log else central_difference(qd_ref, dt)
+    pulses = log["pulses"] if "pulses" in log else None
+    q_ctl, qd_ctl, qdd_ctl = q_ref, qd_ref, qdd_ref
+    traj = _trajectory_from_meta(log, fs)
+    if traj is not None:  # a log of ilic simulate: the controller's exact (point) reference
+        _, q_ctl, qd_ctl, qdd_ctl = traj.sample(len(log), fs)
+    sensor = tau_sensor or ("command" if isinstance(ctl, PDSettings) else "centred")
+    sched = None
+    if isinstance(ctl, CTCSettings):
+        from ilic_cli.regressor import get_model
+
+        names = get_model(ctl.model).names
+        if all(f"{n}_hat" in log for n in names):
+            sched = np.stack([log[f"{n}_hat"] for n in names], axis=1)
+        else:
+            ctl = CTCSettings(**{**{k: getattr(ctl, k) for k in ("omega", "xi", "alpha", "model", "window_s", "sigma_max_pct", "cutoff_hz")},
+                                 "ilic": False, "chi0": {n: getattr(params, n, 0.0) for n in names if n in RigidParameters.NAMES}})
+    x0 = (float(log["q"][0]), 0.0) if "q" in log and isinstance(ctl, PDSettings) else None
+    res = simulate_loop(q_r=q_ctl, qd_r=qd_ctl, qdd_r=qdd_ctl, qd_log=qd_ref, qdd_log=qdd_ref, params=params, effects=eff, controller=ctl, fs_hz=fs, substeps=substeps,
+                        seed=seed, pulses=pulses, tau_sensor=sensor, chi_schedule=sched, x0=x0)
+    res.t = np.asarray(log.t, dtype=np.float64).copy()
+    meta = {"replay_of": log.meta.get("source"), "scenario": {"name": "replay", "source": log.meta.get("source")}}
+    return loop_log(res, q_ref=q_ref, qd_ref=qd_ref, qdd_ref=qdd_ref, controller=ctl, params=params, effects=eff, fs_hz=fs,
+                    substeps=substeps, seed=seed, tau_sensor=sensor, pulses=pulses, meta=meta)
+
+
+def _trajectory_from_meta(log: RunLog, fs: float) -> Any:
+    """The exciting trajectory recorded by ``ilic simulate``, if it matches the log's samples."""
+    from plant.trajectories import Trajectory
+
+    doc = (log.meta.get("scenario") or {}).get("trajectory")
+    if not isinstance(doc, dict) or "segments" not in doc:
+        return None
+    try:
+        traj = Trajectory(tuple((float(d), float(a)) for d, a in doc["segments"]), q0=float(doc["q0"]), v0=float(doc.get("v0", 0.0)),
+                          repeat=bool(doc.get("repeat", True)), t_offset=float(doc.get("t_offset", 0.0)))
+        q = traj.evaluate(np.asarray(log.t, dtype=np.float64))[0]
+    except (KeyError, TypeError, ValueError, SimulationError):
+        return None
+    return traj if np.allclose(q, log["q_ref"], rtol=0, atol=1e-12) else None

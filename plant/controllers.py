@@ -1,0 +1,167 @@
+"""Controllers of the closed loop: CTC (paper eqs. 11-16, 25, 31) and the EMPS benchmark PD.
+
+Both are evaluated once per control period by the integrator (``closed_loop``);
+these dataclasses hold their settings and pack them for it.
+
+CTC, at sample k (period ``T``)::
+
+    qd_hat = (q(k) - q(k-1)) / T                               (eq. 25)
+    w      = Kp*(q_r - q) + Kv*(qd_r - qd_hat) + qdd_r         (eq. 13)
+    tau    = M_hat*w + Fv_hat*qd_r + Fc_hat*(2/pi)*atan(alpha*qd_r) [+ offset_hat]   (eqs. 16, 31)
+    Kp = omega^2, Kv = 2*xi*omega                              (eq. 15)
+
+For the ``asymmetric`` model the Coulomb/viscous columns use the same
+``(2/pi)*atan`` in place of ``sign`` (``P = (1+s)/2``, ``N = (1-s)/2``).
+The force is applied from ``t_k`` to ``t_k + T`` (zero-order hold).
+
+PD (``../shared/reference/emps-benchmark.md``), at sample k::
+
+    qfm(k) = 0.5*qm(k) + 0.5*qm(k-1)
+    qdm(k) = (qfm(k) - qfm(k-1)) / T
+    v(k)   = kv*(kp*(qg(k) - qm(k)) - qdm(k))
+    vir(k) = sat(v(k-1), +-vmax) + pulses(k)      (one-sample delay, then saturation)
+    force  = gtau*vir(k)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.errors import SimulationError
+
+# packed controller vector (read by the integrator)
+C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM = range(9)
+N_CTRL = 9
+KIND_CTC, KIND_PD = 0.0, 1.0
+
+# chi layout of the integrator (all models map onto it)
+CHI_LAYOUT: tuple[str, ...] = ("M", "Fv", "Fc", "offset", "Fv_pos", "Fc_pos", "Fv_neg", "Fc_neg")
+
+
+@dataclass
+class CTCSettings:
+    """Computed torque control (paper section IV) with online IDIM-ILIC (section V).
+
+    Attributes
+    ----------
+    omega : float
+        Closed-loop natural frequency (rad/s); paper: 20 Hz.
+    xi : float
+        Damping; paper: sqrt(2)/2.
+    alpha : float
+        Coulomb smoothing ``(2/pi)*atan(alpha*qd_r)``; paper: 1000.
+    model : str
+        Controller/identification model (``rigid``, ``rigid-offset``, ``asymmetric``).
+    chi0 : dict
+        Initial parameters (eq. 28: all zero except the mass, paper M0 = 100 kg).
+    ilic : bool
+        Update the parameters online every ``window_s``.
+    window_s, sigma_max_pct, cutoff_hz : float
+        IDIM-ILIC window T_obs, %sigma_max (15) and low-pass cut-off (5 Hz).
+    """
+
+    omega: float = 2.0 * math.pi * 20.0
+    xi: float = math.sqrt(2.0) / 2.0
+    alpha: float = 1000.0
+    model: str = "rigid"
+    chi0: dict[str, float] | None = None
+    ilic: bool = True
+    window_s: float = 6.2
+    sigma_max_pct: float = 15.0
+    cutoff_hz: float = 5.0
+
+    kind = "ctc"
+
+    @property
+    def Kp(self) -> float:
+        return self.omega**2
+
+    @property
+    def Kv(self) -> float:
+        return 2.0 * self.xi * self.omega
+
+    def validate(self) -> None:
+        from ilic_cli.regressor import MODELS
+
+        for name in ("omega", "xi", "alpha", "window_s", "sigma_max_pct", "cutoff_hz"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise SimulationError(f"--{name.replace('_', '-')}", f"must be a positive number (got {v})")
+        if self.model not in MODELS:
+            raise SimulationError("--model", f"unknown model '{self.model}' (choose from {', '.join(MODELS)})")
+        names = MODELS[self.model].names
+        for k in self.initial():
+            if k not in names:
+                raise SimulationError("--chi0", f"'{k}' is not a parameter of model '{self.model}' ({', '.join(names)})")
+
+    def initial(self) -> dict[str, float]:
+        from ilic_cli.regressor import MODELS
+
+        names = MODELS[self.model].names if self.model in MODELS else ("M",)
+        chi = {n: 0.0 for n in names}
+        chi["M"] = 100.0
+        chi.update(self.chi0 or {})
+        return chi
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["chi0"] = self.initial()
+        return {"kind": "ctc", **d, "Kp": self.Kp, "Kv": self.Kv}
+
+    def vector(self) -> np.ndarray:
+        c = np.zeros(N_CTRL)
+        c[C_KIND], c[C_KP], c[C_KV], c[C_ALPHA] = KIND_CTC, self.Kp, self.Kv, self.alpha
+        c[C_ASYM] = 1.0 if self.model == "asymmetric" else 0.0
+        c[C_VMAX] = np.inf
+        return c
+
+
+@dataclass
+class PDSettings:
+    """The benchmark PD loop (values of DATA_EMPS.mat by default)."""
+
+    kp: float = 160.18
+    kv: float = 243.45
+    gtau: float = 35.15065188
+    vmax: float = 10.0
+
+    kind = "pd"
+
+    def validate(self) -> None:
+        for name in ("kp", "kv", "gtau", "vmax"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise SimulationError(f"--{name}", f"must be a positive number (got {v})")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "pd", **asdict(self), "delay_samples": 1, "position_filter": [0.5, 0.5]}
+
+    def vector(self) -> np.ndarray:
+        c = np.zeros(N_CTRL)
+        c[C_KIND], c[C_PD_KP], c[C_PD_KV], c[C_GTAU], c[C_VMAX] = KIND_PD, self.kp, self.kv, self.gtau, self.vmax
+        return c
+
+
+def chi_vector(names: tuple[str, ...], values: np.ndarray | dict[str, float]) -> np.ndarray:
+    """Map model-ordered parameters onto :data:`CHI_LAYOUT` (missing -> 0)."""
+    if isinstance(values, dict):
+        d = {k: float(v) for k, v in values.items()}
+    else:
+        d = {n: float(v) for n, v in zip(names, values, strict=True)}
+    return np.array([d.get(n, 0.0) for n in CHI_LAYOUT])
+
+
+def ctc_force(chi: dict[str, float], model: str, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray,
+              q: np.ndarray, qd_hat: np.ndarray, settings: CTCSettings) -> np.ndarray:
+    """The CTC law (eqs. 13, 16, 31), vectorised; for tests and documentation."""
+    w = settings.Kp * (q_r - q) + settings.Kv * (qd_r - qd_hat) + qdd_r
+    s = (2.0 / np.pi) * np.arctan(settings.alpha * qd_r)
+    c = dict.fromkeys(CHI_LAYOUT, 0.0) | chi
+    if model == "asymmetric":
+        P, N = (1 + s) / 2, (1 - s) / 2
+        return c["M"] * w + (c["Fv_pos"] * qd_r + c["Fc_pos"] * s) * P + (c["Fv_neg"] * qd_r + c["Fc_neg"] * s) * N
+    return c["M"] * w + c["Fv"] * qd_r + c["Fc"] * s + c["offset"]

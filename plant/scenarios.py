@@ -1,0 +1,209 @@
+"""Named simulation scenarios with documented defaults, and their overrides.
+
+==================  ==========================================================
+``paper-sim``       paper section VI-E: M = 95 kg, Fv = 200 N.s/m, Fc = 20 N,
+                    rigid model, CTC (omega = 20 Hz, xi = sqrt(2)/2,
+                    alpha = 1000) with online IDIM-ILIC every T_obs = 6.2 s,
+                    chi0 = (100, 0, 0), the default exciting cycle; 124 s.
+``paper-payload``   as ``paper-sim`` plus 10 kg added at 60 s (section VI-G); 124 s.
+``emps-benchmark``  the benchmark PD loop with the published rigid-model
+                    estimates (M = 95.1089, Fv = 203.5034, Fc = 20.3935,
+                    offset = -3.1648) replaying the recorded ``qg`` (and
+                    ``pulses_N``) of ``../shared/emps/DATA_EMPS.mat``; the
+                    log's duration (24.84 s).
+==================  ==========================================================
+
+Every value can be overridden (:class:`Overrides`, the ``ilic simulate``
+options). :func:`run_scenario` returns the simulated :class:`RunLog`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ilic_cli.errors import SimulationError
+from plant.controllers import CTCSettings, PDSettings
+from plant.dynamics import Effects, RigidParameters, effects_to_dict, make_effects
+
+if TYPE_CHECKING:
+    from ilic_cli.runlog import RunLog
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_EMPS_LOG = REPO_ROOT.parent / "shared" / "emps" / "DATA_EMPS.mat"
+"""``../shared/emps/DATA_EMPS.mat`` relative to the repository root."""
+
+FS_HZ = 1000.0
+PUBLISHED_RIGID = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "offset": -3.1648}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named scenario: plant, effects, controller, duration and reference."""
+
+    name: str
+    description: str
+    section: str
+    params: RigidParameters
+    effects: dict[str, dict[str, float]]
+    controller: str
+    duration_s: float | None
+    reference: str  # "exciting_cycle" or "log"
+
+
+SCENARIOS: dict[str, Scenario] = {
+    "paper-sim": Scenario("paper-sim", "CTC + online IDIM-ILIC on the rigid axis, stationary parameters", "paper section VI-E, Table I",
+                          RigidParameters(95.0, 200.0, 20.0, 0.0), {}, "ctc", 124.0, "exciting_cycle"),
+    "paper-payload": Scenario("paper-payload", "as paper-sim with a 10 kg payload added at 60 s", "paper section VI-G",
+                              RigidParameters(95.0, 200.0, 20.0, 0.0), {"payload_change": {"dM": 10.0, "t_change": 60.0}}, "ctc", 124.0,
+                              "exciting_cycle"),
+    "emps-benchmark": Scenario("emps-benchmark", "benchmark PD loop with the published rigid estimates, replaying the recorded qg (and pulses)",
+                               "emps-benchmark.md, closed-loop simulation table", RigidParameters(**PUBLISHED_RIGID), {}, "pd", None, "log"),
+}
+
+
+@dataclass
+class Overrides:
+    """Command-line overrides; ``None``/empty means the scenario's default.
+
+    ``params``: ``M, Fv, Fc, offset``; ``effects``: id -> parameters (merged
+    over the scenario's; an empty dict uses the effect's defaults);
+    ``ctc``: ``omega, xi, alpha, window_s, sigma_max_pct, cutoff_hz, model,
+    ilic``; ``chi0``: initial controller parameters; ``pd``: ``kp, kv, gtau, vmax``.
+    """
+
+    params: dict[str, float] = field(default_factory=dict)
+    effects: dict[str, dict[str, float]] = field(default_factory=dict)
+    controller: str | None = None
+    ctc: dict[str, Any] = field(default_factory=dict)
+    chi0: dict[str, float] = field(default_factory=dict)
+    pd: dict[str, float] = field(default_factory=dict)
+    duration_s: float | None = None
+    substeps: int = 10
+    seed: int = 0
+    tau_sensor: str | None = None
+    log_path: str | Path | None = None
+    trajectory_seed: int | None = None
+
+
+def get_scenario(name: str) -> Scenario:
+    try:
+        return SCENARIOS[name]
+    except KeyError:
+        raise SimulationError("--scenario", f"unknown scenario '{name}' (choose from {', '.join(SCENARIOS)})") from None
+
+
+def resolve(name: str, ov: Overrides) -> tuple[Scenario, RigidParameters, Effects, CTCSettings | PDSettings]:
+    """Scenario with the overrides applied: parameters, effects, controller."""
+    sc = get_scenario(name)
+    params = sc.params.replace(**ov.params)
+    spec = {k: dict(v) for k, v in sc.effects.items()}
+    for eid, values in ov.effects.items():
+        spec[eid] = {**spec.get(eid, {}), **values}
+    effects = make_effects(spec)
+    kind = ov.controller or sc.controller
+    if kind not in ("ctc", "pd"):
+        raise SimulationError("--controller", f"unknown controller '{kind}' (choose from ctc, pd)")
+    ctl: CTCSettings | PDSettings
+    if kind == "ctc":
+        known = {"omega", "xi", "alpha", "window_s", "sigma_max_pct", "cutoff_hz", "model", "ilic"}
+        bad = sorted(set(ov.ctc) - known)
+        if bad:
+            raise SimulationError("--controller", f"unknown CTC setting(s) {', '.join(bad)}")
+        ctl = replace(CTCSettings(), **ov.ctc, chi0=dict(ov.chi0) or None)
+    else:
+        if ov.chi0 or ov.ctc:
+            raise SimulationError("--controller", "CTC options (--omega, --xi, --alpha, --window, --sigma-max, --chi0) do not apply to the PD controller")
+        ctl = replace(PDSettings(), **ov.pd)
+    ctl.validate()
+    return sc, params, effects, ctl
+
+
+def check(name: str, ov: Overrides) -> None:
+    """Raise :class:`SimulationError` for any bad value before anything runs."""
+    sc, params, effects, ctl = resolve(name, ov)
+    if ov.duration_s is not None and not (math.isfinite(ov.duration_s) and ov.duration_s > 0):
+        raise SimulationError("--duration", f"must be a positive number of seconds (got {ov.duration_s})")
+    if not isinstance(ov.substeps, int) or ov.substeps < 1:
+        raise SimulationError("--substeps", f"must be a positive integer (got {ov.substeps})")
+    from plant.dynamics import plant_vector
+
+    plant_vector(params, effects)
+    if sc.reference == "log":
+        p = Path(ov.log_path) if ov.log_path is not None else DEFAULT_EMPS_LOG
+        if not p.exists():
+            raise SimulationError(p, "recorded reference log not found (the emps-benchmark scenario replays DATA_EMPS.mat; pass --log)")
+
+
+def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -> RunLog:
+    """Simulate a named scenario and return its log (metadata: every value used)."""
+    from plant.closed_loop import loop_log, simulate_loop, simulate_replay
+
+    ov = ov or Overrides()
+    check(name, ov)
+    sc, params, effects, ctl = resolve(name, ov)
+    scen_meta = {"name": sc.name, "description": sc.description, "source": sc.section}
+    if sc.reference == "log":
+        log = _read_reference_log(ov.log_path)
+        n = len(log)
+        if ov.duration_s is not None:
+            n = min(n, int(round(ov.duration_s * FS_HZ)) + 1)
+            log = log.slice(0, n)
+        if isinstance(ctl, PDSettings) and not ov.pd:
+            ctl = _pd_from_log(log, ctl)
+        out = simulate_replay(log, params, effects, ctl, substeps=ov.substeps, seed=ov.seed, tau_sensor=ov.tau_sensor)
+        out.meta["scenario"] = {**scen_meta, "log": str(log.meta.get("source"))}
+        out.meta.pop("replay_of", None)
+        return out
+    from plant.trajectories import exciting_cycle
+
+    duration = sc.duration_s if ov.duration_s is None else ov.duration_s
+    n = int(round(duration * FS_HZ))
+    traj = exciting_cycle(seed=ov.trajectory_seed)
+    _, q_r, qd_r, qdd_r = traj.sample(n, FS_HZ)
+    _, _, qd_log, qdd_log = traj.sample_centred(n, FS_HZ)
+    sensor = ov.tau_sensor or ("centred" if isinstance(ctl, CTCSettings) else "command")
+    res = simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, qd_log=qd_log, qdd_log=qdd_log, params=params, effects=effects, controller=ctl,
+                        fs_hz=FS_HZ, substeps=ov.substeps, seed=ov.seed, tau_sensor=sensor, progress=progress)
+    scen_meta["trajectory"] = traj.to_dict()
+    return loop_log(res, q_ref=q_r, qd_ref=qd_log, qdd_ref=qdd_log, controller=ctl, params=params, effects=effects, fs_hz=FS_HZ,
+                    substeps=ov.substeps, seed=ov.seed, tau_sensor=sensor, meta={"scenario": scen_meta})
+
+
+def _read_reference_log(path: str | Path | None) -> RunLog:
+    from ilic_cli.io import read_log
+
+    p = Path(path) if path is not None else DEFAULT_EMPS_LOG
+    if not p.exists():
+        raise SimulationError(p, "recorded reference log not found (the emps-benchmark scenario replays DATA_EMPS.mat; pass --log)")
+    log = read_log(p)
+    if "q_ref" not in log:
+        raise SimulationError(p, "the log has no reference position (q_ref / qg) to replay")
+    return log
+
+
+def _pd_from_log(log: RunLog, default: PDSettings) -> PDSettings:
+    ctl = log.meta.get("controller") or {}
+    kw: dict[str, float] = {}
+    if "kp" in ctl:
+        kw["kp"] = float(ctl["kp"])
+    if "kv" in ctl:
+        kw["kv"] = float(ctl["kv"])
+    if log.meta.get("drive_gain"):
+        kw["gtau"] = float(log.meta["drive_gain"])
+    return replace(default, **kw)
+
+
+def describe() -> dict[str, Any]:
+    """All scenarios with their defaults (for ``--list`` and documentation)."""
+    out = {}
+    for name, sc in SCENARIOS.items():
+        _, params, effects, ctl = resolve(name, Overrides())
+        out[name] = {"description": sc.description, "source": sc.section, "parameters": params.to_dict(), "effects": effects_to_dict(effects),
+                     "controller": ctl.to_dict(), "duration_s": sc.duration_s}
+    return out
+
+
+__all__ = ["SCENARIOS", "Overrides", "Scenario", "describe", "get_scenario", "resolve", "run_scenario"]

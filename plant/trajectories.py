@@ -1,0 +1,245 @@
+"""Exciting reference trajectories: concatenated trapezoidal velocity profiles.
+
+A :class:`Trajectory` is a sequence of constant-acceleration segments, so the
+reference position, velocity and acceleration are exact piecewise
+polynomials (no noise, no numerical differentiation). It can repeat with a
+period (the paper's ``T_cycle = 6.2 s``); the position then advances by the
+cycle's net displacement each period (zero for the default cycle, which
+returns to its start).
+
+At an acceleration jump the point value is right-continuous (the
+acceleration about to be applied, what the controller uses). The *logged*
+reference derivatives are the one-sample centred averages
+(:meth:`Trajectory.sample_centred`), equal to the point values everywhere
+except at the jumps, where the acceleration is the mean of both sides; they
+match the centred force sensor of the closed loop (see ``closed_loop``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.errors import SimulationError
+
+T_CYCLE = 6.2
+"""Paper's cycle time T_cycle = T_obs (s)."""
+
+
+@dataclass(frozen=True)
+class Move:
+    """One trapezoidal move: ramp to ``v`` in ``t_acc``, cruise ``t_const``, ramp down in ``t_acc``, dwell.
+
+    Displacement ``v*(t_acc + t_const)``; duration ``2*t_acc + t_const + dwell``.
+    """
+
+    v: float
+    t_acc: float
+    t_const: float
+    dwell: float
+
+    @property
+    def displacement(self) -> float:
+        return self.v * (self.t_acc + self.t_const)
+
+    @property
+    def duration(self) -> float:
+        return 2 * self.t_acc + self.t_const + self.dwell
+
+    def segments(self) -> list[tuple[float, float]]:
+        a = self.v / self.t_acc if self.t_acc > 0 else 0.0
+        segs = [(self.t_acc, a), (self.t_const, 0.0), (self.t_acc, -a), (self.dwell, 0.0)]
+        return [(d, acc) for d, acc in segs if d > 0]
+
+
+DEFAULT_MOVES: tuple[Move, ...] = (
+    Move(+0.210, 0.14, 0.50, 0.0),   # +0.1344 m
+    Move(-0.120, 0.08, 0.70, 0.0),   # -0.0936 m
+    Move(+0.150, 0.10, 0.45, 0.0),   # +0.0825 m
+    Move(-0.240, 0.16, 0.40, 0.0),   # -0.1344 m
+    Move(+0.090, 0.06, 0.70, 0.0),   # +0.0684 m
+    Move(-0.135, 0.09, 0.30, 0.0),   # -0.05265 m
+    Move(+0.180, 0.12, 0.49, 0.0),   # +0.1098 m
+    Move(-0.105, 0.07, 1.02, 0.0),   # -0.11445 m
+)
+"""Default exciting cycle: eight back-to-back trapezoids alternating in direction,
+0.09-0.24 m/s, all ramps at 1.5 m/s^2 (so the acceleration is continuous through
+each reversal and across the cycle boundary: the only acceleration jumps are the
+ramp/cruise transitions), breakpoints on the 1 ms grid, 6.2 s in all, back to the
+start (excursion -0.011..+0.134 m from it). No dwell: the velocity reverses under acceleration, so
+the axis never rests in stiction, whose position error (the ramp-tracking lead of
+the backward-difference velocity, paper eq. 27) the Coulomb static level would
+otherwise hold during a dwell."""
+
+DEFAULT_Q0 = 0.05
+"""Start position (m): keeps the default cycle within 0.039-0.185 m of the EMPS stroke."""
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Constant-acceleration segments ``(duration_s, acceleration)`` starting at velocity ``v0``.
+
+    ``repeat``: repeat the segments every :attr:`period` seconds (the sum of
+    the durations); otherwise play once and continue at the final velocity.
+    ``t_offset``: start the (repeating) pattern ``t_offset`` seconds into it;
+    positions are shifted so that ``q(0) = q0``.
+    """
+
+    segments: tuple[tuple[float, float], ...]
+    q0: float = DEFAULT_Q0
+    v0: float = 0.0
+    repeat: bool = True
+    t_offset: float = 0.0
+    description: dict[str, Any] = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        if not self.segments:
+            raise SimulationError("trajectory", "no segments")
+        d = np.array([s[0] for s in self.segments], dtype=float)
+        if (d <= 0).any() or not np.isfinite(d).all():
+            raise SimulationError("trajectory", "segment durations must be positive")
+
+    # knots ---------------------------------------------------------------
+    def _knots(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        d = np.array([s[0] for s in self.segments], dtype=float)
+        a = np.array([s[1] for s in self.segments], dtype=float)
+        tk = np.concatenate([[0.0], np.cumsum(d)])
+        v = np.empty(len(d) + 1)
+        q = np.empty(len(d) + 1)
+        v[0], q[0] = self.v0, 0.0
+        for i in range(len(d)):
+            v[i + 1] = v[i] + a[i] * d[i]
+            if abs(v[i + 1]) < 1e-12:  # a move ends at rest: exactly, not by round-off
+                v[i + 1] = 0.0
+            q[i + 1] = q[i] + v[i] * d[i] + 0.5 * a[i] * d[i] ** 2
+        return tk, a, v, q
+
+    @property
+    def period(self) -> float:
+        return float(sum(s[0] for s in self.segments))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"q0": self.q0, "v0": self.v0, "repeat": self.repeat, "t_offset": self.t_offset, "period_s": self.period,
+                "segments": [[float(d), float(a)] for d, a in self.segments], **self.description}
+
+    # evaluation ----------------------------------------------------------
+    def evaluate(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Point values ``q, qd, qdd`` at times ``t`` (acceleration right-continuous)."""
+        t = np.asarray(t, dtype=np.float64)
+        if self.t_offset:
+            shifted = Trajectory(self.segments, self.q0, self.v0, self.repeat, 0.0)
+            q_at0 = shifted._raw(np.array([self.t_offset]))[0][0]
+            q, v, a = shifted._raw(t + self.t_offset)
+            return q - q_at0 + self.q0, v, a
+        return self._raw(t)
+
+    def _raw(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        tk, a, v, q = self._knots()
+        T = tk[-1]
+        if self.repeat:
+            if v[-1] != self.v0 and abs(v[-1] - self.v0) > 1e-12:
+                raise SimulationError("trajectory", "a repeating cycle must end at its start velocity")
+            n = np.floor(t / T + 1e-12)
+            tc = t - n * T
+            tc = np.where(tc < 0, 0.0, tc)
+            base = self.q0 + n * q[-1]
+        else:
+            tc = np.clip(t, 0.0, T)
+            base = np.full_like(t, self.q0)
+        i = np.clip(np.searchsorted(tk, tc + 1e-12, side="right") - 1, 0, len(a) - 1)
+        h = tc - tk[i]
+        h = np.where(np.abs(h) < 1e-9, 0.0, h)  # samples on a knot: exactly on it (reversals give qd = 0, sign 0)
+        acc = a[i]
+        vel = v[i] + acc * h
+        pos = base + q[i] + v[i] * h + 0.5 * acc * h * h
+        if not self.repeat:
+            after = t > T
+            pos = np.where(after, base + q[-1] + v[-1] * (t - T), pos)
+            vel = np.where(after, v[-1], vel)
+            acc = np.where(after, 0.0, acc)
+        return pos, vel, acc
+
+    def sample(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``t, q, qd, qdd`` point values at ``t = k/fs`` for ``k < n``."""
+        t = np.arange(n) / fs_hz
+        return (t, *self._tiled(t, fs_hz, 0.0))
+
+    def _tiled(self, t: np.ndarray, fs_hz: float, shift: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``evaluate(t + shift)``; a returning cycle on the sample grid is evaluated once and tiled."""
+        m = self.period * fs_hz
+        k = int(round(m))
+        tk, _, _, qk = self._knots()
+        if not (self.repeat and abs(m - k) < 1e-9 and k > 0 and len(t) > 2 * k and abs(qk[-1]) < 1e-15):
+            return self.evaluate(t + shift)
+        one = self.evaluate(t[:k] + shift)
+        reps = -(-len(t) // k)
+        return tuple(np.tile(a, reps)[: len(t)] for a in one)  # type: ignore[return-value]
+
+    def sample_centred(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``t, q, qd, qdd`` with ``qd, qdd`` averaged over ``[t - T/2, t + T/2]`` (exact).
+
+        Equal to the point values except at acceleration jumps (mean of both
+        sides there). These are the logged reference channels.
+        """
+        t = np.arange(n) / fs_hz
+        h = 0.5 / fs_hz
+        q, vp, ap = self._tiled(t, fs_hz, 0.0)
+        qa, va, _ = self._tiled(t, fs_hz, -h)
+        qb, vb, _ = self._tiled(t, fs_hz, h)
+        qd = (qb - qa) * fs_hz
+        qdd = (vb - va) * fs_hz
+        # round-off: exact constants where the point value is already exact
+        qd = np.where(np.abs(qd - vp) < 1e-9, vp, qd)
+        qdd = np.where(np.abs(qdd - ap) < 1e-7, ap, qdd)
+        return t, q, qd, qdd
+
+
+DEFAULT_OFFSET = 5.62
+"""Start of the default cycle (s into it): the middle of the last move's 1.02 s cruise,
+so that every window boundary (a multiple of T_cycle) falls in a steady cruise,
+away from the tracking transients of acceleration jumps and velocity reversals,
+which the window-edge effects of the IDIM-ILIC filter would otherwise turn into a
+bias. The axis starts there on the reference (position and velocity)."""
+
+
+def exciting_cycle(moves: tuple[Move, ...] = DEFAULT_MOVES, *, q0: float = DEFAULT_Q0, seed: int | None = None,
+                   spread: float = 0.3, t_offset: float = DEFAULT_OFFSET) -> Trajectory:
+    """The repeating exciting cycle (paper section VI-D), started ``t_offset`` into it.
+
+    ``seed``: scale each move's velocity by a factor drawn uniformly in
+    ``[1 - spread, 1]`` (numpy PCG64); the last move is rescaled so the cycle
+    still returns to its start.
+    """
+    moves = list(moves)
+    desc: dict[str, Any] = {"kind": "exciting_cycle", "moves": [[m.v, m.t_acc, m.t_const, m.dwell] for m in moves]}
+    if seed is not None:
+        rng = np.random.Generator(np.random.PCG64(seed))
+        f = rng.uniform(1.0 - spread, 1.0, size=len(moves))
+        moves = [Move(m.v * fi, m.t_acc, m.t_const, m.dwell) for m, fi in zip(moves, f, strict=True)]
+        rest = sum(m.displacement for m in moves[:-1])
+        last = moves[-1]
+        moves[-1] = Move(-rest / (last.t_acc + last.t_const), last.t_acc, last.t_const, last.dwell)
+        desc.update(seed=seed, spread=spread, moves=[[m.v, m.t_acc, m.t_const, m.dwell] for m in moves])
+    segs = tuple(s for m in moves for s in m.segments())
+    return Trajectory(segs, q0=q0, repeat=True, t_offset=t_offset, description=desc)
+
+
+def with_constant_velocity(cycle: Trajectory, *, cycles_before: int, v: float, hold_s: float,
+                           window_s: float = T_CYCLE, t_ramp: float = 0.05, cycles_after: int = 2) -> Trajectory:
+    """Exciting cycles, then a stretch at constant velocity ``v``, then exciting cycles again.
+
+    Layout: a rest of ``window_s - t_ramp``, ``cycles_before`` cycles, a ramp to
+    ``v`` in ``t_ramp``, ``hold_s`` at ``v``, a ramp back to rest, ``cycles_after``
+    cycles. The initial rest puts the end of the ramp on a window boundary
+    (``(cycles_before + 1)*window_s`` when the cycle lasts ``window_s``), so
+    with ``hold_s >= window_s`` the next window sees constant velocity only
+    (loss of excitation, paper section V-E).
+    """
+    segs = list(cycle.segments)
+    out = ([(window_s - t_ramp, 0.0)] + segs * cycles_before + [(t_ramp, v / t_ramp), (hold_s, 0.0), (t_ramp, -v / t_ramp)]
+           + segs * cycles_after)
+    desc = {"kind": "constant_velocity_window", "cycles_before": cycles_before, "v": v, "hold_s": hold_s,
+            "t_ramp": t_ramp, "cycles_after": cycles_after, "cycle": cycle.to_dict()}
+    return Trajectory(tuple(out), q0=cycle.q0, repeat=False, description=desc)
