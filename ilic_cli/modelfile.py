@@ -32,7 +32,8 @@ def parse_model(doc: Any, where: str | None = None) -> dict[str, Any]:
             if isinstance(doc.get(key), dict) and "parameters" in doc[key]:
                 section = doc[key]
                 break
-    params_raw = section.get("parameters", doc if "parameters" not in doc and all(isinstance(v, (int, float)) for v in doc.values()) else None)
+    flat = {k: v for k, v in doc.items() if isinstance(v, (int, float)) and not isinstance(v, bool) and k != "ilic_model"}
+    params_raw = section.get("parameters", flat if section is doc else None)
     if not isinstance(params_raw, dict) or not params_raw:
         raise IlicError(where, "no 'parameters' in the model file (expected ilic identify output or {\"M\": ..., ...})")
     params: dict[str, float] = {}
