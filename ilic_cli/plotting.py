@@ -56,6 +56,9 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
             ax.grid(alpha=0.3)
         axes[0, 0].legend(loc="best", fontsize=8)
         axes[-1, 0].set_xlabel("window k")
+        from matplotlib.ticker import MaxNLocator
+
+        axes[-1, 0].xaxis.set_major_locator(MaxNLocator(integer=True))
         fig.suptitle("Parameter estimates per window")
         written.append(_save(fig, outdir / f"parameters.{image_format}"))
     if report.ls is not None and report.ls.y is not None and report.ls.y_hat is not None:
