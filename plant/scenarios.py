@@ -89,6 +89,7 @@ class Overrides:
 
 
 def get_scenario(name: str) -> Scenario:
+    """Return the named scenario; :class:`SimulationError` (exit 2) for an unknown name."""
     try:
         return SCENARIOS[name]
     except KeyError:

@@ -1,0 +1,84 @@
+"""``ilic diagnose``: parse, call :func:`ilic_cli.diagnosis.diagnose`, render."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ilic_cli.commands.common import input_options, load, note
+
+
+@click.command("diagnose")
+@click.argument("log", type=click.Path(path_type=Path))
+@click.option("--model", "model_path", type=click.Path(path_type=Path), default=None, help="Model file (PARAMS.json) to start from instead of identifying the rigid model.")
+@click.option("--against", "against", type=click.Path(path_type=Path), default=None, help="A simulated log to compare the recording with (instead of replaying it through the plant).")
+@click.option("--validate", "validate", type=click.Path(path_type=Path), default=None, help="Another recording: an effect is kept only if it does not raise the error there.")
+@click.option("--alpha", type=click.FloatRange(min=0, max=1, min_open=True, max_open=True), default=0.001, show_default=True, help="Level of each F-test (after Bonferroni).")
+@click.option("--folds", type=click.IntRange(min=2), default=5, show_default=True, help="Contiguous cross-validation blocks over time.")
+@click.option("--effects", "effects", default=None, help="Comma-separated catalogue ids to try [default: all].")
+@click.option("--no-simulation", "no_simulation", is_flag=True, help="Skip the replay through the plant.")
+@click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="What to print on stdout.")
+@click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report.md, report.json, model.json and plots.")
+@input_options
+def command(log: Path, model_path: Path | None, against: Path | None, validate: Path | None, alpha: float, folds: int, effects: str | None, no_simulation: bool, out_format: str, out_dir: Path | None,
+            input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+    """Find and model the physics the rigid model leaves out of LOG.
+
+    Identifies the rigid model (IDIM-LS), locates where the force residual is
+    structured (velocity, position, time, frequency), adds effects of the
+    catalogue one at a time while each is significant (prewhitened F-test,
+    Bonferroni) and lowers the held-out error (blocked cross-validation),
+    and replays the recorded reference through the plant before and after.
+    "No significant mismatch" is a result. With --format json stdout holds
+    only the JSON document.
+
+    \b
+    Examples:
+      ilic diagnose DATA_EMPS.mat
+      ilic diagnose DATA_EMPS.mat --validate DATA_EMPS_PULSES.mat --out diag/
+      ilic diagnose run.mcap --model model.json --format json
+    """
+    from ilic_cli.diagnosis import DiagnoseSettings, SelectSettings, diagnose
+    from ilic_cli.diagnosis.catalogue import EFFECT_IDS
+    from ilic_cli.diagnosis.report import to_json, to_markdown
+    from ilic_cli.errors import IlicError
+    from ilic_cli.modelfile import load_model_file
+
+    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
+        raise IlicError(out_dir, "--out must be a folder")
+    chosen = EFFECT_IDS
+    if effects is not None:
+        chosen = tuple(e.strip() for e in effects.split(",") if e.strip())
+        unknown = [e for e in chosen if e not in EFFECT_IDS]
+        if unknown or not chosen:
+            raise IlicError("--effects", f"unknown effect {', '.join(unknown) or '(none given)'} (catalogue: {', '.join(EFFECT_IDS)})")
+    model_doc = load_model_file(model_path) if model_path is not None else None
+    run = load(log, input_format, topic, ref_topic, joint)
+    sim = load(against, None, topic, ref_topic, joint) if against is not None else None
+    other = load(validate, None, topic, ref_topic, joint) if validate is not None else None
+    settings = DiagnoseSettings(select=SelectSettings(alpha=alpha, folds=folds, effects=chosen), simulate=not no_simulation)
+    result = diagnose(run, settings=settings, model_doc=model_doc, against=sim, validate=other)
+    for w in result.warnings:
+        note(f"ilic: warning: {w}")
+    text = to_json(result) if out_format == "json" else to_markdown(result)
+    if out_dir is not None:
+        inputs = tuple(p for p in (log, model_path, against, validate) if p is not None)
+        _write_outputs(result, out_dir, inputs)
+    click.echo(text if text.endswith("\n") else text + "\n", nl=False)
+
+
+def _write_outputs(result, out_dir: Path, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    from ilic_cli.diagnosis.plots import write_plots
+    from ilic_cli.diagnosis.report import to_json, to_markdown
+    from ilic_cli.io.atomic import atomic_write_text
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out_dir / "report.md", to_markdown(result), inputs=inputs)
+    atomic_write_text(out_dir / "report.json", to_json(result), inputs=inputs)
+    atomic_write_text(out_dir / "model.json", json.dumps(result.model_file, indent=2) + "\n", inputs=inputs)
+    written = [out_dir / n for n in ("report.md", "report.json", "model.json")]
+    written += write_plots(result, out_dir)
+    note(f"ilic: wrote {', '.join(str(p) for p in written)}")

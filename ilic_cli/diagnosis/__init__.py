@@ -1,0 +1,16 @@
+"""Diagnosis: when simulation and recording differ, locate the mismatch, name the physics
+the model left out, model it, and show the fit improve.
+
+- :mod:`~ilic_cli.diagnosis.catalogue`: the effects (stable ids, physics, regressor form, signature);
+- :mod:`~ilic_cli.diagnosis.locate`: where a residual is structured (state, time, frequency);
+- :mod:`~ilic_cli.diagnosis.stats`: prewhitened F-tests, blocked folds, Diebold-Mariano;
+- :mod:`~ilic_cli.diagnosis.select`: forward selection on the IDIM least squares;
+- :mod:`~ilic_cli.diagnosis.compare`: replay through the plant, simulation against recording;
+- :mod:`~ilic_cli.diagnosis.core`: :func:`diagnose` -> :class:`Diagnosis`;
+- :mod:`~ilic_cli.diagnosis.report`, :mod:`~ilic_cli.diagnosis.plots`: rendering.
+"""
+
+from ilic_cli.diagnosis.core import DiagnoseSettings, Diagnosis, Finding, diagnose
+from ilic_cli.diagnosis.select import SelectSettings
+
+__all__ = ["DiagnoseSettings", "Diagnosis", "Finding", "SelectSettings", "diagnose"]

@@ -1,0 +1,90 @@
+"""Simulation against recording: replay the recorded reference through the plant and compare.
+
+The replay uses the plant's public :func:`plant.simulate_replay` (the
+controller of the log's metadata). Relative errors follow the benchmark's
+simulation table: position, and velocity from the filtered position (as
+IDIM-LS), first samples dropped; force ``100 ||tau_sim - tau|| / ||tau||``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.diagnosis.locate import locate
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.idim_ls import IDIMData, LSSettings
+from ilic_cli.runlog import RunLog
+
+
+def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None) -> RunLog:
+    """Replay ``log``'s reference (and pulses) through the plant (:func:`plant.simulate_replay`).
+
+    The controller is the log's (metadata); the force sensor is the one the
+    log was simulated with when it says so, else the benchmark's command
+    (``tau = gtau * vir``). ``payload_change`` times are log times; the
+    closed loop counts from the first sample.
+    """
+    from plant.closed_loop import simulate_replay
+
+    effects = dict(effects or {})
+    if "payload_change" in effects:
+        effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
+    sensor = (log.meta.get("simulation") or {}).get("tau_sensor")
+    return simulate_replay(log, params, effects, tau_sensor=sensor)
+
+
+def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float]:
+    """Relative errors (%) of position, velocity and force of ``sim`` against ``rec`` (first ``trim`` samples dropped)."""
+    fs = 1.0 / rec.dt_s
+    n = min(len(rec), len(sim))
+    s = slice(ls.trim, n)
+
+    def vel(q: np.ndarray) -> np.ndarray:
+        return central_difference(butter_lowpass_zero_phase(q[:n], ls.cutoff_hz, fs, ls.order, matlab=ls.matlab), 1.0 / fs)
+
+    pct = lambda a, b: float(100.0 * np.linalg.norm(a - b) / np.linalg.norm(b))  # noqa: E731
+    return {
+        "position": pct(sim["q"][s], rec["q"][s]),
+        "velocity": pct(vel(sim["q"])[s], vel(rec["q"])[s]),
+        "force": pct(sim["tau"][s], rec["tau"][s]),
+    }
+
+
+def compare_simulation(log: RunLog, data: IDIMData, rows: np.ndarray, before_params: dict[str, float], before_effects: dict[str, Any],
+                       after_params: dict[str, float], after_effects: dict[str, Any] | None, *, against: RunLog | None, ls: LSSettings,
+                       alpha: float) -> Any:
+    """Before (the rigid model, or ``against``) and after (the augmented model) replays against the recording."""
+    from ilic_cli.diagnosis.core import SimulationComparison
+
+    note = ""
+    if against is not None:
+        if len(against) != len(log):
+            note = f"the simulated log has {len(against)} samples and the recording {len(log)}: compared on the common part"
+        sim0, source = against, str(against.meta.get("source", "simulated log"))
+    else:
+        if "q_ref" not in log:
+            return SimulationComparison({}, None, "replay", note="no simulation comparison: the log has no reference position (q_ref)")
+        sim0, source = replay(log, before_params, before_effects), "replay through the plant"
+    before = relative_errors(log, sim0, ls)
+    after = None
+    sim1 = None
+    if after_effects is not None and "q_ref" in log:
+        sim1 = replay(log, after_params, after_effects)
+        after = relative_errors(log, sim1, ls)
+    n = min(len(log), len(sim0))
+    tau_s = np.asarray(sim0["tau"][:n])
+    tau_r = np.asarray(log["tau"][:n])
+    s = slice(ls.trim, n)
+    e_full = np.zeros(len(data.kin.qd))
+    m = min(len(e_full), n - ls.trim)
+    e_full[:m] = (tau_s[s] - tau_r[s])[:m]
+    e_dec = data.decimate(e_full)[rows]
+    dec = data.decimate
+    located = locate(e_dec, t=data.t_dec[rows], q=dec(data.kin.q)[rows], qd=dec(data.kin.qd)[rows], qdd=dec(data.kin.qdd)[rows],
+                     W=data.W[rows], fs_hz=1.0 / log.dt_s / ls.decimation, alpha=alpha)
+    signals = {"t": log.t[:n], "tau": tau_r, "tau_before": tau_s}
+    if sim1 is not None:
+        signals["tau_after"] = np.asarray(sim1["tau"][:n])
+    return SimulationComparison(before, after, source, located, note, signals)

@@ -1,0 +1,83 @@
+"""Plots of a diagnosis (matplotlib Agg, imported only here): residual against velocity, position
+and time with the located regions marked, residual spectrum, before/after force fit."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ilic_cli.diagnosis.core import Diagnosis
+
+
+def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
+    """Write the PNG figures into ``out_dir`` atomically; return their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from scipy import signal
+
+    from ilic_cli.io.atomic import atomic_path
+
+    r = diag.residual
+    written: list[Path] = []
+
+    def save(fig: object, name: str) -> None:
+        path = out_dir / name
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=90)  # type: ignore[attr-defined]
+        plt.close(fig)  # type: ignore[arg-type]
+        written.append(path)
+
+    sig = [g for g in diag.located if g.significant]
+    fig, axes = plt.subplots(3, 1, figsize=(10, 10))
+    for ax, key, unit, kind in ((axes[0], "qd", "m/s", "velocity"), (axes[1], "q", "m", "position"), (axes[2], "t", "s", "time")):
+        ax.plot(r[key], r["before"], ".", ms=2, alpha=0.5, label="rigid model")
+        ax.plot(r[key], r["after"], ".", ms=2, alpha=0.5, label="augmented model")
+        for g in sig:
+            if g.kind == kind or (kind == "time" and g.kind == "drift"):
+                ax.axvspan(g.bounds[0], g.bounds[1], color="tab:red", alpha=0.12)
+        ax.set_xlabel(f"{kind} ({unit})")
+        ax.set_ylabel("force residual (N)")
+    axes[0].legend(loc="upper right")
+    axes[0].set_title("IDIM residual; shaded: located regions (significant)")
+    fig.tight_layout()
+    save(fig, "residual.png")
+
+    fs = diag.fs_hz / diag.settings.ls.decimation
+    fig, ax = plt.subplots(figsize=(10, 4))
+    for key, label in (("before", "rigid model"), ("after", "augmented model")):
+        e = r[key]
+        f, P = signal.welch(e - e.mean(), fs=fs, nperseg=min(len(e), 256))
+        ax.semilogy(f, P, label=label)
+    for g in sig:
+        if g.kind == "frequency":
+            ax.axvline(0.5 * (g.bounds[0] + g.bounds[1]), color="tab:red", alpha=0.4)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("residual PSD (N^2/Hz)")
+    ax.legend()
+    fig.tight_layout()
+    save(fig, "spectrum.png")
+
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    axes[0].plot(r["t"], r["y"], lw=0.6, label="recorded (decimated)")
+    axes[0].plot(r["t"], r["y_before"], lw=0.6, label="rigid IDIM model")
+    axes[0].plot(r["t"], r["y_after"], lw=0.6, label="augmented IDIM model")
+    axes[0].set_ylabel("force (N)")
+    axes[0].legend(loc="upper right")
+    sim = diag.simulation
+    if sim is not None and "tau_before" in sim.signals:
+        s = sim.signals
+        axes[1].plot(s["t"], s["tau_before"] - s["tau"], lw=0.4, label="simulation - recording, rigid")
+        if "tau_after" in s:
+            axes[1].plot(s["t"], s["tau_after"] - s["tau"], lw=0.4, label="simulation - recording, augmented")
+        axes[1].set_ylabel("force difference (N)")
+        axes[1].legend(loc="upper right")
+    else:
+        axes[1].plot(r["t"], r["before"], lw=0.5, label="rigid")
+        axes[1].plot(r["t"], r["after"], lw=0.5, label="augmented")
+        axes[1].set_ylabel("IDIM residual (N)")
+        axes[1].legend(loc="upper right")
+    axes[1].set_xlabel("time (s)")
+    fig.tight_layout()
+    save(fig, "force_fit.png")
+    return written

@@ -1,0 +1,158 @@
+"""Render a :class:`~ilic_cli.diagnosis.core.Diagnosis` as JSON or Markdown in plain words."""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+from ilic_cli.diagnosis.core import Diagnosis, Finding
+from ilic_cli.diagnosis.locate import Region
+
+
+def to_json(diag: Diagnosis) -> str:
+    """The JSON document (``findings``, ``fit``, ...), strict JSON (no NaN)."""
+    return json.dumps(_clean(diag.to_dict()), indent=2, allow_nan=False)
+
+
+def _clean(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if hasattr(x, "item") and callable(x.item):
+        return _clean(x.item())
+    return x
+
+
+def _pct(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.3g} %" if x < 0.1 else f"{x:.2f} %"
+
+
+def _num(x: float, unit: str = "") -> str:
+    s = f"{x:.4g}"
+    return f"{s} {unit}".strip()
+
+
+def _region_words(r: Region) -> str:
+    if r.kind in ("velocity", "position", "time", "acceleration", "reversal"):
+        return f"{r.label}: mean residual {r.mean:+.3g} N (standard error {r.se:.2g} N, {r.rows} rows, p = {r.p_value:.2g})"
+    if r.kind == "drift":
+        return f"{r.label} (F = {r.statistic:.3g}, p = {r.p_value:.2g})"
+    if r.kind == "frequency":
+        return f"{r.label} ({r.statistic:.3g} times the background, p = {r.p_value:.2g})"
+    return f"{r.label} (correlation {r.statistic:.4f}, p = {r.p_value:.2g})"
+
+
+def _finding_sentence(f: Finding) -> str:
+    p = f.parameters
+    e = f.effect.id
+    if e == "asymmetric_friction":
+        what = f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward"
+    elif e == "stribeck":
+        what = f"extra friction Fs = {p['Fs'].value:.3g} N below vs = {p['vs'].value * 1e3:.3g} mm/s"
+    elif e == "position_ripple":
+        what = f"amplitude {p['A'].value:.3g} N, spatial period {p['L'].value * 1e3:.4g} mm"
+    elif e == "spring":
+        what = f"stiffness {p['k'].value:.4g} N/m"
+    elif e == "payload_change":
+        what = f"{p['dM'].value:+.3g} kg from t = {p['t_change'].value:.3g} s"
+    elif e == "delay":
+        what = f"{p['delay'].value * 1e3:+.3g} ms"
+    elif e == "flexibility":
+        what = f"resonance {p['f_res'].value:.3g} Hz, {p['M_load'].value:.3g} kg behind the spring"
+    elif e == "offset":
+        what = f"{p['offset'].value:+.3g} N"
+    else:
+        what = ", ".join(f"{k} = {v.value:.4g}" for k, v in p.items())
+    return f"{f.effect.title} ({what})"
+
+
+def to_markdown(diag: Diagnosis) -> str:
+    """A report in plain words, then the tables."""
+    fit = diag.fit
+    lines = [f"# Diagnosis of {diag.source or 'the log'}", ""]
+    rel = fit["relative_error_pct"]
+    ho = fit["heldout_relative_error_pct"]
+    if not diag.findings:
+        lines += [
+            f"No significant mismatch: none of the {len(diag.tried[0]) if diag.tried else 0} effects of the catalogue passed both the F-test "
+            f"and the held-out test. The rigid model ({diag.model}) explains the force to {_pct(rel['before'])} "
+            f"(held out: {_pct(ho['before'])}).",
+            "",
+        ]
+    else:
+        for f in diag.findings:
+            where = ""
+            if f.located:
+                r = f.located[0]
+                where = f"The residual is structured in {r.label} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows {r.label}. "
+            lines.append(f"- {where}Left out: {_finding_sentence(f)}. {f.effect.explanation}")
+        lines += [
+            "",
+            f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} "
+            f"(held out: {_pct(ho['before'])} -> {_pct(ho['after'])}).",
+        ]
+        v = fit.get("validation_relative_error_pct") or {}
+        if v.get("before") is not None:
+            lines.append(f"On the validation log {diag.validation_source}: {_pct(v['before'])} -> {_pct(v['after'])}.")
+        lines.append("")
+    sim = diag.simulation
+    if sim is not None and sim.before:
+        after = f" -> {_pct(sim.after['force'])}" if sim.after else ""
+        lines += [f"Simulation against recording ({sim.source}): force error {_pct(sim.before['force'])}{after}, "
+                  f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}.", ""]
+    lines += [
+        f"{diag.rows_used} of {diag.rows_total} decimated rows used (standstill and the filter's edge left out).",
+        "",
+        "## Findings",
+        "",
+    ]
+    if not diag.findings:
+        lines += ["None.", ""]
+    for i, f in enumerate(diag.findings, 1):
+        ev = f.evidence
+        lines += [
+            f"### {i}. `{f.effect.id}`: {f.effect.title}",
+            "",
+            f"{f.effect.explanation}",
+            "",
+            f"Form: {f.effect.form}. Signature: {f.effect.signature}.",
+            "",
+            "| parameter | value | std |",
+            "| --- | --- | --- |",
+        ]
+        for name, est in f.parameters.items():
+            std = "" if est.std is None or not math.isfinite(est.std) else f"{est.std:.3g}"
+            lines.append(f"| {name} | {_num(est.value, est.unit)} | {std} |")
+        lines += [
+            "",
+            f"Evidence: F = {ev.test.F:.4g} ({ev.test.df1}, {ev.test.df2} dof, AR({ev.test.ar_order})-prewhitened), "
+            f"p = {ev.test.p_value:.3g}, Bonferroni x{ev.test.trials} -> {ev.test.p_adjusted:.3g}; "
+            f"held-out error {_pct(ev.heldout_before_pct)} -> {_pct(ev.heldout_after_pct)} (Diebold-Mariano p = {ev.heldout_p_value:.3g}).",
+            "",
+        ]
+        if f.located:
+            lines += ["Located:", ""] + [f"- {_region_words(r)}" for r in f.located[:5]] + [""]
+        if f.note:
+            lines += [f"Note: {f.note}.", ""]
+    lines += ["## Where the rigid model's residual is structured", ""]
+    sig = [r for r in diag.located if r.significant]
+    lines += [f"- {_region_words(r)}" for r in sorted(sig, key=lambda r: r.p_value)[:12]] or ["- nowhere (no significant region)"]
+    lines.append("")
+    if sim is not None and sim.located:
+        s_sig = [r for r in sim.located if r.significant]
+        lines += ["## Where the simulation differs from the recording (force)", ""]
+        lines += [f"- {_region_words(r)}" for r in sorted(s_sig, key=lambda r: r.p_value)[:8]] or ["- nowhere (no significant region)"]
+        lines.append("")
+    lines += ["## Candidates tried", "", "| step | effect | F | p (adjusted) | held out before -> after | decision |", "| --- | --- | --- | --- | --- | --- |"]
+    for k, step in enumerate(diag.tried, 1):
+        for ev in step:
+            ho_s = "" if ev.heldout_before_pct is None else f"{_pct(ev.heldout_before_pct)} -> {_pct(ev.heldout_after_pct)}"
+            lines.append(f"| {k} | {ev.effect} | {ev.test.F:.3g} | {ev.test.p_adjusted:.2g} | {ho_s} | {ev.reason} |")
+    lines.append("")
+    if diag.warnings:
+        lines += ["## Warnings", ""] + [f"- {w}" for w in diag.warnings] + [""]
+    return "\n".join(lines)

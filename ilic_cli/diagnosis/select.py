@@ -1,0 +1,420 @@
+"""Forward selection of catalogue effects on the IDIM least-squares problem.
+
+Starting from the rigid model, every effect of the catalogue not yet in the
+model is fitted (nonlinear parameter: grid, then 1-D refinement; the rest by
+least squares on the decimated IDIM system, whose solver is unchanged) and
+tested against the current model with a prewhitened nested F-test,
+Bonferroni-corrected for the number of candidates and of grid points. The
+most significant candidate is accepted only when it also lowers the error on
+held-out data (blocked cross-validation over time, and the validation log
+when one is given); the search stops when no candidate passes both.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.diagnosis.catalogue import EFFECT_IDS, Effect, applicable, catalogue
+from ilic_cli.diagnosis.stats import (FTest, batched_rss, blocked_folds, diebold_mariano, heldout_errors, lag1_autocorrelation, lstsq, nested_f_test,
+                                      relative_error_pct, shifted_rss)
+from ilic_cli.idim_ls import IDIMData
+from ilic_cli.regressor import Kinematics, Model
+
+EXACT_GRID_MAX = 64
+"""Grids up to this size are scanned with exactly decimated columns; larger
+ones are screened on columns built from the decimated kinematics, and their
+best minima re-evaluated exactly."""
+
+
+@dataclass(frozen=True)
+class SelectSettings:
+    """Settings of the forward selection.
+
+    Attributes
+    ----------
+    alpha : float
+        Family-wise level of each step's F-test (after Bonferroni).
+    alpha_heldout : float
+        Level of the one-sided Diebold-Mariano test that the held-out
+        errors drop.
+    folds : int
+        Contiguous cross-validation blocks over time.
+    guard : int
+        Decimated rows left out of training on each side of a test block.
+    max_effects : int
+        At most this many effects are added.
+    effects : tuple of str
+        Catalogue ids that may be added.
+    """
+
+    alpha: float = 0.001
+    alpha_heldout: float = 0.01
+    folds: int = 5
+    guard: int = 10
+    max_effects: int = 4
+    effects: tuple[str, ...] = EFFECT_IDS
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"alpha": self.alpha, "alpha_heldout": self.alpha_heldout, "folds": self.folds, "guard_rows": self.guard, "max_effects": self.max_effects, "effects": list(self.effects)}
+
+
+@dataclass(frozen=True)
+class Step:
+    """An effect in the model with its nonlinear parameter fixed."""
+
+    effect: Effect
+    value: Any = None
+
+
+STANDSTILL_FRACTION = 0.01
+"""A decimated row is at standstill when the speed stays below this fraction of
+the top speed (99.5th percentile) over the support of the decimation filter."""
+
+
+def moving_rows(data: IDIMData) -> np.ndarray:
+    """Decimated rows used by the diagnosis (boolean mask).
+
+    Left out: rows at standstill, where the axis sticks and friction
+    balances whatever force the controller applies, so the force says
+    nothing about the model (``sign(qd)`` of a velocity that is zero or noise
+    is meaningless); and, mirroring the samples the procedure drops at the
+    start, the rows within as many samples of either end of the trimmed
+    record, where the zero-phase filters have their edge transients. A run
+    without dwells (the EMPS recordings) loses only those edge rows.
+    """
+    from scipy.ndimage import maximum_filter1d
+
+    from ilic_cli.filtering import kept_indices
+
+    v = np.abs(data.kin.qd)
+    top = float(np.percentile(v, 99.5))
+    r = data.settings.decimation
+    kept = kept_indices(len(v), r)
+    peak = maximum_filter1d(v, 6 * r + 1)[kept]
+    edge = data.settings.trim
+    return (peak >= STANDSTILL_FRACTION * top) & (kept >= edge) & (kept < len(v) - edge)
+
+
+def shifted_force(data: IDIMData, delay_s: float) -> np.ndarray:
+    """Decimated force ``tau(t + delay)``: the plant's ``delay`` (logged force = applied force ``delay`` earlier)."""
+    t = data.kin.t
+    assert t is not None
+    return data.decimate(np.interp(t + delay_s, t, data.tau))
+
+
+def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """The decimated system ``(W, y, names)`` of ``base`` plus ``steps`` on ``data``.
+
+    ``data`` must have been prepared with ``base`` (its ``W`` holds the base
+    columns); ``rows`` (default :func:`moving_rows`) selects the rows.
+    """
+    cols = [data.W]
+    names = list(base.names)
+    y = data.y
+    for s in steps:
+        if s.effect.kind == "shift":
+            y = shifted_force(data, float(s.value or 0.0))
+        else:
+            cols.append(data.decimate(s.effect.matrix(data.kin, s.value)))
+            names.extend(n for n, _, _ in s.effect.params)
+    keep = moving_rows(data) if rows is None else rows
+    return np.hstack(cols)[keep], y[keep], tuple(names)
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """One candidate effect tried at one step of the selection."""
+
+    effect: str
+    value: Any
+    value_std: float | None
+    test: FTest
+    relative_error_pct: float = float("nan")
+    heldout_before_pct: float | None = None
+    heldout_after_pct: float | None = None
+    heldout_p_value: float | None = None
+    validation_before_pct: float | None = None
+    validation_after_pct: float | None = None
+    accepted: bool = False
+    reason: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "effect": self.effect,
+            "nonlinear_value": list(self.value) if isinstance(self.value, tuple) else self.value,
+            "nonlinear_std": self.value_std,
+            **self.test.to_dict(),
+            "relative_error_pct": self.relative_error_pct,
+            "heldout_relative_error_pct": {"before": self.heldout_before_pct, "after": self.heldout_after_pct},
+            "heldout_test": None if self.heldout_p_value is None else {"test": "Diebold-Mariano, one-sided, Newey-West variance", "p_value": self.heldout_p_value},
+            "validation_relative_error_pct": None if self.validation_before_pct is None else {"before": self.validation_before_pct, "after": self.validation_after_pct},
+            "accepted": self.accepted,
+            "reason": self.reason,
+        }
+
+
+@dataclass
+class SelectionResult:
+    """Accepted steps in order, and every evaluation made on the way."""
+
+    rows: np.ndarray | None = None
+    steps: list[Step] = field(default_factory=list)
+    accepted: list[Evaluation] = field(default_factory=list)
+    tried: list[list[Evaluation]] = field(default_factory=list)
+
+
+class Searcher:
+    """Scans the nonlinear parameter of effects on one IDIM data set, with cached grid columns."""
+
+    def __init__(self, data: IDIMData, fs_hz: float, rows: np.ndarray) -> None:
+        self.data = data
+        self.fs = fs_hz
+        self.keep = rows
+        k = data.kin
+        dec = data.decimate
+        self.kin_dec = Kinematics(qd=dec(k.qd), qdd=dec(k.qdd), q=None if k.q is None else dec(k.q), t=data.t_dec)
+        self._cache: dict[str, tuple[np.ndarray, np.ndarray, bool]] = {}
+
+    def grid(self, effect: Effect) -> tuple[np.ndarray, np.ndarray, bool]:
+        """``(values, X, exact)``: X is ``(G, n, m)`` columns or, for a shift, ``(n, G)`` forces."""
+        if effect.id in self._cache:
+            return self._cache[effect.id]
+        assert effect.scan is not None
+        values = effect.scan.grid(self.data.kin, self.fs)
+        if effect.kind == "shift":
+            t = self.data.kin.t
+            assert t is not None
+            Y = np.stack([np.interp(t + v, t, self.data.tau) for v in values], axis=1)
+            out = (values, self.data.decimate(Y)[self.keep], True)
+        elif len(values) <= EXACT_GRID_MAX:
+            full = np.concatenate([effect.matrix(self.data.kin, v) for v in values], axis=1)
+            m = full.shape[1] // len(values)
+            X = self.data.decimate(full)[self.keep].reshape(-1, len(values), m).transpose(1, 0, 2)
+            out = (values, np.ascontiguousarray(X), True)
+        else:
+            X = np.stack([effect.matrix(self.kin_dec, v)[self.keep] for v in values], axis=0)
+            out = (values, X, False)
+        self._cache[effect.id] = out
+        return out
+
+    def exact(self, effect: Effect, value: Any) -> np.ndarray:
+        """Exactly decimated columns (or shifted force) for one value."""
+        if effect.kind == "shift":
+            return shifted_force(self.data, value)[self.keep]
+        return self.data.decimate(effect.matrix(self.data.kin, value))[self.keep]
+
+    def exact_linear(self, effect: Effect) -> np.ndarray:
+        """Decimated columns of an effect without a nonlinear parameter."""
+        return self.data.decimate(effect.matrix(self.data.kin))[self.keep]
+
+    def rss(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: Any, rows: np.ndarray | slice = slice(None)) -> float:
+        x = self.exact(effect, value)
+        if effect.kind == "shift":
+            return lstsq(W0[rows], x[rows])[1]
+        return lstsq(np.hstack([W0, x])[rows], y[rows])[1]
+
+    def scan(self, effect: Effect, W0: np.ndarray, y: np.ndarray, rows: np.ndarray | slice = slice(None), n_best: int = 3) -> float:
+        """Best grid value of ``effect`` added to ``(W0, y)`` on ``rows``."""
+        values, X, exact = self.grid(effect)
+        if effect.kind == "shift":
+            r = shifted_rss(W0[rows], X[rows])
+        else:
+            r = batched_rss(W0[rows], y[rows], X[:, rows])
+        if exact:
+            return float(values[int(np.argmin(r))])
+        # local minima, best first, re-evaluated with exact columns
+        interior = np.r_[True, r[1:] < r[:-1]] & np.r_[r[:-1] < r[1:], True]
+        idx = np.flatnonzero(interior)
+        idx = idx[np.argsort(r[idx])][:n_best]
+        exact_rss = [self.rss(effect, W0, y, float(values[i]), rows) for i in idx]
+        return float(values[idx[int(np.argmin(exact_rss))]])
+
+    def refine(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: float, rows: np.ndarray | None = None) -> tuple[Any, float | None]:
+        """1-D refinement between the neighbouring grid points; ``(value, std)`` from the RSS curvature.
+
+        An effect with a secondary parameter gets it refined next (within its
+        bounds), then the first again; its value is the pair. With ``rows``
+        (a training set) only the value is refined (std ``None``).
+        """
+        assert effect.scan is not None
+        sec = effect.scan.secondary
+        sel = slice(None) if rows is None else rows
+        values = self.grid(effect)[0]
+        i = int(np.argmin(np.abs(values - value)))
+        lo, hi = float(values[max(i - 1, 0)]), float(values[min(i + 1, len(values) - 1)])
+        if lo == hi:
+            return value, None
+        use_log = effect.scan.log and lo > 0
+        other = None if sec is None else sec[4]
+        pack = (lambda v: v) if sec is None else (lambda v: (v, other))  # noqa: E731
+        best = _minimise(lambda v: self.rss(effect, W0, y, pack(v), sel), lo, hi, use_log)
+        if sec is not None:
+            other = _minimise(lambda z: self.rss(effect, W0, y, (best, z), sel), sec[2], sec[3], True)
+            best = _minimise(lambda v: self.rss(effect, W0, y, (v, other), sel), lo, hi, use_log)
+        if rows is not None:
+            return pack(best), None
+        # curvature of the profile RSS at the optimum, in the parameter's own unit
+        h = 1e-3 * abs(best) if best != 0 else 1e-3 * (hi - lo)
+        if effect.kind == "shift":
+            h = max(h, 0.05 / self.fs)
+        r0 = self.rss(effect, W0, y, pack(best))
+        rp, rm = self.rss(effect, W0, y, pack(best + h)), self.rss(effect, W0, y, pack(best - h))
+        curv = (rp - 2 * r0 + rm) / h**2
+        n = len(y)
+        k = W0.shape[1] + len(effect.params) + 1
+        x = self.exact(effect, pack(best))
+        W1 = W0 if effect.kind == "shift" else np.hstack([W0, x])
+        y1 = x if effect.kind == "shift" else y
+        theta, _ = lstsq(W1, y1)
+        rho = lag1_autocorrelation(y1 - W1 @ theta)
+        inflation = (1 + max(rho, 0.0)) / (1 - min(max(rho, 0.0), 0.99))
+        std = math.sqrt(2.0 * r0 / max(n - k, 1) * inflation / curv) if curv > 0 else None
+        return pack(best), std
+
+
+def _minimise(f: Any, lo: float, hi: float, use_log: bool) -> float:
+    """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``)."""
+    from scipy.optimize import minimize_scalar
+
+    fwd = math.log if use_log else (lambda v: v)
+    inv = math.exp if use_log else (lambda u: u)
+    a, b = fwd(lo), fwd(hi)
+    res = minimize_scalar(lambda u: f(inv(u)), bounds=(a, b), method="bounded", options={"xatol": 1e-4 * abs(b - a) + 1e-12})
+    return float(inv(res.x))
+
+
+def forward_select(
+    data: IDIMData,
+    base: Model,
+    fs_hz: float,
+    settings: SelectSettings = SelectSettings(),
+    *,
+    validation: IDIMData | None = None,
+    known: list[Step] | None = None,
+) -> SelectionResult:
+    """Add catalogue effects to ``base`` one at a time while they are significant and predict better.
+
+    Parameters
+    ----------
+    data : IDIMData
+        The fitting log, prepared with ``base`` (:func:`ilic_cli.idim_ls.prepare`).
+    base : Model
+        The starting regressor.
+    fs_hz : float
+        Sampling frequency of the log.
+    settings : SelectSettings
+        Level, folds, candidates.
+    validation : IDIMData, optional
+        Another log prepared with ``base``: a candidate must not raise the
+        error of the fitted model there.
+    known : list of Step, optional
+        Effects already in the model (from a model file): kept, not tried.
+    """
+    effects = catalogue(fs_hz)
+    rows = moving_rows(data)
+    searcher = Searcher(data, fs_hz, rows)
+    out = SelectionResult(rows=rows)
+    known = list(known or [])
+    W, y, names = system(data, base, known, rows)
+    folds = blocked_folds(len(y), settings.folds, settings.guard)
+    ynorm2 = float(y @ y)
+    pct = lambda sse: 100.0 * math.sqrt(sse / ynorm2)  # noqa: E731
+    while len(out.steps) < settings.max_effects:
+        in_model = {s.effect.id for s in [*known, *out.steps]}
+        cands = [effects[i] for i in settings.effects if i in effects and i not in in_model and applicable(effects[i], names)]
+        if not cands:
+            break
+        trials_base = len(cands)
+        evals: list[tuple[Evaluation, Effect, np.ndarray, np.ndarray]] = []
+        for eff in cands:
+            value, vstd = None, None
+            if eff.nonlinear:
+                value = searcher.scan(eff, W, y)
+                value, vstd = searcher.refine(eff, W, y, value)
+            if eff.kind == "shift":
+                W1, y1, q, trials = W, searcher.exact(eff, value), 1, trials_base
+            else:
+                W1 = np.hstack([W, searcher.exact(eff, value) if eff.nonlinear else searcher.exact_linear(eff)])
+                # a secondary nonlinear parameter is one more degree of freedom
+                y1, q = y, len(eff.params) + (1 if eff.scan is not None and eff.scan.secondary else 0)
+                trials = trials_base * (len(searcher.grid(eff)[0]) if eff.nonlinear else 1)
+            test = nested_f_test(W, y, W1, y1, q, trials)
+            theta1, rss1 = lstsq(W1, y1)
+            rel = 100.0 * math.sqrt(rss1 / float(y1 @ y1))
+            why = eff.impossible(theta1[W.shape[1]:], value) if eff.impossible is not None else None
+            evals.append((Evaluation(eff.id, value, vstd, test, rel, reason=why or ""), eff, W1, y1))
+        # the candidate explaining most of the mismatch first; significance and held-out error gate it
+        evals.sort(key=lambda e: e[0].relative_error_pct)
+        tried: list[Evaluation] = []
+        chosen = None
+        for ev, eff, W1, y1 in evals:
+            if ev.reason:
+                tried.append(_replace(ev, reason=f"physically impossible: {ev.reason}"))
+                continue
+            if chosen is not None or ev.test.p_adjusted >= settings.alpha:
+                reason = "not significant" if ev.test.p_adjusted >= settings.alpha else "another effect was accepted first"
+                tried.append(_replace(ev, reason=reason))
+                continue
+            e_before = heldout_errors(W, y, folds)
+            e_after = _heldout_candidate(searcher, eff, W, y, folds)
+            before, after = pct(float(e_before @ e_before)), pct(float(e_after @ e_after))
+            p_cv = diebold_mariano(e_before, e_after)
+            vb = va = None
+            if validation is not None:
+                vb = validation_error(data, validation, base, [*known, *out.steps])
+                va = validation_error(data, validation, base, [*known, *out.steps, Step(eff, ev.value)])
+            if not after < before or p_cv >= settings.alpha_heldout:
+                ok, reason = False, "does not lower the held-out error significantly"
+            elif va is not None and vb is not None and va > vb:
+                ok, reason = False, "raises the error on the validation log"
+            else:
+                ok, reason = True, "significant, and lowers the held-out error"
+            ev = _replace(ev, heldout_before_pct=before, heldout_after_pct=after, heldout_p_value=p_cv, validation_before_pct=vb, validation_after_pct=va, accepted=ok, reason=reason)
+            tried.append(ev)
+            if ok:
+                chosen = (ev, eff, W1, y1)
+        out.tried.append(tried)
+        if chosen is None:
+            break
+        ev, eff, W, y = chosen
+        out.steps.append(Step(eff, ev.value))
+        out.accepted.append(ev)
+        names = names + tuple(n for n, _, _ in eff.params)
+    return out
+
+
+def _replace(ev: Evaluation, **kw: Any) -> Evaluation:
+    from dataclasses import replace
+
+    return replace(ev, **kw)
+
+
+def _heldout_candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, folds: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Held-out errors of the model with ``eff``, its nonlinear parameter searched on each training set."""
+    out = np.full(len(y), np.nan)
+    for train, test in folds:
+        if eff.nonlinear:
+            v = searcher.scan(eff, W, y, rows=train)
+            v, _ = searcher.refine(eff, W, y, v, rows=train)
+            x = searcher.exact(eff, v)
+        else:
+            x = searcher.exact_linear(eff)
+        if eff.kind == "shift":
+            W1, y1 = W, x
+        else:
+            W1, y1 = np.hstack([W, x]), y
+        theta, _ = lstsq(W1[train], y1[train])
+        out[test] = y1[test] - W1[test] @ theta
+    return out
+
+
+def validation_error(data: IDIMData, validation: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...]) -> float:
+    """Relative error (%) on ``validation`` of the model ``base + steps`` fitted on ``data``."""
+    W, y, _ = system(data, base, steps)
+    theta, _ = lstsq(W, y)
+    Wv, yv, _ = system(validation, base, steps)
+    return relative_error_pct(yv, Wv @ theta)
