@@ -511,7 +511,12 @@ def simulate_replay(log: RunLog, params: RigidParameters | dict[str, float], eff
         else:
             ctl = CTCSettings(**{**{k: getattr(ctl, k) for k in ("omega", "xi", "alpha", "model", "window_s", "sigma_max_pct", "cutoff_hz")},
                                  "ilic": False, "chi0": {n: getattr(params, n, 0.0) for n in names if n in RigidParameters.NAMES}})
-    x0 = (float(log["q"][0]), 0.0) if "q" in log and isinstance(ctl, PDSettings) else None
+    x0 = None
+    if "q" in log and isinstance(ctl, PDSettings):
+        # start where the recording starts: measured position, velocity of its first samples
+        q_meas = log["q"]
+        v0 = float((q_meas[min(2, len(q_meas) - 1)] - q_meas[0]) / (min(2, len(q_meas) - 1) * dt)) if len(q_meas) > 1 else 0.0
+        x0 = (float(q_meas[0]), v0)
     res = simulate_loop(q_r=q_ctl, qd_r=qd_ctl, qdd_r=qdd_ctl, qd_log=qd_ref, qdd_log=qdd_ref, params=params, effects=eff, controller=ctl, fs_hz=fs, substeps=substeps,
                         seed=seed, pulses=pulses, tau_sensor=sensor, chi_schedule=sched, x0=x0)
     res.t = np.asarray(log.t, dtype=np.float64).copy()
