@@ -79,6 +79,7 @@ def main(argv: list[str] | None = None) -> None:
     debug = "--debug" in args
     try:
         signal.signal(signal.SIGTERM, _on_sigterm)
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # Ctrl-C even when started with SIGINT ignored
     except ValueError:  # not in the main thread (tests)
         pass
     status = 0

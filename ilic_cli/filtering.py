@@ -19,32 +19,54 @@ PARALLEL_MIN_SIZE = 200_000
 """Arrays at least this large are filtered in threads (SciPy's filters release the GIL)."""
 
 
-def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: int) -> np.ndarray:
+CHUNK_ELEMENTS = 1 << 21
+"""Rows of a 2-D or larger array are filtered in blocks of about this many samples (16 MB)."""
+
+
+def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: int, keep: np.ndarray | None = None) -> np.ndarray:
     """Apply ``func`` (a filter along the last axis) to ``x`` along ``axis``.
 
-    The data are laid out contiguously along the filtered axis and, when large,
-    split into chunks along another axis that are filtered in threads. The
-    result is identical to filtering the whole array at once.
+    The rows along the filtered axis are filtered in contiguous blocks of
+    about :data:`CHUNK_ELEMENTS` samples (in threads when the array is large),
+    so the filter's temporaries stay bounded whatever the length of the log.
+    ``keep`` (indices along the filtered axis) decimates each block as soon as
+    it is filtered, so the full-rate output is never held. The result is
+    identical to filtering the whole array at once.
     """
-    moved = np.ascontiguousarray(np.moveaxis(np.asarray(x, dtype=np.float64), axis, -1))
-    workers = min(os.cpu_count() or 1, 8)
-    if workers < 2 or moved.size < PARALLEL_MIN_SIZE or moved.ndim < 2:
-        return np.moveaxis(func(moved), -1, axis)
-    from concurrent.futures import ThreadPoolExecutor
+    moved = np.moveaxis(np.asarray(x, dtype=np.float64), axis, -1)
 
-    flat = moved.reshape(-1, moved.shape[-1])
-    chunks = np.array_split(flat, min(workers, flat.shape[0]), axis=0)
-    with ThreadPoolExecutor(len(chunks)) as pool:
-        parts = list(pool.map(func, chunks))
-    return np.moveaxis(np.concatenate(parts, axis=0).reshape(moved.shape), -1, axis)
+    def run(block: np.ndarray) -> np.ndarray:
+        y = func(np.ascontiguousarray(block))
+        return y if keep is None else np.take(y, keep, axis=-1)
+
+    if moved.ndim < 2:
+        return run(moved)
+    # blocks along the first axis: views, copied one block at a time by run()
+    per_row = int(np.prod(moved.shape[1:]))
+    rows = max(1, CHUNK_ELEMENTS // max(per_row, 1))
+    blocks = [moved[i : i + rows] for i in range(0, moved.shape[0], rows)]
+    workers = min(os.cpu_count() or 1, 8, len(blocks))
+    if per_row > CHUNK_ELEMENTS:
+        workers = 1  # rows longer than a block: one at a time, memory over speed
+    if workers < 2 or moved.size < PARALLEL_MIN_SIZE:
+        parts = [run(block) for block in blocks]
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(workers) as pool:
+            parts = list(pool.map(run, blocks))
+    return np.moveaxis(np.concatenate(parts, axis=0), -1, axis)
 
 
-def filtfilt_matlab(b: np.ndarray, a: np.ndarray, x: np.ndarray, axis: int = 0) -> np.ndarray:
-    """Zero-phase filtering as MATLAB ``filtfilt`` (odd padding of 3*(order) samples)."""
+def filtfilt_matlab(b: np.ndarray, a: np.ndarray, x: np.ndarray, axis: int = 0, keep: np.ndarray | None = None) -> np.ndarray:
+    """Zero-phase filtering as MATLAB ``filtfilt`` (odd padding of 3*(order) samples).
+
+    ``keep``: indices along ``axis`` to return (decimation while filtering).
+    """
     from scipy.signal import filtfilt
 
     padlen = 3 * (max(len(a), len(b)) - 1)
-    return _in_threads(lambda c: filtfilt(b, a, c, axis=-1, padtype="odd", padlen=padlen), x, axis)
+    return _in_threads(lambda c: filtfilt(b, a, c, axis=-1, padtype="odd", padlen=padlen), x, axis, keep)
 
 
 def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 4, *, matlab: bool = True, axis: int = 0) -> np.ndarray:
@@ -108,8 +130,8 @@ def decimate_matlab(x: np.ndarray, r: int, axis: int = 0) -> np.ndarray:
     if r == 1:
         return np.asarray(x)
     b, a = signal.cheby1(8, 0.05, 0.8 / r)
-    y = filtfilt_matlab(b, a, x, axis=axis)
-    return np.take(y, kept_indices(y.shape[axis], r), axis=axis)
+    x = np.asarray(x)
+    return filtfilt_matlab(b, a, x, axis=axis, keep=kept_indices(x.shape[axis], r))
 
 
 def lowpass_decimate(x: np.ndarray, r: int, cutoff_hz: float, fs_hz: float, order: int = 4, axis: int = -1) -> np.ndarray:
@@ -125,5 +147,4 @@ def lowpass_decimate(x: np.ndarray, r: int, cutoff_hz: float, fs_hz: float, orde
     sos = signal.butter(order, cutoff_hz / (fs_hz / 2.0), output="sos")
     n = x.shape[axis]
     padlen = min(n - 1, 3 * (2 * len(sos) + 1))
-    y = _in_threads(lambda c: signal.sosfiltfilt(sos, c, axis=-1, padlen=padlen), x, axis)
-    return np.take(y, kept_indices(n, r), axis=axis)
+    return _in_threads(lambda c: signal.sosfiltfilt(sos, c, axis=-1, padlen=padlen), x, axis, kept_indices(n, r))

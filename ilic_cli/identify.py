@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.errors import IdentificationError
+from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic
 from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, idim_ls
 from ilic_cli.lsq import LSResult
@@ -90,6 +91,36 @@ def sample_rate(log: RunLog) -> float:
     return 1.0 / log.dt_s
 
 
+def _quality(log: RunLog, report: IdentifyReport) -> np.ndarray | None:
+    """Add the data-quality warnings to ``report``; return the samples usable for identification.
+
+    Saturated drive samples (:func:`ilic_cli.quality.saturation_mask`) are
+    masked, never silently: the returned boolean array is False there, and
+    None when every sample can be used.
+    """
+    from ilic_cli.quality import assess_log, saturation_mask
+
+    quality = assess_log(log)
+    report.warnings.extend(f"data quality: {message}" for message in quality.warnings())
+    if quality.saturation_limit is None or "vir" not in log.channels:
+        return None
+    saturated = saturation_mask(log["vir"], quality.saturation_limit)
+    return ~saturated if saturated.any() else None
+
+
+def _masked_summary(report: IdentifyReport, valid: np.ndarray) -> str:
+    share = 100.0 * (1.0 - float(np.mean(valid)))
+    parts = [f"saturated drive: {share:.3g} % of the samples masked"]
+    if report.ls is not None:
+        rows = report.ls.result.rows
+        total = len(kept_indices(len(valid) - report.ls.settings.trim, report.ls.settings.decimation))
+        parts.append(f"IDIM-LS uses {rows} of {total} decimated rows ({100.0 * (total - rows) / total:.3g} % masked)")
+    if report.ilic is not None and report.ilic.windows:
+        touched = sum(1 for w in report.ilic.windows if "rows masked" in w.note)
+        parts.append(f"IDIM-ILIC rows masked in {touched} of {len(report.ilic.windows)} window(s)")
+    return "; ".join(parts)
+
+
 def identify(
     log: RunLog,
     *,
@@ -118,9 +149,10 @@ def identify(
         raise IdentificationError(None, str(exc)) from None
     fs = sample_rate(log)
     report = IdentifyReport(source=src, model=model, fs_hz=fs, samples=len(log))
+    valid = _quality(log, report)
     if method in ("ls", "both"):
         try:
-            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, structure, ls_settings)
+            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, structure, ls_settings, valid=valid)
         except ValueError as exc:
             raise IdentificationError(src, str(exc)) from None
         if not report.ls.result.full_rank:
@@ -138,12 +170,22 @@ def identify(
                 qd_ref=log.channels.get("qd_ref"),
                 qdd_ref=log.channels.get("qdd_ref"),
                 q=log["q"],
+                valid=valid,
             )
         except ValueError as exc:
             raise IdentificationError(src, str(exc)) from None
+        not_essential: dict[str, list[int]] = {}
         for w in report.ilic.windows:
-            if w.note:
+            if w.note and not w.note.startswith("not essential"):
                 report.warnings.append(f"IDIM-ILIC window k={w.k}: {w.note}")
+            elif w.note:
+                for name, ok in zip(w.result.names, w.essential, strict=True):
+                    if not ok:
+                        not_essential.setdefault(name, []).append(w.k)
+        for name, ks in not_essential.items():
+            report.warnings.append(f"IDIM-ILIC: {name} not essential (%σ > {ilic_settings.sigma_max_pct:g}) in {len(ks)} of {len(report.ilic.windows)} windows (k = {_ranges(ks)}); it would not be updated")
+    if valid is not None:
+        report.warnings.append(_masked_summary(report, valid))
     for other in validate or []:
         osrc = str(other.meta.get("source", ""))
         if report.ls is not None:
@@ -155,3 +197,17 @@ def identify(
                 res = cross_validate(theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings)
                 report.validation.append(Validation(osrc, f"IDIM-ILIC (k={report.ilic.windows[-1].k})", res))
     return report
+
+
+def _ranges(ks: list[int]) -> str:
+    """``[1, 2, 3, 5]`` -> ``"1-3, 5"``."""
+    parts: list[str] = []
+    start = prev = ks[0]
+    for k in ks[1:] + [None]:  # type: ignore[list-item]
+        if k is not None and k == prev + 1:
+            prev = k
+            continue
+        parts.append(f"{start}" if start == prev else f"{start}-{prev}")
+        if k is not None:
+            start = prev = k
+    return ", ".join(parts)

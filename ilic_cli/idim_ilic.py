@@ -146,6 +146,7 @@ def estimate_windows(
     q: np.ndarray | None = None,
     t: np.ndarray | None = None,
     k0: int = 1,
+    valid: np.ndarray | None = None,
 ) -> list[WindowEstimate]:
     """Estimate the parameters of K windows at once (paper eq. 24).
 
@@ -167,6 +168,10 @@ def estimate_windows(
         Time, for the window bounds and time-dependent columns.
     k0 : int
         Index of the first window (``k`` counts from 1).
+    valid : ndarray of bool, shape (K, n), optional
+        Samples that may be used (False: e.g. a saturated drive); in each
+        window the decimated rows whose span touches an invalid sample are
+        dropped before the least squares. ``None`` keeps every row.
     """
     qd_ref, qdd_ref, tau = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (qd_ref, qdd_ref, tau))
     kin = Kinematics(qd=qd_ref, qdd=qdd_ref, q=None if q_ref is None else np.atleast_2d(q_ref), t=None if t is None else np.atleast_2d(t))
@@ -175,6 +180,19 @@ def estimate_windows(
     Wd = lowpass_decimate(W, r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
     yd = lowpass_decimate(tau, r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
     results = solve_batch(Wd, yd, model.names, sigma="eq8")
+    masked: dict[int, str] = {}
+    if valid is not None and not np.all(valid):
+        from ilic_cli.idim_ls import valid_rows
+
+        rows = valid_rows(np.atleast_2d(valid), r)
+        for i in np.flatnonzero(~rows.all(axis=1)):
+            keep = rows[i]
+            if keep.sum() > Wd.shape[-1]:
+                results[i] = solve_batch(Wd[i : i + 1, keep], yd[i : i + 1, keep], model.names, sigma="eq8")[0]
+            else:  # nothing identifiable is left: a null system (rank 0, infinite std)
+                b = Wd.shape[-1]
+                results[i] = solve_batch(np.zeros((1, b, b)), np.zeros((1, b)), model.names, sigma="eq8")[0]
+            masked[int(i)] = f"{100 * (1 - keep.mean()):.3g} % of the rows masked (saturated drive)"
     ratios = tracking_error_ratio(np.atleast_2d(q_ref), np.atleast_2d(q)) if q_ref is not None and q is not None else None
     out = []
     for i, res in enumerate(results):
@@ -185,6 +203,8 @@ def estimate_windows(
             note = f"rank-deficient: {', '.join(missing)} not excited in this window"
         elif not ess.all():
             note = "not essential: " + ", ".join(n for n, e in zip(res.names, ess, strict=True) if not e)
+        if i in masked:
+            note = f"{masked[i]}; {note}" if note else masked[i]
         t0 = float(t[i, 0]) if t is not None else float("nan")
         t1 = float(t[i, -1]) if t is not None else float("nan")
         out.append(
@@ -236,12 +256,15 @@ def identify_ilic(
     qd_ref: np.ndarray | None = None,
     qdd_ref: np.ndarray | None = None,
     q: np.ndarray | None = None,
+    valid: np.ndarray | None = None,
 ) -> ILICResult:
     """IDIM-ILIC estimates over consecutive windows of ``settings.window_s``.
 
     Windows hold ``round(window_s*fs)`` samples; a trailing part shorter than
     a window is left out (reported as ``dropped_s``). Missing reference
     derivatives are computed from ``q_ref`` by central differences.
+    ``valid`` (boolean, one per sample) masks samples such as a saturated
+    drive inside each window (see :func:`estimate_windows`).
     """
     n = int(round(settings.window_s * fs_hz))
     K = len(t) // n if n > 0 else 0
@@ -251,5 +274,12 @@ def identify_ilic(
         qd_ref, qdd_ref = reference_derivatives(q_ref, 1.0 / fs_hz)
     m = K * n
     cut = (lambda a: None if a is None else np.asarray(a[:m], dtype=np.float64).reshape(K, n))
-    windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut(q), t=cut(t))
+    mask = None
+    if valid is not None:
+        valid = np.asarray(valid, dtype=bool)
+        if valid.shape != np.shape(t):
+            raise ValueError(f"valid has {valid.shape} samples, the log {np.shape(t)}")
+        if not valid.all():
+            mask = valid[:m].reshape(K, n)
+    windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut(q), t=cut(t), valid=mask)
     return ILICResult(model=model.name, names=model.names, settings=settings, windows=windows, dropped_s=float((len(t) - m) / fs_hz))

@@ -67,16 +67,19 @@ class IDIMData:
     y: np.ndarray
     fs_hz: float
     settings: LSSettings
+    rows: np.ndarray | None = None
 
     @property
     def t_dec(self) -> np.ndarray:
-        """Time of the decimated rows (s)."""
+        """Time of the decimated rows (s) that were kept (see ``rows``)."""
         assert self.kin.t is not None
-        return self.kin.t[kept_indices(len(self.kin.t), self.settings.decimation)]
+        t = self.kin.t[kept_indices(len(self.kin.t), self.settings.decimation)]
+        return t if self.rows is None else t[self.rows]
 
     def decimate(self, x: np.ndarray) -> np.ndarray:
-        """Decimate full-rate trimmed column(s) exactly as the force was."""
-        return _decimate(np.asarray(x, dtype=np.float64), self.settings, self.fs_hz)
+        """Decimate full-rate trimmed column(s) exactly as the force was (masked rows left out)."""
+        d = _decimate(np.asarray(x, dtype=np.float64), self.settings, self.fs_hz)
+        return d if self.rows is None else d[self.rows]
 
 
 @dataclass(frozen=True)
@@ -106,7 +109,45 @@ def _decimate(x: np.ndarray, settings: LSSettings, fs_hz: float) -> np.ndarray:
     return lowpass_decimate(x, settings.decimation, 0.8 * fs_hz / 2 / settings.decimation, fs_hz, 8, axis=0)
 
 
-def prepare(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings(), *, extra: dict[str, np.ndarray] | None = None) -> IDIMData:
+def valid_rows(valid: np.ndarray, r: int) -> np.ndarray:
+    """Decimated rows whose decimation span holds only valid full-rate samples.
+
+    Parameters
+    ----------
+    valid : ndarray of bool, shape (..., n)
+        Full-rate samples that may be used (False: e.g. a saturated drive).
+    r : int
+        Decimation factor; the kept samples are :func:`kept_indices` (end-aligned).
+
+    Returns
+    -------
+    ndarray of bool, shape (..., ceil(n / r))
+        False for a row whose kept sample lies within ``r - 1`` samples of an
+        invalid one (the zero-phase anti-alias filter mixes that neighbourhood).
+    """
+    valid = np.asarray(valid, dtype=bool)
+    n = valid.shape[-1]
+    bad = (~valid).astype(np.int64)
+    # count of invalid samples in [i - (r - 1), i + (r - 1)] by a running sum
+    width = r - 1
+    csum = np.concatenate([np.zeros(valid.shape[:-1] + (1,), dtype=np.int64), np.cumsum(bad, axis=-1)], axis=-1)
+    idx = kept_indices(n, r)
+    hi = np.minimum(idx + width + 1, n)
+    lo = np.maximum(idx - width, 0)
+    return (np.take(csum, hi, axis=-1) - np.take(csum, lo, axis=-1)) == 0
+
+
+def prepare(
+    t: np.ndarray,
+    q: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    model: Model,
+    settings: LSSettings = LSSettings(),
+    *,
+    extra: dict[str, np.ndarray] | None = None,
+    valid: np.ndarray | None = None,
+) -> IDIMData:
     """Filter, differentiate, trim, build and decimate the IDIM system (eqs. 5-6).
 
     Parameters
@@ -121,6 +162,10 @@ def prepare(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: 
         Filtering and decimation.
     extra : dict, optional
         Further full-rate channels made available to columns (trimmed alike).
+    valid : ndarray of bool, optional
+        Full-rate samples that may be used; the decimated rows whose span
+        touches an invalid sample are dropped (:func:`valid_rows`). ``None``
+        (or all True) keeps every row.
     """
     dt = 1.0 / fs_hz
     if len(q) <= settings.trim + 3 * settings.decimation * 9:
@@ -139,13 +184,27 @@ def prepare(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: 
     y_full = np.asarray(tau, dtype=np.float64)[s]
     # parallel decimation of the force and every column, in one call (columns filtered in threads)
     Wy = _decimate(np.column_stack([model.matrix(kin), y_full]), settings, fs_hz)
+    rows = None
+    if valid is not None:
+        valid = np.asarray(valid, dtype=bool)
+        if valid.shape != np.shape(q):
+            raise ValueError(f"valid has {valid.shape} samples, the log {np.shape(q)}")
+        if not valid.all():
+            rows = valid_rows(valid[s], settings.decimation)
+            Wy = Wy[rows]
+            if len(Wy) <= Wy.shape[1]:
+                raise ValueError(f"only {len(Wy)} decimated rows are left once the invalid (saturated) samples are masked; too few for {Wy.shape[1] - 1} parameters")
     W, y = np.ascontiguousarray(Wy[:, :-1]), np.ascontiguousarray(Wy[:, -1])
-    return IDIMData(kin=kin, tau=y_full, W=W, y=y, fs_hz=fs_hz, settings=settings)
+    return IDIMData(kin=kin, tau=y_full, W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
 
 
-def idim_ls(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings()) -> IDIMLSResult:
-    """IDIM-LS estimate of ``model`` from measured position and force."""
-    data = prepare(t, q, tau, fs_hz, model, settings)
+def idim_ls(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings(), *, valid: np.ndarray | None = None) -> IDIMLSResult:
+    """IDIM-LS estimate of ``model`` from measured position and force.
+
+    ``valid`` (boolean, one per sample) masks samples such as a saturated
+    drive: the decimated rows they touch are left out (see :func:`prepare`).
+    """
+    data = prepare(t, q, tau, fs_hz, model, settings, valid=valid)
     result = solve(data.W, data.y, model.names, sigma=settings.sigma)
     return IDIMLSResult(model=model.name, result=result, settings=settings, t=data.t_dec, y=data.y, y_hat=data.W @ result.theta)
 

@@ -260,6 +260,24 @@ def saturation(vir: np.ndarray) -> tuple[float, float | None]:
     return share, limit
 
 
+def saturation_mask(vir: np.ndarray, limit: float) -> np.ndarray:
+    """Samples of the drive command on its saturation plateau ``|vir| >= limit - 1e-9``.
+
+    Parameters
+    ----------
+    vir : ndarray
+        Drive command samples (V).
+    limit : float
+        The plateau value found by :func:`saturation`.
+
+    Returns
+    -------
+    ndarray of bool
+        True where the command sits at the limit (identification masks these).
+    """
+    return np.abs(np.asarray(vir, dtype=np.float64).reshape(-1)) >= limit - SATURATION_ATOL
+
+
 def frozen_runs(t: np.ndarray, q: np.ndarray, q_ref: np.ndarray) -> list[dict[str, float]]:
     """Find runs where the position sensor looks frozen.
 

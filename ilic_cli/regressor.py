@@ -77,7 +77,7 @@ class Model:
         Signals may be stacked (``(K, n)`` for K windows) to build K matrices at once.
         """
         shape = np.shape(kin.qd)
-        return np.stack([np.broadcast_to(c.build(kin), shape) for c in self.columns], axis=-1).astype(np.float64)
+        return np.stack([np.broadcast_to(c.build(kin), shape) for c in self.columns], axis=-1).astype(np.float64, copy=False)
 
     def extend(self, *columns: Column, name: str | None = None) -> Model:
         """Return a model with ``columns`` appended (names must be new)."""

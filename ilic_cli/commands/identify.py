@@ -49,6 +49,8 @@ def command(log: Path, method: str, model: str, validate: tuple[Path, ...], wind
 
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise IlicError(out_dir, "--out must be a folder")
+    if out_dir is not None:
+        _refuse_overwriting_inputs(out_dir, plot_format, (log, *validate))
     run = load(log, input_format, topic, ref_topic, joint)
     others = [load(p, None, topic, ref_topic, joint) for p in validate]
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
@@ -79,3 +81,17 @@ def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[P
 
         written += plot_identify(result, run, out_dir, plot_format)
     note(f"ilic: wrote {', '.join(str(p) for p in written)}")
+
+
+def _refuse_overwriting_inputs(out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:
+    """Refuse an --out folder where a report file would replace an input (checked before any work)."""
+    from ilic_cli.errors import IlicError
+    from ilic_cli.io.atomic import same_path
+
+    names = ["report.md", "report.csv", "report.json", "model.json"]
+    if plot_format != "none":
+        names += [f"{n}.{plot_format}" for n in ("parameters", "force")]
+    for name in names:
+        target = out_dir / name
+        if target.exists() and any(same_path(src, target) for src in inputs):
+            raise IlicError(target, "output would overwrite the input; choose another --out folder")

@@ -95,7 +95,8 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
     for w in log.meta.get("ilic_windows", []):
         est = ", ".join(f"{n}={p['value']:.6g}" + ("" if w["essential"][n] else "*") for n, p in w["parameters"].items() if p["value"] is not None)
         note(f"  window {w['k']} [{w['t_start']:.1f}, {w['t_end']:.1f}] s: {est}")
-    write_log(log, output, out_format)
+    reference = (log.meta.get("scenario") or {}).get("log")
+    write_log(log, output, out_format, inputs=(reference,) if reference else ())
     note(f"ilic: wrote {output} ({len(log)} samples, {log.duration_s:.3f} s)")
 
 

@@ -7,7 +7,10 @@ path (``.mat``, ``.csv``, ``.mcap``, ``.bag``, a ROS 2 bag folder).
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import importlib
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
@@ -87,11 +90,46 @@ def _module(fmt: str) -> LogFormat:
     return importlib.import_module(FORMATS[fmt])  # type: ignore[return-value]
 
 
-def read_log(path: str | Path, fmt: str | None = None, selection: Selection | None = None, *, validate: bool = True) -> RunLog:
+ProgressFactory = Callable[[Path], "Progress"]
+
+
+class Progress(Protocol):
+    """A progress display for reading one file (see :func:`read_log`)."""
+
+    def update(self, done: int, total: int) -> None:
+        """Show that ``done`` of ``total`` units (bytes, messages) are read."""
+
+    def close(self) -> None:
+        """Finish the display."""
+
+
+_PROGRESS: contextvars.ContextVar[ProgressFactory | None] = contextvars.ContextVar("ilic_read_progress", default=None)
+
+
+@contextlib.contextmanager
+def current_progress(path: Path) -> Iterator[Callable[[int, int], None] | None]:
+    """Yield the ``update(done, total)`` callback of the progress display of this read, or None.
+
+    Container readers (MCAP, bags) call it while they stream a file; there is
+    a display only when :func:`read_log` was given a ``progress`` factory.
+    """
+    factory = _PROGRESS.get()
+    if factory is None:
+        yield None
+        return
+    display = factory(path)
+    try:
+        yield display.update
+    finally:
+        display.close()
+
+
+def read_log(path: str | Path, fmt: str | None = None, selection: Selection | None = None, *, validate: bool = True, progress: ProgressFactory | None = None) -> RunLog:
     """Read a log file into a :class:`~ilic_cli.runlog.RunLog`.
 
     Raises :class:`LogError` (one line, naming the file) for a missing, empty,
-    corrupt or unusable file.
+    corrupt or unusable file. ``progress`` makes a progress display for the
+    file (called with its path) that streaming readers update.
     """
     from ilic_cli.runlog import validate_samples
 
@@ -101,11 +139,33 @@ def read_log(path: str | Path, fmt: str | None = None, selection: Selection | No
     if p.is_file() and p.stat().st_size == 0:
         raise LogError(p, "file is empty")
     name = detect_format(p, fmt)
-    log = _module(name).read(p, selection or Selection())
+    token = _PROGRESS.set(progress)
+    try:
+        log = _module(name).read(p, selection or Selection())
+    finally:
+        _PROGRESS.reset(token)
+    if len(log) >= 100_000:
+        _return_freed_memory()
     log.meta.setdefault("source", str(p))
     if validate:
         validate_samples(log, str(p))
     return log
+
+
+def _return_freed_memory() -> None:
+    """Give the heap pages freed after a large read back to the OS (glibc ``malloc_trim``).
+
+    Readers pack messages into many small NumPy blocks; once they are joined
+    and freed, glibc would otherwise keep those pages for the process.
+    """
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        libc.malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc: nothing to do
+        pass
 
 
 def write_log(log: RunLog, path: str | Path, fmt: str | None = None, options: WriteOptions | None = None, *, inputs: tuple[str | Path, ...] = ()) -> Path:

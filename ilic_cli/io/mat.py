@@ -64,7 +64,7 @@ def _describe(value: Any) -> str:
     if isinstance(value, np.ndarray):
         if value.dtype.kind in "US":
             return "text"
-        if value.dtype.kind == "O":
+        if value.dtype.kind in "OV":
             return "a cell array or struct"
         shape = "x".join(str(s) for s in value.shape)
         return f"a {shape} {value.dtype} array"

@@ -8,7 +8,9 @@ compressor is not importable) with chunk and data-section CRCs, library string
 come from :mod:`ilic_cli.io.rosmsgs`.
 
 Reading streams the file once with :class:`mcap.stream_reader.StreamReader`
-(CRC validation on). Before a chunk is decompressed its declared size is
+(CRC validation on) and decodes each message as it passes into NumPy columns
+(:class:`ilic_cli.io.rosmsgs.Collector`): no Python object is kept per
+message, so a 1-hour 1 kHz log is read in bounded memory. Before a chunk is decompressed its declared size is
 checked against ``min(2 GiB, 64 x file size)`` and the decompressor is capped
 at that size, so a hostile file cannot exhaust memory. ``ros1`` encoded
 channels are decoded too; other encodings are refused.
@@ -16,8 +18,6 @@ channels are decoded too; other encodings are refused.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -88,18 +88,6 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         writer.finish()
 
 
-@dataclass
-class McapContent:
-    """Topics and raw messages of an MCAP file (see :func:`scan`)."""
-
-    topics: dict[str, rosmsgs.RawTopic] = field(default_factory=dict)
-    raw: dict[str, list[tuple[int, bytes]]] = field(default_factory=dict)
-
-    def messages(self, topic: str) -> Iterable[tuple[int, bytes]]:
-        """Yield ``(log_time_ns, data)`` of ``topic`` in log-time order."""
-        return iter(self.raw.get(topic, []))
-
-
 def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     size = int(chunk.uncompressed_size)
     if size > limit:
@@ -125,19 +113,19 @@ def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     return data
 
 
-def scan(path: Path) -> McapContent:
-    """Read every schema, channel and message of an MCAP file, checking CRCs.
+def scan(path: Path, collector: rosmsgs.Collector | None = None, progress: Any = None) -> None:
+    """Read every record of an MCAP file once, checking CRCs; feed messages to ``collector``.
 
     Parameters
     ----------
     path : Path
         The MCAP file.
-
-    Returns
-    -------
-    McapContent
-        Topics (ROS message types normalised to ``pkg/msg/Type``) and raw
-        messages per topic sorted by log time.
+    collector : rosmsgs.Collector, optional
+        Receives every channel (as a topic, ROS message types normalised to
+        ``pkg/msg/Type``) and the messages of the topics it reads. Without it
+        the file is only checked.
+    progress : callable, optional
+        Called as ``progress(bytes_read, file_size)`` after each chunk.
 
     Raises
     ------
@@ -145,7 +133,7 @@ def scan(path: Path) -> McapContent:
         For a truncated, corrupt (CRC mismatch) or hostile file.
     """
     try:
-        return _scan(path)
+        _scan(path, collector, progress)
     except LogError:
         raise
     except MemoryError:
@@ -172,27 +160,29 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def _scan(path: Path) -> McapContent:
+def _scan(path: Path, collector: rosmsgs.Collector | None, progress: Any) -> None:
     from mcap.records import Channel, Chunk, Message, Schema
     from mcap.stream_reader import StreamReader, breakup_chunk
 
     file_size = path.stat().st_size
     limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(file_size, 1))
     schemas: dict[int, Any] = {}
-    channels: dict[int, Any] = {}
-    messages: list[Any] = []
+    sinks: dict[int, Any] = {}
 
     def take(record: Any) -> None:
-        if isinstance(record, Schema):
+        if isinstance(record, Message):
+            sink = sinks.get(record.channel_id)
+            if sink is not None:
+                sink.add(record.log_time, record.data)
+        elif isinstance(record, Schema):
             schemas[record.id] = record
-        elif isinstance(record, Channel):
-            channels[record.id] = record
-        elif isinstance(record, Message):
-            # keep only messages that can matter (bounded memory with e.g. camera topics)
-            channel = channels.get(record.channel_id)
-            schema = schemas.get(channel.schema_id) if channel is not None else None
-            if channel is None or schema is None or rosmsgs.normalize_msgtype(schema.name) in rosmsgs.READ_TYPES:
-                messages.append(record)
+        elif isinstance(record, Channel) and collector is not None:
+            schema = schemas.get(record.schema_id)
+            if schema is None:
+                return
+            encoding = record.message_encoding
+            kind = rosmsgs.ROS2 if encoding == "cdr" else rosmsgs.ROS1 if encoding == "ros1" else encoding
+            sinks[record.id] = collector.declare(rosmsgs.RawTopic(record.topic, rosmsgs.normalize_msgtype(schema.name), kind))
 
     with open(path, "rb") as stream:
         reader = StreamReader(stream, emit_chunks=True, validate_crcs=True, record_size_limit=file_size)
@@ -214,28 +204,12 @@ def _scan(path: Path) -> McapContent:
                 )
                 for inner in breakup_chunk(plain, validate_crc=True):
                     take(inner)
+                if progress is not None:
+                    progress(stream.tell(), file_size)
             else:
                 take(record)
-    content = McapContent()
-    for channel_id, channel in channels.items():
-        schema = schemas.get(channel.schema_id)
-        if schema is None:
-            continue
-        encoding = channel.message_encoding
-        kind = rosmsgs.ROS2 if encoding == "cdr" else rosmsgs.ROS1 if encoding == "ros1" else encoding
-        topic = rosmsgs.RawTopic(channel.topic, rosmsgs.normalize_msgtype(schema.name), kind)
-        if channel.topic in content.topics and content.topics[channel.topic] != topic:
-            raise LogError(path, f"topic {channel.topic} appears with two message types")
-        content.topics[channel.topic] = topic
-        content.raw.setdefault(channel.topic, [])
-    by_channel = {cid: channels[cid].topic for cid in channels if channels[cid].topic in content.topics}
-    for message in messages:
-        topic_name = by_channel.get(message.channel_id)
-        if topic_name is not None:
-            content.raw[topic_name].append((int(message.log_time), bytes(message.data)))
-    for lst in content.raw.values():
-        lst.sort(key=lambda item: item[0])
-    return content
+    if progress is not None:
+        progress(file_size, file_size)
 
 
 def read(path: Path, selection: Selection) -> RunLog:
@@ -252,6 +226,9 @@ def read(path: Path, selection: Selection) -> RunLog:
     -------
     RunLog
     """
-    content = scan(path)
-    return rosmsgs.decode_guarded(content, selection, path, "MCAP")
+    from ilic_cli.io import current_progress
 
+    collector = rosmsgs.Collector(path)
+    with current_progress(path) as progress:
+        scan(path, collector, progress)
+    return rosmsgs.decode_guarded(collector.finish(), selection, path, "MCAP")

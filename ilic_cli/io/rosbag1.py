@@ -11,7 +11,6 @@ decompression at ``min(2 GiB, 64 x file size)``.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -77,32 +76,33 @@ def _bounded(decompress: Any, limit: int, path: Path) -> Any:
     return run
 
 
-class _BagSource:
-    """:class:`rosmsgs.RawSource` over an open ``rosbags`` ROS 1 reader."""
+def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
+    """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
+    from ilic_cli.io import current_progress
 
-    def __init__(self, reader: Any, path: Path) -> None:
-        self.reader = reader
-        self.path = path
-        self.topics: dict[str, rosmsgs.RawTopic] = {}
-        self._connections: dict[str, list[Any]] = {}
-        for conn in reader.connections:
-            topic = rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), rosmsgs.ROS1)
-            if conn.topic in self.topics and self.topics[conn.topic] != topic:
-                raise LogError(path, f"topic {conn.topic} appears with two message types")
-            self.topics[conn.topic] = topic
-            self._connections.setdefault(conn.topic, []).append(conn)
-
-    def messages(self, topic: str) -> Iterable[tuple[int, bytes]]:
-        conns = self._connections.get(topic, [])
-        ts = rosmsgs.typestore(rosmsgs.ROS1)
-        msgtype = self.topics[topic].msgtype
-        if msgtype in ts.types:
-            _, md5 = ts.generate_msgdef(msgtype)
-            for conn in conns:
-                if conn.digest and conn.digest != md5:
-                    raise LogError(self.path, f"topic {topic}: definition of {msgtype} differs from the standard one (md5 {conn.digest})")
-        for _conn, log_ns, data in self.reader.messages(connections=conns):
-            yield log_ns, data
+    collector = rosmsgs.Collector(path)
+    ts = rosmsgs.typestore(rosmsgs.ROS1)
+    sinks: dict[int, Any] = {}
+    wanted = []
+    for conn in reader.connections:
+        topic = rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), rosmsgs.ROS1)
+        sink = collector.declare(topic)
+        if sink is None:
+            continue
+        _, md5 = ts.generate_msgdef(topic.msgtype)
+        if conn.digest and conn.digest != md5 and sink.error is None:
+            sink.error = f"topic {conn.topic}: definition of {topic.msgtype} differs from the standard one (md5 {conn.digest})"
+        sinks[conn.id] = sink
+        wanted.append(conn)
+    total = sum(int(getattr(conn, "msgcount", 0) or 0) for conn in wanted) or 1
+    with current_progress(path) as progress:
+        for done, (conn, log_ns, data) in enumerate(reader.messages(connections=wanted) if wanted else (), start=1):
+            sinks[conn.id].add(log_ns, data)
+            if progress is not None and done % 65536 == 0:
+                progress(done, total)
+        if progress is not None:
+            progress(total, total)
+    return collector.finish()
 
 
 def read(path: Path, selection: Selection) -> RunLog:
@@ -132,7 +132,8 @@ def read(path: Path, selection: Selection) -> RunLog:
     try:
         for pos, chunk in list(reader.chunks.items()):
             reader.chunks[pos] = chunk._replace(decompressor=_bounded(chunk.decompressor, limit, path))
-        source = _BagSource(reader, path)
+        with rosmsgs.guarded(path, "ROS 1 bag"):
+            source = _collect(reader, path)
         return rosmsgs.decode_guarded(source, selection, path, "ROS 1 bag")
     finally:
         try:

@@ -9,7 +9,6 @@ of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -71,25 +70,29 @@ def _target_name(tmp: Path) -> str:
     return name or "bag"
 
 
-class _BagSource:
-    """:class:`rosmsgs.RawSource` over an open ``rosbags`` ROS 2 reader."""
+def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
+    """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
+    from ilic_cli.io import current_progress
 
-    def __init__(self, reader: Any, path: Path) -> None:
-        self.reader = reader
-        self.topics: dict[str, rosmsgs.RawTopic] = {}
-        self._connections: dict[str, list[Any]] = {}
-        for conn in reader.connections:
-            fmt = getattr(conn.ext, "serialization_format", "cdr")
-            kind = rosmsgs.ROS2 if fmt == "cdr" else fmt
-            topic = rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), kind)
-            if conn.topic in self.topics and self.topics[conn.topic] != topic:
-                raise LogError(path, f"topic {conn.topic} appears with two message types")
-            self.topics[conn.topic] = topic
-            self._connections.setdefault(conn.topic, []).append(conn)
-
-    def messages(self, topic: str) -> Iterable[tuple[int, bytes]]:
-        for _conn, log_ns, data in self.reader.messages(connections=self._connections.get(topic, [])):
-            yield log_ns, bytes(data)
+    collector = rosmsgs.Collector(path)
+    sinks: dict[int, Any] = {}
+    wanted = []
+    for conn in reader.connections:
+        fmt = getattr(conn.ext, "serialization_format", "cdr")
+        kind = rosmsgs.ROS2 if fmt == "cdr" else fmt
+        sink = collector.declare(rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), kind))
+        if sink is not None:
+            sinks[conn.id] = sink
+            wanted.append(conn)
+    total = sum(int(getattr(conn, "msgcount", 0) or 0) for conn in wanted) or 1
+    with current_progress(path) as progress:
+        for done, (conn, log_ns, data) in enumerate(reader.messages(connections=wanted) if wanted else (), start=1):
+            sinks[conn.id].add(log_ns, data)
+            if progress is not None and done % 65536 == 0:
+                progress(done, total)
+        if progress is not None:
+            progress(total, total)
+    return collector.finish()
 
 
 def _precheck_mcap(path: Path) -> None:
@@ -131,7 +134,8 @@ def read(path: Path, selection: Selection) -> RunLog:
     except Exception as exc:  # noqa: BLE001 - rosbags/sqlite/yaml raise many kinds on bad bags
         raise LogError(path, f"not a readable ROS 2 bag ({type(exc).__name__}: {_short(exc)})") from None
     try:
-        source = _BagSource(reader, path)
+        with rosmsgs.guarded(path, "ROS 2 bag"):
+            source = _collect(reader, path)
         return rosmsgs.decode_guarded(source, selection, path, "ROS 2 bag")
     finally:
         try:

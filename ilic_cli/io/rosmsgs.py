@@ -31,6 +31,9 @@ from ``header.stamp`` (log time when every stamp is zero) relative to the first
 sample; the reference from ``Selection.ref_topic`` or ``/joint_reference``
 (``JointTrajectoryPoint`` or ``JointState``). Only the built-in message types
 are decoded: definitions stored in a file are never compiled or executed.
+Container modules stream every message once into a :class:`Collector`, which
+decodes it with the ``rosbags`` type store and keeps only NumPy columns of the
+values (no Python object per message); :func:`decode` works on those columns.
 """
 
 from __future__ import annotations
@@ -38,10 +41,10 @@ from __future__ import annotations
 import functools
 import json
 import math
-from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -201,6 +204,8 @@ def stamps_ns(t: np.ndarray) -> np.ndarray:
     same nanosecond.
     """
     t = np.asarray(t, dtype=np.float64)
+    if not np.isfinite(t).all():
+        raise LogError(None, "time stamps must be finite (NaN or infinite time cannot be a ROS time stamp)")
     shift = 0.0 if len(t) == 0 or t[0] >= 0 else float(math.ceil(-t[0]))
     ns = np.rint((t + shift) * 1e9)
     if len(ns) and (ns[-1] >= 2**62 or not np.isfinite(ns).all()):
@@ -317,6 +322,10 @@ def _messages(log: RunLog, joint: str, kind: str, topics: list[TopicSpec], ns: n
 
 
 # -- reading ----------------------------------------------------------------
+BLOCK = 8192
+"""Messages buffered as Python values before they are packed into NumPy blocks."""
+
+
 @dataclass(frozen=True)
 class RawTopic:
     """A topic in a container, as the container module reports it.
@@ -336,65 +345,331 @@ class RawTopic:
     kind: str
 
 
-class RawSource(Protocol):
-    """What a container module hands to :func:`decode`."""
-
-    topics: Mapping[str, RawTopic]
-
-    def messages(self, topic: str) -> Iterable[tuple[int, bytes]]:
-        """Yield ``(log_time_ns, raw bytes)`` of ``topic`` in log-time order."""
-        ...
-
-
-def _decoder(topic: RawTopic, path: Path) -> Any:
-    if topic.kind not in (ROS1, ROS2):
-        raise LogError(path, f"topic {topic.name} uses message encoding '{topic.kind}'; only ROS 2 CDR and ROS 1 messages can be read")
-    ts = typestore(topic.kind)
-    if topic.msgtype not in ts.types:
-        raise LogError(path, f"topic {topic.name} has unsupported message type {topic.msgtype}")
-    fn = ts.deserialize_ros1 if topic.kind == ROS1 else ts.deserialize_cdr
-    msgtype = topic.msgtype
-
-    def decode_one(data: bytes) -> Any:
-        return fn(data, msgtype)
-
-    return decode_one
-
-
-def _iter_decoded(source: RawSource, name: str, path: Path) -> Iterator[tuple[int, int, Any]]:
-    topic = source.topics[name]
-    decode_one = _decoder(topic, path)
-    for index, (log_ns, data) in enumerate(source.messages(name)):
-        try:
-            msg = decode_one(data)
-        except Exception as exc:  # noqa: BLE001 - any decoding failure is bad input
-            raise LogError(path, f"message {index} on {name} cannot be decoded as {topic.msgtype} ({type(exc).__name__}: {_short(exc)})") from None
-        yield index, int(log_ns), msg
-
-
 def _short(exc: BaseException) -> str:
     text = " ".join(str(exc).split())
     return text[:160] + ("..." if len(text) > 160 else "")
 
 
-def _stamp_ns(msg: Any) -> int:
-    stamp = msg.header.stamp
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+class _Numbers:
+    """A growing column of scalars packed into NumPy blocks every :data:`BLOCK` items.
+
+    With ``small=True`` (non-negative counts and indices) a block is stored as
+    uint8 when its values allow, else as the given dtype.
+    """
+
+    __slots__ = ("dtype", "items", "blocks", "small")
+
+    def __init__(self, dtype: Any, small: bool = False) -> None:
+        self.dtype = dtype
+        self.items: list[Any] = []
+        self.blocks: list[np.ndarray] = []
+        self.small = small
+
+    def flush(self) -> None:
+        if self.items:
+            block = np.asarray(self.items, dtype=self.dtype)
+            if self.small and len(block) and int(block.max()) < 256 and int(block.min()) >= 0:
+                block = block.astype(np.uint8)
+            self.blocks.append(block)
+            self.items = []
+
+    def array(self) -> np.ndarray:
+        self.flush()
+        out = np.concatenate(self.blocks) if self.blocks else np.empty(0, dtype=self.dtype)
+        self.blocks = []
+        return out
 
 
-def _field_value(values: Any, index: int) -> float | None:
-    if values is None or len(values) <= index:
-        return None
-    return float(values[index])
+class _Arrays:
+    """A growing column of small float arrays (one per message), flattened into NumPy blocks."""
+
+    __slots__ = ("items", "blocks", "counts")
+
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+        self.blocks: list[np.ndarray] = []
+        self.counts = _Numbers(np.int32, small=True)
+
+    def append(self, values: Any) -> None:
+        self.items.append(values)
+        self.counts.items.append(len(values))
+
+    def flush(self) -> None:
+        if self.items:
+            try:
+                block = np.concatenate(self.items).astype(np.float64, copy=False)
+            except (ValueError, TypeError):
+                block = np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1) for v in self.items])
+            self.blocks.append(block)
+            self.items = []
+        self.counts.flush()
+
+    def columns(self) -> tuple[np.ndarray, np.ndarray]:
+        self.flush()
+        flat = np.concatenate(self.blocks) if self.blocks else np.empty(0)
+        self.blocks = []
+        return flat, self.counts.array()
 
 
-def decode(source: RawSource, selection: Selection, path: Path) -> RunLog:
-    """Build a :class:`RunLog` from the messages of a container.
+@dataclass
+class Series:
+    """Decoded messages of one topic as columns (no per-message Python objects).
+
+    Attributes
+    ----------
+    topic : RawTopic
+        The topic.
+    log_ns : ndarray of int64
+        Log time of each message, sorted.
+    stamp_ns : ndarray of int64 or None
+        ``header.stamp`` of each message (JointState).
+    name_id : ndarray of int32 or None
+        Index into ``names`` of each message's ``name`` list (JointState).
+    names : list of tuple of str
+        Distinct ``name`` lists, in order of first appearance.
+    fields : dict
+        Array field -> ``(flat values, count per message)``.
+    text : str or None
+        Data of the first message (String).
+    """
+
+    topic: RawTopic
+    log_ns: np.ndarray
+    stamp_ns: np.ndarray | None = None
+    name_id: np.ndarray | None = None
+    names: list[tuple[str, ...]] = field(default_factory=list)
+    fields: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    text: str | None = None
+
+    def __len__(self) -> int:
+        return len(self.log_ns)
+
+    def values_at(self, fieldname: str, index: np.ndarray | int, keep: np.ndarray | None = None) -> np.ndarray | None:
+        """Element ``index[i]`` of ``fieldname`` for the messages ``keep``; None when one is too short."""
+        flat, counts = self.fields[fieldname]
+        if keep is None and np.ndim(index) == 0 and len(counts):
+            # the usual case: every message has the same width -> a strided view, no index arrays
+            width = int(counts[0])
+            j = int(index)
+            if width > j and bool((counts == width).all()):
+                return flat if width == 1 else np.ascontiguousarray(flat[j::width])
+            if not (counts > j).all():
+                return None
+        starts = np.cumsum(counts, dtype=np.int64) - counts
+        if keep is not None:
+            counts, starts = counts[keep], starts[keep]
+        if len(counts) == 0 or not (counts > index).all():
+            return None
+        return flat[starts + index]
+
+
+class _Sink:
+    """Decodes the messages of one topic into columns; the first failure is kept, raised on use."""
+
+    arrays: tuple[str, ...] = ()
+
+    def __init__(self, topic: RawTopic) -> None:
+        ts = typestore(topic.kind)
+        self.topic = topic
+        self.count = 0
+        self.error: str | None = None
+        self._deserialize = ts.deserialize_ros1 if topic.kind == ROS1 else ts.deserialize_cdr
+        self._log_ns = _Numbers(np.int64)
+        self._arrays = {name: _Arrays() for name in self.arrays}
+
+    def add(self, log_ns: int, data: bytes | memoryview) -> None:
+        """Decode one message (``log_ns``, raw ``data``) into the columns."""
+        if self.error is not None:
+            return
+        try:
+            msg = self._deserialize(data, self.topic.msgtype)
+            self._take(msg)
+        except Exception as exc:  # noqa: BLE001 - any decoding failure is bad input
+            self.error = f"message {self.count} on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {_short(exc)})"
+            return
+        self._log_ns.items.append(log_ns)
+        self.count += 1
+        if self.count % BLOCK == 0:
+            self._flush()
+
+    def _take(self, msg: Any) -> None:
+        for name, column in self._arrays.items():
+            column.append(getattr(msg, name))
+
+    def _flush(self) -> None:
+        self._log_ns.flush()
+        for column in self._arrays.values():
+            column.flush()
+
+    def finish(self) -> Series:
+        """Return the columns, sorted by log time (stable)."""
+        series = Series(self.topic, self._log_ns.array())
+        for name, column in self._arrays.items():
+            series.fields[name] = column.columns()
+        self._extra(series)
+        _sort(series)
+        return series
+
+    def _extra(self, series: Series) -> None:
+        pass
+
+
+class _JointStateSink(_Sink):
+    arrays = ("position", "velocity", "effort")
+
+    def __init__(self, topic: RawTopic) -> None:
+        super().__init__(topic)
+        self._stamp = _Numbers(np.int64)
+        self._name_id = _Numbers(np.int32, small=True)
+        self._names: dict[tuple[str, ...], int] = {}
+
+    def _take(self, msg: Any) -> None:
+        key = tuple(msg.name)
+        nid = self._names.get(key)
+        if nid is None:
+            nid = self._names[key] = len(self._names)
+        stamp = msg.header.stamp
+        position, velocity, effort = msg.position, msg.velocity, msg.effort
+        self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
+        self._name_id.items.append(nid)
+        arrays = self._arrays
+        arrays["position"].append(position)
+        arrays["velocity"].append(velocity)
+        arrays["effort"].append(effort)
+
+    def _flush(self) -> None:
+        super()._flush()
+        self._stamp.flush()
+        self._name_id.flush()
+
+    def _extra(self, series: Series) -> None:
+        series.stamp_ns = self._stamp.array()
+        series.name_id = self._name_id.array()
+        series.names = [tuple(str(x) for x in key) for key in self._names]
+
+
+class _PointSink(_Sink):
+    arrays = ("positions", "velocities", "accelerations")
+
+
+class _StringSink(_Sink):
+    """Keeps the data of the first message only (later ones are counted, not decoded)."""
+
+    def __init__(self, topic: RawTopic) -> None:
+        super().__init__(topic)
+        self._text: str | None = None
+
+    def add(self, log_ns: int, data: bytes | memoryview) -> None:
+        """Decode the first message; count the others."""
+        if self.count == 0 and self.error is None:
+            try:
+                self._text = str(self._deserialize(data, self.topic.msgtype).data)
+            except Exception as exc:  # noqa: BLE001
+                self.error = f"message 0 on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {_short(exc)})"
+                return
+        self._log_ns.items.append(log_ns)
+        self.count += 1
+        if self.count % BLOCK == 0:
+            self._flush()
+
+    def _extra(self, series: Series) -> None:
+        series.text = self._text
+
+
+_SINKS: dict[str, type[_Sink]] = {JOINT_STATE: _JointStateSink, TRAJECTORY_POINT: _PointSink, STRING: _StringSink}
+
+
+def _sort(series: Series) -> None:
+    """Put the messages of ``series`` in log-time order (stable) when they are not."""
+    log_ns = series.log_ns
+    if len(log_ns) < 2 or bool((log_ns[1:] >= log_ns[:-1]).all()):
+        return
+    order = np.argsort(log_ns, kind="stable")
+    series.log_ns = log_ns[order]
+    if series.stamp_ns is not None:
+        series.stamp_ns = series.stamp_ns[order]
+    if series.name_id is not None:
+        series.name_id = series.name_id[order]
+    for name, (flat, counts) in series.fields.items():
+        starts = (np.cumsum(counts, dtype=np.int64) - counts)[order]
+        counts = counts[order]
+        total = int(counts.sum())
+        shift = np.repeat(starts - (np.cumsum(counts, dtype=np.int64) - counts), counts)
+        series.fields[name] = (flat[np.arange(total, dtype=np.int64) + shift], counts)
+
+
+class Collector:
+    """Streams a container's messages into per-topic columns in one pass.
+
+    Container modules :meth:`declare` every topic (channel, connection) and
+    feed the messages of the topics that can matter to the returned sink's
+    ``add(log_ns, data)``; :meth:`finish` gives the :class:`Collected` that
+    :func:`decode` reads. Only the built-in types of :data:`READ_TYPES` in
+    ROS 1 or ROS 2 (CDR) encoding are decoded; memory grows with the decoded
+    values (about 60 bytes per JointState message), not with Python objects.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.topics: dict[str, RawTopic] = {}
+        self._sinks: dict[str, _Sink | None] = {}
+
+    def declare(self, topic: RawTopic) -> _Sink | None:
+        """Register ``topic``; return the sink for its messages, or None when they are not read."""
+        known = self.topics.get(topic.name)
+        if known is not None and known != topic:
+            raise LogError(self.path, f"topic {topic.name} appears with two message types")
+        self.topics[topic.name] = topic
+        if topic.name not in self._sinks:
+            sink_type = _SINKS.get(topic.msgtype)
+            self._sinks[topic.name] = sink_type(topic) if sink_type is not None and topic.kind in (ROS1, ROS2) else None
+        return self._sinks[topic.name]
+
+    def finish(self) -> Collected:
+        """Return the collected columns."""
+        data = {name: sink for name, sink in self._sinks.items() if sink is not None}
+        self._sinks = {}
+        return Collected(self.path, dict(self.topics), data)
+
+
+class Collected:
+    """Topics and their decoded columns (from :meth:`Collector.finish`)."""
+
+    def __init__(self, path: Path, topics: dict[str, RawTopic], sinks: dict[str, _Sink]) -> None:
+        self.path = path
+        self.topics = topics
+        self._sinks = sinks
+        self._series: dict[str, Series] = {}
+
+    def series(self, name: str) -> Series:
+        """The columns of topic ``name``; raises the topic's first decoding error."""
+        if name in self._series:
+            return self._series[name]
+        topic = self.topics[name]
+        if topic.kind not in (ROS1, ROS2):
+            raise LogError(self.path, f"topic {topic.name} uses message encoding '{topic.kind}'; only ROS 2 CDR and ROS 1 messages can be read")
+        sink = self._sinks.get(name)
+        if sink is None:
+            raise LogError(self.path, f"topic {topic.name} has unsupported message type {topic.msgtype}")
+        if sink.error is not None:
+            raise LogError(self.path, sink.error)
+        series = self._series[name] = sink.finish()
+        del self._sinks[name]
+        return series
+
+    def release(self, name: str) -> None:
+        """Free the columns of topic ``name``."""
+        self._series.pop(name, None)
+        self._sinks.pop(name, None)
+
+
+def decode(source: Collected, selection: Selection, path: Path) -> RunLog:
+    """Build a :class:`RunLog` from the collected messages of a container.
 
     Parameters
     ----------
-    source : RawSource
-        Topics and raw messages of the file.
+    source : Collected
+        Topics and decoded columns of the file.
     selection : Selection
         Topic, reference topic and joint to read (see the module docstring).
     path : Path
@@ -412,7 +687,33 @@ def decode(source: RawSource, selection: Selection, path: Path) -> RunLog:
     return _decode_foreign(source, selection, path)
 
 
-def decode_guarded(source: RawSource, selection: Selection, path: Path, container: str) -> RunLog:
+def guarded(path: Path, container: str) -> Any:
+    """Context manager turning any unexpected library failure into a one-line :class:`LogError`.
+
+    Parameters
+    ----------
+    path : Path
+        The file named in the error.
+    container : str
+        Container name for the message (``"MCAP"``, ``"ROS 1 bag"``...).
+    """
+    import contextlib
+
+    @contextlib.contextmanager
+    def guard() -> Iterator[None]:
+        try:
+            yield
+        except LogError:
+            raise
+        except MemoryError:
+            raise LogError(path, f"{container} content needs more memory than available") from None
+        except Exception as exc:  # noqa: BLE001 - every failure on file content is bad input
+            raise LogError(path, f"cannot read {container} content ({type(exc).__name__}: {_short(exc)})") from None
+
+    return guard()
+
+
+def decode_guarded(source: Collected, selection: Selection, path: Path, container: str) -> RunLog:
     """:func:`decode`, turning any unexpected library failure into a one-line :class:`LogError`.
 
     Parameters
@@ -422,28 +723,23 @@ def decode_guarded(source: RawSource, selection: Selection, path: Path, containe
     container : str
         Container name for the message (``"MCAP"``, ``"ROS 1 bag"``...).
     """
-    try:
+    with guarded(path, container):
         return decode(source, selection, path)
-    except LogError:
-        raise
-    except MemoryError:
-        raise LogError(path, f"{container} content needs more memory than available") from None
-    except Exception as exc:  # noqa: BLE001 - every failure on file content is bad input
-        raise LogError(path, f"cannot read {container} content ({type(exc).__name__}: {_short(exc)})") from None
 
 
-def _read_metadata(source: RawSource, path: Path) -> dict[str, Any]:
-    for _, _, msg in _iter_decoded(source, TOPIC_METADATA, path):
-        payload = parse_json_object(msg.data, path, f"{TOPIC_METADATA} message")
-        if payload.get("format") != FORMAT_TAG:
-            raise LogError(path, f"{TOPIC_METADATA} is not ilic metadata")
-        if not isinstance(payload.get("version"), int) or payload["version"] > FORMAT_VERSION:
-            raise LogError(path, f"{TOPIC_METADATA} has unsupported version {payload.get('version')!r}; upgrade ilic")
-        return payload
-    raise LogError(path, f"{TOPIC_METADATA} has no message")
+def _read_metadata(source: Collected, path: Path) -> dict[str, Any]:
+    series = source.series(TOPIC_METADATA)
+    if len(series) == 0 or series.text is None:
+        raise LogError(path, f"{TOPIC_METADATA} has no message")
+    payload = parse_json_object(series.text, path, f"{TOPIC_METADATA} message")
+    if payload.get("format") != FORMAT_TAG:
+        raise LogError(path, f"{TOPIC_METADATA} is not ilic metadata")
+    if not isinstance(payload.get("version"), int) or payload["version"] > FORMAT_VERSION:
+        raise LogError(path, f"{TOPIC_METADATA} has unsupported version {payload.get('version')!r}; upgrade ilic")
+    return payload
 
 
-def _decode_ilic(source: RawSource, selection: Selection, path: Path) -> RunLog:
+def _decode_ilic(source: Collected, selection: Selection, path: Path) -> RunLog:
     from ilic_cli.runlog import RunLog
 
     payload = _read_metadata(source, path)
@@ -458,15 +754,18 @@ def _decode_ilic(source: RawSource, selection: Selection, path: Path) -> RunLog:
         raise LogError(path, f"{TOPIC_METADATA}: meta is not a JSON object")
     if TOPIC_STATES not in source.topics or source.topics[TOPIC_STATES].msgtype != JOINT_STATE:
         raise LogError(path, f"no {TOPIC_STATES} topic of type {JOINT_STATE}")
+    ref_name = selection.ref_topic or TOPIC_REFERENCE
     states = _joint_state_series(source, TOPIC_STATES, joint, path, strict=True)
+    if ref_name != TOPIC_STATES:
+        source.release(TOPIC_STATES)
     channels: dict[str, np.ndarray] = {}
     for channel, fieldname in STATE_FIELDS.items():
         if states[fieldname] is not None:
             channels[channel] = states[fieldname]
     n = len(states["log_ns"])
-    ref_name = selection.ref_topic or TOPIC_REFERENCE
     if ref_name in source.topics:
         ref = _reference_series(source, ref_name, 0, path)
+        source.release(ref_name)
         if len(ref["log_ns"]) != n:
             raise LogError(path, f"{ref_name} has {len(ref['log_ns'])} messages but {TOPIC_STATES} has {n}")
         for channel, fieldname in REFERENCE_FIELDS.items():
@@ -474,89 +773,116 @@ def _decode_ilic(source: RawSource, selection: Selection, path: Path) -> RunLog:
                 channels[channel] = ref[fieldname]
     elif selection.ref_topic:
         raise LogError(path, f"no topic {selection.ref_topic} (topics: {', '.join(sorted(source.topics))})")
-    t = states["stamp_ns"].astype(np.float64) / 1e9
+    stamp_ns = states["stamp_ns"]
+    del states
     if TOPIC_EXTRAS in source.topics:
         extras = _extras_series(source, path)
+        source.release(TOPIC_EXTRAS)
         if len(extras[TIME_NAME]) != n:
             raise LogError(path, f"{TOPIC_EXTRAS} has {len(extras[TIME_NAME])} messages but {TOPIC_STATES} has {n}")
         t = extras.pop(TIME_NAME)
         channels.update(extras)
+    else:
+        t = stamp_ns.astype(np.float64) / 1e9
+    del stamp_ns
+    source.release(TOPIC_STATES)
     channels["t"] = t
     return RunLog(channels, {k: v for k, v in units.items() if k in channels}, dict(meta))
 
 
-def _extras_series(source: RawSource, path: Path) -> dict[str, np.ndarray]:
-    names: list[str] | None = None
-    rows: list[np.ndarray] = []
-    for index, _, msg in _iter_decoded(source, TOPIC_EXTRAS, path):
-        if names is None:
-            names = list(msg.name)
-            if TIME_NAME not in names or len(set(names)) != len(names):
-                raise LogError(path, f"{TOPIC_EXTRAS} names {names} must be distinct and include '{TIME_NAME}'")
-        elif list(msg.name) != names:
-            raise LogError(path, f"message {index} on {TOPIC_EXTRAS} changes the channel names")
-        if len(msg.position) != len(names):
-            raise LogError(path, f"message {index} on {TOPIC_EXTRAS} has {len(msg.position)} values for {len(names)} names")
-        rows.append(np.asarray(msg.position, dtype=np.float64))
-    if names is None:
+def _first(mask: np.ndarray) -> int | None:
+    """Index of the first True in ``mask``, or None."""
+    hits = np.flatnonzero(mask)
+    return int(hits[0]) if len(hits) else None
+
+
+def _extras_series(source: Collected, path: Path) -> dict[str, np.ndarray]:
+    series = source.series(TOPIC_EXTRAS)
+    if len(series) == 0:
         return {TIME_NAME: np.empty(0)}
-    matrix = np.vstack(rows)
+    assert series.name_id is not None
+    names = list(series.names[int(series.name_id[0])])
+    if TIME_NAME not in names or len(set(names)) != len(names):
+        raise LogError(path, f"{TOPIC_EXTRAS} names {names} must be distinct and include '{TIME_NAME}'")
+    flat, counts = series.fields["position"]
+    changed = _first(series.name_id != series.name_id[0])
+    wrong = _first(counts != len(names))
+    if changed is not None and (wrong is None or changed <= wrong):
+        raise LogError(path, f"message {changed} on {TOPIC_EXTRAS} changes the channel names")
+    if wrong is not None:
+        raise LogError(path, f"message {wrong} on {TOPIC_EXTRAS} has {int(counts[wrong])} values for {len(names)} names")
+    if len(names) == 1:
+        return {names[0]: flat}
+    matrix = flat.reshape(len(series), len(names))
     return {name: matrix[:, j].copy() for j, name in enumerate(names)}
 
 
-def _joint_state_series(source: RawSource, topic: str, joint: str | None, path: Path, *, strict: bool) -> dict[str, Any]:
+def _joint_state_series(source: Collected, topic: str, joint: str | None, path: Path, *, strict: bool) -> dict[str, Any]:
     """Collect one joint's samples from a JointState topic.
 
     With ``strict`` every message must carry the joint; otherwise messages
     without it are skipped. ``joint=None`` picks the only joint, or raises
     listing the joints.
     """
-    decoded = list(_iter_decoded(source, topic, path))
-    if not decoded:
+    series = source.series(topic)
+    if len(series) == 0:
         raise LogError(path, f"topic {topic} has no messages")
+    assert series.name_id is not None and series.stamp_ns is not None
+    # name lists in order of first appearance (in log-time order)
+    if len(series.names) == 1:
+        in_order = list(series.names)
+    else:
+        ids, first_at = np.unique(series.name_id, return_index=True)
+        in_order = [series.names[int(i)] for i in ids[np.argsort(first_at, kind="stable")]]
     if joint is None:
         seen: dict[str, None] = {}
-        for _, _, msg in decoded:
-            for name in msg.name:
-                seen.setdefault(str(name), None)
+        for names in in_order:
+            for name in names:
+                seen.setdefault(name, None)
         joints = list(seen)
         if len(joints) > 1:
             listed = ", ".join(joints[:20]) + (", ..." if len(joints) > 20 else "")
             raise LogError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one with --joint")
         joint = joints[0] if joints else ""
-    log_ns: list[int] = []
-    stamp_ns: list[int] = []
-    values: dict[str, list[float | None]] = {"position": [], "velocity": [], "effort": []}
-    for index, log_time, msg in decoded:
-        names = [str(x) for x in msg.name]
-        if names:
-            if joint not in names:
-                if strict:
-                    raise LogError(path, f"message {index} on {topic} has no joint '{joint}'")
-                continue
-            j = names.index(joint)
-        elif joint == "" and len(msg.position) == 1:
-            j = 0
-        else:
-            continue
-        pos = _field_value(msg.position, j)
-        if pos is None:
-            raise LogError(path, f"message {index} on {topic}: no position for joint '{joint}'")
-        values["position"].append(pos)
-        values["velocity"].append(_field_value(msg.velocity, j))
-        values["effort"].append(_field_value(msg.effort, j))
-        log_ns.append(log_time)
-        stamp_ns.append(_stamp_ns(msg))
-    if not log_ns:
-        available = sorted({str(n) for _, _, m in decoded for n in m.name})
+    # per name list: index of the joint, -1 when named without it, -2 when unnamed
+    table = np.array([names.index(joint) if joint in names else (-1 if names else -2) for names in series.names], dtype=np.int64)
+    pos_counts = series.fields["position"][1]
+    if len(table) == 1 and table[0] >= 0:
+        # one name list for every message, with the joint: no per-message index arrays
+        jj = int(table[0])
+        no_position = _first(pos_counts <= jj)
+        if no_position is not None:
+            raise LogError(path, f"message {no_position} on {topic}: no position for joint '{joint}'")
+        out = {"joint": joint, "log_ns": series.log_ns, "stamp_ns": series.stamp_ns}
+        for fieldname in ("position", "velocity", "effort"):
+            out[fieldname] = series.values_at(fieldname, jj)
+        return out
+    j = table[series.name_id]
+    j = np.where((j == -2) & (joint == "") & (pos_counts == 1), 0, j)
+    missing_joint = _first(j == -1) if strict else None
+    keep = j >= 0
+    no_position = _first(keep & (pos_counts <= j))
+    if missing_joint is not None and (no_position is None or missing_joint < no_position):
+        raise LogError(path, f"message {missing_joint} on {topic} has no joint '{joint}'")
+    if no_position is not None:
+        raise LogError(path, f"message {no_position} on {topic}: no position for joint '{joint}'")
+    if not keep.any():
+        available = sorted({name for names in series.names for name in names})
         raise LogError(path, f"topic {topic} has no joint '{joint}' (joints: {', '.join(available) or 'none'})")
-    out: dict[str, Any] = {"joint": joint, "log_ns": np.asarray(log_ns, dtype=np.int64), "stamp_ns": np.asarray(stamp_ns, dtype=np.int64)}
-    for fieldname, vals in values.items():
-        out[fieldname] = None if any(v is None for v in vals) else np.asarray(vals, dtype=np.float64)
+    all_kept = bool(keep.all())
+    mask = None if all_kept else keep
+    jk = j if all_kept else j[keep]
+    out: dict[str, Any] = {
+        "joint": joint,
+        "log_ns": series.log_ns if all_kept else series.log_ns[keep],
+        "stamp_ns": series.stamp_ns if all_kept else series.stamp_ns[keep],
+    }
+    for fieldname in ("position", "velocity", "effort"):
+        out[fieldname] = series.values_at(fieldname, jk, mask)
     return out
 
 
-def _reference_series(source: RawSource, topic: str, joint_index: int | None, path: Path, joint: str | None = None) -> dict[str, Any]:
+def _reference_series(source: Collected, topic: str, joint_index: int | None, path: Path, joint: str | None = None) -> dict[str, Any]:
     info = source.topics[topic]
     if info.msgtype == JOINT_STATE:
         states = _joint_state_series(source, topic, joint, path, strict=False)
@@ -568,26 +894,21 @@ def _reference_series(source: RawSource, topic: str, joint_index: int | None, pa
         }
     if info.msgtype != TRAJECTORY_POINT:
         raise LogError(path, f"reference topic {topic} has type {info.msgtype}; expected {TRAJECTORY_POINT} or {JOINT_STATE}")
-    log_ns: list[int] = []
-    values: dict[str, list[float | None]] = {"positions": [], "velocities": [], "accelerations": []}
-    for index, log_time, msg in _iter_decoded(source, topic, path):
-        width = len(msg.positions)
-        if width == 1:
-            j = 0
-        elif joint_index is not None and width > joint_index:
-            j = joint_index
-        else:
-            raise LogError(path, f"message {index} on {topic} has {width} positions; cannot tell which belongs to the joint")
-        for fieldname in values:
-            values[fieldname].append(_field_value(getattr(msg, fieldname), j))
-        log_ns.append(log_time)
-    out: dict[str, Any] = {"log_ns": np.asarray(log_ns, dtype=np.int64)}
-    for fieldname, vals in values.items():
-        out[fieldname] = None if (not vals or any(v is None for v in vals)) else np.asarray(vals, dtype=np.float64)
+    series = source.series(topic)
+    width = series.fields["positions"][1]
+    j = np.where(width == 1, 0, -1)
+    if joint_index is not None:
+        j = np.where((width != 1) & (width > joint_index), joint_index, j)
+    bad = _first(j < 0)
+    if bad is not None:
+        raise LogError(path, f"message {bad} on {topic} has {int(width[bad])} positions; cannot tell which belongs to the joint")
+    out: dict[str, Any] = {"log_ns": series.log_ns}
+    for fieldname in ("positions", "velocities", "accelerations"):
+        out[fieldname] = series.values_at(fieldname, j)
     return out
 
 
-def _choose_state_topic(source: RawSource, selection: Selection, path: Path) -> str:
+def _choose_state_topic(source: Collected, selection: Selection, path: Path) -> str:
     topics = source.topics
     if selection.topic is not None:
         if selection.topic not in topics:
@@ -606,7 +927,7 @@ def _choose_state_topic(source: RawSource, selection: Selection, path: Path) -> 
     raise LogError(path, f"several {JOINT_STATE} topics ({', '.join(candidates)}); choose one with --topic")
 
 
-def _decode_foreign(source: RawSource, selection: Selection, path: Path) -> RunLog:
+def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunLog:
     from ilic_cli.quality import nominal_rate_hz
     from ilic_cli.runlog import RunLog
 
@@ -630,7 +951,7 @@ def _decode_foreign(source: RawSource, selection: Selection, path: Path) -> RunL
     if ref_name is not None:
         if ref_name not in source.topics:
             raise LogError(path, f"no topic {ref_name} (topics: {', '.join(sorted(source.topics))})")
-        joint_index = _joint_index(source, topic, joint, path)
+        joint_index = _joint_index(source, topic, joint)
         ref = _reference_series(source, ref_name, joint_index, path, joint=joint)
         log_ns = states["log_ns"][order]
         for channel, fieldname in REFERENCE_FIELDS.items():
@@ -651,8 +972,9 @@ def _decode_foreign(source: RawSource, selection: Selection, path: Path) -> RunL
     return RunLog(channels, {}, meta)
 
 
-def _joint_index(source: RawSource, topic: str, joint: str, path: Path) -> int | None:
-    for _, _, msg in _iter_decoded(source, topic, path):
-        names = [str(x) for x in msg.name]
-        return names.index(joint) if joint in names else None
-    return None
+def _joint_index(source: Collected, topic: str, joint: str) -> int | None:
+    series = source.series(topic)
+    if len(series) == 0 or series.name_id is None:
+        return None
+    names = series.names[int(series.name_id[0])]
+    return names.index(joint) if joint in names else None

@@ -1,0 +1,84 @@
+"""Memory and time of ``ilic info`` and ``ilic identify`` on a 1-hour, 1 kHz MCAP log.
+
+Generates the log once (3.6 M samples, about 10.8 M ROS 2 messages) and
+caches it under ``out/bench/hour_1khz.mcap``; then runs
+
+    ilic info out/bench/hour_1khz.mcap
+    ilic identify out/bench/hour_1khz.mcap --method both --format json
+
+each in its own subprocess and prints its wall time and peak resident set
+size (from ``os.wait4``, i.e. that child's ``ru_maxrss``). The goal is a
+peak RSS under 1 GB. Never asserted by tests: run it with ``make bench`` or
+``python benchmarks/bench_large.py [--regenerate]``.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+
+ROOT = Path(__file__).resolve().parents[1]
+CACHE = ROOT / "out" / "bench" / "hour_1khz.mcap"
+LIMIT_MB = 1024.0
+
+
+def generate(path: Path, fs: float = 1000.0, hours: float = 1.0) -> float:
+    """Write the 1-hour log to ``path`` with ilic's own MCAP writer; return the seconds it took."""
+    sys.path.insert(0, str(ROOT))
+    from benchmarks.bench_identify import synthetic_hour
+    from ilic_cli.io import write_log
+    from ilic_cli.runlog import RunLog
+
+    d = synthetic_hour(fs, hours)
+    gain = 35.15065188248547
+    log = RunLog(
+        {**d, "vir": d["tau"] / gain},
+        meta={"sample_rate_hz": fs, "drive_gain": gain, "scenario": {"name": "bench-large", "hours": hours}},
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    write_log(log, path)
+    return time.perf_counter() - t0
+
+
+def run(args: list[str]) -> tuple[float, float, int, str]:
+    """Run ``python -m ilic_cli ARGS``; return wall time (s), peak RSS (MB), status and stderr tail."""
+    env = dict(os.environ, CI="1")  # no progress bar in the measurement
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", "ilic_cli", *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=ROOT, env=env)
+    assert proc.stderr is not None
+    err = proc.stderr.read().decode("utf-8", "replace")
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    wall = time.perf_counter() - t0
+    rss_mb = usage.ru_maxrss / 1024.0  # Linux: kilobytes
+    return wall, rss_mb, proc.returncode, err.strip().splitlines()[-1] if err.strip() else ""
+
+
+def main() -> None:
+    """Generate the log when missing, then measure ``info`` and ``identify``."""
+    if "--regenerate" in sys.argv or not CACHE.exists():
+        print(f"generating {CACHE.relative_to(ROOT)} ...", flush=True)
+        seconds = generate(CACHE)
+        print(f"  written in {seconds:.1f} s ({CACHE.stat().st_size / 2**20:.0f} MiB)", flush=True)
+    samples = 3_600_000
+    print(f"log: {CACHE.relative_to(ROOT)} ({CACHE.stat().st_size / 2**20:.0f} MiB, {samples} samples at 1 kHz)")
+    rows = []
+    for name, args in (
+        ("info", ["info", str(CACHE)]),
+        ("identify --method both --format json", ["identify", str(CACHE), "--method", "both", "--format", "json"]),
+    ):
+        wall, rss, status, last = run(args)
+        rows.append((name, wall, rss, status))
+        flag = "ok" if rss < LIMIT_MB else f"OVER {LIMIT_MB:.0f} MB"
+        print(f"ilic {name:<38} status {status}  wall {wall:7.1f} s  peak RSS {rss:7.0f} MB  [{flag}]  {samples / wall / 1e3:.0f} k samples/s" + (f"  ({last})" if status else ""), flush=True)
+    worst = max(r[2] for r in rows)
+    print(f"peak RSS over both commands: {worst:.0f} MB (goal < {LIMIT_MB:.0f} MB)")
+
+
+if __name__ == "__main__":
+    main()
