@@ -12,7 +12,7 @@ calls :func:`identify_ilic` on a log. Both go through :func:`estimate_windows`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -39,6 +39,14 @@ class ILICSettings:
         essential and not updated (paper: 15; "between 10 and 30").
     filter_order : int
         Butterworth order of the low-pass.
+    ref_lag : int or None
+        Offline only (:func:`identify_ilic`): delay (samples) applied to the
+        reference so that it lines up with the measured motion; ``None``
+        estimates it from the positions (:func:`reference_lag`). A loop that
+        tracks well (the paper's CTC) gives 0; the EMPS benchmark's PD loop
+        trails its reference by about 6 ms.
+    max_ref_lag_s : float
+        Largest lag searched when ``ref_lag`` is ``None``.
     """
 
     window_s: float = 6.2
@@ -46,6 +54,8 @@ class ILICSettings:
     decimation: int | None = None
     sigma_max_pct: float = 15.0
     filter_order: int = 4
+    ref_lag: int | None = None
+    max_ref_lag_s: float = 0.05
 
     def factor(self, fs_hz: float) -> int:
         return self.decimation or decimation_factor(fs_hz, self.cutoff_hz)
@@ -86,6 +96,7 @@ class ILICResult:
     settings: ILICSettings
     windows: list[WindowEstimate] = field(default_factory=list)
     dropped_s: float = 0.0
+    ref_lag: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -94,6 +105,7 @@ class ILICResult:
             "window_s": self.settings.window_s,
             "cutoff_hz": self.settings.cutoff_hz,
             "sigma_max_pct": self.settings.sigma_max_pct,
+            "ref_lag_samples": self.ref_lag,
             "windows": [w.to_dict() for w in self.windows],
             "dropped_tail_s": self.dropped_s,
         }
@@ -239,6 +251,28 @@ def estimate_window(
     return estimate_windows(model, stack(qd_ref), stack(qdd_ref), stack(tau), fs_hz, settings, q_ref=stack(q_ref), q=stack(q), t=stack(t), k0=k)[0]
 
 
+def reference_lag(q_ref: np.ndarray, q: np.ndarray, max_lag: int) -> int:
+    """Delay ``L`` (samples, ``0 <= L <= max_lag``) minimising ``||q_ref(t - L) - q(t)||``.
+
+    Uses positions only (no noisy derivatives): the lag by which the axis
+    trails its reference. The regressor stays built from the noise-free
+    reference, merely delayed by ``L``.
+    """
+    q_ref = np.asarray(q_ref, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    n = len(q)
+    max_lag = max(0, min(int(max_lag), n // 4))
+    costs = [float(np.mean((q_ref[: n - L] - q[L:]) ** 2)) for L in range(max_lag + 1)]
+    return int(np.argmin(costs))
+
+
+def delay_samples(x: np.ndarray, lag: int) -> np.ndarray:
+    """``x(t - lag)`` on the same grid; the first ``lag`` samples repeat ``x[0]``."""
+    if lag <= 0:
+        return x
+    return np.concatenate([np.full(lag, x[0]), x[: len(x) - lag]])
+
+
 def reference_derivatives(q_ref: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Velocity and acceleration of a noise-free reference by central differences."""
     qd = central_difference(q_ref, dt_s)
@@ -272,7 +306,12 @@ def identify_ilic(
         raise ValueError(f"the log ({len(t) / fs_hz:.3g} s) is shorter than one window ({settings.window_s:g} s); pass a shorter --window")
     if qd_ref is None or qdd_ref is None:
         qd_ref, qdd_ref = reference_derivatives(q_ref, 1.0 / fs_hz)
+    lag = settings.ref_lag
+    if lag is None:
+        lag = reference_lag(q_ref, q, int(round(settings.max_ref_lag_s * fs_hz))) if q is not None else 0
     m = K * n
+    q_ref_actual = q_ref
+    q_ref, qd_ref, qdd_ref = (delay_samples(np.asarray(a, dtype=np.float64), lag) for a in (q_ref, qd_ref, qdd_ref))
     cut = (lambda a: None if a is None else np.asarray(a[:m], dtype=np.float64).reshape(K, n))
     mask = None
     if valid is not None:
@@ -282,4 +321,7 @@ def identify_ilic(
         if not valid.all():
             mask = valid[:m].reshape(K, n)
     windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut(q), t=cut(t), valid=mask)
-    return ILICResult(model=model.name, names=model.names, settings=settings, windows=windows, dropped_s=float((len(t) - m) / fs_hz))
+    if lag and q is not None:  # the tracking error is the controller's: against the reference as recorded
+        ratios = tracking_error_ratio(cut(q_ref_actual), cut(q))
+        windows = [replace(w, tracking_error_ratio=float(r)) for w, r in zip(windows, ratios, strict=True)]
+    return ILICResult(model=model.name, names=model.names, settings=settings, windows=windows, dropped_s=float((len(t) - m) / fs_hz), ref_lag=lag)

@@ -61,7 +61,8 @@ def to_markdown(report: IdentifyReport) -> str:
         shown = wins[:MAX_WINDOW_COLUMNS]
         s = report.ilic.settings
         out += ["## IDIM-ILIC per window" + (" next to IDIM-LS" if report.ls is not None else ""), ""]
-        out.append(f"Windows of {s.window_s:g} s on the reference trajectory; force low-pass {s.cutoff_hz:g} Hz and decimated; %σ_max = {s.sigma_max_pct:g} (a † marks a parameter that is not essential and would not be updated).")
+        lag = f" delayed by {report.ilic.ref_lag} samples to line up with the measured motion" if report.ilic.ref_lag else ""
+        out.append(f"Windows of {s.window_s:g} s on the reference trajectory{lag}; force low-pass {s.cutoff_hz:g} Hz and decimated; %σ_max = {s.sigma_max_pct:g} (a † marks a parameter that is not essential and would not be updated).")
         out.append("")
         header = ["parameter"]
         for w in shown:

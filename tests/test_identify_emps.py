@@ -75,12 +75,14 @@ def test_cross_test_validation_on_pulses(emps: Path) -> None:
 def test_ilic_windows_on_emps_close_to_ls(emps: Path) -> None:
     """IDIM-ILIC on the reference trajectory of the PD-controlled recording.
 
-    Measured: 4 windows of 6.2 s; M within 2 % of IDIM-LS, Fv about +10..13 %
-    and Fc about -7..9 %: the recording's PD loop lags its reference by ~6 ms
-    (tracking error ratio 7e-3, a hundred times the paper's CTC), which the
-    reference regressor cannot see. Bounds below hold those figures.
+    The recording's PD loop trails its reference by 7 ms (tracking error ratio
+    7e-3, a hundred times the paper's CTC); the reference is delayed by the lag
+    estimated from the positions. Measured: 4 windows of 6.2 s; M +0.8..1.3 %,
+    Fv -2.1..-3.9 %, Fc +1.8..3.6 % from IDIM-LS (paper: < 1.5 % on its CTC
+    machine). Without the delay Fv is 10..13 % off, which the second test shows.
     """
     doc = identify_json(str(emps / "DATA_EMPS.mat"))
+    assert doc["ilic"]["ref_lag_samples"] == 7
     ls = doc["ls"]["parameters"]
     wins = doc["ilic"]["windows"]
     assert [w["k"] for w in wins] == [1, 2, 3, 4]
@@ -88,8 +90,15 @@ def test_ilic_windows_on_emps_close_to_ls(emps: Path) -> None:
     for w in wins:
         p = w["parameters"]
         assert abs(p["M"]["value"] / ls["M"]["value"] - 1) < 0.02
-        assert abs(p["Fv"]["value"] / ls["Fv"]["value"] - 1) < 0.15
-        assert abs(p["Fc"]["value"] / ls["Fc"]["value"] - 1) < 0.15
+        assert abs(p["Fv"]["value"] / ls["Fv"]["value"] - 1) < 0.05
+        assert abs(p["Fc"]["value"] / ls["Fc"]["value"] - 1) < 0.05
         assert w["essential"]["M"] and w["essential"]["Fv"] and w["essential"]["Fc"]
-        assert 0 < w["tracking_error_ratio"] < 0.01
-        assert 5 < w["relative_error_pct"] < 12
+        assert 0.005 < w["tracking_error_ratio"] < 0.01
+        assert 3 < w["relative_error_pct"] < 5
+
+
+def test_ilic_without_reference_delay_is_biased_on_the_pd_recording(emps: Path) -> None:
+    doc = identify_json(str(emps / "DATA_EMPS.mat"), "--method", "ilic", "--ref-lag", "0")
+    assert doc["ilic"]["ref_lag_samples"] == 0
+    fv = [w["parameters"]["Fv"]["value"] for w in doc["ilic"]["windows"]]
+    assert all(220 < v < 235 for v in fv), fv

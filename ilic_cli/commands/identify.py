@@ -18,6 +18,7 @@ from ilic_cli.commands.common import input_options, load, note
 @click.option("--sigma-max", "sigma_max", type=click.FloatRange(min=0, min_open=True), default=15.0, show_default=True, help="%σ_max: parameters above it are not essential.")
 @click.option("--ilic-cutoff", type=click.FloatRange(min=0, min_open=True), default=5.0, show_default=True, help="IDIM-ILIC force/regressor low-pass cut-off (Hz).")
 @click.option("--ilic-decimation", type=click.IntRange(min=1), default=None, help="IDIM-ILIC decimation factor [default: from the cut-off, 0.8·fs/2/cut-off].")
+@click.option("--ref-lag", type=click.IntRange(min=0), default=None, help="IDIM-ILIC: delay the reference by this many samples to line it up with the measured motion [default: estimated from the positions; 0 for a loop that tracks well].")
 @click.option("--cutoff", type=click.FloatRange(min=0, min_open=True), default=100.0, show_default=True, help="IDIM-LS position low-pass cut-off (Hz).")
 @click.option("--order", type=click.IntRange(min=1, max=12), default=4, show_default=True, help="IDIM-LS Butterworth order.")
 @click.option("--decimation", type=click.IntRange(min=1), default=10, show_default=True, help="IDIM-LS parallel decimation factor.")
@@ -27,7 +28,7 @@ from ilic_cli.commands.common import input_options, load, note
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
 @click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
 @input_options
-def command(log: Path, method: str, model: str, validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+def command(log: Path, method: str, model: str, validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, ref_lag: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
     """Identify the axis's parameters from LOG by IDIM-LS and IDIM-ILIC.
 
     IDIM-LS (paper section III) filters and differentiates the measured
@@ -54,7 +55,7 @@ def command(log: Path, method: str, model: str, validate: tuple[Path, ...], wind
     run = load(log, input_format, topic, ref_topic, joint)
     others = [load(p, None, topic, ref_topic, joint) for p in validate]
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
-    ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max)
+    ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
     result = identify(run, method=method, model=model, ls_settings=ls_settings, ilic_settings=ilic_settings, validate=others)
     for w in result.warnings:
         note(f"ilic: warning: {w}")
