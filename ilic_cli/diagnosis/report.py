@@ -46,6 +46,11 @@ def _region_words(r: Region) -> str:
     return f"{r.label} (correlation {r.statistic:.4f}, p = {r.p_value:.2g})"
 
 
+def _where(label: str) -> str:
+    """``decelerating`` -> ``while decelerating``; ``velocity in [..]`` -> ``at velocity in [..]``."""
+    return f"while {label}" if label in ("accelerating", "decelerating", "at constant velocity", "constant velocity") else f"at {label}"
+
+
 def _finding_sentence(f: Finding) -> str:
     p = f.parameters
     e = f.effect.id
@@ -53,6 +58,8 @@ def _finding_sentence(f: Finding) -> str:
         what = f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward"
     elif e == "stribeck":
         what = f"extra friction Fs = {p['Fs'].value:.3g} N below vs = {p['vs'].value * 1e3:.3g} mm/s"
+        if p["Fs"].value < 0:
+            what += "; negative: friction is lower at low speed than the Coulomb-viscous line, the opposite of the Stribeck effect, so read it as a shape correction of the friction curve"
     elif e == "position_ripple":
         what = f"amplitude {p['A'].value:.3g} N, spatial period {p['L'].value * 1e3:.4g} mm"
     elif e == "spring":
@@ -88,7 +95,7 @@ def to_markdown(diag: Diagnosis) -> str:
             where = ""
             if f.located:
                 r = f.located[0]
-                where = f"The residual is structured in {r.label} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows {r.label}. "
+                where = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
             lines.append(f"- {where}Left out: {_finding_sentence(f)}. {f.effect.explanation}")
         lines += [
             "",
