@@ -78,7 +78,6 @@ def _bounded(decompress: Any, limit: int, path: Path) -> Any:
 
 def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
     """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
-    from ilic_cli.io import current_progress
 
     collector = rosmsgs.Collector(path)
     ts = rosmsgs.typestore(rosmsgs.ROS1)
@@ -94,14 +93,7 @@ def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
             sink.error = f"topic {conn.topic}: definition of {topic.msgtype} differs from the standard one (md5 {conn.digest})"
         sinks[conn.id] = sink
         wanted.append(conn)
-    total = sum(int(getattr(conn, "msgcount", 0) or 0) for conn in wanted) or 1
-    with current_progress(path) as progress:
-        for done, (conn, log_ns, data) in enumerate(reader.messages(connections=wanted) if wanted else (), start=1):
-            sinks[conn.id].add(log_ns, data)
-            if progress is not None and done % 65536 == 0:
-                progress(done, total)
-        if progress is not None:
-            progress(total, total)
+    rosmsgs.feed_sinks(reader, wanted, sinks, path)
     return collector.finish()
 
 

@@ -72,7 +72,6 @@ def _target_name(tmp: Path) -> str:
 
 def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
     """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
-    from ilic_cli.io import current_progress
 
     collector = rosmsgs.Collector(path)
     sinks: dict[int, Any] = {}
@@ -84,14 +83,7 @@ def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
         if sink is not None:
             sinks[conn.id] = sink
             wanted.append(conn)
-    total = sum(int(getattr(conn, "msgcount", 0) or 0) for conn in wanted) or 1
-    with current_progress(path) as progress:
-        for done, (conn, log_ns, data) in enumerate(reader.messages(connections=wanted) if wanted else (), start=1):
-            sinks[conn.id].add(log_ns, data)
-            if progress is not None and done % 65536 == 0:
-                progress(done, total)
-        if progress is not None:
-            progress(total, total)
+    rosmsgs.feed_sinks(reader, wanted, sinks, path)
     return collector.finish()
 
 

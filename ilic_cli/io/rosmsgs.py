@@ -978,3 +978,20 @@ def _joint_index(source: Collected, topic: str, joint: str) -> int | None:
         return None
     names = series.names[int(series.name_id[0])]
     return names.index(joint) if joint in names else None
+
+
+def feed_sinks(reader: Any, wanted: list[Any], sinks: dict[int, Any], path: Path) -> None:
+    """Stream a ``rosbags`` reader's messages of the ``wanted`` connections into their sinks.
+
+    Drives the read's progress display (if any) every 65536 messages.
+    """
+    from ilic_cli.io import current_progress
+
+    total = sum(int(getattr(conn, "msgcount", 0) or 0) for conn in wanted) or 1
+    with current_progress(path) as progress:
+        for done, (conn, log_ns, data) in enumerate(reader.messages(connections=wanted) if wanted else (), start=1):
+            sinks[conn.id].add(log_ns, data)
+            if progress is not None and done % 65536 == 0:
+                progress(done, total)
+        if progress is not None:
+            progress(total, total)
