@@ -9,6 +9,7 @@ aligned on the end of the record.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Callable
@@ -144,7 +145,16 @@ def lowpass_decimate(x: np.ndarray, r: int, cutoff_hz: float, fs_hz: float, orde
     """
     from scipy import signal
 
-    sos = signal.butter(order, cutoff_hz / (fs_hz / 2.0), output="sos")
+    sos = _butter_sos(order, cutoff_hz / (fs_hz / 2.0)).copy()
     n = x.shape[axis]
     padlen = min(n - 1, 3 * (2 * len(sos) + 1))
     return _in_threads(lambda c: signal.sosfiltfilt(sos, c, axis=-1, padlen=padlen), x, axis, kept_indices(n, r))
+
+
+@functools.lru_cache(maxsize=32)
+def _butter_sos(order: int, wn: float) -> np.ndarray:
+    """Butterworth low-pass in second-order sections (cached: the online loop designs it every window)."""
+    from scipy import signal
+
+    sos = signal.butter(order, wn, output="sos")
+    return sos

@@ -23,6 +23,15 @@ redone up to the zero crossing (located by linear interpolation of the
 velocity), the velocity is set to exactly 0 and the rest of the step starts
 with a new stick/slip decision. The result is deterministic and does not
 depend on luck at zero crossings.
+
+Rigid axis without smooth effects (no Stribeck term, ripple, spring or
+flexibility; payload change, asymmetric friction, offset and the measurement
+effects allowed): between direction changes the dynamics are linear with a
+constant force, so the four RK4 stages sum to a closed form
+(:func:`_lin`), and a period that slides in one direction throughout is
+advanced in one composed step (:func:`_linear_period`). Same steps, same
+stick/slip and zero-crossing logic: the results equal the general path's up to
+round-off (positions within ~1e-14 relative), some 20x faster.
 """
 
 from __future__ import annotations
@@ -130,6 +139,124 @@ def _step(p, u, x0, x1, x2, x3, h, mm, ml, flex):
 
 
 @njit(cache=True)
+def _lin(x0, v0, g, k, h):
+    """One RK4 step of ``x' = v, v' = g - k*v``, its four stages summed in closed form.
+
+    For this linear, autonomous system the classical RK4 update is exactly
+    ``v1 = v0 + h*a*w``, ``x1 = x0 + h*v0 + h**2*b*w`` with ``w = g - k*v0``,
+    ``a = 1 - kh/2 + (kh)**2/6 - (kh)**3/24`` and ``b = 1/2 - kh/6 + (kh)**2/24``:
+    the same step as :func:`_rk4`, up to round-off, at a fraction of the cost.
+    """
+    kh = k * h
+    b = 0.5 - kh * (1.0 / 6.0 - kh / 24.0)
+    a = 1.0 - kh * b
+    w = g - k * v0
+    return x0 + h * v0 + (h * h * b) * w, v0 + (h * a) * w
+
+
+L_FC, L_INVM, L_K, L_HA, L_HB, L_P1, L_P2, L_P3 = range(8)
+"""Layout of the last axis of :func:`_linear_coefficients`."""
+
+
+@njit(cache=True)
+def _linear_coefficients(p, h, substeps):
+    """Step coefficients of the linear (rigid, no smooth effect) axis, ``cf[r, d, :]``.
+
+    ``r``: 0 before the payload change, 1 after; ``d``: 0 sliding forwards, 1
+    backwards. Per substep (:func:`_lin` with ``g = (f - cf[L_FC])*cf[L_INVM]``,
+    ``k = cf[L_K]``): ``w = g - k*v``, ``v += cf[L_HA]*w``, ``x += h*v + cf[L_HB]*w``.
+    Over the ``substeps`` steps of a period without a change of direction
+    (the acceleration ``w`` then decays geometrically, ``w_j = A**j*w_0`` with
+    ``A = 1 - k*cf[L_HA]``): ``v_N = v_0 + cf[L_P1]*w_0``,
+    ``x_N = x_0 + N*h*v_0 + cf[L_P2]*w_0``, ``v_(N-1) = v_0 + cf[L_P3]*w_0``.
+    """
+    cf = np.empty((2, 2, 8))
+    for r in range(2):
+        mm = p[P_M] + (p[P_DM] if r == 1 else 0.0)
+        for d in range(2):
+            fv = p[P_FV_POS] if d == 0 else p[P_FV_NEG]
+            k = fv / mm
+            kh = k * h
+            bb = 0.5 - kh * (1.0 / 6.0 - kh / 24.0)
+            ha = h * (1.0 - kh * bb)
+            hb = h * h * bb
+            A = 1.0 - k * ha
+            sj, q, s_last = 0.0, 0.0, 0.0
+            for _ in range(substeps):  # sj = sum_{i<j} A**i, q = sum_{j<N} sj
+                q += sj
+                s_last = sj
+                sj = sj * A + 1.0
+            cf[r, d, L_FC] = p[P_FC_POS] if d == 0 else -p[P_FC_NEG]
+            cf[r, d, L_INVM] = 1.0 / mm
+            cf[r, d, L_K] = k
+            cf[r, d, L_HA] = ha
+            cf[r, d, L_HB] = hb
+            cf[r, d, L_P1] = ha * sj
+            cf[r, d, L_P2] = h * ha * q + hb * sj
+            cf[r, d, L_P3] = ha * s_last
+            if not A > 0.0:  # not monotone (a huge step): no composed period (P1 = NaN disables it)
+                cf[r, d, L_P1] = np.nan
+    return cf
+
+
+@njit(cache=True)
+def _linear_period(x0, x1, f, s_rest, tk, h, substeps, tch, veps, cf):
+    """The substeps of one period on the rigid axis without smooth effects (``_step`` specialised).
+
+    With no Stribeck term, ripple, spring or flexibility the motion between
+    friction-direction changes is linear with a constant force ``f`` (control
+    minus offset), so each RK4 step is :func:`_lin`. ``s_rest`` is the
+    stick/slip decision at rest (constant over the period: ``f`` is); ``cf``
+    from :func:`_linear_coefficients`. A period that slides in one direction
+    throughout (``|v| > veps`` at the start of every substep, no sign change
+    at its end; the velocity is monotone over it) is done in one composed
+    step; otherwise substep by substep, as :func:`_step`.
+    """
+    r0 = 1 if tk >= tch - 1e-12 else 0
+    if r0 == (1 if tk + (substeps - 1) * h >= tch - 1e-12 else 0) and (x1 > veps or x1 < -veps):
+        d = 0 if x1 > 0.0 else 1
+        s = 1.0 if d == 0 else -1.0
+        w = (f - cf[r0, d, L_FC]) * cf[r0, d, L_INVM] - cf[r0, d, L_K] * x1
+        vn = x1 + cf[r0, d, L_P1] * w
+        if (x1 + cf[r0, d, L_P3] * w) * s > veps and vn * s >= 0.0:
+            return x0 + (substeps * h) * x1 + cf[r0, d, L_P2] * w, vn
+    for j in range(substeps):
+        r = 1 if tk + j * h >= tch - 1e-12 else 0
+        if x1 > veps:
+            s = 1
+        elif x1 < -veps:
+            s = -1
+        else:
+            s = s_rest
+        if s == 0:
+            x1 = 0.0
+            continue
+        d = 0 if s > 0 else 1
+        g = (f - cf[r, d, L_FC]) * cf[r, d, L_INVM]
+        k = cf[r, d, L_K]
+        w = g - k * x1
+        y1 = x1 + cf[r, d, L_HA] * w
+        if y1 * s >= 0.0:
+            x0 = x0 + h * x1 + cf[r, d, L_HB] * w
+            x1 = y1
+            continue
+        # the velocity changes sign within the step: as _step
+        th = x1 / (x1 - y1)
+        if th < 0.0:
+            th = 0.0
+        elif th > 1.0:
+            th = 1.0
+        x0, y1 = _lin(x0, x1, g, k, th * h)
+        x1 = 0.0
+        if s_rest != 0:
+            d = 0 if s_rest > 0 else 1
+            x0, x1 = _lin(x0, 0.0, (f - cf[r, d, L_FC]) * cf[r, d, L_INVM], cf[r, d, L_K], (1.0 - th) * h)
+            if x1 * s_rest < 0.0:
+                x1 = 0.0
+    return x0, x1
+
+
+@njit(cache=True)
 def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T,
                 out_q, out_u, out_vir, out_qtrue):
     """Advance the closed loop over periods ``k0 <= k < k1``.
@@ -144,6 +271,12 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
     pd = c[C_KIND] == 1.0
     res = p[P_RES]
     fmax = p[P_FMAX]
+    # rigid axis without smooth effects: the closed-form RK4 step (_linear_period)
+    linear = not flex and p[P_FS] == 0.0 and p[P_RIP_A] == 0.0 and p[P_K] == 0.0
+    cf = _linear_coefficients(p, h, substeps)
+    veps = p[P_VEPS]
+    static_pos = p[P_FC_POS] + p[P_FS]
+    static_neg = -(p[P_FC_NEG] + p[P_FS])
     for k in range(k0, k1):
         qm = x0 + noise_q[k]
         if res > 0.0:
@@ -187,6 +320,14 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
         out_vir[k] = vir
         out_qtrue[k] = x0
         tk = k * T
+        if linear:
+            f = u - p[P_OFFSET]
+            s_rest = 1 if f > static_pos else (-1 if f < static_neg else 0)
+            x0, x1 = _linear_period(x0, x1, f, s_rest, tk, h, substeps, p[P_TCH], veps, cf)
+            if not (math.isfinite(x0) and math.isfinite(x1)):
+                x[0], x[1], x[2], x[3] = x0, x1, x2, x3
+                return k
+            continue
         for j in range(substeps):
             dm = p[P_DM] if tk + j * h >= p[P_TCH] - 1e-12 else 0.0
             if flex:
@@ -253,22 +394,56 @@ class LoopResult:
     windows: list[Any] = field(default_factory=list)
 
 
+@njit(cache=True)
+def _sensed(u, T, start, n, delay, width, noise, out):
+    """:func:`held_signal` of ``u`` at ``k*T - delay`` for ``start <= k < n``, plus ``noise[k]``, into ``out``.
+
+    The same operations, in the same order, as the vectorised form (same values), without its temporaries.
+    """
+    m = len(u)
+    for k in range(start, n):
+        tm = k * T - delay
+        if width <= 0.0:
+            i = math.floor(tm / T + 1e-9)
+            v = 0.0 if i < 0 else u[min(i, m - 1)]
+        else:
+            lo = tm - 0.5 * width
+            i = math.floor(lo / T + 1e-9)
+            first = max((i + 1) * T - lo, 0.0)
+            if first > width:
+                first = width
+            a = 0.0 if i < 0 else u[min(i, m - 1)]
+            b = 0.0 if i + 1 < 0 else u[min(i + 1, m - 1)]
+            v = (first * a + (width - first) * b) / width
+        out[k - start] = v + noise[k]
+
+
 def measured_force(u: np.ndarray, T: float, n: int, effects: Effects, sensor: str, noise_tau: np.ndarray, start: int = 0) -> np.ndarray:
     """The logged force of samples ``start .. n-1``: held force seen by the sensor, delayed, plus noise."""
     delay = effects["delay"].delay if "delay" in effects else 0.0  # type: ignore[attr-defined]
     width = T if sensor == "centred" else 0.0
-    times = np.arange(start, n) * T - delay
-    return held_signal(u, T, times, width) + noise_tau[start:n]
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    noise = np.ascontiguousarray(noise_tau, dtype=np.float64)
+    if len(u) == 0 or len(noise) < n:  # degenerate input: the reference form (its errors)
+        times = np.arange(start, n) * T - delay
+        return held_signal(u, T, times, width) + noise_tau[start:n]
+    out = np.empty(max(n - start, 0))
+    _sensed(u, float(T), int(start), int(n), float(delay), float(width), noise, out)
+    return out
 
 
 def draw_noise(n: int, seed: int, effects: Effects) -> tuple[np.ndarray, np.ndarray]:
     """Force and position noise, drawn up front from PCG64(seed): force first, then position."""
-    rng = np.random.Generator(np.random.PCG64(seed))
-    n_tau = rng.standard_normal(n)
-    n_q = rng.standard_normal(n)
     e = effects.get("noise")
     tau_std = e.tau_std if e is not None else 0.0  # type: ignore[attr-defined]
     q_std = e.q_std if e is not None else 0.0  # type: ignore[attr-defined]
+    if tau_std == 0.0 and q_std == 0.0:  # no noise: nothing to draw
+        return np.zeros(n), np.zeros(n)
+    rng = np.random.Generator(np.random.PCG64(seed))
+    n_tau = rng.standard_normal(n)
+    if q_std == 0.0:
+        return n_tau * tau_std, np.zeros(n)
+    n_q = rng.standard_normal(n)
     return n_tau * tau_std, n_q * q_std
 
 
@@ -332,7 +507,7 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
         chi = np.array([init[nm] for nm in names], dtype=np.float64)
     else:
         model, names, chi = None, (), np.zeros(0)
-    chi_hist = np.zeros((n, len(names)))
+    chi_hist = np.zeros((len(names), n)).T  # (n, b), each parameter's history contiguous (the log's channels)
     windows: list[Any] = []
 
     def run(a: int, b: int, chi_now: np.ndarray) -> None:
@@ -352,7 +527,6 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
         settings = ILICSettings(window_s=controller.window_s, cutoff_hz=controller.cutoff_hz, sigma_max_pct=controller.sigma_max_pct)
         nwin = int(round(controller.window_s * fs_hz))
         a, k = 0, 1
-        t_all = np.arange(n) * T
         while a < n:
             b = min(a + nwin, n)
             run(a, b, chi)
@@ -360,7 +534,7 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
             if b - a == nwin:
                 tau_w = measured_force(out_u[:b], T, b, effects, tau_sensor, noise_tau[:b], start=a)
                 est = estimate_window(model, qd_log[a:b], qdd_log[a:b], tau_w, fs_hz, settings,  # type: ignore[arg-type]
-                                      q_ref=q_r[a:b], q=out_q[a:b], t=t_all[a:b], k=k)
+                                      q_ref=q_r[a:b], q=out_q[a:b], t=np.arange(a, b) * T, k=k)
                 windows.append(est)
                 chi = update_parameters(chi, est)
                 k += 1
@@ -376,7 +550,9 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
                 progress(b, n)
         chi_hist[:] = chi
     tau = measured_force(out_u, T, n, effects, tau_sensor, noise_tau)
-    return LoopResult(t=np.arange(n) * T, q=out_q, q_true=out_qt, u=out_u, vir=out_vir, tau=tau, chi=chi_hist, names=names, windows=windows)
+    t = np.arange(n, dtype=np.float64)
+    t *= T  # = np.arange(n) * T
+    return LoopResult(t=t, q=out_q, q_true=out_qt, u=out_u, vir=out_vir, tau=tau, chi=chi_hist, names=names, windows=windows)
 
 
 # ---------------------------------------------------------------------------

@@ -163,8 +163,7 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
     duration = sc.duration_s if ov.duration_s is None else ov.duration_s
     n = int(round(duration * FS_HZ))
     traj = exciting_cycle(seed=ov.trajectory_seed)
-    _, q_r, qd_r, qdd_r = traj.sample(n, FS_HZ)
-    _, _, qd_log, qdd_log = traj.sample_centred(n, FS_HZ)
+    _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, FS_HZ)  # = sample(), sample_centred()
     sensor = ov.tau_sensor or ("centred" if isinstance(ctl, CTCSettings) else "command")
     res = simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, qd_log=qd_log, qdd_log=qdd_log, params=params, effects=effects, controller=ctl,
                         fs_hz=FS_HZ, substeps=ov.substeps, seed=ov.seed, tau_sensor=sensor, progress=progress)

@@ -163,19 +163,41 @@ class Trajectory:
 
     def sample(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``t, q, qd, qdd`` point values at ``t = k/fs`` for ``k < n``."""
-        t = np.arange(n) / fs_hz
+        t = _grid(n, fs_hz)
         return (t, *self._tiled(t, fs_hz, 0.0))
+
+    def _cycle_samples(self, n: int, fs_hz: float) -> int:
+        """Samples per cycle when ``n`` samples at ``fs_hz`` repeat it exactly (a returning cycle on the
+        sample grid, more than two cycles long), else 0."""
+        m = self.period * fs_hz
+        k = int(round(m))
+        if not (self.repeat and abs(m - k) < 1e-9 and k > 0 and n > 2 * k):
+            return 0
+        _, _, _, qk = self._knots()
+        return k if abs(qk[-1]) < 1e-15 else 0
+
+    @staticmethod
+    def _tile(one: tuple[np.ndarray, ...], n: int) -> tuple[np.ndarray, ...]:
+        """Each array of ``one`` repeated to length ``n`` (the values of ``np.tile``, one copy each)."""
+        out = []
+        for a in one:
+            full = np.empty(n, dtype=a.dtype)
+            k = len(a)
+            full[:k] = a
+            m = k
+            while m < n:
+                c = min(m, n - m)
+                full[m:m + c] = full[:c]
+                m += c
+            out.append(full)
+        return tuple(out)
 
     def _tiled(self, t: np.ndarray, fs_hz: float, shift: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``evaluate(t + shift)``; a returning cycle on the sample grid is evaluated once and tiled."""
-        m = self.period * fs_hz
-        k = int(round(m))
-        tk, _, _, qk = self._knots()
-        if not (self.repeat and abs(m - k) < 1e-9 and k > 0 and len(t) > 2 * k and abs(qk[-1]) < 1e-15):
+        k = self._cycle_samples(len(t), fs_hz)
+        if not k:
             return self.evaluate(t + shift)
-        one = self.evaluate(t[:k] + shift)
-        reps = -(-len(t) // k)
-        return tuple(np.tile(a, reps)[: len(t)] for a in one)  # type: ignore[return-value]
+        return self._tile(self.evaluate(t[:k] + shift), len(t))  # type: ignore[return-value]
 
     def sample_centred(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``t, q, qd, qdd`` with ``qd, qdd`` averaged over ``[t - T/2, t + T/2]`` (exact).
@@ -183,17 +205,34 @@ class Trajectory:
         Equal to the point values except at acceleration jumps (mean of both
         sides there). These are the logged reference channels.
         """
-        t = np.arange(n) / fs_hz
+        t, q, _, _, qd, qdd = self.sample_both(n, fs_hz)
+        return t, q, qd, qdd
+
+    def sample_both(self, n: int, fs_hz: float) -> tuple[np.ndarray, ...]:
+        """``t, q, qd, qdd, qd_centred, qdd_centred``: :meth:`sample` and :meth:`sample_centred` at once
+        (the same values; ``t`` and ``q`` shared)."""
+        t = _grid(n, fs_hz)
+        k = self._cycle_samples(n, fs_hz)
+        tc = t[:k] if k else t  # a returning cycle: one cycle, then tiled (same values)
         h = 0.5 / fs_hz
-        q, vp, ap = self._tiled(t, fs_hz, 0.0)
-        qa, va, _ = self._tiled(t, fs_hz, -h)
-        qb, vb, _ = self._tiled(t, fs_hz, h)
+        q, vp, ap = self.evaluate(tc)
+        qa, va, _ = self.evaluate(tc - h)
+        qb, vb, _ = self.evaluate(tc + h)
         qd = (qb - qa) * fs_hz
         qdd = (vb - va) * fs_hz
         # round-off: exact constants where the point value is already exact
         qd = np.where(np.abs(qd - vp) < 1e-9, vp, qd)
         qdd = np.where(np.abs(qdd - ap) < 1e-7, ap, qdd)
-        return t, q, qd, qdd
+        if k:
+            q, vp, ap, qd, qdd = self._tile((q, vp, ap, qd, qdd), n)
+        return t, q, vp, ap, qd, qdd
+
+
+def _grid(n: int, fs_hz: float) -> np.ndarray:
+    """``np.arange(n) / fs_hz`` (the same values, without the integer temporary)."""
+    t = np.arange(n, dtype=np.float64)
+    t /= fs_hz
+    return t
 
 
 DEFAULT_OFFSET = 5.62
