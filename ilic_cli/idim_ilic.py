@@ -251,15 +251,16 @@ def estimate_window(
     return estimate_windows(model, stack(qd_ref), stack(qdd_ref), stack(tau), fs_hz, settings, q_ref=stack(q_ref), q=stack(q), t=stack(t), k0=k)[0]
 
 
-def reference_lag(q_ref: np.ndarray, q: np.ndarray, max_lag: int) -> int:
+def reference_lag(q_ref: np.ndarray, q: np.ndarray, max_lag: int, max_samples: int = 200_000) -> int:
     """Delay ``L`` (samples, ``0 <= L <= max_lag``) minimising ``||q_ref(t - L) - q(t)||``.
 
     Uses positions only (no noisy derivatives): the lag by which the axis
     trails its reference. The regressor stays built from the noise-free
-    reference, merely delayed by ``L``.
+    reference, merely delayed by ``L``. The lag of a loop is a constant, so at
+    most the first ``max_samples`` samples are used.
     """
-    q_ref = np.asarray(q_ref, dtype=np.float64)
-    q = np.asarray(q, dtype=np.float64)
+    q_ref = np.asarray(q_ref, dtype=np.float64)[:max_samples]
+    q = np.asarray(q, dtype=np.float64)[:max_samples]
     n = len(q)
     max_lag = max(0, min(int(max_lag), n // 4))
     costs = [float(np.mean((q_ref[: n - L] - q[L:]) ** 2)) for L in range(max_lag + 1)]
