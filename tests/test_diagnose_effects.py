@@ -30,7 +30,7 @@ NOISE_N = 2.0
 SLOW = tuple(m for v in (0.012, 0.025, 0.05) for m in (Move(v, 0.05, 0.6, 0.1), Move(-v, 0.05, 0.6, 0.1)))
 
 
-def simulated_log(effects: dict, *, seed: int, traj_seed: int | None, moves: tuple = DEFAULT_MOVES, duration_s: float = 24.8, warmup_s: float = 0.5) -> tuple[RunLog, dict]:
+def simulated_log(effects: dict, *, seed: int, traj_seed: int | None, moves: tuple = DEFAULT_MOVES, duration_s: float = 24.8, warmup_s: float = 0.5, params: RigidParameters = TRUE) -> tuple[RunLog, dict]:
     """A closed-loop PD run of the plant with ``effects``; returns the log and concealment figures.
 
     The log starts ``warmup_s`` into the run, like a recording of a running
@@ -41,7 +41,7 @@ def simulated_log(effects: dict, *, seed: int, traj_seed: int | None, moves: tup
     n = int(round(duration_s * 1000)) + w
     t, q_r, qd_r, qdd_r = cyc.sample(n, 1000.0)
     spec = {"noise": {"tau_std": NOISE_N}, "quantization": {"resolution": 5e-8}, **effects}
-    run = plant_cl.simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, params=TRUE, effects=make_effects(spec), controller=PD, seed=seed)
+    run = plant_cl.simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, params=params, effects=make_effects(spec), controller=PD, seed=seed)
     cut = slice(w, None)
     t, q_r, qd_r, qdd_r = t[cut], q_r[cut], qd_r[cut], qdd_r[cut]
     log = RunLog({"t": t, "q": run.q[cut], "tau": run.tau[cut], "q_ref": q_r}, meta=LOG_META | {"source": f"sim-{seed}"})
@@ -100,3 +100,18 @@ def test_no_extra_physics_no_finding(seed: int, traj_seed: int | None) -> None:
     doc = diag.to_dict()
     assert doc["findings"] == []
     assert doc["fit"]["relative_error_pct"]["before"] == pytest.approx(doc["fit"]["relative_error_pct"]["after"])
+
+
+@pytest.mark.parametrize("offset, seed, traj_seed", [(-3.16, 12, 29), (1.5, 13, None)])
+def test_concealed_offset_is_named_when_the_model_has_none(offset: float, seed: int, traj_seed: int | None) -> None:
+    """The ``offset`` effect: starting from the rigid model without an offset column."""
+    params = RigidParameters(M=TRUE.M, Fv=TRUE.Fv, Fc=TRUE.Fc, offset=offset)
+    log, fig = simulated_log({}, seed=seed, traj_seed=traj_seed, params=params)
+    assert fig["tracking_ratio"] < 0.05 and fig["max_rel_std_pct"] < 3.0, fig
+    assert abs(offset) < 2.0 * NOISE_N
+    diag = diagnose(log, settings=DiagnoseSettings(model="rigid", simulate=False))
+    assert [f.effect.id for f in diag.findings] == ["offset"], diag.to_dict()["selection"]
+    got = diag.findings[0].parameters["offset"].value
+    assert abs(got - offset) <= 0.15 * abs(offset), got
+    ho = diag.fit["heldout_relative_error_pct"]
+    assert ho["after"] < ho["before"]
