@@ -123,3 +123,17 @@ def test_emps_benchmark_scenario(tmp_path: Path) -> None:
 def test_help_is_quick_and_lists_options() -> None:
     res = run_cli("simulate", "--help")
     assert res.status == 0 and "--scenario" in res.stdout and "--effect" in res.stdout
+
+
+def test_simulate_refuses_to_write_over_the_replayed_log(tmp_path: Path) -> None:
+    from ilic_cli.io import write_log
+    from tests.conftest import make_synthetic_log
+
+    ref = tmp_path / "ref.csv"
+    write_log(make_synthetic_log(), ref)
+    before = ref.read_bytes()
+    res = run_cli("simulate", "--scenario", "emps-benchmark", "--log", str(ref), "-o", str(ref))
+    assert res.status == 2
+    assert res.stderr.strip() == f"ilic: error: {ref}: output would overwrite the replayed log; choose another output path"
+    assert ref.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ref.csv"]

@@ -90,6 +90,12 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
     if substeps < 1:
         raise SimulationError("--substeps", f"must be >= 1 (got {substeps})")
     check(scenario, ov)
+    if get_scenario(scenario).reference == "log":  # refuse before simulating, not after
+        from ilic_cli.io.atomic import same_path
+        from plant.scenarios import DEFAULT_EMPS_LOG
+
+        if same_path(log_path or DEFAULT_EMPS_LOG, output):
+            raise SimulationError(output, "output would overwrite the replayed log; choose another output path")
     note(f"ilic: simulating {scenario} ...")
     log = run_scenario(scenario, ov, progress=_progress() if progress_enabled() else None)
     for w in log.meta.get("ilic_windows", []):
