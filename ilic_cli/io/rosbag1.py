@@ -128,10 +128,7 @@ def read(path: Path, selection: Selection) -> RunLog:
             source = _collect(reader, path)
         return rosmsgs.decode_guarded(source, selection, path, "ROS 1 bag")
     finally:
-        try:
-            reader.close()
-        except Exception:  # noqa: BLE001, S110 - closing a broken reader must not mask the real error
-            pass
+        rosmsgs.close_quietly(reader)
 
 
 def _describe(exc: BaseException) -> str:

@@ -995,3 +995,11 @@ def feed_sinks(reader: Any, wanted: list[Any], sinks: dict[int, Any], path: Path
                 progress(done, total)
         if progress is not None:
             progress(total, total)
+
+
+def close_quietly(reader: Any) -> None:
+    """Close a ``rosbags`` reader; a broken one's close error must not mask the real error."""
+    try:
+        reader.close()
+    except Exception:  # noqa: BLE001, S110
+        pass
