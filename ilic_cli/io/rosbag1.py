@@ -41,19 +41,8 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     from rosbags.rosbag1 import Writer
 
     joint = rosmsgs.writer_joint(log, options.joint)
-    topics, messages = rosmsgs.encode(log, joint, rosmsgs.ROS1)
-    ts = rosmsgs.typestore(rosmsgs.ROS1)
     path.unlink(missing_ok=True)  # rosbags refuses to overwrite the placeholder
-    writer = Writer(path)
-    writer.open()
-    try:
-        connections = {spec.topic: writer.add_connection(spec.topic, spec.msgtype, typestore=ts) for spec in topics}
-        for topic, log_ns, data in messages:
-            writer.write(connections[topic], log_ns, data)
-    except BaseException:
-        writer.abort()
-        raise
-    writer.close()
+    rosmsgs.write_bag(Writer(path), log, joint, rosmsgs.ROS1)
 
 
 def _bounded(decompress: Any, limit: int, path: Path) -> Any:

@@ -41,22 +41,11 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         raise LogError(None, f"unknown rosbag2 storage '{options.storage}' (choose from {', '.join(STORAGES)})")
     plugin = StoragePlugin.MCAP if options.storage == "mcap" else StoragePlugin.SQLITE3
     joint = rosmsgs.writer_joint(log, options.joint)
-    topics, messages = rosmsgs.encode(log, joint, rosmsgs.ROS2)
-    ts = rosmsgs.typestore(rosmsgs.ROS2)
     # rosbags names the storage file after the bag folder; write into a
     # folder named like the final target, then lift its files up into `path`.
     path.mkdir()
     inner = path / _target_name(path)
-    writer = Writer(inner, version=Writer.VERSION_LATEST, storage_plugin=plugin)
-    writer.open()
-    try:
-        connections = {spec.topic: writer.add_connection(spec.topic, spec.msgtype, typestore=ts) for spec in topics}
-        for topic, log_ns, data in messages:
-            writer.write(connections[topic], log_ns, data)
-    except BaseException:
-        writer.abort()
-        raise
-    writer.close()
+    rosmsgs.write_bag(Writer(inner, version=Writer.VERSION_LATEST, storage_plugin=plugin), log, joint, rosmsgs.ROS2)
     for item in sorted(inner.iterdir()):
         item.rename(path / item.name)
     inner.rmdir()
@@ -124,7 +113,7 @@ def read(path: Path, selection: Selection) -> RunLog:
     except LogError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags/sqlite/yaml raise many kinds on bad bags
-        raise LogError(path, f"not a readable ROS 2 bag ({type(exc).__name__}: {_short(exc)})") from None
+        raise LogError(path, f"not a readable ROS 2 bag ({type(exc).__name__}: {rosmsgs.short_text(exc)})") from None
     try:
         with rosmsgs.guarded(path, "ROS 2 bag"):
             source = _collect(reader, path)
@@ -132,7 +121,3 @@ def read(path: Path, selection: Selection) -> RunLog:
     finally:
         rosmsgs.close_quietly(reader)
 
-
-def _short(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return text[:160] + ("..." if len(text) > 160 else "")

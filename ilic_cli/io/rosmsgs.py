@@ -345,7 +345,8 @@ class RawTopic:
     kind: str
 
 
-def _short(exc: BaseException) -> str:
+def short_text(exc: BaseException) -> str:
+    """The exception's message on one line, cut at 160 characters."""
     text = " ".join(str(exc).split())
     return text[:160] + ("..." if len(text) > 160 else "")
 
@@ -485,7 +486,7 @@ class _Sink:
             msg = self._deserialize(data, self.topic.msgtype)
             self._take(msg)
         except Exception as exc:  # noqa: BLE001 - any decoding failure is bad input
-            self.error = f"message {self.count} on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {_short(exc)})"
+            self.error = f"message {self.count} on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {short_text(exc)})"
             return
         self._log_ns.items.append(log_ns)
         self.count += 1
@@ -565,7 +566,7 @@ class _StringSink(_Sink):
             try:
                 self._text = str(self._deserialize(data, self.topic.msgtype).data)
             except Exception as exc:  # noqa: BLE001
-                self.error = f"message 0 on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {_short(exc)})"
+                self.error = f"message 0 on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {short_text(exc)})"
                 return
         self._log_ns.items.append(log_ns)
         self.count += 1
@@ -708,7 +709,7 @@ def guarded(path: Path, container: str) -> Any:
         except MemoryError:
             raise LogError(path, f"{container} content needs more memory than available") from None
         except Exception as exc:  # noqa: BLE001 - every failure on file content is bad input
-            raise LogError(path, f"cannot read {container} content ({type(exc).__name__}: {_short(exc)})") from None
+            raise LogError(path, f"cannot read {container} content ({type(exc).__name__}: {short_text(exc)})") from None
 
     return guard()
 
@@ -1003,3 +1004,21 @@ def close_quietly(reader: Any) -> None:
         reader.close()
     except Exception:  # noqa: BLE001, S110
         pass
+
+
+def write_bag(writer: Any, log: RunLog, joint: str, kind: str) -> None:
+    """Write ``log``'s messages with a not yet opened ``rosbags`` writer (ROS 1 or ROS 2).
+
+    The writer is aborted on any failure, so that no half-written bag is closed.
+    """
+    topics, messages = encode(log, joint, kind)
+    ts = typestore(kind)
+    writer.open()
+    try:
+        connections = {spec.topic: writer.add_connection(spec.topic, spec.msgtype, typestore=ts) for spec in topics}
+        for topic, log_ns, data in messages:
+            writer.write(connections[topic], log_ns, data)
+    except BaseException:
+        writer.abort()
+        raise
+    writer.close()
