@@ -154,14 +154,3 @@ def chi_vector(names: tuple[str, ...], values: np.ndarray | dict[str, float]) ->
         d = {n: float(v) for n, v in zip(names, values, strict=True)}
     return np.array([d.get(n, 0.0) for n in CHI_LAYOUT])
 
-
-def ctc_force(chi: dict[str, float], model: str, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray,
-              q: np.ndarray, qd_hat: np.ndarray, settings: CTCSettings) -> np.ndarray:
-    """The CTC law (eqs. 13, 16, 31), vectorised; for tests and documentation."""
-    w = settings.Kp * (q_r - q) + settings.Kv * (qd_r - qd_hat) + qdd_r
-    s = (2.0 / np.pi) * np.arctan(settings.alpha * qd_r)
-    c = dict.fromkeys(CHI_LAYOUT, 0.0) | chi
-    if model == "asymmetric":
-        P, N = (1 + s) / 2, (1 - s) / 2
-        return c["M"] * w + (c["Fv_pos"] * qd_r + c["Fc_pos"] * s) * P + (c["Fv_neg"] * qd_r + c["Fc_neg"] * s) * N
-    return c["M"] * w + c["Fv"] * qd_r + c["Fc"] * s + c["offset"]

@@ -327,15 +327,6 @@ EFFECT_IDS: tuple[str, ...] = tuple(catalogue())
 """Stable ids of the catalogue, in the order they are tried."""
 
 
-def get_effect(effect_id: str, fs_hz: float = 1000.0) -> Effect:
-    """The effect ``effect_id`` of the catalogue (``ValueError`` naming the known ids otherwise)."""
-    effects = catalogue(fs_hz)
-    try:
-        return effects[effect_id]
-    except KeyError:
-        raise ValueError(f"unknown effect '{effect_id}' (choose from {', '.join(effects)})") from None
-
-
 def applicable(effect: Effect, base_names: tuple[str, ...]) -> bool:
     """Whether ``effect`` adds something to a model with columns ``base_names``."""
     return not any(n in base_names for n, _, _ in effect.params)
