@@ -46,7 +46,7 @@ from numba import njit
 
 from ilic_cli.errors import SimulationError
 
-from plant.controllers import (C_ALPHA, C_ASYM, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_VMAX, CTCSettings, PDSettings,
+from plant.controllers import (C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_VMAX, CTCSettings, PDSettings,
                                chi_vector)
 from plant.dynamics import (P_DM, P_FC_NEG, P_FC_POS, P_FLEX_C, P_FLEX_K, P_FLEX_R, P_FMAX, P_FS, P_FV_NEG, P_FV_POS, P_K,
                             P_M, P_OFFSET, P_Q0, P_RES, P_RIP_A, P_RIP_L, P_RIP_PH, P_TCH, P_VEPS, P_VS, STICK_VELOCITY, AsymmetricFriction,
@@ -115,6 +115,24 @@ def _direction(p, u, x0, x1, x2, x3, flex):
     if f < -(p[P_FC_NEG] + p[P_FS]):
         return -1
     return 0
+
+
+@njit(cache=True)
+def _masses(p, t, flex):
+    """Motor-side and load-side mass at time ``t`` (the payload change lands on the load; rigid: load mass unused)."""
+    dm = p[P_DM] if t >= p[P_TCH] - 1e-12 else 0.0
+    if flex:
+        return (1.0 - p[P_FLEX_R]) * p[P_M], p[P_FLEX_R] * p[P_M] + dm
+    return p[P_M] + dm, 1.0
+
+
+@njit(cache=True)
+def _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex):
+    """Motor-side acceleration of the state under force ``u`` (0 when the axis sticks)."""
+    s = _direction(p, u, x0, x1, x2, x3, flex)
+    if s == 0:
+        return 0.0
+    return _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex)[1]
 
 
 @njit(cache=True)
@@ -258,17 +276,22 @@ def _linear_period(x0, x1, f, s_rest, tk, h, substeps, tch, veps, cf):
 
 @njit(cache=True)
 def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T,
-                out_q, out_u, out_vir, out_qtrue):
+                out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd):
     """Advance the closed loop over periods ``k0 <= k < k1``.
 
     ``x`` (motor q, qd, load q, qd) and ``cs`` (previous measured q, previous
     filtered q, previous PD output, initialised flag) are updated in place.
-    Returns -1, or the index of the first period whose state is not finite.
+    Per period ``k`` the outputs get the measured position, the applied force
+    and control signal, and the plant's (motor) position, velocity and
+    acceleration at ``t_k`` (the acceleration with the new force applied,
+    ``t_k+``). Returns -1, or the index of the first period whose state is
+    not finite.
     """
     flex = p[P_FLEX_K] > 0.0
     h = T / substeps
     x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
     pd = c[C_KIND] == 1.0
+    exact_vel = c[C_EXACT_VEL] == 1.0
     res = p[P_RES]
     fmax = p[P_FMAX]
     # rigid axis without smooth effects: the closed-form RK4 step (_linear_period)
@@ -300,7 +323,7 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
             cs[1] = qfm
             cs[2] = v
         else:
-            qd_hat = (qm - cs[0]) / T
+            qd_hat = x1 if exact_vel else (qm - cs[0]) / T
             w = c[C_KP] * (q_r[k] - qm) + c[C_KV] * (qd_r[k] - qd_hat) + qdd_r[k]
             sg = TWO_OVER_PI * math.atan(c[C_ALPHA] * qd_r[k])
             if c[C_ASYM] != 0.0:
@@ -319,23 +342,26 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
         out_u[k] = u
         out_vir[k] = vir
         out_qtrue[k] = x0
+        out_qd[k] = x1
         tk = k * T
         if linear:
             f = u - p[P_OFFSET]
             s_rest = 1 if f > static_pos else (-1 if f < static_neg else 0)
+            s = 1 if x1 > veps else (-1 if x1 < -veps else s_rest)  # as _direction
+            if s == 0:
+                out_qdd[k] = 0.0
+            else:
+                r, d = (1 if tk >= p[P_TCH] - 1e-12 else 0), (0 if s > 0 else 1)
+                out_qdd[k] = (f - cf[r, d, L_FC]) * cf[r, d, L_INVM] - cf[r, d, L_K] * x1
             x0, x1 = _linear_period(x0, x1, f, s_rest, tk, h, substeps, p[P_TCH], veps, cf)
             if not (math.isfinite(x0) and math.isfinite(x1)):
                 x[0], x[1], x[2], x[3] = x0, x1, x2, x3
                 return k
             continue
+        mm, ml = _masses(p, tk, flex)
+        out_qdd[k] = _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex)
         for j in range(substeps):
-            dm = p[P_DM] if tk + j * h >= p[P_TCH] - 1e-12 else 0.0
-            if flex:
-                mm = (1.0 - p[P_FLEX_R]) * p[P_M]
-                ml = p[P_FLEX_R] * p[P_M] + dm
-            else:
-                mm = p[P_M] + dm
-                ml = 1.0
+            mm, ml = _masses(p, tk + j * h, flex)
             x0, x1, x2, x3 = _step(p, u, x0, x1, x2, x3, h, mm, ml, flex)
         if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
             x[0], x[1], x[2], x[3] = x0, x1, x2, x3
@@ -386,6 +412,8 @@ class LoopResult:
     t: np.ndarray
     q: np.ndarray
     q_true: np.ndarray
+    qd_true: np.ndarray
+    qdd_true: np.ndarray
     u: np.ndarray
     vir: np.ndarray
     tau: np.ndarray
@@ -498,7 +526,7 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
     # controller memory as if the axis had been moving at qd0 before t = 0
     q_prev = x0[0] - x0[1] * T
     cs = np.array([q_prev, q_prev, 0.0, 1.0])
-    out_q, out_u, out_vir, out_qt = (np.zeros(n) for _ in range(4))
+    out_q, out_u, out_vir, out_qt, out_qd, out_qdd = (np.zeros(n) for _ in range(6))
 
     if isinstance(controller, CTCSettings):
         model = get_model(controller.model)
@@ -512,7 +540,8 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
 
     def run(a: int, b: int, chi_now: np.ndarray) -> None:
         chi8 = chi_vector(names, chi_now) if len(names) else np.zeros(8)
-        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt)
+        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd,
+                           out_qdd)
         if bad >= 0:
             raise SimulationError("simulation", f"the closed loop diverged at t = {bad * T:.6g} s (non-finite state); check the parameters and gains")
 
@@ -552,7 +581,7 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
     tau = measured_force(out_u, T, n, effects, tau_sensor, noise_tau)
     t = np.arange(n, dtype=np.float64)
     t *= T  # = np.arange(n) * T
-    return LoopResult(t=t, q=out_q, q_true=out_qt, u=out_u, vir=out_vir, tau=tau, chi=chi_hist, names=names, windows=windows)
+    return LoopResult(t=t, q=out_q, q_true=out_qt, qd_true=out_qd, qdd_true=out_qdd, u=out_u, vir=out_vir, tau=tau, chi=chi_hist, names=names, windows=windows)
 
 
 # ---------------------------------------------------------------------------
@@ -561,11 +590,22 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
 def loop_log(res: LoopResult, *, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, controller: CTCSettings | PDSettings,
              params: RigidParameters, effects: Effects, fs_hz: float, substeps: int, seed: int, tau_sensor: str,
              pulses: np.ndarray | None = None, meta: dict[str, Any] | None = None) -> RunLog:
-    """Build the run log of a closed-loop result (channels and metadata, see ``plant``)."""
+    """Build the run log of a closed-loop result.
+
+    Channels: ``t, q`` (measured position: with the quantization and noise
+    effects), ``q_ref, qd_ref, qdd_ref`` (the logged reference), ``tau`` (the
+    force sensor), ``qd_plant, qdd_plant`` (the plant's own velocity and
+    acceleration at the sample instants, noise-free: what a simulation is
+    compared with, see ``fixtures/emps_simulation_table.json``), ``vir`` (PD),
+    ``pulses`` and ``<parameter>_hat`` (CTC: the parameters in force).
+    Metadata: true parameters, effects, controller, simulation settings and
+    the IDIM-ILIC windows.
+    """
     from ilic_cli.runlog import RunLog
 
-    chans: dict[str, np.ndarray] = {"t": res.t, "q": res.q, "q_ref": q_ref, "qd_ref": qd_ref, "qdd_ref": qdd_ref, "tau": res.tau}
-    units: dict[str, str] = {}
+    chans: dict[str, np.ndarray] = {"t": res.t, "q": res.q, "q_ref": q_ref, "qd_ref": qd_ref, "qdd_ref": qdd_ref, "tau": res.tau,
+                                    "qd_plant": res.qd_true, "qdd_plant": res.qdd_true}
+    units: dict[str, str] = {"qd_plant": "m/s", "qdd_plant": "m/s^2"}
     if isinstance(controller, PDSettings):
         chans["vir"] = res.vir
     if pulses is not None:
@@ -596,6 +636,10 @@ def loop_log(res: LoopResult, *, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref:
     return RunLog(chans, units, m)
 
 
+CTC_REPLAY_KEYS = ("omega", "xi", "alpha", "model", "window_s", "sigma_max_pct", "cutoff_hz", "velocity")
+"""CTC settings a replay takes over from the log (the parameters come from its ``*_hat`` channels or the model)."""
+
+
 def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
     ctl = dict(log.meta.get("controller") or {})
     kind = str(ctl.get("kind", "")).lower()
@@ -606,8 +650,7 @@ def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
                               gtau=float(gtau), vmax=float(ctl.get("vmax", 10.0)))
         except (TypeError, ValueError):
             raise SimulationError(log.meta.get("source"), "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
-    keys = {"omega", "xi", "alpha", "model", "window_s", "sigma_max_pct", "cutoff_hz"}
-    kw = {k: ctl[k] for k in keys if k in ctl}
+    kw = {k: ctl[k] for k in CTC_REPLAY_KEYS if k in ctl}
     return CTCSettings(**kw, ilic=False)
 
 
@@ -685,7 +728,7 @@ def simulate_replay(log: RunLog, params: RigidParameters | dict[str, float], eff
         if all(f"{n}_hat" in log for n in names):
             sched = np.stack([log[f"{n}_hat"] for n in names], axis=1)
         else:
-            ctl = CTCSettings(**{**{k: getattr(ctl, k) for k in ("omega", "xi", "alpha", "model", "window_s", "sigma_max_pct", "cutoff_hz")},
+            ctl = CTCSettings(**{**{k: getattr(ctl, k) for k in CTC_REPLAY_KEYS},
                                  "ilic": False, "chi0": {n: getattr(params, n, 0.0) for n in names if n in RigidParameters.NAMES}})
     x0 = None
     if "q" in log and isinstance(ctl, PDSettings):

@@ -5,10 +5,14 @@ these dataclasses hold their settings and pack them for it.
 
 CTC, at sample k (period ``T``)::
 
-    qd_hat = (q(k) - q(k-1)) / T                               (eq. 25)
+    qd_hat = (q(k) - q(k-1)) / T                               (eq. 25; velocity="backward")
     w      = Kp*(q_r - q) + Kv*(qd_r - qd_hat) + qdd_r         (eq. 13)
     tau    = M_hat*w + Fv_hat*qd_r + Fc_hat*(2/pi)*atan(alpha*qd_r) [+ offset_hat]   (eqs. 16, 31)
     Kp = omega^2, Kv = 2*xi*omega                              (eq. 15)
+
+``velocity="exact"`` uses the plant's own velocity at ``t_k`` instead of eq. 25:
+not a realisable controller, a reference for the bias that eq. 25 causes
+(eq. 27; paper section V-B).
 
 For the ``asymmetric`` model the Coulomb/viscous columns use the same
 ``(2/pi)*atan`` in place of ``sign`` (``P = (1+s)/2``, ``N = (1-s)/2``).
@@ -34,8 +38,9 @@ import numpy as np
 from ilic_cli.errors import SimulationError
 
 # packed controller vector (read by the integrator)
-C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM = range(9)
-N_CTRL = 9
+C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL = range(10)
+N_CTRL = 10
+VELOCITY_ESTIMATES = ("backward", "exact")
 KIND_CTC, KIND_PD = 0.0, 1.0
 
 # chi layout of the integrator (all models map onto it)
@@ -62,6 +67,9 @@ class CTCSettings:
         Update the parameters online every ``window_s``.
     window_s, sigma_max_pct, cutoff_hz : float
         IDIM-ILIC window T_obs, %sigma_max (15) and low-pass cut-off (5 Hz).
+    velocity : str
+        ``backward``: backward difference of the measured position (eq. 25,
+        the paper's); ``exact``: the plant's velocity (studies the eq. 27 bias).
     """
 
     omega: float = 2.0 * math.pi * 20.0
@@ -73,6 +81,7 @@ class CTCSettings:
     window_s: float = 6.2
     sigma_max_pct: float = 15.0
     cutoff_hz: float = 5.0
+    velocity: str = "backward"
 
     kind = "ctc"
 
@@ -91,6 +100,8 @@ class CTCSettings:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise SimulationError(f"--{name.replace('_', '-')}", f"must be a positive number (got {v})")
+        if self.velocity not in VELOCITY_ESTIMATES:
+            raise SimulationError("--velocity", f"unknown velocity estimate '{self.velocity}' (choose from {', '.join(VELOCITY_ESTIMATES)})")
         if self.model not in MODELS:
             raise SimulationError("--model", f"unknown model '{self.model}' (choose from {', '.join(MODELS)})")
         names = MODELS[self.model].names
@@ -116,6 +127,7 @@ class CTCSettings:
         c = np.zeros(N_CTRL)
         c[C_KIND], c[C_KP], c[C_KV], c[C_ALPHA] = KIND_CTC, self.Kp, self.Kv, self.alpha
         c[C_ASYM] = 1.0 if self.model == "asymmetric" else 0.0
+        c[C_EXACT_VEL] = 1.0 if self.velocity == "exact" else 0.0
         c[C_VMAX] = np.inf
         return c
 

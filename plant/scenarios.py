@@ -71,7 +71,7 @@ class Overrides:
     ``params``: ``M, Fv, Fc, offset``; ``effects``: id -> parameters (merged
     over the scenario's; an empty dict uses the effect's defaults);
     ``ctc``: ``omega, xi, alpha, window_s, sigma_max_pct, cutoff_hz, model,
-    ilic``; ``chi0``: initial controller parameters; ``pd``: ``kp, kv, gtau, vmax``.
+    ilic, velocity``; ``chi0``: initial controller parameters; ``pd``: ``kp, kv, gtau, vmax``.
     """
 
     params: dict[str, float] = field(default_factory=dict)
@@ -109,14 +109,14 @@ def resolve(name: str, ov: Overrides) -> tuple[Scenario, RigidParameters, Effect
         raise SimulationError("--controller", f"unknown controller '{kind}' (choose from ctc, pd)")
     ctl: CTCSettings | PDSettings
     if kind == "ctc":
-        known = {"omega", "xi", "alpha", "window_s", "sigma_max_pct", "cutoff_hz", "model", "ilic"}
+        known = {"omega", "xi", "alpha", "window_s", "sigma_max_pct", "cutoff_hz", "model", "ilic", "velocity"}
         bad = sorted(set(ov.ctc) - known)
         if bad:
             raise SimulationError("--controller", f"unknown CTC setting(s) {', '.join(bad)}")
         ctl = replace(CTCSettings(), **ov.ctc, chi0=dict(ov.chi0) or None)
     else:
         if ov.chi0 or ov.ctc:
-            raise SimulationError("--controller", "CTC options (--omega, --xi, --alpha, --window, --sigma-max, --chi0) do not apply to the PD controller")
+            raise SimulationError("--controller", "CTC options (--omega, --xi, --alpha, --window, --sigma-max, --velocity, --chi0) do not apply to the PD controller")
         ctl = replace(PDSettings(), **ov.pd)
     ctl.validate()
     return sc, params, effects, ctl

@@ -19,15 +19,16 @@ def test_simulate_writes_readable_log_with_metadata(tmp_path: Path) -> None:
     assert res.status == 0, res.stderr
     assert res.stdout == ""
     log = read_log(out)
-    for ch in ("t", "q", "q_ref", "qd_ref", "qdd_ref", "tau", "M_hat", "Fv_hat", "Fc_hat"):
+    for ch in ("t", "q", "q_ref", "qd_ref", "qdd_ref", "tau", "M_hat", "Fv_hat", "Fc_hat", "qd_plant", "qdd_plant"):
         assert ch in log, ch
+    assert log.units["qdd_plant"] == "m/s^2"
     assert len(log) == 13000
     m = log.meta
     assert m["scenario"]["name"] == "paper-sim"
     assert m["true_parameters"]["M"] == 90.0
     assert m["effects"]["stribeck"] == {"Fs": 2.0, "vs": 0.02}
     assert m["effects"]["noise"]["tau_std"] == 0.1
-    assert m["controller"]["kind"] == "ctc" and m["controller"]["alpha"] == 1000.0
+    assert m["controller"]["kind"] == "ctc" and m["controller"]["alpha"] == 1000.0 and m["controller"]["velocity"] == "backward"
     assert m["simulation"]["seed"] == 3 and m["simulation"]["substeps"] == 10
     assert m["simulation"]["dt"] == pytest.approx(1e-4)
     assert len(m["ilic_windows"]) == 2
@@ -57,6 +58,8 @@ def test_simulate_is_bit_identical(tmp_path: Path) -> None:
         (("--substeps", "0"), "--substeps"),
         (("--duration", "-1"), "--duration"),
         (("--controller", "pd", "--omega", "3"), "do not apply"),
+        (("--controller", "pd", "--velocity", "exact"), "do not apply"),
+        (("--velocity", "forward"), "--velocity"),
         (("--scenario", "emps-benchmark", "--log", "/nonexistent/x.mat"), "not found"),
     ],
 )
@@ -89,6 +92,18 @@ def test_replay_with_model_file(tmp_path: Path) -> None:
     assert run_cli("replay", str(src), "--model", str(model), "-o", str(out2)).status == 0
     assert np.abs(read_log(out2)["q"] - orig["q"]).max() > 1e-7
     assert read_log(out2).meta["effects"]["spring"]["k"] == 100.0
+
+
+def test_replay_keeps_the_logged_velocity_estimate(tmp_path: Path) -> None:
+    src, out = tmp_path / "src.mcap", tmp_path / "replay.mcap"
+    assert run_cli("simulate", "--duration", "7", "--velocity", "exact", "-o", str(src)).status == 0
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps({"parameters": {"M": 95.0, "Fv": 200.0, "Fc": 20.0}, "effects": {}}))
+    res = run_cli("replay", str(src), "--model", str(model), "-o", str(out))
+    assert res.status == 0, res.stderr
+    orig, rep = read_log(src), read_log(out)
+    assert rep.meta["controller"]["velocity"] == "exact"
+    np.testing.assert_allclose(rep["q"], orig["q"], atol=1e-12)
 
 
 def test_replay_refuses_output_over_input_and_bad_model(tmp_path: Path) -> None:

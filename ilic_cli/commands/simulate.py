@@ -24,6 +24,8 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 @click.option("--xi", type=float, default=None, help="CTC damping [default: sqrt(2)/2].")
 @click.option("--alpha", type=float, default=None, help="CTC Coulomb smoothing (2/pi)atan(alpha*qd) [default: 1000].")
 @click.option("--model", "model", type=click.Choice(["rigid", "rigid-offset", "asymmetric"]), default=None, help="CTC/IDIM-ILIC model [default: rigid].")
+@click.option("--velocity", "velocity", type=click.Choice(["backward", "exact"]), default=None,
+              help="CTC velocity: backward difference (eq. 25) or the plant's exact velocity, to study the eq. 27 bias [default: backward].")
 @click.option("--chi0", "chi0", multiple=True, metavar="NAME=VALUE", help="Initial CTC parameter (eq. 28; default M=100, others 0); repeatable.")
 @click.option("--window", "window_s", type=float, default=None, help="IDIM-ILIC window T_obs (s) [default: 6.2].")
 @click.option("--sigma-max", "sigma_max", type=float, default=None, help="%sigma_max of essential parameters [default: 15].")
@@ -39,7 +41,7 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 @click.option("--trajectory-seed", type=int, default=None, help="Vary the cycle's amplitudes with this seed.")
 @click.option("--log", "log_path", type=click.Path(path_type=Path), default=None, help="Recorded log replayed by emps-benchmark [default: ../shared/emps/DATA_EMPS.mat from the repository root].")
 def command(scenario: str, duration: float | None, seed: int, output: Path, out_format: str | None, params: tuple[str, ...], effects: tuple[str, ...],
-            controller: str | None, omega: float | None, xi: float | None, alpha: float | None, model: str | None, chi0: tuple[str, ...],
+            controller: str | None, omega: float | None, xi: float | None, alpha: float | None, model: str | None, velocity: str | None, chi0: tuple[str, ...],
             window_s: float | None, sigma_max: float | None, no_ilic: bool, kp: float | None, kv: float | None, gtau: float | None, substeps: int,
             noise_tau: float | None, noise_q: float | None, resolution: float | None, tau_sensor: str | None, trajectory_seed: int | None,
             log_path: Path | None) -> None:
@@ -79,7 +81,8 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
         ov.effects["noise"] = {**ov.effects.get("noise", {}), **noise}
     if resolution is not None:
         ov.effects["quantization"] = {"resolution": resolution}
-    for key, value in (("omega", omega), ("xi", xi), ("alpha", alpha), ("window_s", window_s), ("sigma_max_pct", sigma_max), ("model", model)):
+    for key, value in (("omega", omega), ("xi", xi), ("alpha", alpha), ("window_s", window_s), ("sigma_max_pct", sigma_max), ("model", model),
+                       ("velocity", velocity)):
         if value is not None:
             ov.ctc[key] = value
     if no_ilic:
