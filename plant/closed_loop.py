@@ -48,7 +48,7 @@ from ilic_cli.errors import SimulationError
 
 from plant.controllers import (C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_VMAX, CTCSettings, PDSettings,
                                chi_vector)
-from plant.dynamics import (P_DM, P_FC_NEG, P_FC_POS, P_FLEX_C, P_FLEX_K, P_FLEX_R, P_FMAX, P_FS, P_FV_NEG, P_FV_POS, P_K,
+from plant.dynamics import (P_DM, P_FC_NEG, P_FC_POS, P_FLEX_C, P_FLEX_K, P_FLEX_R, P_FMAX, P_FS, P_FV_NEG, P_FV_POS, P_K, P_LAG,
                             P_M, P_OFFSET, P_Q0, P_RES, P_RIP_A, P_RIP_L, P_RIP_PH, P_TCH, P_VEPS, P_VS, STICK_VELOCITY, AsymmetricFriction,
                             Effect, Effects, RigidParameters, effects_to_dict, make_effects, plant_vector)
 
@@ -275,6 +275,31 @@ def _linear_period(x0, x1, f, s_rest, tk, h, substeps, tch, veps, cf):
 
 
 @njit(cache=True)
+def _rest(f, static_pos, static_neg):
+    """Stick/slip decision at rest under the net force ``f`` (constant over a period)."""
+    return 1 if f > static_pos else (-1 if f < static_neg else 0)
+
+
+@njit(cache=True)
+def _linear_acceleration(p, f, x1, tk, static_pos, static_neg, veps, cf):
+    """:func:`_acceleration` of the rigid axis without smooth effects (net force ``f``), from the step coefficients."""
+    s = 1 if x1 > veps else (-1 if x1 < -veps else _rest(f, static_pos, static_neg))
+    if s == 0:
+        return 0.0
+    r, d = (1 if tk >= p[P_TCH] - 1e-12 else 0), (0 if s > 0 else 1)
+    return (f - cf[r, d, L_FC]) * cf[r, d, L_INVM] - cf[r, d, L_K] * x1
+
+
+@njit(cache=True)
+def _substeps(p, u, x0, x1, x2, x3, tk, h, nsub, flex):
+    """``nsub`` steps of ``h`` from ``tk`` under the constant force ``u`` (general path, :func:`_step`)."""
+    for j in range(nsub):
+        mm, ml = _masses(p, tk + j * h, flex)
+        x0, x1, x2, x3 = _step(p, u, x0, x1, x2, x3, h, mm, ml, flex)
+    return x0, x1, x2, x3
+
+
+@njit(cache=True)
 def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T,
                 out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd):
     """Advance the closed loop over periods ``k0 <= k < k1``.
@@ -300,6 +325,20 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
     veps = p[P_VEPS]
     static_pos = p[P_FC_POS] + p[P_FS]
     static_neg = -(p[P_FC_NEG] + p[P_FS])
+    # drive lag = lag_n periods + phi: the force switches to the (lagged) new command at tk + phi
+    lag_n, phi = -1, 0.0
+    n1, n2, h1, h2 = 0, 0, h, h
+    cf1, cf2 = cf, cf
+    if p[P_LAG] > 0.0:
+        lag_n = int(math.floor(p[P_LAG] / T + 1e-9))
+        phi = p[P_LAG] - lag_n * T
+        if phi < 1e-9 * T:
+            phi = 0.0
+        else:
+            n1 = min(max(1, int(round(substeps * phi / T))), max(substeps - 1, 1))
+            n2 = max(substeps - n1, 1)
+            h1, h2 = phi / n1, (T - phi) / n2
+            cf1, cf2 = _linear_coefficients(p, h1, n1), _linear_coefficients(p, h2, n2)
     for k in range(k0, k1):
         qm = x0 + noise_q[k]
         if res > 0.0:
@@ -344,25 +383,30 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
         out_qtrue[k] = x0
         out_qd[k] = x1
         tk = k * T
+        ua = ub = u  # force on the axis over [tk, tk + phi) and [tk + phi, tk + T)
+        if lag_n >= 0:  # drive lag: the commands lag_n (+1) periods back
+            ub = out_u[max(k - lag_n, 0)]
+            ua = out_u[max(k - lag_n - 1, 0)] if phi > 0.0 else ub
         if linear:
-            f = u - p[P_OFFSET]
-            s_rest = 1 if f > static_pos else (-1 if f < static_neg else 0)
-            s = 1 if x1 > veps else (-1 if x1 < -veps else s_rest)  # as _direction
-            if s == 0:
-                out_qdd[k] = 0.0
+            fa = ua - p[P_OFFSET]
+            out_qdd[k] = _linear_acceleration(p, fa, x1, tk, static_pos, static_neg, veps, cf)
+            if phi > 0.0:
+                x0, x1 = _linear_period(x0, x1, fa, _rest(fa, static_pos, static_neg), tk, h1, n1, p[P_TCH], veps, cf1)
+                fb = ub - p[P_OFFSET]
+                x0, x1 = _linear_period(x0, x1, fb, _rest(fb, static_pos, static_neg), tk + phi, h2, n2, p[P_TCH], veps, cf2)
             else:
-                r, d = (1 if tk >= p[P_TCH] - 1e-12 else 0), (0 if s > 0 else 1)
-                out_qdd[k] = (f - cf[r, d, L_FC]) * cf[r, d, L_INVM] - cf[r, d, L_K] * x1
-            x0, x1 = _linear_period(x0, x1, f, s_rest, tk, h, substeps, p[P_TCH], veps, cf)
+                x0, x1 = _linear_period(x0, x1, fa, _rest(fa, static_pos, static_neg), tk, h, substeps, p[P_TCH], veps, cf)
             if not (math.isfinite(x0) and math.isfinite(x1)):
                 x[0], x[1], x[2], x[3] = x0, x1, x2, x3
                 return k
             continue
         mm, ml = _masses(p, tk, flex)
-        out_qdd[k] = _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex)
-        for j in range(substeps):
-            mm, ml = _masses(p, tk + j * h, flex)
-            x0, x1, x2, x3 = _step(p, u, x0, x1, x2, x3, h, mm, ml, flex)
+        out_qdd[k] = _acceleration(p, ua, x0, x1, x2, x3, mm, ml, flex)
+        if phi > 0.0:
+            x0, x1, x2, x3 = _substeps(p, ua, x0, x1, x2, x3, tk, h1, n1, flex)
+            x0, x1, x2, x3 = _substeps(p, ub, x0, x1, x2, x3, tk + phi, h2, n2, flex)
+        else:
+            x0, x1, x2, x3 = _substeps(p, ub, x0, x1, x2, x3, tk, h, substeps, flex)
         if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
             x[0], x[1], x[2], x[3] = x0, x1, x2, x3
             return k
@@ -448,7 +492,7 @@ def _sensed(u, T, start, n, delay, width, noise, out):
 
 def measured_force(u: np.ndarray, T: float, n: int, effects: Effects, sensor: str, noise_tau: np.ndarray, start: int = 0) -> np.ndarray:
     """The logged force of samples ``start .. n-1``: held force seen by the sensor, delayed, plus noise."""
-    delay = effects["delay"].delay if "delay" in effects else 0.0  # type: ignore[attr-defined]
+    delay = effects["delay"].measurement_s if "delay" in effects else 0.0  # type: ignore[attr-defined]
     width = T if sensor == "centred" else 0.0
     u = np.ascontiguousarray(u, dtype=np.float64)
     noise = np.ascontiguousarray(noise_tau, dtype=np.float64)

@@ -14,10 +14,13 @@ id                      force added to the inverse dynamics (or what it changes)
 ``asymmetric_friction`` ``Fv_pos, Fc_pos`` for ``qd > 0`` and ``Fv_neg, Fc_neg`` for
                         ``qd < 0`` replace ``Fv, Fc`` (``Fc_neg`` is a magnitude)
 ``stribeck``            ``Fs*exp(-(qd/vs)**2)*sign(qd)``; static level ``Fc + Fs``
+                        (``Fs < 0``, down to ``-Fc``: friction lower at low speed)
 ``position_ripple``     ``A*sin(2*pi*q/L + phase)``
 ``spring``              ``k*(q - q0)``
 ``payload_change``      mass ``dM`` added at ``t >= t_change``
-``delay``               logged force = applied force ``delay`` seconds earlier
+``delay``               logged force = applied force ``delay`` seconds earlier;
+                        ``delay < 0``: the drive lags, the applied force is the
+                        logged command ``-delay`` seconds later
 ``flexibility``         load mass ``load_fraction*M`` behind a spring-damper
                         (``stiffness``, ``damping``); ``q`` is the motor side
 ``saturation``          applied force clipped to ``+-force_max``
@@ -141,11 +144,15 @@ class AsymmetricFriction(Effect):
 
 @dataclass
 class Stribeck(Effect):
-    """Stribeck friction: extra ``Fs*exp(-(qd/vs)^2)*sign(qd)``; static level ``Fc + Fs``."""
+    """Stribeck friction: extra ``Fs*exp(-(qd/vs)^2)*sign(qd)``; static level ``Fc + Fs``.
+
+    ``Fs < 0`` (friction lower at low speed than the Coulomb-viscous line; a
+    shape correction that diagnosis can find) is allowed while the static
+    level stays >= 0 (checked against ``Fc`` by :func:`plant_vector`).
+    """
 
     ID: ClassVar[str] = "stribeck"
     POSITIVE: ClassVar[tuple[str, ...]] = ("vs",)
-    NONNEGATIVE: ClassVar[tuple[str, ...]] = ("Fs",)
     Fs: float = 5.0
     vs: float = 0.01
 
@@ -182,11 +189,31 @@ class PayloadChange(Effect):
 
 @dataclass
 class Delay(Effect):
-    """Force measurement delay (s): the logged force is the applied force ``delay`` earlier."""
+    """Delay (s) between the logged and the applied force.
+
+    ``delay > 0``: the force measurement lags, the logged force is the applied
+    force ``delay`` earlier. ``delay < 0``: the drive lags, the axis receives
+    the logged (commanded) force ``-delay`` later. At most ``MAX_S`` either way.
+    """
 
     ID: ClassVar[str] = "delay"
-    NONNEGATIVE: ClassVar[tuple[str, ...]] = ("delay",)
+    MAX_S: ClassVar[float] = 1.0
     delay: float = 0.002
+
+    def validate(self) -> None:
+        super().validate()
+        if abs(self.delay) > self.MAX_S:
+            raise SimulationError("--effect", f"effect 'delay': |delay| must be <= {self.MAX_S} s (got {self.delay})")
+
+    @property
+    def measurement_s(self) -> float:
+        """Lag of the force measurement (>= 0)."""
+        return max(self.delay, 0.0)
+
+    @property
+    def drive_lag_s(self) -> float:
+        """Lag of the applied force behind the logged command (>= 0)."""
+        return max(-self.delay, 0.0)
 
 
 @dataclass
@@ -314,8 +341,8 @@ def parse_assignment(text: str, option: str = "--param") -> tuple[str, float]:
 # the flat parameter vector of the integrator
 # ---------------------------------------------------------------------------
 (P_M, P_FV_POS, P_FV_NEG, P_FC_POS, P_FC_NEG, P_OFFSET, P_FS, P_VS, P_RIP_A, P_RIP_L, P_RIP_PH,
- P_K, P_Q0, P_DM, P_TCH, P_FLEX_K, P_FLEX_C, P_FLEX_R, P_FMAX, P_VEPS, P_RES) = range(21)
-N_PLANT = 21
+ P_K, P_Q0, P_DM, P_TCH, P_FLEX_K, P_FLEX_C, P_FLEX_R, P_FMAX, P_VEPS, P_RES, P_LAG) = range(22)
+N_PLANT = 22
 
 STICK_VELOCITY = 1e-9
 """|qd| (m/s) at or below which the stick/slip decision is taken (see closed_loop)."""
@@ -340,6 +367,8 @@ def plant_vector(params: RigidParameters, effects: Effects) -> np.ndarray:
     p[P_VS] = 1.0
     if (e := effects.get("stribeck")) is not None:
         p[P_FS], p[P_VS] = e.Fs, e.vs
+        if min(p[P_FC_POS], p[P_FC_NEG]) + e.Fs < 0:
+            raise SimulationError("--effect", f"effect 'stribeck': Fs = {e.Fs} puts the static friction level Fc + Fs below 0")
     p[P_RIP_L] = 1.0
     if (e := effects.get("position_ripple")) is not None:
         p[P_RIP_A], p[P_RIP_L], p[P_RIP_PH] = e.A, e.L, e.phase
@@ -356,6 +385,8 @@ def plant_vector(params: RigidParameters, effects: Effects) -> np.ndarray:
     p[P_VEPS] = STICK_VELOCITY
     if (e := effects.get("quantization")) is not None:
         p[P_RES] = e.resolution
+    if (e := effects.get("delay")) is not None:
+        p[P_LAG] = e.drive_lag_s
     return p
 
 
@@ -371,8 +402,8 @@ def force_model(params: RigidParameters | dict[str, float], effects: Effects | d
     ``flexibility`` adds the force that accelerates the load mass, obtained by
     simulating the linear load dynamics driven by the given motor motion
     (load at rest relative to the motor at ``t[0]``; uniform ``t`` expected);
-    ``delay`` returns the force ``delay`` seconds earlier (linear
-    interpolation, the first value held before ``t[0]``). ``saturation``,
+    ``delay`` returns the force ``delay`` seconds earlier (later for a
+    negative delay; linear interpolation, the end values held). ``saturation``,
     ``quantization`` and ``noise`` are measurement/actuator effects and are
     ignored here.
 
@@ -408,7 +439,7 @@ def force_model(params: RigidParameters | dict[str, float], effects: Effects | d
         tau = tau + p[P_RIP_A] * np.sin(2.0 * np.pi * q / p[P_RIP_L] + p[P_RIP_PH])
     if p[P_K] != 0.0:
         tau = tau + p[P_K] * (q - p[P_Q0])
-    if (d := eff.get("delay")) is not None and d.delay > 0:  # type: ignore[union-attr]
+    if (d := eff.get("delay")) is not None and d.delay != 0:  # type: ignore[union-attr]
         tau = np.interp(t - d.delay, t, tau)  # type: ignore[union-attr]
     return tau
 

@@ -67,12 +67,16 @@ CASES = [
     ("spring", {"spring": {"k": 12.0, "q0": 0.1}}, (6, 13), DEFAULT_MOVES, {"k": 12.0}),
     ("payload_change", {"payload_change": {"dM": 0.8, "t_change": 11.7}}, (7, 17), DEFAULT_MOVES, {"dM": 0.8, "t_change": 11.7}),  # t is run time
     ("delay", {"delay": {"delay": 0.0005}}, (8, 19), DEFAULT_MOVES, {"delay": 0.0005}),
+    # a drive lag (negative delay) and friction lower at low speed (negative Fs): found on DATA_EMPS.mat, replayable
+    ("delay", {"delay": {"delay": -0.0005}}, (8, 19), DEFAULT_MOVES, {"delay": -0.0005}),
+    ("stribeck", {"stribeck": {"Fs": -3.0, "vs": 0.025}}, (4, None), DEFAULT_MOVES + SLOW, {"Fs": -3.0, "vs": 0.025}),
     ("flexibility", {"flexibility": {"stiffness": 2.0e5, "damping": 75.0, "load_fraction": 0.06}}, (9, 23), DEFAULT_MOVES,
      {"f_res": float(np.sqrt(2.0e5 / (0.06 * 95.1)) / (2 * np.pi)), "load_fraction": 0.06}),
 ]
 
 
-@pytest.mark.parametrize("effect_id, effects, seeds, moves, expected", CASES, ids=[c[0] for c in CASES])
+@pytest.mark.parametrize("effect_id, effects, seeds, moves, expected", CASES,
+                         ids=[c[0] + ("-negative" if min(c[4].values()) < 0 else "") for c in CASES])
 def test_concealed_effect_is_named_and_recovered(effect_id: str, effects: dict, seeds: tuple, moves: tuple, expected: dict) -> None:
     log, fig = simulated_log(effects, seed=seeds[0], traj_seed=seeds[1], moves=moves)
     # concealed: excellent tracking, a plausible rigid fit, an effect of the order of the noise
@@ -89,6 +93,9 @@ def test_concealed_effect_is_named_and_recovered(effect_id: str, effects: dict, 
     assert ho["after"] < ho["before"]
     assert finding.evidence.test.p_adjusted < 0.001
     assert diag.model_file["effects"].keys() == {effect_id}
+    for name, value in diag.model_file["effects"][effect_id].items():  # the model file holds what was found (a plant effect)
+        if name in expected:
+            assert value == pytest.approx(finding.parameters[name].value)
 
 
 @pytest.mark.parametrize("seed, traj_seed", [(1, 2), (3, 5), (11, None)])

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import pytest
@@ -44,10 +43,8 @@ def test_emps_validated_on_pulses_no_worse_than_rigid(emps_diagnosis) -> None:  
     assert d.fit["relative_error_pct"]["after"] <= 3.2
 
 
-def test_emps_cli_json_in_a_few_seconds(emps_mat: Path, tmp_path: Path) -> None:
-    t0 = time.perf_counter()
+def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> None:
     r = run_cli("diagnose", str(emps_mat), "--format", "json", "--out", str(tmp_path / "diag"))
-    elapsed = time.perf_counter() - t0
     assert r.status == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["findings"][0]["effect"] == "asymmetric_friction"
@@ -56,8 +53,9 @@ def test_emps_cli_json_in_a_few_seconds(emps_mat: Path, tmp_path: Path) -> None:
         assert set(fit[key]) >= {"before", "after"}
     sim = fit["simulation_force_relative_error_pct"]
     assert sim["before"] == pytest.approx(5.85, abs=0.3)  # published 5.848 % (variable-step solver)
-    assert sim["after"] < sim["before"]
-    assert elapsed < 15.0, elapsed  # about 4 s on 2 cores, plots and replays included
+    assert sim["after"] < sim["before"] - 1.0  # 5.86 % -> 4.39 %: the drive lag net of the zero-order hold, a negative Stribeck level
+    effects = doc["model_file"]["effects"]
+    assert effects["stribeck"]["Fs"] < 0 and abs(effects["delay"]["delay"]) < 0.2e-3
     for name in ("report.md", "report.json", "model.json", "residual.png", "spectrum.png", "force_fit.png"):
         assert (tmp_path / "diag" / name).is_file()
 

@@ -160,3 +160,45 @@ def test_effect_option_parsing_and_errors() -> None:
     for eid, cls in EFFECTS.items():
         eff = cls()
         assert type(eff).from_dict(eff.to_dict()) == eff, eid
+
+
+def _sliding_force_balance(log, params: RigidParameters, fs_extra=None) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+    """The force acting at each t_k+ from the plant's own states (M*qdd + friction + offset), on sliding samples."""
+    qd, qdd = log["qd_plant"], log["qdd_plant"]
+    acting = params.M * qdd + params.Fv * qd + params.Fc * np.sign(qd) + params.offset
+    if fs_extra is not None:
+        acting = acting + fs_extra(qd)
+    return acting, np.abs(qd) > 1e-6
+
+
+@pytest.mark.parametrize("lag_s", [0.001, 0.0004, 0.0025])
+def test_drive_lag_applies_the_command_later(lag_s: float) -> None:
+    """``delay < 0``: the logged force is the command; the axis receives it ``-delay`` later (drive lag)."""
+    a = _closed_loop({}, sensor="command")
+    b = _closed_loop({"delay": {"delay": -lag_s}}, sensor="command")
+    assert not np.array_equal(a["q"], b["q"])  # the motion changes (unlike a measurement delay)
+    acting, sliding = _sliding_force_balance(b, P)
+    # at t_k+ the axis feels the command of period k - ceil(lag/T) (the newer one only from t_k + lag mod T)
+    back = int(np.ceil(lag_s * FS - 1e-9))
+    tau = b["tau"]
+    np.testing.assert_allclose(acting[back:][sliding[back:]], tau[:-back][sliding[back:]], rtol=0, atol=1e-8)
+    # and the lagged run is close to the undelayed run shifted by the lag (CTC keeps tracking)
+    assert np.abs(b["q"] - a["q"]).max() < 1e-4
+
+
+def test_drive_lag_and_measurement_delay_are_one_effect() -> None:
+    assert make_effects({"delay": {"delay": -0.0005}})["delay"].drive_lag_s == 0.0005
+    assert make_effects({"delay": {"delay": 0.0005}})["delay"].measurement_s == 0.0005
+    with pytest.raises(SimulationError, match="delay"):
+        make_effects({"delay": {"delay": -2.0}})
+
+
+def test_negative_stribeck_lowers_low_speed_friction() -> None:
+    params = {"Fs": -4.0, "vs": 0.02}
+    log = _closed_loop({"stribeck": params}, sensor="command")
+    extra = lambda qd: params["Fs"] * np.exp(-((qd / params["vs"]) ** 2)) * np.sign(qd)  # noqa: E731
+    acting, sliding = _sliding_force_balance(log, P, extra)
+    np.testing.assert_allclose(acting[sliding], log["tau"][sliding], rtol=0, atol=1e-8)
+    # the static level Fc + Fs may not be negative
+    with pytest.raises(SimulationError, match="static friction level"):
+        plant_vector(P, make_effects({"stribeck": {"Fs": -25.0, "vs": 0.02}}))

@@ -31,8 +31,12 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
     effects = dict(effects or {})
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
-    sensor = (log.meta.get("simulation") or {}).get("tau_sensor")
-    return simulate_replay(log, params, effects, tau_sensor=sensor)
+    return simulate_replay(log, params, effects, tau_sensor=tau_sensor(log))
+
+
+def tau_sensor(log: RunLog) -> str:
+    """How ``log``'s force samples the drive force: the sensor it was simulated with, else ``command`` (``tau = gtau*vir``)."""
+    return str((log.meta.get("simulation") or {}).get("tau_sensor") or "command")
 
 
 def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float]:

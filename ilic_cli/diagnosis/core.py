@@ -160,8 +160,15 @@ def _lin(names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray, weights: di
     return float(w @ theta), float(math.sqrt(max(w @ cov @ w, 0.0)))
 
 
-def effect_parameters(step: Step, names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray, value_std: float | None) -> tuple[dict[str, Estimate], dict[str, float] | None, str]:
-    """Parameters of one finding (plant names, with std), its plant effect entry, and a note."""
+def effect_parameters(step: Step, names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray, value_std: float | None,
+                      hold_s: float = 0.0) -> tuple[dict[str, Estimate], dict[str, float] | None, str]:
+    """Parameters of one finding (plant names, with std), its plant effect entry, and a note.
+
+    ``hold_s``: half a sample period when the logged force is the held drive
+    command (it acts over the next period, so a rigid drive already shows a
+    delay of ``-hold_s``); the plant's ``delay`` is the found one plus
+    ``hold_s``, since the plant holds its force itself.
+    """
     e, v = step.effect, step.value
     p: dict[str, Estimate] = {}
     idx = {n: i for i, n in enumerate(names)}
@@ -181,9 +188,12 @@ def effect_parameters(step: Step, names: tuple[str, ...], theta: np.ndarray, cov
     if e.id == "stribeck":
         fs = _lin(names, theta, cov, {"Fs": 1.0})
         p["Fs"], p["vs"] = Estimate(*fs, "N"), Estimate(float(v), value_std, "m/s")
-        plant = {"Fs": fs[0], "vs": float(v)} if fs[0] >= 0 else None
+        fc = min(val("Fc_pos"), val("Fc_neg")) if "Fc_pos" in idx and "Fc_neg" in idx else (val("Fc") if "Fc" in idx else 0.0)
+        plant = {"Fs": fs[0], "vs": float(v)} if fc + fs[0] >= 0 else None
         if plant is None:
-            note = "negative Fs (friction lower at low speed) is not a Stribeck effect the plant can represent"
+            note = f"Fs = {fs[0]:.3g} N would put the static friction level Fc + Fs below 0: not in the model file"
+        elif fs[0] < 0:
+            note = "negative Fs: friction lower at low speed than the Coulomb-viscous line (a shape correction, not a Stribeck peak)"
         return p, plant, note
     if e.id == "position_ripple":
         a, b = val("ripple_sin"), val("ripple_cos")
@@ -210,10 +220,13 @@ def effect_parameters(step: Step, names: tuple[str, ...], theta: np.ndarray, cov
         return p, None, note
     if e.id == "delay":
         p["delay"] = Estimate(float(v), value_std, "s")
-        if v is not None and v < 0:
-            note = "negative delay: the force acts after it is logged (drive lag, zero-order hold); the plant's delay is >= 0"
-            return p, None, note
-        return p, {"delay": float(v)}, note
+        d = float(v) + hold_s
+        if hold_s:
+            note = (f"the logged force is the held command: {-hold_s * 1e3:.3g} ms of the delay is the zero-order hold, "
+                    f"the plant's delay is {d * 1e3:.3g} ms")
+        if d < 0:
+            note += ("; " if note else "") + "negative: the force acts after it is logged (drive lag)"
+        return p, {"delay": d}, note
     if e.id == "flexibility":
         f_res, zeta = (float(v), FLEX_DAMPING) if np.isscalar(v) else (float(v[0]), float(v[1]))
         ml = _lin(names, theta, cov, {"M_load": 1.0})
@@ -365,12 +378,15 @@ def diagnose(
     located.append(force_lag(data.tau, full, fs))
     findings = []
     theta_by = dict(zip(names1, res1.theta, strict=True))
+    from ilic_cli.diagnosis.compare import tau_sensor
+
+    hold_s = 0.5 / fs if tau_sensor(log) == "command" else 0.0
     for st, ev in zip(selection.steps, selection.accepted, strict=True):
-        params, plant, note = effect_parameters(st, names1, res1.theta, cov1, ev.value_std)
+        params, plant, note = effect_parameters(st, names1, res1.theta, cov1, ev.value_std, hold_s)
         kinds = SIGNATURE_KINDS.get(st.effect.id, ())
         regs = sorted([r for r in located if r.kind in kinds and r.significant], key=lambda r: r.p_value)
         findings.append(Finding(st.effect, params, plant, regs, ev, note))
-    rigid, effects_doc = model_parameters(base, theta_by, steps, findings, names1, res1.theta, cov1)
+    rigid, effects_doc = model_parameters(base, theta_by, steps, names1, res1.theta, cov1, hold_s)
     from ilic_cli.modelfile import model_document
 
     doc = model_document(base.name, rigid, method="IDIM-LS + ilic diagnose", effects=effects_doc, source=src or None)
@@ -418,14 +434,15 @@ def _with_std(res: LSResult, cov: np.ndarray) -> LSResult:
     return replace(res, std=std, rel_std_pct=rel)
 
 
-def model_parameters(base: Model, theta: dict[str, float], steps: list[Step], findings: list[Finding], names: tuple[str, ...], values: np.ndarray, cov: np.ndarray) -> tuple[dict[str, float], dict[str, Any]]:
-    """Rigid parameters and plant effects of the augmented model (for the model file)."""
+def model_parameters(base: Model, theta: dict[str, float], steps: list[Step], names: tuple[str, ...], values: np.ndarray, cov: np.ndarray,
+                     hold_s: float = 0.0) -> tuple[dict[str, float], dict[str, Any]]:
+    """Rigid parameters and plant effects of the augmented model (for the model file; ``hold_s`` see :func:`effect_parameters`)."""
     rigid = {n: float(theta[n]) for n in ("M", "Fv", "Fc", "offset") if n in theta}
     if "offset" in theta:
         rigid["offset"] = float(theta["offset"])
     effects: dict[str, Any] = {}
     for st in steps:
-        _, plant, _ = effect_parameters(st, names, values, cov, None)
+        _, plant, _ = effect_parameters(st, names, values, cov, None, hold_s)
         if st.effect.id == "offset":
             continue
         if plant is not None:
