@@ -46,7 +46,7 @@ from numba import njit
 
 from ilic_cli.errors import SimulationError
 
-from plant.controllers import (C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_VMAX, CTCSettings, PDSettings,
+from plant.controllers import (C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_PULSE_RAMP, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_VMAX, CTCSettings, PDSettings,
                                chi_vector)
 from plant.dynamics import (P_DM, P_FC_NEG, P_FC_POS, P_FLEX_C, P_FLEX_K, P_FLEX_R, P_FMAX, P_FS, P_FV_NEG, P_FV_POS, P_K, P_LAG,
                             P_M, P_OFFSET, P_Q0, P_RES, P_RIP_A, P_RIP_L, P_RIP_PH, P_TCH, P_VEPS, P_VS, STICK_VELOCITY, AsymmetricFriction,
@@ -339,7 +339,9 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
             n2 = max(substeps - n1, 1)
             h1, h2 = phi / n1, (T - phi) / n2
             cf1, cf2 = _linear_coefficients(p, h1, n1), _linear_coefficients(p, h2, n2)
+    ramp = c[C_PULSE_RAMP] == 1.0
     for k in range(k0, k1):
+        du = 0.0  # change of the applied force over the period (pulses ramped between control instants)
         qm = x0 + noise_q[k]
         if res > 0.0:
             qm = math.floor(qm / res + 0.5) * res
@@ -359,6 +361,8 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
                 vd = -c[C_VMAX]
             vir = vd + pulses[k]
             u = c[C_GTAU] * vir
+            if ramp and k + 1 < len(pulses):
+                du = c[C_GTAU] * (pulses[k + 1] - pulses[k])
             cs[1] = qfm
             cs[2] = v
         else:
@@ -387,6 +391,17 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
         if lag_n >= 0:  # drive lag: the commands lag_n (+1) periods back
             ub = out_u[max(k - lag_n, 0)]
             ua = out_u[max(k - lag_n - 1, 0)] if phi > 0.0 else ub
+        if du != 0.0:  # pulses ramped within the period: force changes every substep (general path; no drive lag)
+            mm, ml = _masses(p, tk, flex)
+            out_qdd[k] = _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex)
+            for j in range(substeps):
+                uj = min(max(u + du * (j / substeps), -fmax), fmax)
+                mm, ml = _masses(p, tk + j * h, flex)
+                x0, x1, x2, x3 = _step(p, uj, x0, x1, x2, x3, h, mm, ml, flex)
+            if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
+                x[0], x[1], x[2], x[3] = x0, x1, x2, x3
+                return k
+            continue
         if linear:
             fa = ua - p[P_OFFSET]
             out_qdd[k] = _linear_acceleration(p, fa, x1, tk, static_pos, static_neg, veps, cf)
@@ -556,6 +571,8 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
     if tau_sensor not in TAU_SENSORS:
         raise SimulationError("--tau-sensor", f"unknown sensor '{tau_sensor}' (choose from {', '.join(TAU_SENSORS)})")
     controller.validate()
+    if isinstance(controller, PDSettings) and controller.pulse_input == "ramp" and "delay" in effects and effects["delay"].drive_lag_s > 0:  # type: ignore[attr-defined]
+        raise SimulationError("--effect", "a drive lag (negative delay) cannot be combined with ramped pulses (--pulse-input ramp)")
     T = 1.0 / fs_hz
     p = plant_vector(params, effects)
     c = controller.vector()
@@ -691,7 +708,7 @@ def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
         gtau = log.meta.get("drive_gain", ctl.get("gtau"))
         try:
             return PDSettings(kp=float(ctl.get("kp", log.meta.get("kp"))), kv=float(ctl.get("kv", log.meta.get("kv"))),
-                              gtau=float(gtau), vmax=float(ctl.get("vmax", 10.0)))
+                              gtau=float(gtau), vmax=float(ctl.get("vmax", 10.0)), pulse_input=str(ctl.get("pulse_input", "held")))
         except (TypeError, ValueError):
             raise SimulationError(log.meta.get("source"), "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
     kw = {k: ctl[k] for k in CTC_REPLAY_KEYS if k in ctl}
@@ -700,7 +717,7 @@ def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
 
 def simulate_replay(log: RunLog, params: RigidParameters | dict[str, float], effects: Effects | dict[str, Any] | None = None,
                     controller: CTCSettings | PDSettings | None = None, *, substeps: int = 10, seed: int = 0,
-                    tau_sensor: str | None = None) -> RunLog:
+                    tau_sensor: str | None = None, clock_s: float | None = None) -> RunLog:
     """Replay ``log``'s recorded reference (and pulses) through the plant; return the simulated log.
 
     Parameters
@@ -725,6 +742,12 @@ def simulate_replay(log: RunLog, params: RigidParameters | dict[str, float], eff
     substeps, seed : integration substeps per period; noise seed.
     tau_sensor : ``centred`` or ``command``; default ``command`` for PD
         (``tau = gtau*vir``), ``centred`` for CTC.
+    clock_s : float, optional
+        Control period of the replay; default the log's sample period. With
+        another period the reference (and pulses) are interpolated linearly
+        at ``k*clock_s`` and the result is on that clock, sample ``k`` for
+        sample ``k`` of the log (the published benchmark simulation ran its
+        controller at ``t(10) - t(9)`` of the file, see ``plant.scenarios``).
 
     Returns
     -------
@@ -755,12 +778,20 @@ def simulate_replay(log: RunLog, params: RigidParameters | dict[str, float], eff
     ctl = controller or _controller_from_log(log)
     fs = 1.0 / log.dt_s
     q_ref = log["q_ref"]
-    dt = 1.0 / fs
-    qd_ref = log["qd_ref"] if "qd_ref" in log else central_difference(q_ref, dt)
-    qdd_ref = log["qdd_ref"] if "qdd_ref" in log else central_difference(qd_ref, dt)
     pulses = log["pulses"] if "pulses" in log else None
+    resampled = clock_s is not None and clock_s != log.dt_s
+    if resampled:
+        if not (clock_s is not None and math.isfinite(clock_s) and clock_s > 0):
+            raise SimulationError("--clock", f"the control period must be a positive number of seconds (got {clock_s})")
+        fs = 1.0 / clock_s
+        grid = np.arange(len(log), dtype=np.float64) * clock_s + float(log.t[0])
+        q_ref = np.interp(grid, log.t, q_ref)
+        pulses = None if pulses is None else np.interp(grid, log.t, pulses)
+    dt = 1.0 / fs
+    qd_ref = log["qd_ref"] if "qd_ref" in log and not resampled else central_difference(q_ref, dt)
+    qdd_ref = log["qdd_ref"] if "qdd_ref" in log and not resampled else central_difference(qd_ref, dt)
     q_ctl, qd_ctl, qdd_ctl = q_ref, qd_ref, qdd_ref
-    traj = _trajectory_from_meta(log, fs)
+    traj = None if resampled else _trajectory_from_meta(log, fs)
     if traj is not None:  # a log of ilic simulate: the controller's exact (point) reference
         _, q_ctl, qd_ctl, qdd_ctl = traj.sample(len(log), fs)
     sensor = tau_sensor or ("command" if isinstance(ctl, PDSettings) else "centred")
@@ -782,8 +813,10 @@ def simulate_replay(log: RunLog, params: RigidParameters | dict[str, float], eff
         x0 = (float(q_meas[0]), v0)
     res = simulate_loop(q_r=q_ctl, qd_r=qd_ctl, qdd_r=qdd_ctl, qd_log=qd_ref, qdd_log=qdd_ref, params=params, effects=eff, controller=ctl, fs_hz=fs, substeps=substeps,
                         seed=seed, pulses=pulses, tau_sensor=sensor, chi_schedule=sched, x0=x0)
-    res.t = np.asarray(log.t, dtype=np.float64).copy()
-    meta = {"replay_of": log.meta.get("source"), "scenario": {"name": "replay", "source": log.meta.get("source")}}
+    res.t = grid if resampled else np.asarray(log.t, dtype=np.float64).copy()
+    meta: dict[str, Any] = {"replay_of": log.meta.get("source"), "scenario": {"name": "replay", "source": log.meta.get("source")}}
+    if resampled:
+        meta["replay_clock_s"] = clock_s
     return loop_log(res, q_ref=q_ref, qd_ref=qd_ref, qdd_ref=qdd_ref, controller=ctl, params=params, effects=eff, fs_hz=fs,
                     substeps=substeps, seed=seed, tau_sensor=sensor, pulses=pulses, meta=meta)
 

@@ -25,6 +25,12 @@ PD (``../shared/reference/emps-benchmark.md``), at sample k::
     v(k)   = kv*(kp*(qg(k) - qm(k)) - qdm(k))
     vir(k) = sat(v(k-1), +-vmax) + pulses(k)      (one-sample delay, then saturation)
     force  = gtau*vir(k)
+
+``pulse_input="held"`` (default) holds ``vir(k)`` over the period, as the rig
+did (the recorded ``vir`` includes the pulses); ``"ramp"`` moves the pulse part
+linearly from ``pulses(k)`` to ``pulses(k+1)`` over the period, as the published
+benchmark simulation fed them (a Simulink From Workspace input, interpolated
+in continuous time); ``vir(k)`` is logged either way.
 """
 
 from __future__ import annotations
@@ -38,8 +44,9 @@ import numpy as np
 from ilic_cli.errors import SimulationError
 
 # packed controller vector (read by the integrator)
-C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL = range(10)
-N_CTRL = 10
+C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP = range(11)
+N_CTRL = 11
+PULSE_INPUTS = ("held", "ramp")
 VELOCITY_ESTIMATES = ("backward", "exact")
 KIND_CTC, KIND_PD = 0.0, 1.0
 
@@ -134,12 +141,13 @@ class CTCSettings:
 
 @dataclass
 class PDSettings:
-    """The benchmark PD loop (values of DATA_EMPS.mat by default)."""
+    """The benchmark PD loop (values of DATA_EMPS.mat by default); ``pulse_input``: ``held`` or ``ramp`` (module docstring)."""
 
     kp: float = 160.18
     kv: float = 243.45
     gtau: float = 35.15065188
     vmax: float = 10.0
+    pulse_input: str = "held"
 
     kind = "pd"
 
@@ -148,6 +156,8 @@ class PDSettings:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise SimulationError(f"--{name}", f"must be a positive number (got {v})")
+        if self.pulse_input not in PULSE_INPUTS:
+            raise SimulationError("--pulse-input", f"unknown pulse input '{self.pulse_input}' (choose from {', '.join(PULSE_INPUTS)})")
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "pd", **asdict(self), "delay_samples": 1, "position_filter": [0.5, 0.5]}
@@ -155,6 +165,7 @@ class PDSettings:
     def vector(self) -> np.ndarray:
         c = np.zeros(N_CTRL)
         c[C_KIND], c[C_PD_KP], c[C_PD_KV], c[C_GTAU], c[C_VMAX] = KIND_PD, self.kp, self.kv, self.gtau, self.vmax
+        c[C_PULSE_RAMP] = 1.0 if self.pulse_input == "ramp" else 0.0
         return c
 
 

@@ -202,3 +202,40 @@ def test_negative_stribeck_lowers_low_speed_friction() -> None:
     # the static level Fc + Fs may not be negative
     with pytest.raises(SimulationError, match="static friction level"):
         plant_vector(P, make_effects({"stribeck": {"Fs": -25.0, "vs": 0.02}}))
+
+
+def test_ramped_pulses_and_replay_clock() -> None:
+    """``pulse_input="ramp"`` moves the pulse force linearly over the period (the published simulation's input);
+    ``clock_s`` runs the replay on another control period, sample k for sample k."""
+    from dataclasses import replace
+
+    from plant.closed_loop import simulate_replay
+    from plant.controllers import PDSettings
+    from tests.conftest import make_synthetic_log
+
+    log = make_synthetic_log(samples=600)
+    params = {"M": 95.0, "Fv": 200.0, "Fc": 20.0}
+    held = simulate_replay(log, params, controller=PDSettings(), seed=0)
+    ramp = simulate_replay(log, params, controller=PDSettings(pulse_input="ramp"), seed=0)
+    assert ramp.meta["controller"]["pulse_input"] == "ramp"
+    np.testing.assert_array_equal(held["vir"][:50], ramp["vir"][:50])  # identical until the first pulse edge (sample 50)
+    # the first edge (0 -> 5 V at sample 50): held applies it over period 50, ramped over period 49 -> 50
+    assert ramp["q"][50] > held["q"][50] and np.array_equal(held["q"][:50], ramp["q"][:50])
+    dv = np.diff(ramp["qd_plant"][45:55]) - np.diff(held["qd_plant"][45:55])
+    assert np.all(dv[:4] == 0.0) and dv[4] > 0  # dv[i]: over period 45 + i; period 49 gains velocity only when ramped
+    # no change of the pulses, no change: a log without pulse edges runs bit-identically either way
+    flat = make_synthetic_log(samples=40)
+    a = simulate_replay(flat, params, controller=PDSettings(), seed=0)
+    b = simulate_replay(flat, params, controller=PDSettings(pulse_input="ramp"), seed=0)
+    np.testing.assert_array_equal(a["q"], b["q"])
+    # another clock: same number of samples on k*clock_s; the reference is interpolated there
+    slow = simulate_replay(log, params, controller=PDSettings(), clock_s=1.001e-3)
+    assert len(slow) == len(log) and slow.t[-1] == pytest.approx(599 * 1.001e-3, abs=1e-12)
+    assert slow.meta["replay_clock_s"] == 1.001e-3
+    np.testing.assert_allclose(slow["q_ref"], np.interp(slow.t, log.t, log["q_ref"]), rtol=0, atol=1e-15)
+    with pytest.raises(SimulationError, match="clock"):
+        simulate_replay(log, params, controller=PDSettings(), clock_s=-1.0)
+    with pytest.raises(SimulationError, match="ramped pulses"):
+        simulate_replay(log, params, {"delay": {"delay": -0.0005}}, controller=PDSettings(pulse_input="ramp"))
+    with pytest.raises(SimulationError, match="pulse input"):
+        simulate_replay(log, params, controller=replace(PDSettings(), pulse_input="square"))

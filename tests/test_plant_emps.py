@@ -11,6 +11,7 @@ import pytest
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.io import read_log
 from plant.closed_loop import simulate_replay
+from plant.scenarios import Overrides, run_scenario
 from tests.conftest import require_shared
 
 FIXTURE = json.loads((Path(__file__).parents[1] / "fixtures" / "emps_simulation_table.json").read_text())
@@ -18,14 +19,14 @@ PROC = FIXTURE["procedure"]
 
 
 def _measured(log) -> tuple[np.ndarray, ...]:  # type: ignore[no-untyped-def]
-    """Position, velocity and acceleration from the zero-phase filtered position, and force (first samples dropped)."""
+    """The zero-phase filtered position, its central differences, and the force (first samples dropped)."""
     dt = 1.0 / log.meta.get("sample_rate_hz", 1000.0)
     q = log["q"]
     qf = butter_lowpass_zero_phase(q, PROC["cutoff_hz"], 1.0 / dt, PROC["order"])
     qd = central_difference(qf, dt)
     qdd = central_difference(qd, dt)
     trim = PROC["trim"]
-    return q[trim:], qd[trim:], qdd[trim:], log["tau"][trim:]
+    return qf[trim:], qd[trim:], qdd[trim:], log["tau"][trim:]
 
 
 def _simulated(sim) -> tuple[np.ndarray, ...]:  # type: ignore[no-untyped-def]
@@ -37,6 +38,23 @@ def _simulated(sim) -> tuple[np.ndarray, ...]:  # type: ignore[no-untyped-def]
 def _relative_errors(measured, simulated) -> dict[str, float]:  # type: ignore[no-untyped-def]
     names = ("position", "velocity", "acceleration", "force")
     return {n: float(100 * np.linalg.norm(a - b) / np.linalg.norm(a)) for n, a, b in zip(names, _measured(measured), _simulated(simulated), strict=True)}
+
+
+@pytest.mark.parametrize("name", ["DATA_EMPS.mat", "DATA_EMPS_PULSES.mat"])
+def test_published_setup_reproduces_the_whole_published_table(name: str) -> None:
+    """As the published simulation ran (its clock t(10)-t(9), pulses ramped): every column within 10 %, position included."""
+    folder = require_shared()
+    log = read_log(folder / name)
+    sim = run_scenario("emps-benchmark", Overrides(log_path=folder / name, published_setup=True))
+    setup = sim.meta["scenario"]["published_setup"]
+    assert setup["clock_s"] == float(log.t[9] - log.t[8]) != 1e-3 and setup["pulse_input"] == "ramp"
+    assert sim.t[-1] == pytest.approx((len(log) - 1) * setup["clock_s"], abs=1e-12)
+    ours = _relative_errors(log, sim)
+    published = FIXTURE["published_pct"][name]
+    for what in ("position", "velocity", "acceleration", "force"):
+        assert ours[what] == pytest.approx(published[what], rel=FIXTURE["relative_tolerance"]), (what, ours[what], published[what])
+    for what, value in FIXTURE["published_setup"]["ours_pct"][name].items():
+        assert ours[what] == pytest.approx(value, rel=0.02), (what, ours[what], value)
 
 
 @pytest.mark.parametrize("name", ["DATA_EMPS.mat", "DATA_EMPS_PULSES.mat"])

@@ -60,6 +60,7 @@ def test_simulate_is_bit_identical(tmp_path: Path) -> None:
         (("--controller", "pd", "--omega", "3"), "do not apply"),
         (("--controller", "pd", "--velocity", "exact"), "do not apply"),
         (("--velocity", "forward"), "--velocity"),
+        (("--published-setup",), "emps-benchmark replay only"),
         (("--scenario", "emps-benchmark", "--log", "/nonexistent/x.mat"), "not found"),
     ],
 )
@@ -138,6 +139,22 @@ def test_emps_benchmark_scenario(tmp_path: Path) -> None:
 def test_help_is_quick_and_lists_options() -> None:
     res = run_cli("simulate", "--help")
     assert res.status == 0 and "--scenario" in res.stdout and "--effect" in res.stdout
+
+
+def test_emps_benchmark_published_setup(tmp_path: Path) -> None:
+    from ilic_cli.io import write_log
+    from tests.conftest import make_synthetic_log
+
+    ref = tmp_path / "ref.csv"
+    log = make_synthetic_log()
+    write_log(log, ref)
+    out = tmp_path / "pub.mcap"
+    res = run_cli("simulate", "--scenario", "emps-benchmark", "--log", str(ref), "--published-setup", "-o", str(out))
+    assert res.status == 0, res.stderr
+    sim = read_log(out)
+    setup = sim.meta["scenario"]["published_setup"]
+    assert setup["pulse_input"] == "ramp" and sim.meta["controller"]["pulse_input"] == "ramp"
+    assert setup["clock_s"] == pytest.approx(float(read_log(ref).t[9] - read_log(ref).t[8]), rel=1e-12)
 
 
 def test_simulate_refuses_to_write_over_the_replayed_log(tmp_path: Path) -> None:

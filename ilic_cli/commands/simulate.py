@@ -39,12 +39,14 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 @click.option("--resolution", type=float, default=None, help="Encoder resolution (m) (effect 'quantization').")
 @click.option("--tau-sensor", type=click.Choice(["centred", "command"]), default=None, help="Logged force: centred mean over the sample interval (CTC default) or the held command (PD default).")
 @click.option("--trajectory-seed", type=int, default=None, help="Vary the cycle's amplitudes with this seed.")
+@click.option("--published-setup", is_flag=True,
+              help="emps-benchmark: replay as the published simulation did (controller clock t(10)-t(9) of the file, pulses interpolated in continuous time).")
 @click.option("--log", "log_path", type=click.Path(path_type=Path), default=None, help="Recorded log replayed by emps-benchmark [default: ../shared/emps/DATA_EMPS.mat from the repository root].")
 def command(scenario: str, duration: float | None, seed: int, output: Path, out_format: str | None, params: tuple[str, ...], effects: tuple[str, ...],
             controller: str | None, omega: float | None, xi: float | None, alpha: float | None, model: str | None, velocity: str | None, chi0: tuple[str, ...],
             window_s: float | None, sigma_max: float | None, no_ilic: bool, kp: float | None, kv: float | None, gtau: float | None, substeps: int,
             noise_tau: float | None, noise_q: float | None, resolution: float | None, tau_sensor: str | None, trajectory_seed: int | None,
-            log_path: Path | None) -> None:
+            log_path: Path | None, published_setup: bool) -> None:
     """Simulate the axis in closed loop and write the log.
 
     Scenarios: paper-sim (paper VI-E: M=95, Fv=200, Fc=20, CTC with online
@@ -66,7 +68,7 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
 
     get_scenario(scenario)
     ov = Overrides(duration_s=duration, substeps=substeps, seed=seed, tau_sensor=tau_sensor, log_path=log_path, trajectory_seed=trajectory_seed,
-                   controller=controller)
+                   controller=controller, published_setup=published_setup)
     for text in params:
         k, v = parse_assignment(text, "--param")
         ov.params[k] = v
