@@ -91,7 +91,7 @@ def sample_rate(log: RunLog) -> float:
     return 1.0 / log.dt_s
 
 
-def _quality(log: RunLog, report: IdentifyReport) -> np.ndarray | None:
+def _quality(log: RunLog, report: IdentifyReport, prefix: str = "data quality") -> np.ndarray | None:
     """Add the data-quality warnings to ``report``; return the samples usable for identification.
 
     Saturated drive samples (:func:`ilic_cli.quality.saturation_mask`) are
@@ -101,7 +101,7 @@ def _quality(log: RunLog, report: IdentifyReport) -> np.ndarray | None:
     from ilic_cli.quality import assess_log, saturation_mask
 
     quality = assess_log(log)
-    report.warnings.extend(f"data quality: {message}" for message in quality.warnings())
+    report.warnings.extend(f"{prefix}: {message}" for message in quality.warnings())
     if quality.saturation_limit is None or "vir" not in log.channels:
         return None
     saturated = saturation_mask(log["vir"], quality.saturation_limit)
@@ -188,13 +188,16 @@ def identify(
         report.warnings.append(_masked_summary(report, valid))
     for other in validate or []:
         osrc = str(other.meta.get("source", ""))
+        ovalid = _quality(other, report, prefix=f"validation log {osrc}")
+        if ovalid is not None:
+            report.warnings.append(f"validation log {osrc}: saturated drive: {100.0 * (1.0 - float(np.mean(ovalid))):.3g} % of the samples masked")
         if report.ls is not None:
-            res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings)
+            res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings, valid=ovalid)
             report.validation.append(Validation(osrc, "IDIM-LS", res))
         if report.ilic is not None and report.ilic.windows:
             theta = report.ilic.windows[-1].result.theta
             if np.all(np.isfinite(theta)):
-                res = cross_validate(theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings)
+                res = cross_validate(theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings, valid=ovalid)
                 report.validation.append(Validation(osrc, f"IDIM-ILIC (k={report.ilic.windows[-1].k})", res))
     return report
 

@@ -209,7 +209,8 @@ def idim_ls(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: 
     return IDIMLSResult(model=model.name, result=result, settings=settings, t=data.t_dec, y=data.y, y_hat=data.W @ result.theta)
 
 
-def cross_validate(theta: np.ndarray, t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings()) -> LSResult:
-    """Apply estimates ``theta`` to another log with the same processing (cross-test validation)."""
-    data = prepare(t, q, tau, fs_hz, model, settings)
+def cross_validate(theta: np.ndarray, t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings(),
+                   *, valid: np.ndarray | None = None) -> LSResult:
+    """Apply estimates ``theta`` to another log with the same processing (cross-test validation; ``valid`` as :func:`prepare`)."""
+    data = prepare(t, q, tau, fs_hz, model, settings, valid=valid)
     return evaluate(data.W, data.y, np.asarray(theta, dtype=np.float64), model.names)

@@ -227,6 +227,26 @@ def test_saturated_samples_are_masked_with_a_warning(tmp_path: Path) -> None:
     assert abs(biased_ilic.windows[0].result.theta[1] / TRUE["Fv"] - 1) > 0.05
 
 
+def test_saturated_validation_log_is_masked_too() -> None:
+    """``--validate`` applies the estimates to the other log with its saturated samples masked (and says so)."""
+    from ilic_cli.identify import identify
+
+    clean = synthetic(duration_s=13.0)
+    sat = _saturated()
+    sat.meta["source"] = "sat.mcap"
+    report = identify(clean, method="ls", validate=[sat])
+    assert any(w.startswith("validation log sat.mcap: saturated drive:") and "% of the samples masked" in w for w in report.warnings), report.warnings
+    assert any(w.startswith("validation log sat.mcap:") and "saturated at +/-1.8" in w for w in report.warnings), report.warnings
+    masked = report.validation[0].result
+    from ilic_cli.idim_ls import cross_validate
+    from ilic_cli.regressor import get_model
+
+    unmasked = cross_validate(report.ls.result.theta, sat.t, sat["q"], sat["tau"], 1000.0, get_model("rigid-offset"))
+    assert masked.rows < unmasked.rows
+    rms = lambda r: r.error_norm / np.sqrt(r.rows)  # noqa: E731
+    assert rms(masked) < 0.75 * rms(unmasked)  # the clipped force is not held against the model (1.75 vs 2.68 N)
+
+
 def test_no_saturation_means_no_mask_and_identical_results() -> None:
     from ilic_cli.identify import identify
     from ilic_cli.idim_ls import idim_ls
