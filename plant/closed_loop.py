@@ -46,8 +46,8 @@ from numba import njit
 
 from ilic_cli.errors import SimulationError
 
-from plant.controllers import (C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_PULSE_RAMP, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_VMAX, CTCSettings, PDSettings,
-                               chi_vector)
+from plant.controllers import (C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PULSE_RAMP, C_VMAX, CTCSettings,
+                               PDSettings, chi_vector)
 from plant.dynamics import (P_DM, P_FC_NEG, P_FC_POS, P_FLEX_C, P_FLEX_K, P_FLEX_R, P_FMAX, P_FS, P_FV_NEG, P_FV_POS, P_K, P_LAG,
                             P_M, P_OFFSET, P_Q0, P_RES, P_RIP_A, P_RIP_L, P_RIP_PH, P_TCH, P_VEPS, P_VS, STICK_VELOCITY, AsymmetricFriction,
                             Effect, Effects, RigidParameters, effects_to_dict, make_effects, plant_vector)
@@ -572,7 +572,7 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
         raise SimulationError("--tau-sensor", f"unknown sensor '{tau_sensor}' (choose from {', '.join(TAU_SENSORS)})")
     controller.validate()
     if isinstance(controller, PDSettings) and controller.pulse_input == "ramp" and "delay" in effects and effects["delay"].drive_lag_s > 0:  # type: ignore[attr-defined]
-        raise SimulationError("--effect", "a drive lag (negative delay) cannot be combined with ramped pulses (--pulse-input ramp)")
+        raise SimulationError("--effect", "a drive lag (negative delay) cannot be combined with ramped pulses (pulse_input=\"ramp\", --published-setup)")
     T = 1.0 / fs_hz
     p = plant_vector(params, effects)
     c = controller.vector()

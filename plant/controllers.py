@@ -157,7 +157,7 @@ class PDSettings:
             if not (math.isfinite(v) and v > 0):
                 raise SimulationError(f"--{name}", f"must be a positive number (got {v})")
         if self.pulse_input not in PULSE_INPUTS:
-            raise SimulationError("--pulse-input", f"unknown pulse input '{self.pulse_input}' (choose from {', '.join(PULSE_INPUTS)})")
+            raise SimulationError("pulse_input", f"unknown pulse input '{self.pulse_input}' (choose from {', '.join(PULSE_INPUTS)})")
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "pd", **asdict(self), "delay_samples": 1, "position_filter": [0.5, 0.5]}

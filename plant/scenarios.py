@@ -80,7 +80,8 @@ class Overrides:
     ``params``: ``M, Fv, Fc, offset``; ``effects``: id -> parameters (merged
     over the scenario's; an empty dict uses the effect's defaults);
     ``ctc``: ``omega, xi, alpha, window_s, sigma_max_pct, cutoff_hz, model,
-    ilic, velocity``; ``chi0``: initial controller parameters; ``pd``: ``kp, kv, gtau, vmax``.
+    ilic, velocity``; ``chi0``: initial controller parameters; ``pd``: ``kp, kv, gtau, vmax``;
+    ``published_setup``: ``emps-benchmark`` as the published simulation ran (module docstring).
     """
 
     params: dict[str, float] = field(default_factory=dict)
