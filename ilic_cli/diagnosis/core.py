@@ -193,7 +193,7 @@ def effect_parameters(step: Step, names: tuple[str, ...], theta: np.ndarray, cov
         if plant is None:
             note = f"Fs = {fs[0]:.3g} N would put the static friction level Fc + Fs below 0: not in the model file"
         elif fs[0] < 0:
-            note = "negative Fs: friction lower at low speed than the Coulomb-viscous line (a shape correction, not a Stribeck peak)"
+            note = f"negative Fs, kept in the model file: the plant's static friction level Fc + Fs is {fc + fs[0]:.3g} N"
         return p, plant, note
     if e.id == "position_ripple":
         a, b = val("ripple_sin"), val("ripple_cos")
