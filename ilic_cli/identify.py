@@ -108,9 +108,12 @@ def _quality(log: RunLog, report: IdentifyReport, prefix: str = "data quality") 
     return ~saturated if saturated.any() else None
 
 
+def _saturation_note(valid: np.ndarray) -> str:
+    return f"saturated drive: {100.0 * (1.0 - float(np.mean(valid))):.3g} % of the samples masked"
+
+
 def _masked_summary(report: IdentifyReport, valid: np.ndarray) -> str:
-    share = 100.0 * (1.0 - float(np.mean(valid)))
-    parts = [f"saturated drive: {share:.3g} % of the samples masked"]
+    parts = [_saturation_note(valid)]
     if report.ls is not None:
         rows = report.ls.result.rows
         total = len(kept_indices(len(valid) - report.ls.settings.trim, report.ls.settings.decimation))
@@ -190,7 +193,7 @@ def identify(
         osrc = str(other.meta.get("source", ""))
         ovalid = _quality(other, report, prefix=f"validation log {osrc}")
         if ovalid is not None:
-            report.warnings.append(f"validation log {osrc}: saturated drive: {100.0 * (1.0 - float(np.mean(ovalid))):.3g} % of the samples masked")
+            report.warnings.append(f"validation log {osrc}: {_saturation_note(ovalid)}")
         if report.ls is not None:
             res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings, valid=ovalid)
             report.validation.append(Validation(osrc, "IDIM-LS", res))

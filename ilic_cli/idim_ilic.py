@@ -314,13 +314,10 @@ def identify_ilic(
     q_ref_actual = q_ref
     q_ref, qd_ref, qdd_ref = (delay_samples(np.asarray(a, dtype=np.float64), lag) for a in (q_ref, qd_ref, qdd_ref))
     cut = (lambda a: None if a is None else np.asarray(a[:m], dtype=np.float64).reshape(K, n))
-    mask = None
-    if valid is not None:
-        valid = np.asarray(valid, dtype=bool)
-        if valid.shape != np.shape(t):
-            raise ValueError(f"valid has {valid.shape} samples, the log {np.shape(t)}")
-        if not valid.all():
-            mask = valid[:m].reshape(K, n)
+    from ilic_cli.idim_ls import usable_mask
+
+    valid = usable_mask(valid, np.shape(t))
+    mask = None if valid is None else valid[:m].reshape(K, n)
     windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut(q), t=cut(t), valid=mask)
     if lag and q is not None:  # the tracking error is the controller's: against the reference as recorded
         ratios = tracking_error_ratio(cut(q_ref_actual), cut(q))

@@ -109,6 +109,16 @@ def _decimate(x: np.ndarray, settings: LSSettings, fs_hz: float) -> np.ndarray:
     return lowpass_decimate(x, settings.decimation, 0.8 * fs_hz / 2 / settings.decimation, fs_hz, 8, axis=0)
 
 
+def usable_mask(valid: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None:
+    """``valid`` as a boolean array checked against the log's ``shape``; ``None`` when every sample may be used."""
+    if valid is None:
+        return None
+    valid = np.asarray(valid, dtype=bool)
+    if valid.shape != shape:
+        raise ValueError(f"valid has {valid.shape} samples, the log {shape}")
+    return None if valid.all() else valid
+
+
 def valid_rows(valid: np.ndarray, r: int) -> np.ndarray:
     """Decimated rows whose decimation span holds only valid full-rate samples.
 
@@ -185,15 +195,12 @@ def prepare(
     # parallel decimation of the force and every column, in one call (columns filtered in threads)
     Wy = _decimate(np.column_stack([model.matrix(kin), y_full]), settings, fs_hz)
     rows = None
+    valid = usable_mask(valid, np.shape(q))
     if valid is not None:
-        valid = np.asarray(valid, dtype=bool)
-        if valid.shape != np.shape(q):
-            raise ValueError(f"valid has {valid.shape} samples, the log {np.shape(q)}")
-        if not valid.all():
-            rows = valid_rows(valid[s], settings.decimation)
-            Wy = Wy[rows]
-            if len(Wy) <= Wy.shape[1]:
-                raise ValueError(f"only {len(Wy)} decimated rows are left once the invalid (saturated) samples are masked; too few for {Wy.shape[1] - 1} parameters")
+        rows = valid_rows(valid[s], settings.decimation)
+        Wy = Wy[rows]
+        if len(Wy) <= Wy.shape[1]:
+            raise ValueError(f"only {len(Wy)} decimated rows are left once the invalid (saturated) samples are masked; too few for {Wy.shape[1] - 1} parameters")
     W, y = np.ascontiguousarray(Wy[:, :-1]), np.ascontiguousarray(Wy[:, -1])
     return IDIMData(kin=kin, tau=y_full, W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
 
