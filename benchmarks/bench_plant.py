@@ -90,7 +90,7 @@ def pure_python(duration: float = 2.0) -> float:
 def main() -> None:
     quick = "--quick" in sys.argv
     t0 = time.perf_counter()
-    from plant.closed_loop import run_periods  # noqa: F401  (import = load or compile the cached machine code)
+    from plant.kernel import run_periods  # noqa: F401  (import = load or compile the cached machine code)
 
     print(f"import + JIT load/compile: {time.perf_counter() - t0:.2f} s")
     a = ours_paper_sim(31.0 if quick else 124.0)

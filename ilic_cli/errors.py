@@ -42,3 +42,34 @@ class IdentificationError(IlicError):
 
 class SimulationError(IlicError):
     """A simulation request is inconsistent (bad parameter, unknown scenario)."""
+
+
+class ParameterError(IlicError):
+    """A value breaks the rule of a parameter: the parameter, the value and the rule.
+
+    A domain error: it names no command-line option. The command line says
+    which option (or file) the value came from (:func:`ilic_cli.cli.main`
+    prints it as it is when it came from a file or a fit).
+
+    Parameters
+    ----------
+    parameter : str
+        Its name (``Fc``, ``stribeck.vs``, ``structure``, ``effect``).
+    value : object
+        The offending value (``None`` when it is missing).
+    rule : str
+        What it must be (``>= 0``, ``one of rigid, asymmetric``).
+    where : str or Path, optional
+        The file the value came from.
+    """
+
+    def __init__(self, parameter: str, value: object, rule: str, where: str | Path | None = None) -> None:
+        self.parameter = parameter
+        self.value = value
+        self.rule = rule
+        shown = "" if value is None else f" = {value!r}" if isinstance(value, str) else f" = {value:g}" if isinstance(value, (int, float)) else f" = {value}"
+        super().__init__(where, f"{parameter}{shown} must be {rule}")
+
+    def at(self, where: str | Path | None) -> ParameterError:
+        """The same error about ``where`` (an option or a file)."""
+        return ParameterError(self.parameter, self.value, self.rule, where)

@@ -158,3 +158,15 @@ def _butter_sos(order: int, wn: float) -> np.ndarray:
 
     sos = signal.butter(order, wn, output="sos")
     return sos
+
+
+def bilinear_lfilter(b_s: list[float], a_s: list[float], fs_hz: float, x: np.ndarray) -> np.ndarray:
+    """Apply the continuous filter ``B(s)/A(s)`` to ``x`` forward only (bilinear transform, causal).
+
+    The filter starts in the steady state of ``x[0]`` (no start-up transient).
+    """
+    from scipy import signal
+
+    b, a = signal.bilinear(b_s, a_s, fs=fs_hz)
+    out, _ = signal.lfilter(b, a, x, zi=signal.lfilter_zi(b, a) * x[0])
+    return np.asarray(out)

@@ -12,12 +12,15 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.errors import IdentificationError
+from ilic_cli.effects import EFFECTS, Fit, get
+from ilic_cli.errors import IdentificationError, ParameterError
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic
 from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, idim_ls
 from ilic_cli.lsq import LSResult
-from ilic_cli.regressor import get_model
+from ilic_cli.parameters import PARAMETERS
+from ilic_cli.prepare import prepare_log
+from ilic_cli.regressor import Model, get_model
 from ilic_cli.runlog import RunLog
 
 
@@ -47,11 +50,14 @@ class IdentifyReport:
     ilic: ILICResult | None = None
     validation: list[Validation] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    effects: dict[str, Any] = field(default_factory=dict)
+    """Effects identified as regressor columns: id -> nonlinear value (``None`` for a linear one)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "source": self.source,
             "model": self.model,
+            "effects": {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.effects.items()},
             "sample_rate_hz": self.fs_hz,
             "samples": self.samples,
             "ls": None if self.ls is None else self.ls.to_dict(),
@@ -77,43 +83,47 @@ class IdentifyReport:
         return pd.DataFrame(rows)
 
     def model_parameters(self) -> dict[str, float]:
-        """Parameters for a model file: IDIM-LS when run, else the last window's essential estimates."""
+        """Rigid parameters for a model file: IDIM-LS when run, else the last window's essential estimates."""
         if self.ls is not None:
-            return dict(zip(self.ls.result.names, map(float, self.ls.result.theta), strict=True))
+            return {n: float(v) for n, v in zip(self.ls.result.names, self.ls.result.theta, strict=True) if n in PARAMETERS}
         if self.ilic is not None and self.ilic.windows:
             w = self.ilic.windows[-1]
             return {n: float(v) for n, v, e in zip(w.result.names, w.result.theta, w.essential, strict=True) if e}
         return {}
 
-
-def sample_rate(log: RunLog) -> float:
-    """Nominal sampling frequency (Hz) of a log."""
-    return 1.0 / log.dt_s
-
-
-def _quality(log: RunLog, report: IdentifyReport, prefix: str = "data quality") -> np.ndarray | None:
-    """Add the data-quality warnings to ``report``; return the samples usable for identification.
-
-    Saturated drive samples (:func:`ilic_cli.quality.saturation_mask`) are
-    masked, never silently: the returned boolean array is False there, and
-    None when every sample can be used.
-    """
-    from ilic_cli.quality import assess_log, saturation_mask
-
-    quality = assess_log(log)
-    report.warnings.extend(f"{prefix}: {message}" for message in quality.warnings())
-    if quality.saturation_limit is None or "vir" not in log.channels:
-        return None
-    saturated = saturation_mask(log["vir"], quality.saturation_limit)
-    return ~saturated if saturated.any() else None
+    def model_effects(self) -> dict[str, dict[str, float]]:
+        """Plant effects of the IDIM-LS fit, for a model file (:meth:`ilic_cli.effects.Effect.fit_to_plant`)."""
+        if self.ls is None:
+            return {}
+        r = self.ls.result
+        cov = np.diag(np.where(np.isfinite(r.std), r.std, 0.0) ** 2)
+        out: dict[str, dict[str, float]] = {}
+        for eid, value in self.effects.items():
+            effect = EFFECTS[eid]
+            _, plant, _ = effect.fit_to_plant(Fit(r.names, r.theta, cov, value))
+            if effect.plant and plant is not None:
+                out[eid] = {k: float(v) for k, v in plant.items()}
+        return out
 
 
-def _saturation_note(valid: np.ndarray) -> str:
-    return f"saturated drive: {100.0 * (1.0 - float(np.mean(valid))):.3g} % of the samples masked"
+def with_effects(structure: str, effects: dict[str, Any] | None, fs_hz: float) -> Model:
+    """The regressor of ``structure`` extended by the columns of ``effects`` (id -> nonlinear value or ``None``)."""
+    model = get_model(structure)
+    if not effects:
+        return model
+    columns = []
+    for eid, value in effects.items():
+        effect = get(eid)
+        if not effect.columns:
+            raise ParameterError("effect", eid, "an effect with regressor columns (a time shift such as 'delay' is not a column)")
+        if effect.nonlinear and value is None:
+            raise ParameterError(f"{eid}.{effect.scan.name}", None, "given: the columns depend on it")  # type: ignore[union-attr]
+        columns.extend(effect.regressor_columns(value, fs_hz))
+    return model.extend(*columns, name=structure + "".join(f"+{e}" for e in effects))
 
 
-def _masked_summary(report: IdentifyReport, valid: np.ndarray) -> str:
-    parts = [_saturation_note(valid)]
+def _masked_summary(report: IdentifyReport, valid: np.ndarray, saturation_note: str) -> str:
+    parts = [saturation_note]
     if report.ls is not None:
         rows = report.ls.result.rows
         total = len(kept_indices(len(valid) - report.ls.settings.trim, report.ls.settings.decimation))
@@ -128,7 +138,8 @@ def identify(
     log: RunLog,
     *,
     method: str = "both",
-    model: str = "rigid-offset",
+    structure: str = "rigid-offset",
+    effects: dict[str, Any] | None = None,
     ls_settings: LSSettings = LSSettings(),
     ilic_settings: ILICSettings = ILICSettings(),
     validate: list[RunLog] | None = None,
@@ -141,21 +152,24 @@ def identify(
         Needs ``t``, ``q``, ``tau``; IDIM-ILIC also needs ``q_ref``
         (``qd_ref``/``qdd_ref`` are derived from it when absent).
     method : {"ls", "ilic", "both"}
-    model : {"rigid", "rigid-offset", "asymmetric"}
+    structure : {"rigid", "rigid-offset", "asymmetric"}
+    effects : dict, optional
+        Effects identified with the structure as further regressor columns
+        (IDIM-LS only): effect id -> its nonlinear value, ``None`` for a
+        linear effect (:mod:`ilic_cli.effects`).
     validate : list of RunLog
         Logs to apply the estimates to (same processing).
     """
-    src = str(log.meta.get("source", ""))
-    try:
-        structure = get_model(model)
-    except ValueError as exc:
-        raise IdentificationError(None, str(exc)) from None
-    fs = sample_rate(log)
-    report = IdentifyReport(source=src, model=model, fs_hz=fs, samples=len(log))
-    valid = _quality(log, report)
+    prepared = prepare_log(log)
+    src, fs, valid = prepared.source, prepared.fs_hz, prepared.valid
+    effects = dict(effects or {})
+    model = with_effects(structure, effects, fs)
+    if effects and method != "ls":
+        raise ParameterError("method", method, "'ls' with effect columns (IDIM-ILIC windows identify the structure's own parameters)")
+    report = IdentifyReport(source=src, model=structure, fs_hz=fs, samples=len(log), warnings=list(prepared.warnings), effects=effects)
     if method in ("ls", "both"):
         try:
-            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, structure, ls_settings, valid=valid)
+            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid)
         except ValueError as exc:
             raise IdentificationError(src, str(exc)) from None
         if not report.ls.result.full_rank:
@@ -168,7 +182,7 @@ def identify(
                 log["q_ref"],
                 log["tau"],
                 fs,
-                structure,
+                model,
                 ilic_settings,
                 qd_ref=log.channels.get("qd_ref"),
                 qdd_ref=log.channels.get("qdd_ref"),
@@ -188,19 +202,20 @@ def identify(
         for name, ks in not_essential.items():
             report.warnings.append(f"IDIM-ILIC: {name} not essential (%σ > {ilic_settings.sigma_max_pct:g}) in {len(ks)} of {len(report.ilic.windows)} windows (k = {_ranges(ks)}); it would not be updated")
     if valid is not None:
-        report.warnings.append(_masked_summary(report, valid))
+        report.warnings.append(_masked_summary(report, valid, str(prepared.saturation_note())))
     for other in validate or []:
         osrc = str(other.meta.get("source", ""))
-        ovalid = _quality(other, report, prefix=f"validation log {osrc}")
-        if ovalid is not None:
-            report.warnings.append(f"validation log {osrc}: {_saturation_note(ovalid)}")
+        op = prepare_log(other, prefix=f"validation log {osrc}")
+        report.warnings.extend(op.warnings)
+        if op.valid is not None:
+            report.warnings.append(f"validation log {osrc}: {op.saturation_note()}")
         if report.ls is not None:
-            res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings, valid=ovalid)
+            res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid)
             report.validation.append(Validation(osrc, "IDIM-LS", res))
         if report.ilic is not None and report.ilic.windows:
             theta = report.ilic.windows[-1].result.theta
             if np.all(np.isfinite(theta)):
-                res = cross_validate(theta, other.t, other["q"], other["tau"], sample_rate(other), structure, ls_settings, valid=ovalid)
+                res = cross_validate(theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid)
                 report.validation.append(Validation(osrc, f"IDIM-ILIC (k={report.ilic.windows[-1].k})", res))
     return report
 

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.filtering import central_difference, decimation_factor, lowpass_decimate
-from ilic_cli.lsq import LSResult, _num, solve_batch
+from ilic_cli.lsq import LSResult, finite_or_none, solve_batch
 from ilic_cli.regressor import Kinematics, Model
 
 
@@ -80,9 +80,9 @@ class WindowEstimate:
             "t_end": self.t_end,
             "parameters": self.result.parameters(),
             "essential": {n: bool(e) for n, e in zip(self.result.names, self.essential, strict=True)},
-            "relative_error_pct": _num(self.result.relative_error_pct),
-            "condition_number": _num(self.result.condition_number),
-            "tracking_error_ratio": None if self.tracking_error_ratio is None else _num(self.tracking_error_ratio),
+            "relative_error_pct": finite_or_none(self.result.relative_error_pct),
+            "condition_number": finite_or_none(self.result.condition_number),
+            "tracking_error_ratio": None if self.tracking_error_ratio is None else finite_or_none(self.tracking_error_ratio),
             "note": self.note,
         }
 
@@ -304,7 +304,7 @@ def identify_ilic(
     n = int(round(settings.window_s * fs_hz))
     K = len(t) // n if n > 0 else 0
     if K == 0:
-        raise ValueError(f"the log ({len(t) / fs_hz:.3g} s) is shorter than one window ({settings.window_s:g} s); pass a shorter --window")
+        raise ValueError(f"the log ({len(t) / fs_hz:.3g} s) is shorter than one window ({settings.window_s:g} s); choose a shorter window")
     if qd_ref is None or qdd_ref is None:
         qd_ref, qdd_ref = reference_derivatives(q_ref, 1.0 / fs_hz)
     lag = settings.ref_lag

@@ -57,25 +57,58 @@ class LSResult:
     def parameters(self) -> dict[str, dict[str, float | None]]:
         """``name -> {value, std, rel_std_pct}`` with ``None`` for non-finite values."""
         return {
-            n: {"value": _num(v), "std": _num(s), "rel_std_pct": _num(r)}
+            n: {"value": finite_or_none(v), "std": finite_or_none(s), "rel_std_pct": finite_or_none(r)}
             for n, v, s, r in zip(self.names, self.theta, self.std, self.rel_std_pct, strict=True)
         }
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "parameters": self.parameters(),
-            "relative_error_pct": _num(self.relative_error_pct),
-            "error_norm": _num(self.error_norm),
-            "error_std": _num(self.sigma_rho),
-            "condition_number": _num(self.condition_number),
+            "relative_error_pct": finite_or_none(self.relative_error_pct),
+            "error_norm": finite_or_none(self.error_norm),
+            "error_std": finite_or_none(self.sigma_rho),
+            "condition_number": finite_or_none(self.condition_number),
             "rows": self.rows,
             "rank": self.rank,
         }
 
 
-def _num(x: float) -> float | None:
+def finite_or_none(x: float) -> float | None:
+    """``x`` as a float, ``None`` when it is not finite (JSON has no inf or NaN)."""
     x = float(x)
     return x if np.isfinite(x) else None
+
+
+def rank_tolerance(s_max: np.ndarray | float, rows: int, cols: int) -> np.ndarray | float:
+    """The one rank rule: singular values at or below this are zero (``16 eps max(r, b) s_max``)."""
+    return s_max * max(rows, cols) * np.finfo(np.float64).eps * 16
+
+
+def pinv(W: np.ndarray) -> np.ndarray:
+    """Moore-Penrose pseudo-inverse of ``W`` with the rank rule of :func:`rank_tolerance`."""
+    W = np.asarray(W, dtype=np.float64)
+    U, s, Vt = np.linalg.svd(W, full_matrices=False)
+    if s.size == 0:
+        return np.zeros(W.shape[::-1])
+    ok = s > rank_tolerance(s[0], *W.shape)
+    return (Vt[ok].T / s[ok]) @ U[:, ok].T
+
+
+def lstsq(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares estimate (minimum-norm when rank-deficient) and residual sum of squares.
+
+    The light form of :func:`solve` (no standard deviations), for the many
+    small fits of diagnosis.
+    """
+    theta = pinv(W) @ y
+    e = y - W @ theta
+    return theta, float(e @ e) if e.ndim == 1 else float(np.sum(e * e))
+
+
+def relative_error_pct(y: np.ndarray, y_hat: np.ndarray) -> float:
+    """The one relative error: ``100 ||y - y_hat|| / ||y||`` (``inf`` for a zero ``y``)."""
+    ny = float(np.linalg.norm(y))
+    return float(100.0 * np.linalg.norm(np.asarray(y) - np.asarray(y_hat)) / ny) if ny > 0 else float("inf")
 
 
 def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> list[LSResult]:
@@ -98,9 +131,7 @@ def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: 
     y = np.asarray(y, dtype=np.float64)
     K, r, b = W.shape
     U, s, Vt = np.linalg.svd(W, full_matrices=False)
-    smax = s[:, :1]
-    tol = smax * max(r, b) * np.finfo(np.float64).eps * 16
-    ok = s > tol
+    ok = s > rank_tolerance(s[:, :1], r, b)
     s_inv = np.where(ok, 1.0 / np.where(ok, s, 1.0), 0.0)
     uty = np.einsum("kri,kr->ki", U, y)
     theta = np.einsum("kij,ki->kj", Vt, uty * s_inv)
@@ -133,7 +164,7 @@ def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: 
                 rel_std_pct=rel,
                 sigma_rho=float(sig[k]),
                 error_norm=float(err_norm[k]),
-                relative_error_pct=float(100.0 * err_norm[k] / y_norm[k]) if y_norm[k] > 0 else float("inf"),
+                relative_error_pct=float(100.0 * err_norm[k] / y_norm[k]) if y_norm[k] > 0 else float("inf"),  # = relative_error_pct()
                 condition_number=cond,
                 rows=r,
                 rank=int(rank[k]),
@@ -155,7 +186,7 @@ def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, 
     e = y - W @ theta
     sig = float(np.std(e, ddof=1))
     s = np.linalg.svd(W, compute_uv=False)
-    var_unit = np.diag(np.linalg.pinv(W.T @ W))
+    var_unit = np.diag(pinv(W.T @ W))
     std = sig * np.sqrt(var_unit)
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
@@ -166,8 +197,8 @@ def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, 
         rel_std_pct=rel,
         sigma_rho=sig,
         error_norm=float(np.linalg.norm(e)),
-        relative_error_pct=float(100.0 * np.linalg.norm(e) / np.linalg.norm(y)),
+        relative_error_pct=relative_error_pct(y, W @ theta),
         condition_number=float(s[0] / s[-1]),
         rows=len(y),
-        rank=int((s > s[0] * 1e-12).sum()),
+        rank=int((s > rank_tolerance(s[0], *W.shape)).sum()),
     )

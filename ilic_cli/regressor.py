@@ -2,8 +2,9 @@
 
 A :class:`Column` maps kinematic signals to one column of the observation
 matrix and names the parameter it multiplies. A :class:`Model` is an ordered
-tuple of columns; diagnosis adds physics by extending it, without touching the
-least-squares solver.
+tuple of columns: a structure of :mod:`ilic_cli.parameters`, extended by the
+columns of effects (:meth:`Model.extend`, :mod:`ilic_cli.effects`) without
+touching the least-squares solver.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from ilic_cli import parameters
 
 
 @dataclass(frozen=True)
@@ -99,26 +102,26 @@ def _negative(kin: Kinematics) -> np.ndarray:
     return (1.0 - kin.sgn) / 2.0
 
 
-MASS = Column("M", "kg", lambda k: k.qdd, "mass (motor rotor, screw, nut and carriage)")
-VISCOUS = Column("Fv", "N/(m/s)", lambda k: k.qd, "viscous friction")
-COULOMB = Column("Fc", "N", lambda k: k.sgn, "Coulomb friction")
-OFFSET = Column("offset", "N", lambda k: np.ones_like(k.qd), "force offset (amplifier offset, Coulomb asymmetry)")
-VISCOUS_POS = Column("Fv_pos", "N/(m/s)", lambda k: k.qd * _positive(k), "viscous friction, positive velocity")
-COULOMB_POS = Column("Fc_pos", "N", lambda k: k.sgn * _positive(k), "Coulomb friction, positive velocity")
-VISCOUS_NEG = Column("Fv_neg", "N/(m/s)", lambda k: k.qd * _negative(k), "viscous friction, negative velocity")
-COULOMB_NEG = Column("Fc_neg", "N", lambda k: k.sgn * _negative(k), "Coulomb friction, negative velocity")
-
-MODELS: dict[str, Model] = {
-    "rigid": Model("rigid", (MASS, VISCOUS, COULOMB)),
-    "rigid-offset": Model("rigid-offset", (MASS, VISCOUS, COULOMB, OFFSET)),
-    "asymmetric": Model("asymmetric", (MASS, VISCOUS_POS, COULOMB_POS, VISCOUS_NEG, COULOMB_NEG)),
+_BUILDS: dict[str, Callable[[Kinematics], np.ndarray]] = {
+    "M": lambda k: k.qdd,
+    "Fv": lambda k: k.qd,
+    "Fc": lambda k: k.sgn,
+    "offset": lambda k: np.ones_like(k.qd),
+    "Fv_pos": lambda k: k.qd * _positive(k),
+    "Fc_pos": lambda k: k.sgn * _positive(k),
+    "Fv_neg": lambda k: k.qd * _negative(k),
+    "Fc_neg": lambda k: k.sgn * _negative(k),
 }
-"""Model structures by name (paper eq. 30; benchmark asymmetric model)."""
+"""Column of each rigid parameter (paper eq. 30; benchmark asymmetric model)."""
+
+COLUMNS: dict[str, Column] = {n: Column(n, p.unit, _BUILDS[n], p.meaning) for n, p in parameters.PARAMETERS.items()}
+"""The regressor column of every rigid parameter of :mod:`ilic_cli.parameters`."""
+
+MODELS: dict[str, Model] = {name: Model(name, tuple(COLUMNS[n] for n in names)) for name, names in parameters.STRUCTURES.items()}
+"""Model structures by name (:data:`ilic_cli.parameters.STRUCTURES`)."""
 
 
 def get_model(name: str) -> Model:
     """Return the named model structure (``rigid``, ``rigid-offset``, ``asymmetric``)."""
-    try:
-        return MODELS[name]
-    except KeyError:
-        raise ValueError(f"unknown model '{name}' (choose from {', '.join(MODELS)})") from None
+    parameters.structure_names(name)
+    return MODELS[name]

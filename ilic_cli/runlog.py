@@ -114,6 +114,11 @@ class RunLog:
         return float(np.median(np.diff(t)))
 
     @property
+    def fs_hz(self) -> float:
+        """Nominal sample rate (Hz), ``1 / dt_s``: the one rate every computation on the log uses."""
+        return 1.0 / self.dt_s
+
+    @property
     def duration_s(self) -> float:
         """Time from the first to the last sample (s)."""
         t = self.t

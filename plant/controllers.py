@@ -41,7 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.errors import SimulationError
+from ilic_cli import parameters
+from ilic_cli.errors import ParameterError
 
 # packed controller vector (read by the integrator)
 C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP = range(11)
@@ -50,8 +51,9 @@ PULSE_INPUTS = ("held", "ramp")
 VELOCITY_ESTIMATES = ("backward", "exact")
 KIND_CTC, KIND_PD = 0.0, 1.0
 
-# chi layout of the integrator (all models map onto it)
-CHI_LAYOUT: tuple[str, ...] = ("M", "Fv", "Fc", "offset", "Fv_pos", "Fc_pos", "Fv_neg", "Fc_neg")
+CHI_LAYOUT: tuple[str, ...] = tuple(parameters.PARAMETERS)
+"""Layout of the CTC parameter vector the integrator reads: every parameter of :mod:`ilic_cli.parameters`
+(M, Fv, Fc, offset, Fv_pos, Fc_pos, Fv_neg, Fc_neg; every structure maps onto it)."""
 
 
 @dataclass
@@ -101,25 +103,16 @@ class CTCSettings:
         return 2.0 * self.xi * self.omega
 
     def validate(self) -> None:
-        from ilic_cli.regressor import MODELS
-
-        for name in ("omega", "xi", "alpha", "window_s", "sigma_max_pct", "cutoff_hz"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise SimulationError(f"--{name.replace('_', '-')}", f"must be a positive number (got {v})")
+        _positive(self, ("omega", "xi", "alpha", "window_s", "sigma_max_pct", "cutoff_hz"))
         if self.velocity not in VELOCITY_ESTIMATES:
-            raise SimulationError("--velocity", f"unknown velocity estimate '{self.velocity}' (choose from {', '.join(VELOCITY_ESTIMATES)})")
-        if self.model not in MODELS:
-            raise SimulationError("--model", f"unknown model '{self.model}' (choose from {', '.join(MODELS)})")
-        names = MODELS[self.model].names
+            raise ParameterError("velocity", self.velocity, f"one of {', '.join(VELOCITY_ESTIMATES)}")
+        names = parameters.structure_names(self.model)
         for k in self.initial():
             if k not in names:
-                raise SimulationError("--chi0", f"'{k}' is not a parameter of model '{self.model}' ({', '.join(names)})")
+                raise ParameterError(f"chi0.{k}", self.initial()[k], f"a parameter of the '{self.model}' structure ({', '.join(names)})")
 
     def initial(self) -> dict[str, float]:
-        from ilic_cli.regressor import MODELS
-
-        names = MODELS[self.model].names if self.model in MODELS else ("M",)
+        names = parameters.STRUCTURES.get(self.model, ("M",))
         chi = {n: 0.0 for n in names}
         chi["M"] = 100.0
         chi.update(self.chi0 or {})
@@ -152,12 +145,9 @@ class PDSettings:
     kind = "pd"
 
     def validate(self) -> None:
-        for name in ("kp", "kv", "gtau", "vmax"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise SimulationError(f"--{name}", f"must be a positive number (got {v})")
+        _positive(self, ("kp", "kv", "gtau", "vmax"))
         if self.pulse_input not in PULSE_INPUTS:
-            raise SimulationError("pulse_input", f"unknown pulse input '{self.pulse_input}' (choose from {', '.join(PULSE_INPUTS)})")
+            raise ParameterError("pulse_input", self.pulse_input, f"one of {', '.join(PULSE_INPUTS)}")
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "pd", **asdict(self), "delay_samples": 1, "position_filter": [0.5, 0.5]}
@@ -167,6 +157,14 @@ class PDSettings:
         c[C_KIND], c[C_PD_KP], c[C_PD_KV], c[C_GTAU], c[C_VMAX] = KIND_PD, self.kp, self.kv, self.gtau, self.vmax
         c[C_PULSE_RAMP] = 1.0 if self.pulse_input == "ramp" else 0.0
         return c
+
+
+def _positive(settings: object, names: tuple[str, ...]) -> None:
+    """Each named setting must be a finite number > 0."""
+    for name in names:
+        v = getattr(settings, name)
+        if not (math.isfinite(v) and v > 0):
+            raise ParameterError(name, v, "a positive number")
 
 
 def chi_vector(names: tuple[str, ...], values: np.ndarray | dict[str, float]) -> np.ndarray:

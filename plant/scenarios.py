@@ -31,14 +31,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from ilic_cli.errors import SimulationError
+from ilic_cli.effects import Effects, effects_to_dict, make_effects
+from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.io import read_log
+from ilic_cli.runlog import RunLog
+from plant.closed_loop import loop_log, simulate_loop
 from plant.controllers import CTCSettings, PDSettings
-from plant.dynamics import Effects, RigidParameters, effects_to_dict, make_effects
-
-if TYPE_CHECKING:
-    from ilic_cli.runlog import RunLog
+from plant.dynamics import RigidParameters, plant_vector
+from plant.replay import simulate_replay
+from plant.trajectories import exciting_cycle
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_EMPS_LOG = REPO_ROOT.parent / "shared" / "emps" / "DATA_EMPS.mat"
@@ -104,7 +107,7 @@ def get_scenario(name: str) -> Scenario:
     try:
         return SCENARIOS[name]
     except KeyError:
-        raise SimulationError("--scenario", f"unknown scenario '{name}' (choose from {', '.join(SCENARIOS)})") from None
+        raise ParameterError("scenario", name, f"one of {', '.join(SCENARIOS)}") from None
 
 
 def resolve(name: str, ov: Overrides) -> tuple[Scenario, RigidParameters, Effects, CTCSettings | PDSettings]:
@@ -117,17 +120,17 @@ def resolve(name: str, ov: Overrides) -> tuple[Scenario, RigidParameters, Effect
     effects = make_effects(spec)
     kind = ov.controller or sc.controller
     if kind not in ("ctc", "pd"):
-        raise SimulationError("--controller", f"unknown controller '{kind}' (choose from ctc, pd)")
+        raise ParameterError("controller", kind, "one of ctc, pd")
     ctl: CTCSettings | PDSettings
     if kind == "ctc":
         known = {"omega", "xi", "alpha", "window_s", "sigma_max_pct", "cutoff_hz", "model", "ilic", "velocity"}
         bad = sorted(set(ov.ctc) - known)
         if bad:
-            raise SimulationError("--controller", f"unknown CTC setting(s) {', '.join(bad)}")
+            raise ParameterError("controller", bad[0], f"a CTC setting ({', '.join(sorted(known))})")
         ctl = replace(CTCSettings(), **ov.ctc, chi0=dict(ov.chi0) or None)
     else:
         if ov.chi0 or ov.ctc:
-            raise SimulationError("--controller", "CTC options (--omega, --xi, --alpha, --window, --sigma-max, --velocity, --chi0) do not apply to the PD controller")
+            raise SimulationError(None, f"CTC settings ({', '.join(sorted(ov.ctc) + sorted(f'chi0.{k}' for k in ov.chi0))}) do not apply to the PD controller")
         ctl = replace(PDSettings(), **ov.pd)
     ctl.validate()
     return sc, params, effects, ctl
@@ -137,24 +140,20 @@ def check(name: str, ov: Overrides) -> None:
     """Raise :class:`SimulationError` for any bad value before anything runs."""
     sc, params, effects, ctl = resolve(name, ov)
     if ov.duration_s is not None and not (math.isfinite(ov.duration_s) and ov.duration_s > 0):
-        raise SimulationError("--duration", f"must be a positive number of seconds (got {ov.duration_s})")
+        raise ParameterError("duration", ov.duration_s, "a positive number of seconds")
     if not isinstance(ov.substeps, int) or ov.substeps < 1:
-        raise SimulationError("--substeps", f"must be a positive integer (got {ov.substeps})")
-    from plant.dynamics import plant_vector
-
+        raise ParameterError("substeps", ov.substeps, "a positive integer")
     plant_vector(params, effects)
     if ov.published_setup and sc.reference != "log":
-        raise SimulationError("--published-setup", f"applies to the emps-benchmark replay only (not to '{name}')")
+        raise ParameterError("published_setup", name, "used with the emps-benchmark replay only")
     if sc.reference == "log":
         p = Path(ov.log_path) if ov.log_path is not None else DEFAULT_EMPS_LOG
         if not p.exists():
-            raise SimulationError(p, "recorded reference log not found (the emps-benchmark scenario replays DATA_EMPS.mat; pass --log)")
+            raise SimulationError(p, "recorded reference log not found (the emps-benchmark scenario replays DATA_EMPS.mat; give another recorded log)")
 
 
 def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -> RunLog:
     """Simulate a named scenario and return its log (metadata: every value used)."""
-    from plant.closed_loop import loop_log, simulate_loop, simulate_replay
-
     ov = ov or Overrides()
     check(name, ov)
     sc, params, effects, ctl = resolve(name, ov)
@@ -178,8 +177,6 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
             out.meta["scenario"]["published_setup"] = {"clock_s": clock, "pulse_input": "ramp"}
         out.meta.pop("replay_of", None)
         return out
-    from plant.trajectories import exciting_cycle
-
     duration = sc.duration_s if ov.duration_s is None else ov.duration_s
     n = int(round(duration * FS_HZ))
     traj = exciting_cycle(seed=ov.trajectory_seed)
@@ -193,11 +190,9 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
 
 
 def _read_reference_log(path: str | Path | None) -> RunLog:
-    from ilic_cli.io import read_log
-
     p = Path(path) if path is not None else DEFAULT_EMPS_LOG
     if not p.exists():
-        raise SimulationError(p, "recorded reference log not found (the emps-benchmark scenario replays DATA_EMPS.mat; pass --log)")
+        raise SimulationError(p, "recorded reference log not found (the emps-benchmark scenario replays DATA_EMPS.mat; give another recorded log)")
     log = read_log(p)
     if "q_ref" not in log:
         raise SimulationError(p, "the log has no reference position (q_ref / qg) to replay")

@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
-from ilic_cli.diagnosis.catalogue import EFFECT_IDS, catalogue
 from ilic_cli.diagnosis.locate import force_lag, velocity_bins
-from ilic_cli.diagnosis.stats import ar_fit, batched_rss, blocked_folds, diebold_mariano, lstsq, nested_f_test
+from ilic_cli.diagnosis.stats import ar_fit, batched_rss, blocked_folds, diebold_mariano, nested_f_test
+from ilic_cli.effects import EFFECTS, catalogue_ids
+from ilic_cli.lsq import lstsq
 
 
 def test_catalogue_ids_and_fields() -> None:
-    cat = catalogue()
-    assert set(EFFECT_IDS) >= {"asymmetric_friction", "stribeck", "position_ripple", "spring", "payload_change", "offset", "delay", "flexibility"}
-    for e in cat.values():
+    assert set(catalogue_ids()) >= {"asymmetric_friction", "stribeck", "position_ripple", "spring", "payload_change", "offset", "delay", "flexibility"}
+    for e in (EFFECTS[i] for i in catalogue_ids()):
         assert e.explanation.endswith(".") and e.form and e.signature
         d = e.to_dict()
         assert d["id"] == e.id

@@ -54,7 +54,7 @@ def test_rigid_offset_markdown_prints_published_numbers(emps: Path) -> None:
 
 
 def test_asymmetric_table_and_cross_test_validation(emps: Path) -> None:
-    doc = identify_json(str(emps / "DATA_EMPS.mat"), "--method", "ls", "--model", "asymmetric")
+    doc = identify_json(str(emps / "DATA_EMPS.mat"), "--method", "ls", "--structure", "asymmetric")
     table = TABLES["asymmetric"]
     for name, row in table["parameters"].items():
         for key, published in row.items():

@@ -26,7 +26,7 @@ TRUTH = TABLE["truth"]
 def doc(tmp_path_factory: pytest.TempPathFactory) -> dict:
     path = tmp_path_factory.mktemp("sim") / "paper-sim.mcap"
     write_log(run_scenario("paper-sim", Overrides(duration_s=6.2 * 5, seed=1)), path)
-    res = run_cli("identify", str(path), "--model", "rigid", "--format", "json")
+    res = run_cli("identify", str(path), "--structure", "rigid", "--format", "json")
     assert res.status == 0, res.stderr
     return json.loads(res.stdout)
 

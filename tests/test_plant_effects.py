@@ -5,10 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ilic_cli.errors import SimulationError
-from plant.closed_loop import run_periods, simulate_loop
+from ilic_cli.commands.common import parse_effect_option
+from ilic_cli.effects import EFFECTS, make_effects, plant_ids
+from ilic_cli.errors import IlicError, ParameterError
+from plant.closed_loop import simulate_loop
+from plant.kernel import run_periods
 from plant.controllers import CTCSettings, chi_vector
-from plant.dynamics import EFFECTS, RigidParameters, force_model, make_effects, parse_effect_option, plant_vector
+from plant.dynamics import RigidParameters, drive_lag_s, force_model, measurement_lag_s, plant_vector
 from plant.trajectories import exciting_cycle
 
 P = RigidParameters(95.0, 200.0, 20.0, -3.0)
@@ -34,7 +37,7 @@ def test_every_effect_off_by_default() -> None:
     assert np.array_equal(base, plant_vector(P, make_effects({})))
     log = _closed_loop({})
     assert set(log.meta["effects"]) == set()
-    for eid in EFFECTS:
+    for eid in plant_ids():
         assert not np.array_equal(plant_vector(P, make_effects({eid: {}})), base) or eid in ("delay", "noise")
 
 
@@ -151,15 +154,16 @@ def test_effect_option_parsing_and_errors() -> None:
     assert parse_effect_option("stribeck:Fs=5,vs=0.01") == ("stribeck", {"Fs": 5.0, "vs": 0.01})
     assert parse_effect_option("spring") == ("spring", {})
     for bad in ("nope", "stribeck:Fs", "stribeck:Fs=x"):
-        with pytest.raises(SimulationError):
+        with pytest.raises(IlicError, match="--effect"):
             parse_effect_option(bad)
-    with pytest.raises(SimulationError):
+    with pytest.raises(ParameterError, match="stribeck.vs = -1 must be > 0"):
         make_effects({"stribeck": {"vs": -1.0}})
-    with pytest.raises(SimulationError):
+    with pytest.raises(ParameterError, match="spring.stiffness"):
         make_effects({"spring": {"stiffness": 1.0}})
-    for eid, cls in EFFECTS.items():
-        eff = cls()
-        assert type(eff).from_dict(eff.to_dict()) == eff, eid
+    for eid in plant_ids():
+        eff = make_effects({eid: {}})[eid]
+        assert make_effects({eid: eff.to_dict()})[eid] == eff, eid
+        assert list(eff.to_dict()) == [p.name for p in EFFECTS[eid].params]
 
 
 def _sliding_force_balance(log, params: RigidParameters, fs_extra=None) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
@@ -187,9 +191,9 @@ def test_drive_lag_applies_the_command_later(lag_s: float) -> None:
 
 
 def test_drive_lag_and_measurement_delay_are_one_effect() -> None:
-    assert make_effects({"delay": {"delay": -0.0005}})["delay"].drive_lag_s == 0.0005
-    assert make_effects({"delay": {"delay": 0.0005}})["delay"].measurement_s == 0.0005
-    with pytest.raises(SimulationError, match="delay"):
+    assert drive_lag_s(make_effects({"delay": {"delay": -0.0005}})) == 0.0005
+    assert measurement_lag_s(make_effects({"delay": {"delay": 0.0005}})) == 0.0005
+    with pytest.raises(ParameterError, match="delay"):
         make_effects({"delay": {"delay": -2.0}})
 
 
@@ -200,7 +204,7 @@ def test_negative_stribeck_lowers_low_speed_friction() -> None:
     acting, sliding = _sliding_force_balance(log, P, extra)
     np.testing.assert_allclose(acting[sliding], log["tau"][sliding], rtol=0, atol=1e-8)
     # the static level Fc + Fs may not be negative
-    with pytest.raises(SimulationError, match="static friction level"):
+    with pytest.raises(ParameterError, match="static friction level"):
         plant_vector(P, make_effects({"stribeck": {"Fs": -25.0, "vs": 0.02}}))
 
 
@@ -209,8 +213,8 @@ def test_ramped_pulses_and_replay_clock() -> None:
     ``clock_s`` runs the replay on another control period, sample k for sample k."""
     from dataclasses import replace
 
-    from plant.closed_loop import simulate_replay
     from plant.controllers import PDSettings
+    from plant.replay import simulate_replay
     from tests.conftest import make_synthetic_log
 
     log = make_synthetic_log(samples=600)
@@ -233,9 +237,9 @@ def test_ramped_pulses_and_replay_clock() -> None:
     assert len(slow) == len(log) and slow.t[-1] == pytest.approx(599 * 1.001e-3, abs=1e-12)
     assert slow.meta["replay_clock_s"] == 1.001e-3
     np.testing.assert_allclose(slow["q_ref"], np.interp(slow.t, log.t, log["q_ref"]), rtol=0, atol=1e-15)
-    with pytest.raises(SimulationError, match="clock"):
+    with pytest.raises(ParameterError, match="clock"):
         simulate_replay(log, params, controller=PDSettings(), clock_s=-1.0)
-    with pytest.raises(SimulationError, match="ramped pulses"):
+    with pytest.raises(ParameterError, match="ramped pulses"):
         simulate_replay(log, params, {"delay": {"delay": -0.0005}}, controller=PDSettings(pulse_input="ramp"))
-    with pytest.raises(SimulationError, match="pulse input"):
+    with pytest.raises(ParameterError, match="pulse_input"):
         simulate_replay(log, params, controller=replace(PDSettings(), pulse_input="square"))

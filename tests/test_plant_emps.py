@@ -10,7 +10,7 @@ import pytest
 
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.io import read_log
-from plant.closed_loop import simulate_replay
+from plant.replay import simulate_replay
 from plant.scenarios import Overrides, run_scenario
 from tests.conftest import require_shared
 

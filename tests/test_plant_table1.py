@@ -76,7 +76,7 @@ def test_bias_is_the_controllers_eq27_and_atan() -> None:
 
 
 def test_unknown_velocity_estimate_is_refused() -> None:
-    from ilic_cli.errors import SimulationError
+    from ilic_cli.errors import ParameterError
 
-    with pytest.raises(SimulationError, match="velocity"):
+    with pytest.raises(ParameterError, match="velocity"):
         run_scenario("paper-sim", Overrides(duration_s=1.0, ctc={"velocity": "forward"}))

@@ -48,13 +48,13 @@ def test_simulate_is_bit_identical(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
-        (("--scenario", "nope"), "unknown scenario"),
+        (("--scenario", "nope"), "--scenario: scenario = 'nope' must be one of paper-sim"),
         (("--param", "M"), "expected NAME=VALUE"),
         (("--param", "M=abc"), "not a number"),
-        (("--param", "Q=1"), "unknown parameter"),
-        (("--param", "M=-5"), "mass M must be > 0"),
+        (("--param", "Q=1"), "--param: parameter = 'Q' must be a rigid parameter (M, Fv, Fc, offset)"),
+        (("--param", "M=-5"), "--param: M = -5 must be > 0"),
         (("--effect", "warp:x=1"), "unknown effect"),
-        (("--effect", "stribeck:Fz=1"), "no parameter"),
+        (("--effect", "stribeck:Fz=1"), "--effect: stribeck.Fz = 1 must be a parameter of 'stribeck' (Fs, vs)"),
         (("--substeps", "0"), "--substeps"),
         (("--duration", "-1"), "--duration"),
         (("--controller", "pd", "--omega", "3"), "do not apply"),
@@ -118,7 +118,7 @@ def test_replay_refuses_output_over_input_and_bad_model(tmp_path: Path) -> None:
     assert src.read_bytes() == before
     model.write_text(json.dumps({"parameters": {"M": 95.0, "Fv": 200.0, "Fc": 20.0}, "effects": {"warp": {}}}))
     res = run_cli("replay", str(src), "--model", str(model), "-o", str(tmp_path / "o.mcap"))
-    assert res.status == 2 and "unknown effect" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert res.status == 2 and "m.json: effect = 'warp' must be one of asymmetric_friction" in res.stderr and len(res.stderr.strip().splitlines()) == 1
 
 
 def test_emps_benchmark_scenario(tmp_path: Path) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -89,3 +90,89 @@ def progress_enabled() -> bool:
 def note(message: str) -> None:
     """Print a message for the user on stderr (stdout carries only results)."""
     click.echo(message, err=True)
+
+
+# ---------------------------------------------------------------------------
+# option text and the wording of domain errors (only the command line speaks of flags)
+# ---------------------------------------------------------------------------
+STRUCTURES = ["rigid", "rigid-offset", "asymmetric"]
+"""Model structures (:data:`ilic_cli.parameters.STRUCTURES`), for the ``--structure`` choice."""
+
+OPTIONS: dict[str, str] = {
+    "scenario": "--scenario", "controller": "--controller", "omega": "--omega", "xi": "--xi", "alpha": "--alpha",
+    "window_s": "--window", "sigma_max_pct": "--sigma-max", "cutoff_hz": "--ilic-cutoff", "velocity": "--velocity",
+    "structure": "--structure", "kp": "--kp", "kv": "--kv", "gtau": "--drive-gain", "vmax": "--vmax", "duration": "--duration",
+    "substeps": "--substeps", "published_setup": "--published-setup", "tau_sensor": "--tau-sensor", "effect": "--effect",
+    "method": "--method", "clock_s": "--published-setup", "noise.tau_std": "--noise-tau", "noise.q_std": "--noise-q",
+    "quantization.resolution": "--resolution", "parameter": "--param",
+}
+"""Parameter of a :class:`~ilic_cli.errors.ParameterError` -> the option that sets it."""
+
+
+def option_for(parameter: str) -> str | None:
+    """The option a parameter's value comes from (``Fc`` -> ``--param``, ``stribeck.vs`` -> ``--effect``); ``None`` if none does."""
+    from ilic_cli.parameters import PARAMETERS
+
+    if parameter in OPTIONS:
+        return OPTIONS[parameter]
+    if parameter in PARAMETERS:
+        return "--param"
+    if parameter.startswith("chi0."):
+        return "--chi0"
+    return "--effect" if "." in parameter else None
+
+
+def parse_assignment(text: str, option: str) -> tuple[str, float]:
+    """Parse ``NAME=VALUE`` with a finite float value (``--param``, ``--chi0``)."""
+    from ilic_cli.errors import IlicError
+
+    key, eq, value = text.partition("=")
+    if not eq or not key.strip():
+        raise IlicError(option, f"'{text}': expected NAME=VALUE")
+    try:
+        v = float(value)
+    except ValueError:
+        raise IlicError(option, f"'{text}': '{value}' is not a number") from None
+    if not math.isfinite(v):
+        raise IlicError(option, f"'{text}': value must be finite")
+    return key.strip(), v
+
+
+def parse_effect_option(text: str) -> tuple[str, dict[str, float]]:
+    """Parse ``ID`` or ``ID:k=v,k=v`` (``--effect``)."""
+    from ilic_cli.effects import plant_ids
+    from ilic_cli.errors import IlicError
+
+    eid, _, rest = text.partition(":")
+    eid = eid.strip()
+    if eid not in plant_ids():
+        raise IlicError("--effect", f"unknown effect '{eid}' (known: {', '.join(plant_ids())})")
+    params: dict[str, float] = {}
+    if rest.strip():
+        for item in rest.split(","):
+            key, eq, value = item.partition("=")
+            if not eq or not key.strip():
+                raise IlicError("--effect", f"'{text}': expected ID:name=value,name=value")
+            try:
+                params[key.strip()] = float(value)
+            except ValueError:
+                raise IlicError("--effect", f"'{text}': '{value}' is not a number") from None
+    return eid, params
+
+
+def structure_or_model_file(model: str | None, structure: str | None) -> tuple[str | None, Path | None]:
+    """Resolve ``--model`` (a model file) and ``--structure``, accepting the old ``--model STRUCTURE`` with a warning.
+
+    Returns ``(structure, model file)``; ``--model rigid`` (no such file) is
+    the deprecated spelling of ``--structure rigid`` for this release.
+    """
+    from ilic_cli.errors import IlicError
+
+    if model is None:
+        return structure, None
+    if model in STRUCTURES and not Path(model).exists():
+        if structure is not None and structure != model:
+            raise IlicError("--model", f"'{model}' (the old spelling of --structure) contradicts --structure {structure}")
+        note(f"ilic: warning: --model {model} is deprecated for a structure; use --structure {model} (--model now names a model file)")
+        return model, None
+    return structure, Path(model)

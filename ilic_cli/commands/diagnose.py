@@ -40,19 +40,20 @@ def command(log: Path, model_path: Path | None, against: Path | None, validate: 
       ilic diagnose run.mcap --model model.json --format json
     """
     from ilic_cli.diagnosis import DiagnoseSettings, SelectSettings, diagnose
-    from ilic_cli.diagnosis.catalogue import EFFECT_IDS
+    from ilic_cli.effects import catalogue_ids
     from ilic_cli.diagnosis.report import to_json, to_markdown
     from ilic_cli.errors import IlicError
     from ilic_cli.modelfile import load_model_file
 
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise IlicError(out_dir, "--out must be a folder")
-    chosen = EFFECT_IDS
+    catalogue = catalogue_ids()
+    chosen = catalogue
     if effects is not None:
         chosen = tuple(e.strip() for e in effects.split(",") if e.strip())
-        unknown = [e for e in chosen if e not in EFFECT_IDS]
+        unknown = [e for e in chosen if e not in catalogue]
         if unknown or not chosen:
-            raise IlicError("--effects", f"unknown effect {', '.join(unknown) or '(none given)'} (catalogue: {', '.join(EFFECT_IDS)})")
+            raise IlicError("--effects", f"unknown effect {', '.join(unknown) or '(none given)'} (catalogue: {', '.join(catalogue)})")
     model_doc = load_model_file(model_path) if model_path is not None else None
     run = load(log, input_format, topic, ref_topic, joint)
     sim = load(against, None, topic, ref_topic, joint) if against is not None else None

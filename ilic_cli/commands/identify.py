@@ -6,13 +6,15 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import input_options, load, note
+from ilic_cli.commands.common import STRUCTURES, input_options, load, note, option_for, parse_effect_option, structure_or_model_file
 
 
 @click.command("identify")
 @click.argument("log", type=click.Path(path_type=Path))
 @click.option("--method", type=click.Choice(["ls", "ilic", "both"]), default="both", show_default=True, help="IDIM-LS, IDIM-ILIC per window, or both.")
-@click.option("--model", "model", type=click.Choice(["rigid", "rigid-offset", "asymmetric"]), default="rigid-offset", show_default=True, help="Model structure (regressor columns).")
+@click.option("--structure", "structure", type=click.Choice(STRUCTURES), default=None, help="Model structure (regressor columns) [default: the model file's, else rigid-offset].")
+@click.option("--model", "model", default=None, metavar="FILE", help="Model file (model.json): its structure and effects are identified again (--model STRUCTURE: deprecated spelling of --structure).")
+@click.option("--effect", "effects", multiple=True, metavar="ID[:k=v,...]", help="Identify this effect's regressor columns too (IDIM-LS; nonlinear parameters fixed at the given or default values); repeatable.")
 @click.option("--validate", "validate", multiple=True, type=click.Path(path_type=Path), help="Apply the estimates to this log too (cross-test validation); repeatable.")
 @click.option("--window", "window_s", type=click.FloatRange(min=0, min_open=True), default=6.2, show_default=True, help="IDIM-ILIC window T_obs (s).")
 @click.option("--sigma-max", "sigma_max", type=click.FloatRange(min=0, min_open=True), default=15.0, show_default=True, help="%σ_max: parameters above it are not essential.")
@@ -28,7 +30,7 @@ from ilic_cli.commands.common import input_options, load, note
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
 @click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
 @input_options
-def command(log: Path, method: str, model: str, validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, ref_lag: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+def command(log: Path, method: str, structure: str | None, model: str | None, effects: tuple[str, ...], validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, ref_lag: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
     """Identify the axis's parameters from LOG by IDIM-LS and IDIM-ILIC.
 
     IDIM-LS (paper section III) filters and differentiates the measured
@@ -39,15 +41,42 @@ def command(log: Path, method: str, model: str, validate: tuple[Path, ...], wind
     \b
     Examples:
       ilic identify DATA_EMPS.mat --method ls
-      ilic identify DATA_EMPS.mat --model asymmetric --validate DATA_EMPS_PULSES.mat
+      ilic identify DATA_EMPS.mat --structure asymmetric --validate DATA_EMPS_PULSES.mat
+      ilic identify DATA_EMPS.mat --method ls --effect position_ripple:L=0.0125
       ilic identify sim.mcap --format json --out report/
     """
     from ilic_cli import report as render
-    from ilic_cli.errors import IlicError
+    from ilic_cli.effects import get
+    from ilic_cli.errors import IlicError, ParameterError
     from ilic_cli.idim_ilic import ILICSettings
     from ilic_cli.idim_ls import LSSettings
     from ilic_cli.identify import identify
+    from ilic_cli.modelfile import load_model_file
+    from ilic_cli.parameters import DEFAULTS
 
+    structure, model_path = structure_or_model_file(model, structure)
+    doc = load_model_file(model_path) if model_path is not None else None
+    if structure is None:
+        structure = str(doc["model"]) if doc is not None and doc.get("model") in STRUCTURES else "rigid-offset"
+    mass = float(doc["parameters"].get("M", DEFAULTS["M"])) if doc is not None else DEFAULTS["M"]
+    chosen: dict[str, object] = {}
+    try:
+        skipped = []
+        for eid, values in (doc or {}).get("effects", {}).items():
+            if not get(eid).columns:  # a time shift or a measurement effect: nothing to add to the regressor
+                skipped.append(eid)
+                continue
+            chosen[eid] = get(eid).value_from_plant(get(eid).values(values), mass)
+    except ParameterError as exc:
+        raise exc.at(model_path) from None
+    if skipped:
+        note(f"ilic: warning: {model_path}: not identified as regressor columns: {', '.join(skipped)}")
+    try:
+        for text in effects:
+            eid, values = parse_effect_option(text)
+            chosen[eid] = get(eid).value_from_plant(get(eid).values(values), mass)
+    except ParameterError as exc:
+        raise exc.at("--effect") from None
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise IlicError(out_dir, "--out must be a folder")
     if out_dir is not None:
@@ -56,7 +85,10 @@ def command(log: Path, method: str, model: str, validate: tuple[Path, ...], wind
     others = [load(p, None, topic, ref_topic, joint) for p in validate]
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
     ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
-    result = identify(run, method=method, model=model, ls_settings=ls_settings, ilic_settings=ilic_settings, validate=others)
+    try:
+        result = identify(run, method=method, structure=structure, effects=chosen, ls_settings=ls_settings, ilic_settings=ilic_settings, validate=others)
+    except ParameterError as exc:
+        raise exc.at(option_for(exc.parameter)) from None
     for w in result.warnings:
         note(f"ilic: warning: {w}")
     text = {"md": render.to_markdown, "csv": render.to_csv, "json": lambda r: render.to_json(r.to_dict())}[out_format](result)
@@ -75,7 +107,8 @@ def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[P
     atomic_write_text(out_dir / "report.csv", render.to_csv(result), inputs=inputs)
     atomic_write_text(out_dir / "report.json", render.to_json(result.to_dict()), inputs=inputs)
     method = "IDIM-LS" if result.ls is not None else "IDIM-ILIC"
-    atomic_write_text(out_dir / "model.json", render.to_json(model_document(result.model, result.model_parameters(), method=method, source=result.source)), inputs=inputs)
+    doc = model_document(result.model, result.model_parameters(), method=method, effects=result.model_effects(), source=result.source)
+    atomic_write_text(out_dir / "model.json", render.to_json(doc), inputs=inputs)
     written = [out_dir / n for n in ("report.md", "report.csv", "report.json", "model.json")]
     if plot_format != "none":
         from ilic_cli.plotting import plot_identify

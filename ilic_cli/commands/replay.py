@@ -30,16 +30,21 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
     Example:
       ilic replay DATA_EMPS.mat --model report/model.json -o replay.mcap
     """
-    from ilic_cli.errors import SimulationError
+    from ilic_cli.errors import IlicError, ParameterError
     from ilic_cli.io import write_log
     from ilic_cli.modelfile import load_model_file
-    from plant.closed_loop import simulate_replay
+    from plant.dynamics import plant_model
+    from plant.replay import simulate_replay
 
     if substeps < 1:
-        raise SimulationError("--substeps", f"must be >= 1 (got {substeps})")
+        raise IlicError("--substeps", f"must be >= 1 (got {substeps})")
     doc = load_model_file(model_file)
+    try:
+        params, effects = plant_model(doc["parameters"], doc["effects"])
+    except ParameterError as exc:
+        raise exc.at(model_file) from None
     run = load(log, input_format, topic, ref_topic, joint)
-    sim = simulate_replay(run, doc["parameters"], doc["effects"], substeps=substeps, seed=seed)
+    sim = simulate_replay(run, params, effects, substeps=substeps, seed=seed)
     sim.meta["model_file"] = str(model_file)
     write_log(sim, output, out_format, inputs=(log,))
     note(f"ilic: replayed {log} with {model_file}: wrote {output} ({len(sim)} samples)")

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import LOG_FORMATS, note, progress_enabled
+from ilic_cli.commands.common import (LOG_FORMATS, STRUCTURES, note, option_for, parse_assignment, parse_effect_option, progress_enabled,
+                                      structure_or_model_file)
 
 SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 
@@ -18,12 +19,13 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 @click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True, help="Output log (.mcap, .mat, .csv, .bag or a ROS 2 bag folder).")
 @click.option("--format", "out_format", type=click.Choice(LOG_FORMATS), default=None, help="Output format [default: from the extension; MCAP for .mcap].")
 @click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="Plant parameter (M, Fv, Fc, offset); repeatable.")
-@click.option("--effect", "effects", multiple=True, metavar="ID[:k=v,...]", help="Add an effect: asymmetric_friction, stribeck, position_ripple, spring, payload_change, delay, flexibility, saturation, quantization, noise; repeatable.")
+@click.option("--effect", "effects", multiple=True, metavar="ID[:k=v,...]", help="Add an effect (asymmetric_friction, stribeck, position_ripple, spring, payload_change, delay, flexibility, saturation, quantization, noise, or any other defined in ilic_cli.effects); repeatable.")
 @click.option("--controller", type=click.Choice(["ctc", "pd"]), default=None, help="Controller [default: the scenario's].")
 @click.option("--omega", type=float, default=None, help="CTC bandwidth (rad/s) [default: 2*pi*20].")
 @click.option("--xi", type=float, default=None, help="CTC damping [default: sqrt(2)/2].")
 @click.option("--alpha", type=float, default=None, help="CTC Coulomb smoothing (2/pi)atan(alpha*qd) [default: 1000].")
-@click.option("--model", "model", type=click.Choice(["rigid", "rigid-offset", "asymmetric"]), default=None, help="CTC/IDIM-ILIC model [default: rigid].")
+@click.option("--structure", "structure", type=click.Choice(STRUCTURES), default=None, help="CTC/IDIM-ILIC model structure [default: rigid].")
+@click.option("--model", "model", default=None, metavar="FILE", help="Model file (model.json): the plant's parameters and effects (--param and --effect apply on top; --model STRUCTURE: deprecated spelling of --structure).")
 @click.option("--velocity", "velocity", type=click.Choice(["backward", "exact"]), default=None,
               help="CTC velocity: backward difference (eq. 25) or the plant's exact velocity, to study the eq. 27 bias [default: backward].")
 @click.option("--chi0", "chi0", multiple=True, metavar="NAME=VALUE", help="Initial CTC parameter (eq. 28; default M=100, others 0); repeatable.")
@@ -43,7 +45,7 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
               help="emps-benchmark: replay as the published simulation did (controller clock t(10)-t(9) of the file, pulses interpolated in continuous time).")
 @click.option("--log", "log_path", type=click.Path(path_type=Path), default=None, help="Recorded log replayed by emps-benchmark [default: ../shared/emps/DATA_EMPS.mat from the repository root].")
 def command(scenario: str, duration: float | None, seed: int, output: Path, out_format: str | None, params: tuple[str, ...], effects: tuple[str, ...],
-            controller: str | None, omega: float | None, xi: float | None, alpha: float | None, model: str | None, velocity: str | None, chi0: tuple[str, ...],
+            controller: str | None, omega: float | None, xi: float | None, alpha: float | None, structure: str | None, model: str | None, velocity: str | None, chi0: tuple[str, ...],
             window_s: float | None, sigma_max: float | None, no_ilic: bool, kp: float | None, kv: float | None, gtau: float | None, substeps: int,
             noise_tau: float | None, noise_q: float | None, resolution: float | None, tau_sensor: str | None, trajectory_seed: int | None,
             log_path: Path | None, published_setup: bool) -> None:
@@ -61,14 +63,40 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
       ilic simulate --scenario paper-sim --param M=90 --effect stribeck:Fs=5,vs=0.01 -o s.mcap
       ilic simulate --scenario emps-benchmark -o emps_sim.mat
     """
-    from ilic_cli.errors import SimulationError
+    from ilic_cli.errors import ParameterError
+
+    try:
+        _simulate(scenario, duration, seed, output, out_format, params, effects, controller, omega, xi, alpha, structure, model, velocity, chi0,
+                  window_s, sigma_max, no_ilic, kp, kv, gtau, substeps, noise_tau, noise_q, resolution, tau_sensor, trajectory_seed, log_path,
+                  published_setup)
+    except ParameterError as exc:
+        raise exc.at(exc.where or option_for(exc.parameter)) from None
+
+
+def _simulate(scenario: str, duration: float | None, seed: int, output: Path, out_format: str | None, params: tuple[str, ...], effects: tuple[str, ...],
+              controller: str | None, omega: float | None, xi: float | None, alpha: float | None, structure: str | None, model: str | None,
+              velocity: str | None, chi0: tuple[str, ...], window_s: float | None, sigma_max: float | None, no_ilic: bool, kp: float | None,
+              kv: float | None, gtau: float | None, substeps: int, noise_tau: float | None, noise_q: float | None, resolution: float | None,
+              tau_sensor: str | None, trajectory_seed: int | None, log_path: Path | None, published_setup: bool) -> None:
+    from ilic_cli.errors import ParameterError, SimulationError
     from ilic_cli.io import write_log
-    from plant.dynamics import parse_assignment, parse_effect_option
+    from ilic_cli.modelfile import load_model_file
     from plant.scenarios import Overrides, check, get_scenario, run_scenario
 
     get_scenario(scenario)
+    structure, model_path = structure_or_model_file(model, structure)
     ov = Overrides(duration_s=duration, substeps=substeps, seed=seed, tau_sensor=tau_sensor, log_path=log_path, trajectory_seed=trajectory_seed,
                    controller=controller, published_setup=published_setup)
+    if model_path is not None:
+        doc = load_model_file(model_path)
+        try:
+            from plant.dynamics import plant_model
+
+            rigid, plant_effects = plant_model(doc["parameters"], doc["effects"])
+        except ParameterError as exc:
+            raise exc.at(model_path) from None
+        ov.params.update(rigid.to_dict())
+        ov.effects.update({eid: e.to_dict() for eid, e in plant_effects.items()})
     for text in params:
         k, v = parse_assignment(text, "--param")
         ov.params[k] = v
@@ -83,7 +111,7 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
         ov.effects["noise"] = {**ov.effects.get("noise", {}), **noise}
     if resolution is not None:
         ov.effects["quantization"] = {"resolution": resolution}
-    for key, value in (("omega", omega), ("xi", xi), ("alpha", alpha), ("window_s", window_s), ("sigma_max_pct", sigma_max), ("model", model),
+    for key, value in (("omega", omega), ("xi", xi), ("alpha", alpha), ("window_s", window_s), ("sigma_max_pct", sigma_max), ("model", structure),
                        ("velocity", velocity)):
         if value is not None:
             ov.ctc[key] = value
@@ -92,8 +120,6 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
     for key, value in (("kp", kp), ("kv", kv), ("gtau", gtau)):
         if value is not None:
             ov.pd[key] = value
-    if substeps < 1:
-        raise SimulationError("--substeps", f"must be >= 1 (got {substeps})")
     check(scenario, ov)
     if get_scenario(scenario).reference == "log":  # refuse before simulating, not after
         from ilic_cli.io.atomic import same_path

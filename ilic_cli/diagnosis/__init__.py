@@ -1,7 +1,7 @@
 """Diagnosis: when simulation and recording differ, locate the mismatch, name the physics
 the model left out, model it, and show the fit improve.
 
-- :mod:`~ilic_cli.diagnosis.catalogue`: the effects (stable ids, physics, regressor form, signature);
+- the effects themselves (ids, physics, regressor form, search, signature) are :mod:`ilic_cli.effects`;
 - :mod:`~ilic_cli.diagnosis.locate`: where a residual is structured (state, time, frequency);
 - :mod:`~ilic_cli.diagnosis.stats`: prewhitened F-tests, blocked folds, Diebold-Mariano;
 - :mod:`~ilic_cli.diagnosis.select`: forward selection on the IDIM least squares;

@@ -8,14 +8,32 @@ IDIM-LS), first samples dropped; force ``100 ||tau_sim - tau|| / ||tau||``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.locate import locate
+from ilic_cli.diagnosis.locate import Region, locate
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import IDIMData, LSSettings
+from ilic_cli.lsq import relative_error_pct
 from ilic_cli.runlog import RunLog
+from plant.replay import simulate_replay
+
+
+@dataclass
+class SimulationComparison:
+    """Replay of the recorded reference compared with the recording (relative errors, %)."""
+
+    before: dict[str, float]
+    after: dict[str, float] | None
+    source: str
+    located: list[Region] = field(default_factory=list)
+    note: str = ""
+    signals: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"source": self.source, "before": self.before, "after": self.after, "located": [r.to_dict() for r in self.located], "note": self.note}
 
 
 def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None) -> RunLog:
@@ -26,8 +44,6 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
     (``tau = gtau * vir``). ``payload_change`` times are log times; the
     closed loop counts from the first sample.
     """
-    from plant.closed_loop import simulate_replay
-
     effects = dict(effects or {})
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
@@ -41,27 +57,24 @@ def tau_sensor(log: RunLog) -> str:
 
 def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float]:
     """Relative errors (%) of position, velocity and force of ``sim`` against ``rec`` (first ``trim`` samples dropped)."""
-    fs = 1.0 / rec.dt_s
+    fs = rec.fs_hz
     n = min(len(rec), len(sim))
     s = slice(ls.trim, n)
 
     def vel(q: np.ndarray) -> np.ndarray:
         return central_difference(butter_lowpass_zero_phase(q[:n], ls.cutoff_hz, fs, ls.order, matlab=ls.matlab), 1.0 / fs)
 
-    pct = lambda a, b: float(100.0 * np.linalg.norm(a - b) / np.linalg.norm(b))  # noqa: E731
     return {
-        "position": pct(sim["q"][s], rec["q"][s]),
-        "velocity": pct(vel(sim["q"])[s], vel(rec["q"])[s]),
-        "force": pct(sim["tau"][s], rec["tau"][s]),
+        "position": relative_error_pct(rec["q"][s], sim["q"][s]),
+        "velocity": relative_error_pct(vel(rec["q"])[s], vel(sim["q"])[s]),
+        "force": relative_error_pct(rec["tau"][s], sim["tau"][s]),
     }
 
 
 def compare_simulation(log: RunLog, data: IDIMData, rows: np.ndarray, before_params: dict[str, float], before_effects: dict[str, Any],
                        after_params: dict[str, float], after_effects: dict[str, Any] | None, *, against: RunLog | None, ls: LSSettings,
-                       alpha: float) -> Any:
+                       alpha: float) -> SimulationComparison:
     """Before (the rigid model, or ``against``) and after (the augmented model) replays against the recording."""
-    from ilic_cli.diagnosis.core import SimulationComparison
-
     note = ""
     if against is not None:
         if len(against) != len(log):
@@ -87,7 +100,7 @@ def compare_simulation(log: RunLog, data: IDIMData, rows: np.ndarray, before_par
     e_dec = data.decimate(e_full)[rows]
     dec = data.decimate
     located = locate(e_dec, t=data.t_dec[rows], q=dec(data.kin.q)[rows], qd=dec(data.kin.qd)[rows], qdd=dec(data.kin.qdd)[rows],
-                     W=data.W[rows], fs_hz=1.0 / log.dt_s / ls.decimation, alpha=alpha)
+                     W=data.W[rows], fs_hz=log.fs_hz / ls.decimation, alpha=alpha)
     signals = {"t": log.t[:n], "tau": tau_r, "tau_before": tau_s}
     if sim1 is not None:
         signals["tau_after"] = np.asarray(sim1["tau"][:n])

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.stats import effective_size, lag1_autocorrelation, lstsq
+from ilic_cli.diagnosis.stats import effective_size, lag1_autocorrelation
+from ilic_cli.lsq import lstsq
 
 
 @dataclass(frozen=True)
@@ -217,16 +218,3 @@ def locate(e: np.ndarray, *, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: 
     regions += time_segments(e, t, W, alpha=alpha)
     regions += spectrum_peaks(e, fs_hz, alpha=alpha)
     return regions
-
-
-SIGNATURE_KINDS: dict[str, tuple[str, ...]] = {
-    "asymmetric_friction": ("velocity",),
-    "stribeck": ("velocity", "reversal"),
-    "position_ripple": ("position", "frequency"),
-    "spring": ("position",),
-    "payload_change": ("drift", "time"),
-    "offset": ("velocity", "time"),
-    "delay": ("lag", "acceleration"),
-    "flexibility": ("frequency", "acceleration"),
-}
-"""Region families where each effect's signature shows."""

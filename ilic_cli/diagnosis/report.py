@@ -51,32 +51,6 @@ def _where(label: str) -> str:
     return f"while {label}" if label in ("accelerating", "decelerating", "at constant velocity", "constant velocity") else f"at {label}"
 
 
-def _finding_sentence(f: Finding) -> str:
-    p = f.parameters
-    e = f.effect.id
-    if e == "asymmetric_friction":
-        what = f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward"
-    elif e == "stribeck":
-        what = f"extra friction Fs = {p['Fs'].value:.3g} N below vs = {p['vs'].value * 1e3:.3g} mm/s"
-        if p["Fs"].value < 0:
-            what += "; negative: friction is lower at low speed than the Coulomb-viscous line, the opposite of the Stribeck effect, so read it as a shape correction of the friction curve"
-    elif e == "position_ripple":
-        what = f"amplitude {p['A'].value:.3g} N, spatial period {p['L'].value * 1e3:.4g} mm"
-    elif e == "spring":
-        what = f"stiffness {p['k'].value:.4g} N/m"
-    elif e == "payload_change":
-        what = f"{p['dM'].value:+.3g} kg from t = {p['t_change'].value:.3g} s"
-    elif e == "delay":
-        what = f"{p['delay'].value * 1e3:+.3g} ms"
-    elif e == "flexibility":
-        what = f"resonance {p['f_res'].value:.3g} Hz, {p['M_load'].value:.3g} kg behind the spring"
-    elif e == "offset":
-        what = f"{p['offset'].value:+.3g} N"
-    else:
-        what = ", ".join(f"{k} = {v.value:.4g}" for k, v in p.items())
-    return f"{f.effect.title} ({what})"
-
-
 def to_markdown(diag: Diagnosis) -> str:
     """A report in plain words, then the tables."""
     fit = diag.fit
@@ -96,7 +70,7 @@ def to_markdown(diag: Diagnosis) -> str:
             if f.located:
                 r = f.located[0]
                 where = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
-            lines.append(f"- {where}Left out: {_finding_sentence(f)}. {f.effect.explanation}")
+            lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
         lines += [
             "",
             f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} "

@@ -13,15 +13,16 @@ when one is given); the search stops when no candidate passes both.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.catalogue import EFFECT_IDS, Effect, applicable, catalogue
-from ilic_cli.diagnosis.stats import (FTest, batched_rss, blocked_folds, diebold_mariano, heldout_errors, lag1_autocorrelation, lstsq, nested_f_test,
-                                      relative_error_pct, shifted_rss)
+from ilic_cli.diagnosis.stats import FTest, batched_rss, blocked_folds, diebold_mariano, heldout_errors, lag1_autocorrelation, nested_f_test, shifted_rss
+from ilic_cli.effects import EFFECTS, Effect, applicable, catalogue_ids
+from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ls import IDIMData
+from ilic_cli.lsq import lstsq, relative_error_pct
 from ilic_cli.regressor import Kinematics, Model
 
 EXACT_GRID_MAX = 64
@@ -56,7 +57,7 @@ class SelectSettings:
     folds: int = 5
     guard: int = 10
     max_effects: int = 4
-    effects: tuple[str, ...] = EFFECT_IDS
+    effects: tuple[str, ...] = field(default_factory=catalogue_ids)
 
     def to_dict(self) -> dict[str, Any]:
         return {"alpha": self.alpha, "alpha_heldout": self.alpha_heldout, "folds": self.folds, "guard_rows": self.guard, "max_effects": self.max_effects, "effects": list(self.effects)}
@@ -86,9 +87,7 @@ def moving_rows(data: IDIMData) -> np.ndarray:
     record, where the zero-phase filters have their edge transients. A run
     without dwells (the EMPS recordings) loses only those edge rows.
     """
-    from scipy.ndimage import maximum_filter1d
-
-    from ilic_cli.filtering import kept_indices
+    from scipy.ndimage import maximum_filter1d  # deferred: scipy.ndimage costs start-up time the other commands need not pay
 
     v = np.abs(data.kin.qd)
     top = float(np.percentile(v, 99.5))
@@ -96,7 +95,8 @@ def moving_rows(data: IDIMData) -> np.ndarray:
     kept = kept_indices(len(v), r)
     peak = maximum_filter1d(v, 6 * r + 1)[kept]
     edge = data.settings.trim
-    return (peak >= STANDSTILL_FRACTION * top) & (kept >= edge) & (kept < len(v) - edge)
+    moving = (peak >= STANDSTILL_FRACTION * top) & (kept >= edge) & (kept < len(v) - edge)
+    return moving if data.rows is None else moving[data.rows]
 
 
 def shifted_force(data: IDIMData, delay_s: float) -> np.ndarray:
@@ -116,11 +116,11 @@ def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], ro
     names = list(base.names)
     y = data.y
     for s in steps:
-        if s.effect.kind == "shift":
+        if s.effect.shift:
             y = shifted_force(data, float(s.value or 0.0))
         else:
-            cols.append(data.decimate(s.effect.matrix(data.kin, s.value)))
-            names.extend(n for n, _, _ in s.effect.params)
+            cols.append(data.decimate(s.effect.matrix(data.kin, s.value, data.fs_hz)))
+            names.extend(s.effect.column_names)
     keep = moving_rows(data) if rows is None else rows
     return np.hstack(cols)[keep], y[keep], tuple(names)
 
@@ -185,42 +185,42 @@ class Searcher:
             return self._cache[effect.id]
         assert effect.scan is not None
         values = effect.scan.grid(self.data.kin, self.fs)
-        if effect.kind == "shift":
+        if effect.shift:
             t = self.data.kin.t
             assert t is not None
             Y = np.stack([np.interp(t + v, t, self.data.tau) for v in values], axis=1)
             out = (values, self.data.decimate(Y)[self.keep], True)
         elif len(values) <= EXACT_GRID_MAX:
-            full = np.concatenate([effect.matrix(self.data.kin, v) for v in values], axis=1)
+            full = np.concatenate([effect.matrix(self.data.kin, v, self.fs) for v in values], axis=1)
             m = full.shape[1] // len(values)
             X = self.data.decimate(full)[self.keep].reshape(-1, len(values), m).transpose(1, 0, 2)
             out = (values, np.ascontiguousarray(X), True)
         else:
-            X = np.stack([effect.matrix(self.kin_dec, v)[self.keep] for v in values], axis=0)
+            X = np.stack([effect.matrix(self.kin_dec, v, self.fs)[self.keep] for v in values], axis=0)
             out = (values, X, False)
         self._cache[effect.id] = out
         return out
 
     def exact(self, effect: Effect, value: Any) -> np.ndarray:
         """Exactly decimated columns (or shifted force) for one value."""
-        if effect.kind == "shift":
+        if effect.shift:
             return shifted_force(self.data, value)[self.keep]
-        return self.data.decimate(effect.matrix(self.data.kin, value))[self.keep]
+        return self.data.decimate(effect.matrix(self.data.kin, value, self.fs))[self.keep]
 
     def exact_linear(self, effect: Effect) -> np.ndarray:
         """Decimated columns of an effect without a nonlinear parameter."""
-        return self.data.decimate(effect.matrix(self.data.kin))[self.keep]
+        return self.data.decimate(effect.matrix(self.data.kin, None, self.fs))[self.keep]
 
     def rss(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: Any, rows: np.ndarray | slice = slice(None)) -> float:
         x = self.exact(effect, value)
-        if effect.kind == "shift":
+        if effect.shift:
             return lstsq(W0[rows], x[rows])[1]
         return lstsq(np.hstack([W0, x])[rows], y[rows])[1]
 
     def scan(self, effect: Effect, W0: np.ndarray, y: np.ndarray, rows: np.ndarray | slice = slice(None), n_best: int = 3) -> float:
         """Best grid value of ``effect`` added to ``(W0, y)`` on ``rows``."""
         values, X, exact = self.grid(effect)
-        if effect.kind == "shift":
+        if effect.shift:
             r = shifted_rss(W0[rows], X[rows])
         else:
             r = batched_rss(W0[rows], y[rows], X[:, rows])
@@ -259,16 +259,16 @@ class Searcher:
             return pack(best), None
         # curvature of the profile RSS at the optimum, in the parameter's own unit
         h = 1e-3 * abs(best) if best != 0 else 1e-3 * (hi - lo)
-        if effect.kind == "shift":
+        if effect.shift:
             h = max(h, 0.05 / self.fs)
         r0 = self.rss(effect, W0, y, pack(best))
         rp, rm = self.rss(effect, W0, y, pack(best + h)), self.rss(effect, W0, y, pack(best - h))
         curv = (rp - 2 * r0 + rm) / h**2
         n = len(y)
-        k = W0.shape[1] + len(effect.params) + 1
+        k = W0.shape[1] + len(effect.columns) + 1
         x = self.exact(effect, pack(best))
-        W1 = W0 if effect.kind == "shift" else np.hstack([W0, x])
-        y1 = x if effect.kind == "shift" else y
+        W1 = W0 if effect.shift else np.hstack([W0, x])
+        y1 = x if effect.shift else y
         theta, _ = lstsq(W1, y1)
         rho = lag1_autocorrelation(y1 - W1 @ theta)
         inflation = (1 + max(rho, 0.0)) / (1 - min(max(rho, 0.0), 0.99))
@@ -278,7 +278,7 @@ class Searcher:
 
 def _minimise(f: Any, lo: float, hi: float, use_log: bool) -> float:
     """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``)."""
-    from scipy.optimize import minimize_scalar
+    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import
 
     fwd = math.log if use_log else (lambda v: v)
     inv = math.exp if use_log else (lambda u: u)
@@ -314,18 +314,15 @@ def forward_select(
     known : list of Step, optional
         Effects already in the model (from a model file): kept, not tried.
     """
-    effects = catalogue(fs_hz)
     rows = moving_rows(data)
     searcher = Searcher(data, fs_hz, rows)
     out = SelectionResult(rows=rows)
     known = list(known or [])
     W, y, names = system(data, base, known, rows)
     folds = blocked_folds(len(y), settings.folds, settings.guard)
-    ynorm2 = float(y @ y)
-    pct = lambda sse: 100.0 * math.sqrt(sse / ynorm2)  # noqa: E731
     while len(out.steps) < settings.max_effects:
         in_model = {s.effect.id for s in [*known, *out.steps]}
-        cands = [effects[i] for i in settings.effects if i in effects and i not in in_model and applicable(effects[i], names)]
+        cands = [EFFECTS[i] for i in settings.effects if i in EFFECTS and EFFECTS[i].identifiable and i not in in_model and applicable(EFFECTS[i], names)]
         if not cands:
             break
         trials_base = len(cands)
@@ -335,16 +332,16 @@ def forward_select(
             if eff.nonlinear:
                 value = searcher.scan(eff, W, y)
                 value, vstd = searcher.refine(eff, W, y, value)
-            if eff.kind == "shift":
+            if eff.shift:
                 W1, y1, q, trials = W, searcher.exact(eff, value), 1, trials_base
             else:
                 W1 = np.hstack([W, searcher.exact(eff, value) if eff.nonlinear else searcher.exact_linear(eff)])
                 # a secondary nonlinear parameter is one more degree of freedom
-                y1, q = y, len(eff.params) + (1 if eff.scan is not None and eff.scan.secondary else 0)
+                y1, q = y, len(eff.columns) + (1 if eff.scan is not None and eff.scan.secondary else 0)
                 trials = trials_base * (len(searcher.grid(eff)[0]) if eff.nonlinear else 1)
             test = nested_f_test(W, y, W1, y1, q, trials)
-            theta1, rss1 = lstsq(W1, y1)
-            rel = 100.0 * math.sqrt(rss1 / float(y1 @ y1))
+            theta1, _ = lstsq(W1, y1)
+            rel = relative_error_pct(y1, W1 @ theta1)
             why = eff.impossible(theta1[W.shape[1]:], value) if eff.impossible is not None else None
             evals.append((Evaluation(eff.id, value, vstd, test, rel, reason=why or ""), eff, W1, y1))
         # the candidate explaining most of the mismatch first; significance and held-out error gate it
@@ -361,7 +358,7 @@ def forward_select(
                 continue
             e_before = heldout_errors(W, y, folds)
             e_after = _heldout_candidate(searcher, eff, W, y, folds)
-            before, after = pct(float(e_before @ e_before)), pct(float(e_after @ e_after))
+            before, after = relative_error_pct(y, y - e_before), relative_error_pct(y, y - e_after)
             p_cv = diebold_mariano(e_before, e_after)
             vb = va = None
             if validation is not None:
@@ -383,13 +380,11 @@ def forward_select(
         ev, eff, W, y = chosen
         out.steps.append(Step(eff, ev.value))
         out.accepted.append(ev)
-        names = names + tuple(n for n, _, _ in eff.params)
+        names = names + eff.column_names
     return out
 
 
 def _replace(ev: Evaluation, **kw: Any) -> Evaluation:
-    from dataclasses import replace
-
     return replace(ev, **kw)
 
 
@@ -403,7 +398,7 @@ def _heldout_candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.nda
             x = searcher.exact(eff, v)
         else:
             x = searcher.exact_linear(eff)
-        if eff.kind == "shift":
+        if eff.shift:
             W1, y1 = W, x
         else:
             W1, y1 = np.hstack([W, x]), y

@@ -16,17 +16,7 @@ from typing import Any
 
 import numpy as np
 
-
-def lstsq(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
-    """Least-squares estimate and residual sum of squares (minimum-norm when rank-deficient)."""
-    theta, *_ = np.linalg.lstsq(W, y, rcond=None)
-    e = y - W @ theta
-    return theta, float(e @ e)
-
-
-def relative_error_pct(y: np.ndarray, y_hat: np.ndarray) -> float:
-    """``100 ||y - y_hat|| / ||y||``."""
-    return float(100.0 * np.linalg.norm(y - y_hat) / np.linalg.norm(y))
+from ilic_cli.lsq import lstsq, pinv
 
 
 def lag1_autocorrelation(e: np.ndarray) -> float:
@@ -162,7 +152,7 @@ def gls_covariance(W: np.ndarray, y: np.ndarray, theta: np.ndarray, max_order: i
     ew = whiten(e, a)
     dof = max(len(ew) - W.shape[1], 1)
     s2 = float(ew @ ew) / dof
-    return s2 * np.linalg.pinv(Ww.T @ Ww)
+    return s2 * pinv(Ww.T @ Ww)
 
 
 def blocked_folds(n: int, k: int = 5, guard: int = 10) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -184,9 +174,9 @@ def batched_rss(W0: np.ndarray, y: np.ndarray, X: np.ndarray) -> np.ndarray:
     Partials ``W0`` out once (Frisch-Waugh-Lovell), then solves the small
     ``m x m`` systems of every ``g`` at once.
     """
-    pinv = np.linalg.pinv(W0)
-    r0 = y - W0 @ (pinv @ y)
-    Xt = X - W0 @ (pinv @ X)
+    P = pinv(W0)
+    r0 = y - W0 @ (P @ y)
+    Xt = X - W0 @ (P @ X)
     XtT = Xt.transpose(0, 2, 1)
     A = XtT @ Xt
     b = XtT @ r0
@@ -198,7 +188,7 @@ def batched_rss(W0: np.ndarray, y: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 def shifted_rss(W0: np.ndarray, Y: np.ndarray) -> np.ndarray:
     """RSS of ``Y[:, g] ~ W0`` for every column ``g`` of ``Y``."""
-    R = Y - W0 @ (np.linalg.pinv(W0) @ Y)
+    R = Y - W0 @ (pinv(W0) @ Y)
     return np.einsum("ng,ng->g", R, R)
 
 

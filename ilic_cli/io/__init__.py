@@ -83,7 +83,7 @@ def detect_format(path: str | Path, fmt: str | None = None, *, for_writing: bool
     if for_writing and ext == "":
         return "rosbag2"
     known = ", ".join([*EXTENSIONS, "a ROS 2 bag folder"])
-    raise LogError(p, f"unknown log extension '{ext or '(none)'}' (known: {known}; or pass --format)")
+    raise LogError(p, f"unknown log extension '{ext or '(none)'}' (known: {known}; or name the log's format)")
 
 
 def _module(fmt: str) -> LogFormat:

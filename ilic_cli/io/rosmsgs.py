@@ -843,7 +843,7 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
         joints = list(seen)
         if len(joints) > 1:
             listed = ", ".join(joints[:20]) + (", ..." if len(joints) > 20 else "")
-            raise LogError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one with --joint")
+            raise LogError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one joint")
         joint = joints[0] if joints else ""
     # per name list: index of the joint, -1 when named without it, -2 when unnamed
     table = np.array([names.index(joint) if joint in names else (-1 if names else -2) for names in series.names], dtype=np.int64)

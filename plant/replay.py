@@ -1,0 +1,141 @@
+"""Replay a recorded log's reference (and pulses) through the plant under the log's controller."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.effects import EffectParams, make_effects
+from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.filtering import central_difference
+from ilic_cli.regressor import get_model
+from ilic_cli.runlog import RunLog
+from plant.closed_loop import loop_log, simulate_loop
+from plant.controllers import CTCSettings, PDSettings
+from plant.dynamics import RigidParameters, plant_model
+from plant.trajectories import Trajectory
+
+CTC_REPLAY_KEYS = ("omega", "xi", "alpha", "model", "window_s", "sigma_max_pct", "cutoff_hz", "velocity")
+"""CTC settings a replay takes over from the log (the parameters come from its ``*_hat`` channels or the model)."""
+
+
+def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
+    ctl = dict(log.meta.get("controller") or {})
+    kind = str(ctl.get("kind", "")).lower()
+    if kind == "pd" or (not kind and "vir" in log):
+        gtau = log.meta.get("drive_gain", ctl.get("gtau"))
+        try:
+            return PDSettings(kp=float(ctl.get("kp", log.meta.get("kp"))), kv=float(ctl.get("kv", log.meta.get("kv"))),
+                              gtau=float(gtau), vmax=float(ctl.get("vmax", 10.0)), pulse_input=str(ctl.get("pulse_input", "held")))
+        except (TypeError, ValueError):
+            raise SimulationError(log.meta.get("source"), "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
+    kw = {k: ctl[k] for k in CTC_REPLAY_KEYS if k in ctl}
+    return CTCSettings(**kw, ilic=False)
+
+
+def simulate_replay(log: RunLog, params: RigidParameters | Mapping[str, float], effects: Mapping[str, EffectParams | Any] | None = None,
+                    controller: CTCSettings | PDSettings | None = None, *, substeps: int = 10, seed: int = 0,
+                    tau_sensor: str | None = None, clock_s: float | None = None) -> RunLog:
+    """Replay ``log``'s recorded reference (and pulses) through the plant; return the simulated log.
+
+    Parameters
+    ----------
+    log : RunLog
+        Needs ``t`` and ``q_ref`` (``qd_ref, qdd_ref`` are used when present,
+        else central differences of ``q_ref``); ``pulses`` are added to the PD
+        output as in the benchmark. A log written by ``ilic simulate`` carries
+        its trajectory in ``meta["scenario"]["trajectory"]``: the controller
+        then gets the exact point reference it had (the logged ``qd_ref,
+        qdd_ref`` are centred averages, see ``plant.trajectories``).
+    params : RigidParameters or dict
+        Plant parameters ``M, Fv, Fc, offset``; with ``Fv_pos/Fc_pos/Fv_neg/Fc_neg``
+        in the dict the ``asymmetric_friction`` effect is made from them.
+    effects : dict
+        Effect id -> parameters or :class:`~ilic_cli.effects.EffectParams`.
+    controller : CTCSettings or PDSettings, optional
+        Default: the log's controller (``meta["controller"]``): PD with its
+        ``kp, kv`` and ``drive_gain``; otherwise CTC with the log's gains and,
+        when the log has ``*_hat`` channels, the parameters in force at each
+        sample (else the given plant parameters, no online update).
+    substeps, seed : integration substeps per period; noise seed.
+    tau_sensor : ``centred`` or ``command``; default ``command`` for PD
+        (``tau = gtau*vir``), ``centred`` for CTC.
+    clock_s : float, optional
+        Control period of the replay; default the log's sample period. With
+        another period the reference (and pulses) are interpolated linearly
+        at ``k*clock_s`` and the result is on that clock, sample ``k`` for
+        sample ``k`` of the log (the published benchmark simulation ran its
+        controller at ``t(10) - t(9)`` of the file, see ``plant.scenarios``).
+
+    Returns
+    -------
+    RunLog
+        Same time base; ``q`` simulated, ``q_ref`` etc. from the log, ``tau``
+        simulated (and ``vir`` for PD); metadata as ``ilic simulate`` with
+        ``meta["replay_of"]`` the source.
+    """
+    if isinstance(params, RigidParameters):
+        eff = make_effects(effects)
+    else:
+        params, eff = plant_model(params, effects)
+    log.require("t", "q_ref")
+    ctl = controller or _controller_from_log(log)
+    fs = 1.0 / log.dt_s
+    q_ref = log["q_ref"]
+    pulses = log["pulses"] if "pulses" in log else None
+    resampled = clock_s is not None and clock_s != log.dt_s
+    if resampled:
+        if not (clock_s is not None and math.isfinite(clock_s) and clock_s > 0):
+            raise ParameterError("clock_s", clock_s, "a positive number of seconds")
+        fs = 1.0 / clock_s
+        grid = np.arange(len(log), dtype=np.float64) * clock_s + float(log.t[0])
+        q_ref = np.interp(grid, log.t, q_ref)
+        pulses = None if pulses is None else np.interp(grid, log.t, pulses)
+    dt = 1.0 / fs
+    qd_ref = log["qd_ref"] if "qd_ref" in log and not resampled else central_difference(q_ref, dt)
+    qdd_ref = log["qdd_ref"] if "qdd_ref" in log and not resampled else central_difference(qd_ref, dt)
+    q_ctl, qd_ctl, qdd_ctl = q_ref, qd_ref, qdd_ref
+    traj = None if resampled else _trajectory_from_meta(log, fs)
+    if traj is not None:  # a log of ilic simulate: the controller's exact (point) reference
+        _, q_ctl, qd_ctl, qdd_ctl = traj.sample(len(log), fs)
+    sensor = tau_sensor or ("command" if isinstance(ctl, PDSettings) else "centred")
+    sched = None
+    if isinstance(ctl, CTCSettings):
+        names = get_model(ctl.model).names
+        if all(f"{n}_hat" in log for n in names):
+            sched = np.stack([log[f"{n}_hat"] for n in names], axis=1)
+        else:
+            ctl = CTCSettings(**{**{k: getattr(ctl, k) for k in CTC_REPLAY_KEYS},
+                                 "ilic": False, "chi0": {n: getattr(params, n, 0.0) for n in names if n in RigidParameters.NAMES}})
+    x0 = None
+    if "q" in log and isinstance(ctl, PDSettings):
+        # start where the recording starts: measured position, velocity of its first samples
+        q_meas = log["q"]
+        v0 = float((q_meas[min(2, len(q_meas) - 1)] - q_meas[0]) / (min(2, len(q_meas) - 1) * dt)) if len(q_meas) > 1 else 0.0
+        x0 = (float(q_meas[0]), v0)
+    res = simulate_loop(q_r=q_ctl, qd_r=qd_ctl, qdd_r=qdd_ctl, qd_log=qd_ref, qdd_log=qdd_ref, params=params, effects=eff, controller=ctl, fs_hz=fs, substeps=substeps,
+                        seed=seed, pulses=pulses, tau_sensor=sensor, chi_schedule=sched, x0=x0)
+    res.t = grid if resampled else np.asarray(log.t, dtype=np.float64).copy()
+    meta: dict[str, Any] = {"replay_of": log.meta.get("source"), "scenario": {"name": "replay", "source": log.meta.get("source")}}
+    if resampled:
+        meta["replay_clock_s"] = clock_s
+    return loop_log(res, q_ref=q_ref, qd_ref=qd_ref, qdd_ref=qdd_ref, controller=ctl, params=params, effects=eff, fs_hz=fs,
+                    substeps=substeps, seed=seed, tau_sensor=sensor, pulses=pulses, meta=meta)
+
+
+def _trajectory_from_meta(log: RunLog, fs: float) -> Any:
+    """The exciting trajectory recorded by ``ilic simulate``, if it matches the log's samples."""
+    doc = (log.meta.get("scenario") or {}).get("trajectory")
+    if not isinstance(doc, dict) or "segments" not in doc:
+        return None
+    try:
+        traj = Trajectory(tuple((float(d), float(a)) for d, a in doc["segments"]), q0=float(doc["q0"]), v0=float(doc.get("v0", 0.0)),
+                          repeat=bool(doc.get("repeat", True)), t_offset=float(doc.get("t_offset", 0.0)))
+        q = traj.evaluate(np.asarray(log.t, dtype=np.float64))[0]
+    except (KeyError, TypeError, ValueError, SimulationError):
+        return None
+    return traj if np.allclose(q, log["q_ref"], rtol=0, atol=1e-12) else None
+
