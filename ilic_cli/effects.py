@@ -408,8 +408,8 @@ def effects_to_dict(effects: Mapping[str, EffectParams]) -> dict[str, dict[str, 
 
 
 def applicable(effect: Effect, base_names: tuple[str, ...]) -> bool:
-    """Whether ``effect`` adds something to a model with columns ``base_names``."""
-    return not any(c.name in base_names for c in effect.columns)
+    """Whether ``effect`` adds something to a model with columns ``base_names`` (not already its columns or its parameters)."""
+    return not any(n in base_names for n in (*effect.column_names, *effect.names))
 
 
 # ---------------------------------------------------------------------------
@@ -500,16 +500,16 @@ def _asym_estimate(fit: Fit) -> EstimateResult:
 
 
 def _stribeck_estimate(fit: Fit) -> EstimateResult:
-    fs = fit.combination({"Fs": 1.0})
-    est = {"Fs": Estimate(*fs, "N"), "vs": Estimate(float(fit.value), fit.value_std, "m/s")}
+    level = fit.combination({"Fs": 1.0})
+    est = {"Fs": Estimate(*level, "N"), "vs": Estimate(float(fit.value), fit.value_std, "m/s")}
     if fit.has("Fc_pos") and fit.has("Fc_neg"):
         fc = min(fit.get("Fc_pos"), fit.get("Fc_neg"))
     else:
         fc = fit.get("Fc")
-    if fc + fs[0] < 0:
-        return est, None, f"Fs = {fs[0]:.3g} N would put the static friction level Fc + Fs below 0: not in the model file"
-    note = f"negative Fs, kept in the model file: the plant's static friction level Fc + Fs is {fc + fs[0]:.3g} N" if fs[0] < 0 else ""
-    return est, {"Fs": fs[0], "vs": float(fit.value)}, note
+    if fc + level[0] < 0:
+        return est, None, f"Fs = {level[0]:.3g} N would put the static friction level Fc + Fs below 0: not in the model file"
+    note = f"negative Fs, kept in the model file: the plant's static friction level Fc + Fs is {fc + level[0]:.3g} N" if level[0] < 0 else ""
+    return est, {"Fs": level[0], "vs": float(fit.value)}, note
 
 
 def _stribeck_sentence(p: Mapping[str, Estimate]) -> str:
@@ -598,7 +598,7 @@ ASYMMETRIC_FRICTION = register(Effect(
     signature="residual proportional to velocity on one side of zero only; mean residual differs between positive and negative velocity bins",
     signature_kinds=("velocity",),
     columns=(_col("dFv_neg", "extra viscous friction at negative velocity", "N/(m/s)"),),
-    build=lambda kin, value, fs: np.c_[kin.qd * (1.0 - kin.sgn) / 2.0],
+    build=lambda kin, value, fs_hz: np.c_[kin.qd * (1.0 - kin.sgn) / 2.0],
     estimate=_asym_estimate,
     sentence=lambda p: f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward",
 ))
@@ -614,7 +614,7 @@ STRIBECK = register(Effect(
     signature="residual with the sign of the velocity, concentrated in the low-speed bins and at velocity reversals",
     signature_kinds=("velocity", "reversal"),
     columns=(_col("Fs", "static friction in excess of Coulomb", "N"),),
-    build=lambda kin, vs, fs: np.c_[kin.sgn * np.exp(-((kin.qd / vs) ** 2))],
+    build=lambda kin, vs, fs_hz: np.c_[kin.sgn * np.exp(-((kin.qd / vs) ** 2))],
     scan=Scan("vs", "m/s", _stribeck_grid),
     estimate=_stribeck_estimate,
     sentence=_stribeck_sentence,
@@ -631,7 +631,7 @@ POSITION_RIPPLE = register(Effect(
     signature="residual periodic in position: a peak in the residual against position, at frequency velocity/P in time",
     signature_kinds=("position", "frequency"),
     columns=(_col("ripple_sin", "ripple, sine component", "N"), _col("ripple_cos", "ripple, cosine component", "N")),
-    build=lambda kin, period, fs: np.c_[np.sin(2.0 * np.pi * kin.q / period), np.cos(2.0 * np.pi * kin.q / period)],
+    build=lambda kin, period, fs_hz: np.c_[np.sin(2.0 * np.pi * kin.q / period), np.cos(2.0 * np.pi * kin.q / period)],
     scan=Scan("L", "m", _ripple_grid),
     estimate=_ripple_estimate,
     sentence=lambda p: f"amplitude {p['A'].value:.3g} N, spatial period {p['L'].value * 1e3:.4g} mm",
@@ -647,7 +647,7 @@ SPRING = register(Effect(
     signature="residual growing linearly with position, same sign in both directions of motion",
     signature_kinds=("position",),
     columns=(_col("k_spring", "stiffness", "N/m"),),
-    build=lambda kin, value, fs: np.c_[kin.q],
+    build=lambda kin, value, fs_hz: np.c_[kin.q],
     estimate=_spring_estimate,
     sentence=lambda p: f"stiffness {p['k'].value:.4g} N/m",
 ))
@@ -661,7 +661,7 @@ PAYLOAD_CHANGE = register(Effect(
     signature="residual proportional to acceleration, after a given time only",
     signature_kinds=("drift", "time"),
     columns=(_col("dM", "mass added at the change time", "kg"),),
-    build=lambda kin, tc, fs: np.c_[kin.qdd * (kin.t >= tc)],
+    build=lambda kin, tc, fs_hz: np.c_[kin.qdd * (kin.t >= tc)],
     scan=Scan("t_change", "s", _change_time_grid, log=False),
     sentence=lambda p: f"{p['dM'].value:+.3g} kg from t = {p['t_change'].value:.3g} s",
 ))
@@ -674,7 +674,7 @@ OFFSET = register(Effect(
     signature="constant mean residual in every bin",
     signature_kinds=("velocity", "time"),
     columns=(_col("offset", "constant force offset"),),
-    build=lambda kin, value, fs: np.ones((len(kin.qd), 1)),
+    build=lambda kin, value, fs_hz: np.ones((len(kin.qd), 1)),
     sentence=lambda p: f"{p['offset'].value:+.3g} N",
 ))
 

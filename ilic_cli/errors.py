@@ -73,3 +73,15 @@ class ParameterError(IlicError):
     def at(self, where: str | Path | None) -> ParameterError:
         """The same error about ``where`` (an option or a file)."""
         return ParameterError(self.parameter, self.value, self.rule, where)
+
+
+class ChoiceError(LogError):
+    """A log holds several of something (joints, topics) and the reader must be told which one.
+
+    ``choice`` names what to choose (``joint``, ``topic``); the command line
+    adds the option that makes the choice.
+    """
+
+    def __init__(self, where: str | Path | None, problem: str, choice: str) -> None:
+        self.choice = choice
+        super().__init__(where, problem)

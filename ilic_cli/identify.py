@@ -1,7 +1,7 @@
 """``ilic identify`` logic: IDIM-LS and per-window IDIM-ILIC on a run log.
 
 Takes a :class:`~ilic_cli.runlog.RunLog`, returns an :class:`IdentifyReport`
-(no file I/O here); renderers live in :mod:`ilic_cli.report` and plots in
+(no file I/O here); renderers live in :mod:`ilic_cli.identify_report` and plots in
 :mod:`ilic_cli.plotting`.
 """
 

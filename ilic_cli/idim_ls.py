@@ -10,7 +10,8 @@ With the defaults it reproduces the published EMPS tables to every digit.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -68,6 +69,8 @@ class IDIMData:
     fs_hz: float
     settings: LSSettings
     rows: np.ndarray | None = None
+    memo: dict[Any, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
+    """Decimated columns already computed on this data, by key (:meth:`decimate_once`)."""
 
     @property
     def t_dec(self) -> np.ndarray:
@@ -80,6 +83,12 @@ class IDIMData:
         """Decimate full-rate trimmed column(s) exactly as the force was (masked rows left out)."""
         d = _decimate(np.asarray(x, dtype=np.float64), self.settings, self.fs_hz)
         return d if self.rows is None else d[self.rows]
+
+    def decimate_once(self, key: Any, full: Callable[[], np.ndarray]) -> np.ndarray:
+        """``decimate(full())``, computed once per ``key`` on this data (diagnosis asks for the same columns many times)."""
+        if key not in self.memo:
+            self.memo[key] = self.decimate(full())
+        return self.memo[key]
 
 
 @dataclass(frozen=True)

@@ -79,30 +79,30 @@ def finite_or_none(x: float) -> float | None:
     return x if np.isfinite(x) else None
 
 
+RANK_EPS = 16 * np.finfo(np.float64).eps
+"""The one rank rule: a singular value at or below ``RANK_EPS * max(r, b) * s_max`` is zero."""
+
+
 def rank_tolerance(s_max: np.ndarray | float, rows: int, cols: int) -> np.ndarray | float:
-    """The one rank rule: singular values at or below this are zero (``16 eps max(r, b) s_max``)."""
-    return s_max * max(rows, cols) * np.finfo(np.float64).eps * 16
+    """Singular values at or below this are zero (:data:`RANK_EPS`)."""
+    return s_max * max(rows, cols) * RANK_EPS
 
 
 def pinv(W: np.ndarray) -> np.ndarray:
-    """Moore-Penrose pseudo-inverse of ``W`` with the rank rule of :func:`rank_tolerance`."""
+    """Moore-Penrose pseudo-inverse of ``W`` under the rank rule of :func:`rank_tolerance`."""
     W = np.asarray(W, dtype=np.float64)
-    U, s, Vt = np.linalg.svd(W, full_matrices=False)
-    if s.size == 0:
-        return np.zeros(W.shape[::-1])
-    ok = s > rank_tolerance(s[0], *W.shape)
-    return (Vt[ok].T / s[ok]) @ U[:, ok].T
+    return np.linalg.pinv(W, rcond=max(W.shape) * RANK_EPS)
 
 
 def lstsq(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
-    """Least-squares estimate (minimum-norm when rank-deficient) and residual sum of squares.
+    """Least-squares estimate (minimum-norm when rank-deficient, same rank rule) and residual sum of squares.
 
     The light form of :func:`solve` (no standard deviations), for the many
     small fits of diagnosis.
     """
-    theta = pinv(W) @ y
+    theta = np.linalg.lstsq(W, y, rcond=max(np.shape(W)) * RANK_EPS)[0]
     e = y - W @ theta
-    return theta, float(e @ e) if e.ndim == 1 else float(np.sum(e * e))
+    return theta, float(np.sum(e * e))
 
 
 def relative_error_pct(y: np.ndarray, y_hat: np.ndarray) -> float:

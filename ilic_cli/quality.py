@@ -63,7 +63,7 @@ _RATE_TOLERANCE = 5e-4
 
 
 @dataclass(frozen=True)
-class Finding:
+class QualityFinding:
     """One observation about a log.
 
     Attributes
@@ -112,7 +112,7 @@ class QualityReport:
         The plateau value when it is judged a saturation, else None.
     frozen_runs : list of dict
         Runs with ``start_s``, ``duration_s``, ``samples`` where the sensor looks frozen.
-    findings : list of Finding
+    findings : list of QualityFinding
         What is worth telling the user.
     """
 
@@ -128,7 +128,7 @@ class QualityReport:
     saturation_share: float | None = None
     saturation_limit: float | None = None
     frozen_runs: list[dict[str, float]] = field(default_factory=list)
-    findings: list[Finding] = field(default_factory=list)
+    findings: list[QualityFinding] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -354,27 +354,27 @@ def assess(
     findings = report.findings
     if report.gaps:
         findings.append(
-            Finding("gaps", "warning", f"{report.gaps} gap(s) longer than {GAP_FACTOR}x the nominal period; about {report.dropped_samples} sample(s) dropped (longest step {report.max_step_s:.6g} s)")
+            QualityFinding("gaps", "warning", f"{report.gaps} gap(s) longer than {GAP_FACTOR}x the nominal period; about {report.dropped_samples} sample(s) dropped (longest step {report.max_step_s:.6g} s)")
         )
     if report.jitter > IRREGULAR_JITTER:
-        findings.append(Finding("irregular", "warning", f"irregular sampling: step jitter {100 * report.jitter:.3g} % of the nominal period"))
+        findings.append(QualityFinding("irregular", "warning", f"irregular sampling: step jitter {100 * report.jitter:.3g} % of the nominal period"))
     elif report.median_step_s is not None:
-        findings.append(Finding("jitter", "info", f"step jitter {100 * report.jitter:.3g} % of the nominal period"))
+        findings.append(QualityFinding("jitter", "info", f"step jitter {100 * report.jitter:.3g} % of the nominal period"))
     if vir is not None and len(vir):
         share, limit = saturation(vir)
         report.saturation_share = share
         report.saturation_limit = limit
         if limit is not None:
-            findings.append(Finding("saturation", "warning", f"drive command saturated at +/-{limit:g} on {100 * share:.3g} % of the samples"))
+            findings.append(QualityFinding("saturation", "warning", f"drive command saturated at +/-{limit:g} on {100 * share:.3g} % of the samples"))
     if q is not None and q_ref is not None and len(q) == len(t) == len(q_ref):
         report.frozen_runs = frozen_runs(t, q, q_ref)
         if report.frozen_runs:
             longest = max(r["duration_s"] for r in report.frozen_runs)
             findings.append(
-                Finding("frozen", "warning", f"position frozen while the reference moves: {len(report.frozen_runs)} run(s), longest {longest:.3g} s")
+                QualityFinding("frozen", "warning", f"position frozen while the reference moves: {len(report.frozen_runs)} run(s), longest {longest:.3g} s")
             )
     if len(t) < SHORT_SAMPLES or duration < SHORT_DURATION_S:
-        findings.append(Finding("short", "warning", f"log too short for identification ({len(t)} samples, {duration:.3g} s; want >= {SHORT_SAMPLES} samples and >= {SHORT_DURATION_S:g} s)"))
+        findings.append(QualityFinding("short", "warning", f"log too short for identification ({len(t)} samples, {duration:.3g} s; want >= {SHORT_SAMPLES} samples and >= {SHORT_DURATION_S:g} s)"))
     return report
 
 

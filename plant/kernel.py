@@ -28,7 +28,7 @@ Rigid axis without smooth effects (no Stribeck term, ripple, spring or
 flexibility; payload change, asymmetric friction, offset and the measurement
 effects allowed): between direction changes the dynamics are linear with a
 constant force, so the four RK4 stages sum to a closed form
-(:func:`_lin`), and a period that slides in one direction throughout is
+(:func:`_rk4_linear`), and a period that slides in one direction throughout is
 advanced in one composed step (:func:`_linear_period`). Same steps, same
 stick/slip and zero-crossing logic: the results equal the general path's up to
 round-off (positions within ~1e-14 relative), some 20x faster.
@@ -163,7 +163,7 @@ def _step(p, u, x0, x1, x2, x3, h, mm, ml, flex):
 
 
 @njit(cache=CACHE)
-def _lin(x0, v0, g, k, h):
+def _rk4_linear(x0, v0, g, k, h):
     """One RK4 step of ``x' = v, v' = g - k*v``, its four stages summed in closed form.
 
     For this linear, autonomous system the classical RK4 update is exactly
@@ -187,7 +187,7 @@ def _linear_coefficients(p, h, substeps):
     """Step coefficients of the linear (rigid, no smooth effect) axis, ``cf[r, d, :]``.
 
     ``r``: 0 before the payload change, 1 after; ``d``: 0 sliding forwards, 1
-    backwards. Per substep (:func:`_lin` with ``g = (f - cf[L_FC])*cf[L_INVM]``,
+    backwards. Per substep (:func:`_rk4_linear` with ``g = (f - cf[L_FC])*cf[L_INVM]``,
     ``k = cf[L_K]``): ``w = g - k*v``, ``v += cf[L_HA]*w``, ``x += h*v + cf[L_HB]*w``.
     Over the ``substeps`` steps of a period without a change of direction
     (the acceleration ``w`` then decays geometrically, ``w_j = A**j*w_0`` with
@@ -229,7 +229,7 @@ def _linear_period(x0, x1, f, s_rest, tk, h, substeps, tch, veps, cf):
 
     With no Stribeck term, ripple, spring or flexibility the motion between
     friction-direction changes is linear with a constant force ``f`` (control
-    minus offset), so each RK4 step is :func:`_lin`. ``s_rest`` is the
+    minus offset), so each RK4 step is :func:`_rk4_linear`. ``s_rest`` is the
     stick/slip decision at rest (constant over the period: ``f`` is); ``cf``
     from :func:`_linear_coefficients`. A period that slides in one direction
     throughout (``|v| > veps`` at the start of every substep, no sign change
@@ -270,11 +270,11 @@ def _linear_period(x0, x1, f, s_rest, tk, h, substeps, tch, veps, cf):
             th = 0.0
         elif th > 1.0:
             th = 1.0
-        x0, y1 = _lin(x0, x1, g, k, th * h)
+        x0, y1 = _rk4_linear(x0, x1, g, k, th * h)
         x1 = 0.0
         if s_rest != 0:
             d = 0 if s_rest > 0 else 1
-            x0, x1 = _lin(x0, 0.0, (f - cf[r, d, L_FC]) * cf[r, d, L_INVM], cf[r, d, L_K], (1.0 - th) * h)
+            x0, x1 = _rk4_linear(x0, 0.0, (f - cf[r, d, L_FC]) * cf[r, d, L_INVM], cf[r, d, L_K], (1.0 - th) * h)
             if x1 * s_rest < 0.0:
                 x1 = 0.0
     return x0, x1

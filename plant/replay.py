@@ -83,7 +83,7 @@ def simulate_replay(log: RunLog, params: RigidParameters | Mapping[str, float], 
         params, eff = plant_model(params, effects)
     log.require("t", "q_ref")
     ctl = controller or _controller_from_log(log)
-    fs = 1.0 / log.dt_s
+    fs = log.fs_hz
     q_ref = log["q_ref"]
     pulses = log["pulses"] if "pulses" in log else None
     resampled = clock_s is not None and clock_s != log.dt_s

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from ilic_cli.errors import LogError
+from ilic_cli.errors import ChoiceError, LogError
 from ilic_cli.io import Selection, WriteOptions, read_log, write_log
 from ilic_cli.io import rosmsgs
 from ilic_cli.runlog import RunLog
@@ -199,7 +199,7 @@ def test_foreign_mcap_with_several_joints_needs_joint(tmp_path: Path) -> None:
     with pytest.raises(LogError) as info:
         read_log(path)
     message = info.value.message()
-    assert "robot.mcap" in message and "shoulder, elbow, wrist" in message and "--joint" in message
+    assert "robot.mcap" in message and "shoulder, elbow, wrist" in message and info.value.choice == "joint"  # type: ignore[attr-defined]
     log = read_log(path, selection=Selection(joint="elbow"))
     i = np.arange(50)
     assert np.allclose(log.channels["q"], 10.0 + i * 0.001, rtol=0, atol=1e-12)
@@ -225,8 +225,11 @@ def test_foreign_mcap_cli_joint_choice(tmp_path: Path) -> None:
 def test_foreign_mcap_with_several_topics_needs_topic(tmp_path: Path) -> None:
     path = tmp_path / "two.mcap"
     write_foreign_mcap(path, {"/left/joint_states": ["a"], "/right/joint_states": ["b"]})
-    with pytest.raises(LogError, match="--topic"):
+    with pytest.raises(ChoiceError, match="several sensor_msgs/msg/JointState topics") as info:
         read_log(path)
+    assert info.value.choice == "topic"
+    refused = run_cli("info", str(path))
+    assert refused.status == 2 and "choose one with --topic" in refused.stderr
     log = read_log(path, selection=Selection(topic="/right/joint_states"))
     assert log.meta["joint"] == "b" and len(log) == 50
 

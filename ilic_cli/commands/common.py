@@ -42,8 +42,13 @@ def load(path: str | Path, input_format: str | None, topic: str | None, ref_topi
     """Read a log with the shared input options (with a progress bar for large files on a terminal)."""
     from ilic_cli.io import read_log
 
+    from ilic_cli.errors import ChoiceError
+
     progress = ReadProgress if progress_enabled() and _size(Path(path)) >= PROGRESS_MIN_BYTES else None
-    return read_log(path, input_format, selection(topic, ref_topic, joint), progress=progress)
+    try:
+        return read_log(path, input_format, selection(topic, ref_topic, joint), progress=progress)
+    except ChoiceError as exc:
+        raise ChoiceError(exc.where, f"{exc.problem} with --{exc.choice}", exc.choice) from None
 
 
 def _size(path: Path) -> int:

@@ -6,12 +6,13 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import input_options, load, note
+from ilic_cli.commands.common import STRUCTURES, input_options, load, note
 
 
 @click.command("diagnose")
 @click.argument("log", type=click.Path(path_type=Path))
 @click.option("--model", "model_path", type=click.Path(path_type=Path), default=None, help="Model file (PARAMS.json) to start from instead of identifying the rigid model.")
+@click.option("--structure", "structure", type=click.Choice(STRUCTURES), default="rigid-offset", show_default=True, help="Rigid model structure identified first (without --model).")
 @click.option("--against", "against", type=click.Path(path_type=Path), default=None, help="A simulated log to compare the recording with (instead of replaying it through the plant).")
 @click.option("--validate", "validate", type=click.Path(path_type=Path), default=None, help="Another recording: an effect is kept only if it does not raise the error there.")
 @click.option("--alpha", type=click.FloatRange(min=0, max=1, min_open=True, max_open=True), default=0.001, show_default=True, help="Level of each F-test (after Bonferroni).")
@@ -21,7 +22,7 @@ from ilic_cli.commands.common import input_options, load, note
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="What to print on stdout.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report.md, report.json, model.json and plots.")
 @input_options
-def command(log: Path, model_path: Path | None, against: Path | None, validate: Path | None, alpha: float, folds: int, effects: str | None, no_simulation: bool, out_format: str, out_dir: Path | None,
+def command(log: Path, model_path: Path | None, structure: str, against: Path | None, validate: Path | None, alpha: float, folds: int, effects: str | None, no_simulation: bool, out_format: str, out_dir: Path | None,
             input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
     """Find and model the physics the rigid model leaves out of LOG.
 
@@ -58,7 +59,7 @@ def command(log: Path, model_path: Path | None, against: Path | None, validate: 
     run = load(log, input_format, topic, ref_topic, joint)
     sim = load(against, None, topic, ref_topic, joint) if against is not None else None
     other = load(validate, None, topic, ref_topic, joint) if validate is not None else None
-    settings = DiagnoseSettings(select=SelectSettings(alpha=alpha, folds=folds, effects=chosen), simulate=not no_simulation)
+    settings = DiagnoseSettings(model=structure, select=SelectSettings(alpha=alpha, folds=folds, effects=chosen), simulate=not no_simulation)
     result = diagnose(run, settings=settings, model_doc=model_doc, against=sim, validate=other)
     for w in result.warnings:
         note(f"ilic: warning: {w}")

@@ -45,7 +45,7 @@ def command(log: Path, method: str, structure: str | None, model: str | None, ef
       ilic identify DATA_EMPS.mat --method ls --effect position_ripple:L=0.0125
       ilic identify sim.mcap --format json --out report/
     """
-    from ilic_cli import report as render
+    from ilic_cli import identify_report as render
     from ilic_cli.effects import get
     from ilic_cli.errors import IlicError, ParameterError
     from ilic_cli.idim_ilic import ILICSettings
@@ -98,7 +98,7 @@ def command(log: Path, method: str, structure: str | None, model: str | None, ef
 
 
 def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
-    from ilic_cli import report as render
+    from ilic_cli import identify_report as render
     from ilic_cli.io.atomic import atomic_write_text
     from ilic_cli.modelfile import model_document
 

@@ -33,6 +33,7 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
     from ilic_cli.errors import IlicError, ParameterError
     from ilic_cli.io import write_log
     from ilic_cli.modelfile import load_model_file
+    from ilic_cli.prepare import prepare_log
     from plant.dynamics import plant_model
     from plant.replay import simulate_replay
 
@@ -44,6 +45,8 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
     except ParameterError as exc:
         raise exc.at(model_file) from None
     run = load(log, input_format, topic, ref_topic, joint)
+    for w in prepare_log(run).warnings:
+        note(f"ilic: warning: {w}")
     sim = simulate_replay(run, params, effects, substeps=substeps, seed=seed)
     sim.meta["model_file"] = str(model_file)
     write_log(sim, output, out_format, inputs=(log,))

@@ -99,11 +99,23 @@ def moving_rows(data: IDIMData) -> np.ndarray:
     return moving if data.rows is None else moving[data.rows]
 
 
-def shifted_force(data: IDIMData, delay_s: float) -> np.ndarray:
+def shifted_force(data: IDIMData, delay_s: float, *, remember: bool = True) -> np.ndarray:
     """Decimated force ``tau(t + delay)``: the plant's ``delay`` (logged force = applied force ``delay`` earlier)."""
     t = data.kin.t
     assert t is not None
-    return data.decimate(np.interp(t + delay_s, t, data.tau))
+    full = lambda: np.interp(t + delay_s, t, data.tau)  # noqa: E731
+    return data.decimate_once(("shift", delay_s), full) if remember else data.decimate(full())
+
+
+def effect_columns(data: IDIMData, effect: Effect, value: Any = None, *, remember: bool = True) -> np.ndarray:
+    """Decimated columns of ``effect`` at ``value`` on ``data``.
+
+    ``remember``: decimate each (effect, value) once on this data (the steps of
+    the model and the linear effects, asked for at every step and fold); the
+    values tried while refining a nonlinear parameter are not kept.
+    """
+    full = lambda: effect.matrix(data.kin, value, data.fs_hz)  # noqa: E731
+    return data.decimate_once((effect.id, value), full) if remember else data.decimate(full())
 
 
 def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
@@ -119,7 +131,7 @@ def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], ro
         if s.effect.shift:
             y = shifted_force(data, float(s.value or 0.0))
         else:
-            cols.append(data.decimate(s.effect.matrix(data.kin, s.value, data.fs_hz)))
+            cols.append(effect_columns(data, s.effect, s.value))
             names.extend(s.effect.column_names)
     keep = moving_rows(data) if rows is None else rows
     return np.hstack(cols)[keep], y[keep], tuple(names)
@@ -204,12 +216,12 @@ class Searcher:
     def exact(self, effect: Effect, value: Any) -> np.ndarray:
         """Exactly decimated columns (or shifted force) for one value."""
         if effect.shift:
-            return shifted_force(self.data, value)[self.keep]
-        return self.data.decimate(effect.matrix(self.data.kin, value, self.fs))[self.keep]
+            return shifted_force(self.data, value, remember=False)[self.keep]
+        return effect_columns(self.data, effect, value, remember=False)[self.keep]
 
     def exact_linear(self, effect: Effect) -> np.ndarray:
         """Decimated columns of an effect without a nonlinear parameter."""
-        return self.data.decimate(effect.matrix(self.data.kin, None, self.fs))[self.keep]
+        return effect_columns(self.data, effect)[self.keep]
 
     def rss(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: Any, rows: np.ndarray | slice = slice(None)) -> float:
         x = self.exact(effect, value)

@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ilic_cli.errors import LogError
+from ilic_cli.errors import ChoiceError, LogError
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection
@@ -843,7 +843,7 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
         joints = list(seen)
         if len(joints) > 1:
             listed = ", ".join(joints[:20]) + (", ..." if len(joints) > 20 else "")
-            raise LogError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one joint")
+            raise ChoiceError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one", "joint")
         joint = joints[0] if joints else ""
     # per name list: index of the joint, -1 when named without it, -2 when unnamed
     table = np.array([names.index(joint) if joint in names else (-1 if names else -2) for names in series.names], dtype=np.int64)
@@ -925,7 +925,7 @@ def _choose_state_topic(source: Collected, selection: Selection, path: Path) -> 
     if not candidates:
         listed = ", ".join(f"{n} ({i.msgtype})" for n, i in sorted(topics.items())) or "none"
         raise LogError(path, f"no {JOINT_STATE} topic (topics: {listed})")
-    raise LogError(path, f"several {JOINT_STATE} topics ({', '.join(candidates)}); choose one with --topic")
+    raise ChoiceError(path, f"several {JOINT_STATE} topics ({', '.join(candidates)}); choose one", "topic")
 
 
 def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunLog:
