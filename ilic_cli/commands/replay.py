@@ -37,8 +37,12 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
     from plant.dynamics import plant_model
     from plant.replay import simulate_replay
 
+    from ilic_cli.io.atomic import same_path
+
     if substeps < 1:
         raise IlicError("--substeps", f"must be >= 1 (got {substeps})")
+    if same_path(log, output):  # refuse before any work (and before any warning)
+        raise IlicError(output, "output would overwrite the input; choose another output path")
     doc = load_model_file(model_file)
     try:
         params, effects = plant_model(doc["parameters"], doc["effects"])
