@@ -97,6 +97,30 @@ def test_fast_ros1_writer_writes_the_per_message_writers_bytes(tmp_path: Path, s
             assert reader.topics["/joint_states"].msgcount == samples
 
 
+def _sparse_logs() -> list[RunLog]:
+    """Logs with few channels, negative times, strided arrays, a unicode joint and channel name."""
+    t = np.linspace(-1.5, 2.5, 401)
+    matrix = np.random.default_rng(2).normal(size=(401, 3))
+    return [
+        RunLog({"t": t, "q": t**2, "tau": np.cos(t)}, {"q": "rad"}, {"joint": "coude_é"}),
+        RunLog({"t": t, "q": matrix[:, 0], "tau": matrix[:, 1], "q_ref": matrix[:, 2]}),  # strided columns, a partial reference
+        RunLog({"t": t, "q": t, "qd": t * 2, "tau": t, "q_ref": t + 1, "qdd_ref": -t, "température": t * 3}),
+    ]
+
+
+@pytest.mark.parametrize("which", [0, 1, 2])
+def test_sparse_logs_same_bytes_and_columns(tmp_path: Path, which: int) -> None:
+    log = _sparse_logs()[which]
+    fast, slow = tmp_path / "fast.bag", tmp_path / "slow.bag"
+    rosbag1.write(log, fast, Options(fast=True))
+    rosbag1.write(log, slow, Options(fast=False))
+    assert fast.read_bytes() == slow.read_bytes()
+    back = rosbag1.read(fast, Selection(), fast=True)
+    assert_same_log(back, rosbag1.read(fast, Selection(), fast=False))
+    for name, values in log.channels.items():
+        assert_same_bits(back.channels[name], np.ascontiguousarray(values), name)
+
+
 @pytest.mark.parametrize("writer_fast", [True, False])
 def test_our_bags_read_the_same_both_ways(tmp_path: Path, writer_fast: bool, monkeypatch: pytest.MonkeyPatch) -> None:
     log = wild_log(6000)

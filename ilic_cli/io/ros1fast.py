@@ -222,7 +222,12 @@ class _ChunkRecords:
 
 
 def _inject(sink: Any, layout: _Layout, log_ns: np.ndarray, stamp: np.ndarray | None, arrays: dict[str, np.ndarray]) -> None:
-    """Append ``len(log_ns)`` messages of one layout to a per-message sink's columns."""
+    """Append ``len(log_ns)`` messages of one layout to a per-message sink's columns.
+
+    The blocks go where the sink's own ``add`` puts decoded messages (its
+    private columns in :mod:`ilic_cli.io.rosmsgs`), so that ``finish`` orders,
+    joins and checks both kinds of messages alike.
+    """
     m = len(log_ns)
     if sink.error is not None or m == 0:
         return

@@ -7,6 +7,12 @@ chunks, no caller id: the same log always gives the same bytes.
 Reading refuses connections whose MD5 sum differs from the built-in
 definition (a differently defined message of the same name), and caps chunk
 decompression at ``min(2 GiB, 64 x file size)``.
+
+By default (``fast=True``) both directions go through
+:mod:`ilic_cli.io.ros1fast`: reading decodes runs of same-layout messages as
+NumPy views, chunk by chunk, and reads any file whose structure it does not
+expect per message as before; writing serialises whole columns and gives the
+bytes of the per-message writer.
 """
 
 from __future__ import annotations
