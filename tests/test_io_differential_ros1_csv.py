@@ -222,6 +222,7 @@ FOREIGN_CASES: dict[str, dict[str, Any]] = {
     "frame_id changes, lz4": {"names": lambda i: ["a", "elbow"], "frame": lambda i: "base" if i % 400 < 200 else "odom_frame", "compression": "lz4"},
     "other topic between, bz2": {"names": lambda i: ["a", "elbow"], "chatter": True, "compression": "bz2", "chunk_threshold": 50_000},
     "one big chunk, no reference": {"names": lambda i: ["elbow"], "chunk_threshold": 1 << 30, "reference": False},
+    "frame_id changes every 50, one chunk": {"names": lambda i: ["a", "elbow"], "frame": lambda i: "base" if (i // 50) % 2 else "odom", "chunk_threshold": 1 << 30},
 }
 
 

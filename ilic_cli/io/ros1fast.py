@@ -340,11 +340,19 @@ class _ChunkWalker:
             for a, b in lay.free:
                 fixed[start + a : start + b] = False
             start += lay.length
-        differs = matrix != matrix[0]
-        differs &= fixed
-        bad = np.flatnonzero(differs.any(axis=1))
-        m = int(bad[0]) if len(bad) else rows
-        del differs, matrix
+        # compare in growing blocks of rows: a short run costs little, memory stays bounded
+        m, block = 0, 64
+        while m < rows:
+            part = matrix[m : m + block]
+            differs = part != matrix[0]
+            differs &= fixed
+            bad = np.flatnonzero(differs.any(axis=1))
+            if len(bad):
+                m += int(bad[0])
+                break
+            m += len(part)
+            block = min(4 * block, 16384)
+        del matrix
         by_conn: dict[int, list[int]] = {}
         starts = []
         start = 0
