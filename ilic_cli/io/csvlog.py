@@ -13,6 +13,11 @@ nominal sample rate is derived from ``t``). Values are written with Python's
 ``repr`` (the shortest text that reads back to the same float64), so a
 write/read round trip is exact. Any text that is not a number is refused with
 its row (file line) and column.
+
+Reading parses the rows with pandas' C parser when the file below its header
+holds nothing but plain numbers (:func:`_read_fast`, about 2x the file size in
+memory); every other file, and every bad one, is read row by row with the
+``csv`` module (``fast=False`` always is), which words the errors.
 """
 
 from __future__ import annotations
