@@ -7,6 +7,12 @@ chunks, no caller id: the same log always gives the same bytes.
 Reading refuses connections whose MD5 sum differs from the built-in
 definition (a differently defined message of the same name), and caps chunk
 decompression at ``min(2 GiB, 64 x file size)``.
+
+By default (``fast=True``) both directions go through
+:mod:`ilic_cli.io.ros1fast`: reading decodes runs of same-layout messages as
+NumPy views, chunk by chunk, and reads any file whose structure it does not
+expect per message as before; writing serialises whole columns and gives the
+bytes of the per-message writer.
 """
 
 from __future__ import annotations
@@ -36,11 +42,19 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         Destination file (a temporary path chosen by ``write_log``; it may
         exist empty and is replaced).
     options : WriteOptions
-        ``options.joint`` names the joint unless ``log.meta["joint"]`` does.
+        ``options.joint`` names the joint unless ``log.meta["joint"]`` does;
+        ``options.fast`` (default True) serialises whole columns at once
+        (:mod:`ilic_cli.io.ros1fast`), False writes message by message through
+        ``rosbags``. Both give the same bytes.
     """
+    joint = rosmsgs.writer_joint(log, options.joint)
+    if getattr(options, "fast", True):
+        from ilic_cli.io import ros1fast
+
+        ros1fast.write(log, joint, path)
+        return
     from rosbags.rosbag1 import Writer
 
-    joint = rosmsgs.writer_joint(log, options.joint)
     path.unlink(missing_ok=True)  # rosbags refuses to overwrite the placeholder
     rosmsgs.write_bag(Writer(path), log, joint, rosmsgs.ROS1)
 
@@ -65,14 +79,15 @@ def _bounded(decompress: Any, limit: int, path: Path) -> Any:
     return run
 
 
-def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
-    """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
+def _declare(collector: rosmsgs.Collector, connections: list[Any]) -> dict[int, Any]:
+    """Register ``rosbags`` connections with ``collector``; return connection id -> sink of those to read.
 
-    collector = rosmsgs.Collector(path)
+    A connection whose MD5 sum differs from the built-in definition gets a
+    sink that holds the error (raised when its topic is used).
+    """
     ts = rosmsgs.typestore(rosmsgs.ROS1)
     sinks: dict[int, Any] = {}
-    wanted = []
-    for conn in reader.connections:
+    for conn in connections:
         topic = rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), rosmsgs.ROS1)
         sink = collector.declare(topic)
         if sink is None:
@@ -81,12 +96,19 @@ def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
         if conn.digest and conn.digest != md5 and sink.error is None:
             sink.error = f"topic {conn.topic}: definition of {topic.msgtype} differs from the standard one (md5 {conn.digest})"
         sinks[conn.id] = sink
-        wanted.append(conn)
+    return sinks
+
+
+def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
+    """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
+    collector = rosmsgs.Collector(path)
+    sinks = _declare(collector, reader.connections)
+    wanted = [conn for conn in reader.connections if conn.id in sinks]
     rosmsgs.feed_sinks(reader, wanted, sinks, path)
     return collector.finish()
 
 
-def read(path: Path, selection: Selection) -> RunLog:
+def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     """Read a run log from a ROS 1 bag.
 
     Parameters
@@ -95,6 +117,10 @@ def read(path: Path, selection: Selection) -> RunLog:
         The ``.bag`` file.
     selection : Selection
         Topic, reference topic and joint (for bags not written by ilic).
+    fast : bool
+        Decode runs of same-layout messages as NumPy views
+        (:mod:`ilic_cli.io.ros1fast`); a file whose structure that reader does
+        not handle is read per message. False: per message through ``rosbags``.
 
     Returns
     -------
@@ -103,6 +129,19 @@ def read(path: Path, selection: Selection) -> RunLog:
     from rosbags.rosbag1 import Reader
 
     limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(path.stat().st_size, 1))
+    if fast:
+        from ilic_cli.io import ros1fast
+
+        try:
+            source = ros1fast.collect(path, limit, _declare)
+        except LogError:
+            raise
+        except MemoryError:
+            raise LogError(path, "ROS 1 bag content needs more memory than available") from None
+        except Exception:  # noqa: BLE001 - Fallback, or anything unexpected on a damaged file: per message
+            source = None
+        if source is not None:
+            return rosmsgs.decode_guarded(source, selection, path, "ROS 1 bag")
     try:
         reader = Reader(path)
         reader.open()
