@@ -5,11 +5,11 @@ Writing: one schema per message type (encoding ``ros2msg``, the concatenated
 message encoding ``cdr``, zstd-compressed chunks (lz4 or none when the
 compressor is not importable) with chunk and data-section CRCs, library string
 ``ilic <version>``: the same log always gives the same bytes. Message bodies
-come from :mod:`ilic_cli.io.rosmsgs`.
+come from :mod:`ilic_cli.io.rosschema`.
 
 Reading streams the file once with :class:`mcap.stream_reader.StreamReader`
 (CRC validation on) and decodes each message as it passes into NumPy columns
-(:class:`ilic_cli.io.rosmsgs.Collector`): no Python object is kept per
+(:class:`ilic_cli.io.roscollect.Collector`): no Python object is kept per
 message, so a 1-hour 1 kHz log is read in bounded memory. Before a chunk is decompressed its declared size is
 checked against ``min(2 GiB, 64 x file size)`` and the decompressor is capped
 at that size, so a hostile file cannot exhaust memory. ``ros1`` encoded
@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosmsgs
+from ilic_cli.io import roscollect, rosdecode, rosencode, rosschema
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -68,8 +68,8 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
 
     from ilic_cli import __version__
 
-    joint = rosmsgs.writer_joint(log, options.joint)
-    topics, messages = rosmsgs.encode(log, joint, rosmsgs.ROS2)
+    joint = rosencode.writer_joint(log, options.joint)
+    topics, messages = rosencode.encode(log, joint, rosschema.ROS2)
     with open(path, "wb") as stream:
         writer = Writer(stream, compression=_compression(), enable_crcs=True, enable_data_crcs=True)
         writer.start(profile="ros2", library=f"ilic {__version__}")
@@ -77,7 +77,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         channel_ids: dict[str, int] = {}
         for spec in topics:
             if spec.msgtype not in schema_ids:
-                text, _ = rosmsgs.message_definition(spec.msgtype, rosmsgs.ROS2)
+                text, _ = rosschema.message_definition(spec.msgtype, rosschema.ROS2)
                 schema_ids[spec.msgtype] = writer.register_schema(name=spec.msgtype, encoding="ros2msg", data=text.encode("utf-8"))
             channel_ids[spec.topic] = writer.register_channel(topic=spec.topic, message_encoding="cdr", schema_id=schema_ids[spec.msgtype])
         counts: dict[str, int] = {}
@@ -113,14 +113,14 @@ def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     return data
 
 
-def scan(path: Path, collector: rosmsgs.Collector | None = None, progress: Any = None) -> None:
+def scan(path: Path, collector: roscollect.Collector | None = None, progress: Any = None) -> None:
     """Read every record of an MCAP file once, checking CRCs; feed messages to ``collector``.
 
     Parameters
     ----------
     path : Path
         The MCAP file.
-    collector : rosmsgs.Collector, optional
+    collector : roscollect.Collector, optional
         Receives every channel (as a topic, ROS message types normalised to
         ``pkg/msg/Type``) and the messages of the topics it reads. Without it
         the file is only checked.
@@ -160,7 +160,7 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def _scan(path: Path, collector: rosmsgs.Collector | None, progress: Any) -> None:
+def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:
     from mcap.records import Channel, Chunk, Message, Schema
     from mcap.stream_reader import StreamReader, breakup_chunk
 
@@ -181,8 +181,8 @@ def _scan(path: Path, collector: rosmsgs.Collector | None, progress: Any) -> Non
             if schema is None:
                 return
             encoding = record.message_encoding
-            kind = rosmsgs.ROS2 if encoding == "cdr" else rosmsgs.ROS1 if encoding == "ros1" else encoding
-            sinks[record.id] = collector.declare(rosmsgs.RawTopic(record.topic, rosmsgs.normalize_msgtype(schema.name), kind))
+            kind = rosschema.ROS2 if encoding == "cdr" else rosschema.ROS1 if encoding == "ros1" else encoding
+            sinks[record.id] = collector.declare(rosschema.RawTopic(record.topic, rosschema.normalize_msgtype(schema.name), kind))
 
     with open(path, "rb") as stream:
         reader = StreamReader(stream, emit_chunks=True, validate_crcs=True, record_size_limit=file_size)
@@ -228,7 +228,7 @@ def read(path: Path, selection: Selection) -> RunLog:
     """
     from ilic_cli.io import current_progress
 
-    collector = rosmsgs.Collector(path)
+    collector = roscollect.Collector(path)
     with current_progress(path) as progress:
         scan(path, collector, progress)
-    return rosmsgs.decode_guarded(collector.finish(), selection, path, "MCAP")
+    return rosdecode.decode_guarded(collector.finish(), selection, path, "MCAP")

@@ -1,7 +1,7 @@
 """ROS 1 bags (``.bag``, format 2.0) through ``rosbags.rosbag1``.
 
 Messages use the ROS 1 Noetic types of the ``rosbags`` type store (the same
-topics as every ROS container, see :mod:`ilic_cli.io.rosmsgs`), uncompressed
+topics as every ROS container, see :mod:`ilic_cli.io.rosschema`), uncompressed
 chunks, no caller id: the same log always gives the same bytes.
 
 Reading refuses connections whose MD5 sum differs from the built-in
@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosmsgs
+from ilic_cli.io import container, roscollect, rosdecode, rosencode, rosschema
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -40,9 +40,9 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     """
     from rosbags.rosbag1 import Writer
 
-    joint = rosmsgs.writer_joint(log, options.joint)
+    joint = rosencode.writer_joint(log, options.joint)
     path.unlink(missing_ok=True)  # rosbags refuses to overwrite the placeholder
-    rosmsgs.write_bag(Writer(path), log, joint, rosmsgs.ROS1)
+    container.write_bag(Writer(path), log, joint, rosschema.ROS1)
 
 
 def _bounded(decompress: Any, limit: int, path: Path) -> Any:
@@ -65,15 +65,15 @@ def _bounded(decompress: Any, limit: int, path: Path) -> Any:
     return run
 
 
-def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
-    """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
+def _collect(reader: Any, path: Path) -> roscollect.Collected:
+    """Stream the messages of every readable connection into a :class:`roscollect.Collector`."""
 
-    collector = rosmsgs.Collector(path)
-    ts = rosmsgs.typestore(rosmsgs.ROS1)
+    collector = roscollect.Collector(path)
+    ts = rosschema.typestore(rosschema.ROS1)
     sinks: dict[int, Any] = {}
     wanted = []
     for conn in reader.connections:
-        topic = rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), rosmsgs.ROS1)
+        topic = rosschema.RawTopic(conn.topic, rosschema.normalize_msgtype(conn.msgtype), rosschema.ROS1)
         sink = collector.declare(topic)
         if sink is None:
             continue
@@ -82,7 +82,7 @@ def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
             sink.error = f"topic {conn.topic}: definition of {topic.msgtype} differs from the standard one (md5 {conn.digest})"
         sinks[conn.id] = sink
         wanted.append(conn)
-    rosmsgs.feed_sinks(reader, wanted, sinks, path)
+    container.feed_sinks(reader, wanted, sinks, path)
     return collector.finish()
 
 
@@ -113,11 +113,11 @@ def read(path: Path, selection: Selection) -> RunLog:
     try:
         for pos, chunk in list(reader.chunks.items()):
             reader.chunks[pos] = chunk._replace(decompressor=_bounded(chunk.decompressor, limit, path))
-        with rosmsgs.guarded(path, "ROS 1 bag"):
+        with container.guarded(path, "ROS 1 bag"):
             source = _collect(reader, path)
-        return rosmsgs.decode_guarded(source, selection, path, "ROS 1 bag")
+        return rosdecode.decode_guarded(source, selection, path, "ROS 1 bag")
     finally:
-        rosmsgs.close_quietly(reader)
+        container.close_quietly(reader)
 
 
 def _describe(exc: BaseException) -> str:

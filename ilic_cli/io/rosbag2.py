@@ -1,7 +1,7 @@
 """ROS 2 bag folders through ``rosbags.rosbag2`` (storage ``sqlite3`` or ``mcap``).
 
 Writing creates a bag of format version 9 (Humble CDR types, the topics of
-:mod:`ilic_cli.io.rosmsgs`) with the storage plugin of
+:mod:`ilic_cli.io.rosschema`) with the storage plugin of
 ``WriteOptions.storage``. Reading accepts both storages; the ``.mcap`` files
 of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
 (CRCs, bounded decompression) before ``rosbags`` reads them.
@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosmsgs
+from ilic_cli.io import container, roscollect, rosdecode, rosencode, rosschema
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -40,12 +40,12 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     if options.storage not in STORAGES:
         raise LogError(None, f"unknown rosbag2 storage '{options.storage}' (choose from {', '.join(STORAGES)})")
     plugin = StoragePlugin.MCAP if options.storage == "mcap" else StoragePlugin.SQLITE3
-    joint = rosmsgs.writer_joint(log, options.joint)
+    joint = rosencode.writer_joint(log, options.joint)
     # rosbags names the storage file after the bag folder; write into a
     # folder named like the final target, then lift its files up into `path`.
     path.mkdir()
     inner = path / _target_name(path)
-    rosmsgs.write_bag(Writer(inner, version=Writer.VERSION_LATEST, storage_plugin=plugin), log, joint, rosmsgs.ROS2)
+    container.write_bag(Writer(inner, version=Writer.VERSION_LATEST, storage_plugin=plugin), log, joint, rosschema.ROS2)
     for item in sorted(inner.iterdir()):
         item.rename(path / item.name)
     inner.rmdir()
@@ -59,20 +59,20 @@ def _target_name(tmp: Path) -> str:
     return name or "bag"
 
 
-def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
-    """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
+def _collect(reader: Any, path: Path) -> roscollect.Collected:
+    """Stream the messages of every readable connection into a :class:`roscollect.Collector`."""
 
-    collector = rosmsgs.Collector(path)
+    collector = roscollect.Collector(path)
     sinks: dict[int, Any] = {}
     wanted = []
     for conn in reader.connections:
         fmt = getattr(conn.ext, "serialization_format", "cdr")
-        kind = rosmsgs.ROS2 if fmt == "cdr" else fmt
-        sink = collector.declare(rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), kind))
+        kind = rosschema.ROS2 if fmt == "cdr" else fmt
+        sink = collector.declare(rosschema.RawTopic(conn.topic, rosschema.normalize_msgtype(conn.msgtype), kind))
         if sink is not None:
             sinks[conn.id] = sink
             wanted.append(conn)
-    rosmsgs.feed_sinks(reader, wanted, sinks, path)
+    container.feed_sinks(reader, wanted, sinks, path)
     return collector.finish()
 
 
@@ -113,11 +113,11 @@ def read(path: Path, selection: Selection) -> RunLog:
     except LogError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags/sqlite/yaml raise many kinds on bad bags
-        raise LogError(path, f"not a readable ROS 2 bag ({type(exc).__name__}: {rosmsgs.short_text(exc)})") from None
+        raise LogError(path, f"not a readable ROS 2 bag ({type(exc).__name__}: {container.short_text(exc)})") from None
     try:
-        with rosmsgs.guarded(path, "ROS 2 bag"):
+        with container.guarded(path, "ROS 2 bag"):
             source = _collect(reader, path)
-        return rosmsgs.decode_guarded(source, selection, path, "ROS 2 bag")
+        return rosdecode.decode_guarded(source, selection, path, "ROS 2 bag")
     finally:
-        rosmsgs.close_quietly(reader)
+        container.close_quietly(reader)
 
