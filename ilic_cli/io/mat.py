@@ -130,7 +130,7 @@ def _load(path: Path) -> dict[str, Any]:
         raise LogError(path, f"not a readable MATLAB .mat file ({type(exc).__name__}: {text})") from None
 
 
-def read(path: Path, selection: Selection) -> RunLog:
+def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     """Read an EMPS-style ``.mat`` file.
 
     Parameters

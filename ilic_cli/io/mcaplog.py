@@ -7,10 +7,13 @@ compressor is not importable) with chunk and data-section CRCs, library string
 ``ilic <version>``: the same log always gives the same bytes. Message bodies
 come from :mod:`ilic_cli.io.rosschema`.
 
-Reading streams the file once with :class:`mcap.stream_reader.StreamReader`
-(CRC validation on) and decodes each message as it passes into NumPy columns
+Reading streams the file once, chunk by chunk, into NumPy columns
 (:class:`ilic_cli.io.roscollect.Collector`): no Python object is kept per
-message, so a 1-hour 1 kHz log is read in bounded memory. Before a chunk is decompressed its declared size is
+message, so a 1-hour 1 kHz log is read in bounded memory. The fast path
+(:mod:`ilic_cli.io.mcapscan`) walks the records itself and decodes runs of
+same-layout messages as strided views; ``fast=False`` streams with
+:class:`mcap.stream_reader.StreamReader` (CRC validation on) and decodes
+message by message. Before a chunk is decompressed its declared size is
 checked against ``min(2 GiB, 64 x file size)`` and the decompressor is capped
 at that size, so a hostile file cannot exhaust memory. ``ros1`` encoded
 channels are decoded too; other encodings are refused.
@@ -113,7 +116,7 @@ def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     return data
 
 
-def scan(path: Path, collector: roscollect.Collector | None = None, progress: Any = None) -> None:
+def scan(path: Path, collector: roscollect.Collector | None = None, progress: Any = None, *, fast: bool = True) -> None:
     """Read every record of an MCAP file once, checking CRCs; feed messages to ``collector``.
 
     Parameters
@@ -126,14 +129,24 @@ def scan(path: Path, collector: roscollect.Collector | None = None, progress: An
         the file is only checked.
     progress : callable, optional
         Called as ``progress(bytes_read, file_size)`` after each chunk.
+    fast : bool
+        Decode runs of same-layout messages as columns (:mod:`ilic_cli.io.mcapscan`);
+        False: record by record with the ``mcap`` library's stream reader.
 
     Raises
     ------
     LogError
         For a truncated, corrupt (CRC mismatch) or hostile file.
     """
+    from ilic_cli.io.mcapscan import McapScanError
+
     try:
-        _scan(path, collector, progress)
+        if fast:
+            _scan_fast(path, collector, progress)
+        else:
+            _scan(path, collector, progress)
+    except McapScanError as exc:
+        raise LogError(path, f"not a readable MCAP file: {exc}") from None
     except LogError:
         raise
     except MemoryError:
@@ -160,6 +173,31 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
+def _topic(channel: Any, schema: Any) -> rosschema.RawTopic:
+    encoding = channel.message_encoding
+    kind = rosschema.ROS2 if encoding == "cdr" else rosschema.ROS1 if encoding == "ros1" else encoding
+    return rosschema.RawTopic(channel.topic, rosschema.normalize_msgtype(schema.name), kind)
+
+
+def _scan_fast(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:
+    from ilic_cli.io.mcapscan import scan as walk
+
+    limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(path.stat().st_size, 1))
+
+    def declare(channel: Any, schema: Any) -> Any:
+        return collector.declare(_topic(channel, schema)) if collector is not None else None
+
+    def decompress(chunk: Any, cap: int) -> bytes:
+        try:
+            return _decompress(chunk, cap, path)
+        except LogError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - zstd/lz4 errors on damaged data
+            raise LogError(path, f"not a readable MCAP file: a {chunk.compression} chunk cannot be decompressed (file is corrupt: {_describe(exc)})") from None
+
+    walk(path, declare, decompress, limit, progress)
+
+
 def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:
     from mcap.records import Channel, Chunk, Message, Schema
     from mcap.stream_reader import StreamReader, breakup_chunk
@@ -180,9 +218,7 @@ def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> 
             schema = schemas.get(record.schema_id)
             if schema is None:
                 return
-            encoding = record.message_encoding
-            kind = rosschema.ROS2 if encoding == "cdr" else rosschema.ROS1 if encoding == "ros1" else encoding
-            sinks[record.id] = collector.declare(rosschema.RawTopic(record.topic, rosschema.normalize_msgtype(schema.name), kind))
+            sinks[record.id] = collector.declare(_topic(record, schema))
 
     with open(path, "rb") as stream:
         reader = StreamReader(stream, emit_chunks=True, validate_crcs=True, record_size_limit=file_size)
@@ -212,7 +248,7 @@ def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> 
         progress(file_size, file_size)
 
 
-def read(path: Path, selection: Selection) -> RunLog:
+def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     """Read a run log from an MCAP file.
 
     Parameters
@@ -221,6 +257,8 @@ def read(path: Path, selection: Selection) -> RunLog:
         The MCAP file.
     selection : Selection
         Topic, reference topic and joint (for files not written by ilic).
+    fast : bool
+        Decode runs of same-layout messages as columns; False: message by message.
 
     Returns
     -------
@@ -230,5 +268,5 @@ def read(path: Path, selection: Selection) -> RunLog:
 
     collector = roscollect.Collector(path)
     with current_progress(path) as progress:
-        scan(path, collector, progress)
+        scan(path, collector, progress, fast=fast)
     return rosdecode.decode_guarded(collector.finish(), selection, path, "MCAP")

@@ -4,6 +4,10 @@ Container modules stream every message once into a :class:`Collector`, which
 decodes it with the ``rosbags`` type store and keeps only NumPy columns of the
 values (no Python object per message). Only the built-in message types are
 decoded: definitions stored in a file are never compiled or executed.
+
+Containers that hold messages back to back (MCAP chunks, sqlite3 blobs) hand
+whole runs to :meth:`_Sink.add_run`, which decodes runs of same-layout ROS 2
+messages as columns (:mod:`ilic_cli.io.cdrcols`) and the rest one by one.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.errors import LogError
+from ilic_cli.io import cdrcols
 from ilic_cli.io.container import short_text
 from ilic_cli.io.rosschema import JOINT_STATE, ROS1, ROS2, STRING, TRAJECTORY_POINT, RawTopic, typestore
 
@@ -36,6 +41,13 @@ class _Numbers:
         self.items: list[Any] = []
         self.blocks: list[np.ndarray] = []
         self.small = small
+
+    def block(self, values: np.ndarray) -> None:
+        """Append ``values`` after the items so far."""
+        self.flush()
+        if self.small and len(values) and int(values.max()) < 256 and int(values.min()) >= 0:
+            values = values.astype(np.uint8)
+        self.blocks.append(values)
 
     def flush(self) -> None:
         if self.items:
@@ -65,6 +77,12 @@ class _Arrays:
     def append(self, values: Any) -> None:
         self.items.append(values)
         self.counts.items.append(len(values))
+
+    def block(self, values: np.ndarray) -> None:
+        """Append one (messages, width) float64 block after the items so far."""
+        self.flush()
+        self.blocks.append(values.reshape(-1))
+        self.counts.block(np.full(values.shape[0], values.shape[1] if values.ndim == 2 else 1, dtype=np.int32))
 
     def flush(self) -> None:
         if self.items:
@@ -148,6 +166,8 @@ class _Sink:
         self._deserialize = ts.deserialize_ros1 if topic.kind == ROS1 else ts.deserialize_cdr
         self._log_ns = _Numbers(np.int64)
         self._arrays = {name: _Arrays() for name in self.arrays}
+        self._last: tuple[cdrcols.Layout, np.ndarray, np.ndarray] | None = None
+        self._window = 256
 
     def add(self, log_ns: int, data: bytes | memoryview) -> None:
         """Decode one message (``log_ns``, raw ``data``) into the columns."""
@@ -161,8 +181,71 @@ class _Sink:
             return
         self._log_ns.items.append(log_ns)
         self.count += 1
-        if self.count % BLOCK == 0:
+        if len(self._log_ns.items) >= BLOCK:
             self._flush()
+
+    def add_run(self, buf: np.ndarray, base: int, stride: int, count: int, size: int, log_ns: np.ndarray) -> None:
+        """Decode ``count`` messages of ``size`` bytes at ``base + i * stride`` in ``buf``.
+
+        Runs of ROS 2 messages with one layout become columns at once; a
+        message that starts no such run (another layout, encoding or type, a
+        malformed message) is decoded alone by :meth:`add`, so a run that
+        changes layout midway is split where it changes.
+        """
+        fast = self.topic.kind == ROS2 and self.topic.msgtype in cdrcols.FAST_TYPES
+        i = 0
+        while i < count and self.error is None:
+            start = base + i * stride
+            first = bytes(buf[start : start + size])
+            lay = self._layout(first) if fast else None
+            if lay is None:
+                self.add(int(log_ns[i]), first)
+                i += 1
+                continue
+            todo = min(count - i, self._window)
+            n = cdrcols.matching_rows(buf, start, stride, todo, lay)
+            self._window = min(self._window * 2, 1 << 20) if n == todo else 256
+            self._log_ns.block(np.asarray(log_ns[i : i + n], dtype=np.int64))
+            self._columns(buf, start, stride, n, lay)
+            self.count += n
+            i += n
+
+    def _layout(self, data: bytes) -> cdrcols.Layout | None:
+        """Layout of ``data``: the last run's when the structural bytes are the same, else walked and checked."""
+        last = self._last
+        if last is not None and last[0].size == len(data):
+            lay, fixed, structure = last
+            if np.array_equal(np.frombuffer(data, dtype=np.uint8)[fixed], structure):
+                return lay
+        lay = cdrcols.layout(data, self.topic.msgtype)
+        if lay is None or not self._agrees(lay, data):
+            return None
+        fixed = np.flatnonzero(~lay.varying)
+        self._last = (lay, fixed, np.frombuffer(data, dtype=np.uint8)[fixed].copy())
+        return lay
+
+    def _agrees(self, lay: cdrcols.Layout, data: bytes) -> bool:
+        """Whether ``rosbags`` decodes ``data`` to the values ``lay`` finds (a check per run)."""
+        try:
+            msg = self._deserialize(data, self.topic.msgtype)
+            buf = np.frombuffer(data, dtype=np.uint8)
+            for name, (offset, count) in lay.arrays.items():
+                ours = cdrcols.column(buf, offset, 0, 1, "<f8", count).reshape(-1) if count else np.empty(0)
+                theirs = np.asarray(getattr(msg, name), dtype=np.float64)
+                if name in self._arrays and ours.view(np.int64).tolist() != theirs.view(np.int64).tolist():
+                    return False
+            return self._agrees_extra(lay, msg, buf)
+        except Exception:  # noqa: BLE001 - the per-message decoder reports the problem
+            return False
+
+    def _agrees_extra(self, lay: cdrcols.Layout, msg: Any, buf: np.ndarray) -> bool:
+        return True
+
+    def _columns(self, buf: np.ndarray, start: int, stride: int, n: int, lay: cdrcols.Layout) -> None:
+        for name, column in self._arrays.items():
+            offset, count = lay.arrays[name]
+            values = cdrcols.column(buf, start + offset, stride, n, "<f8", count) if count else np.empty((n, 0))
+            column.block(values.reshape(n, count))
 
     def _take(self, msg: Any) -> None:
         for name, column in self._arrays.items():
@@ -214,6 +297,20 @@ class _JointStateSink(_Sink):
         self._stamp.flush()
         self._name_id.flush()
 
+    def _agrees_extra(self, lay: cdrcols.Layout, msg: Any, buf: np.ndarray) -> bool:
+        stamp = msg.header.stamp
+        ours = int(cdrcols.times_ns(buf, lay.times["stamp"], 0, 1)[0])
+        return ours == int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec) and tuple(str(x) for x in msg.name) == lay.strings["name"]
+
+    def _columns(self, buf: np.ndarray, start: int, stride: int, n: int, lay: cdrcols.Layout) -> None:
+        super()._columns(buf, start, stride, n, lay)
+        key = lay.strings["name"]
+        nid = self._names.get(key)
+        if nid is None:
+            nid = self._names[key] = len(self._names)
+        self._stamp.block(cdrcols.times_ns(buf, start + lay.times["stamp"], stride, n))
+        self._name_id.block(np.full(n, nid, dtype=np.int32))
+
     def _extra(self, series: Series) -> None:
         series.stamp_ns = self._stamp.array()
         series.name_id = self._name_id.array()
@@ -241,8 +338,15 @@ class _StringSink(_Sink):
                 return
         self._log_ns.items.append(log_ns)
         self.count += 1
-        if self.count % BLOCK == 0:
+        if len(self._log_ns.items) >= BLOCK:
             self._flush()
+
+    def _agrees_extra(self, lay: cdrcols.Layout, msg: Any, buf: np.ndarray) -> bool:
+        return str(msg.data) == lay.strings["data"]
+
+    def _columns(self, buf: np.ndarray, start: int, stride: int, n: int, lay: cdrcols.Layout) -> None:
+        if self.count == 0:
+            self._text = lay.strings["data"]
 
     def _extra(self, series: Series) -> None:
         series.text = self._text
