@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -170,3 +173,100 @@ def _messages(log: RunLog, joint: str, kind: str, topics: list[TopicSpec], ns: n
             yield TOPIC_REFERENCE, stamp, ser(point, TRAJECTORY_POINT)
         extra = js_cls(header=header(i, sec, nsec), name=extra_names, position=extra_matrix[i].copy(), velocity=empty, effort=empty)
         yield TOPIC_EXTRAS, stamp, ser(extra, JOINT_STATE)
+
+
+# -- whole columns at once ------------------------------------------------------
+@dataclass
+class Columns:
+    """A log's ROS 2 messages as templates filled column by column (see :func:`encode_columns`).
+
+    Attributes
+    ----------
+    topics : list of TopicSpec
+        Topics in registration order (as :func:`encode`).
+    metadata : bytes
+        The ``/ilic/metadata`` message.
+    log_ns : ndarray of int64
+        Log time of each sample.
+    sizes : dict
+        Topic -> message size (bytes); every message of a sample topic has this size.
+    """
+
+    topics: list[TopicSpec]
+    metadata: bytes
+    log_ns: np.ndarray
+    sizes: dict[str, int]
+    _fill: dict[str, Callable[[int, int], np.ndarray]]
+
+    def sample_topics(self) -> list[str]:
+        """The topics with one message per sample, in the order they are written for each sample."""
+        return [spec.topic for spec in self.topics if spec.topic != TOPIC_METADATA]
+
+    def rows(self, topic: str, start: int, stop: int) -> np.ndarray:
+        """The messages of samples ``start:stop`` on ``topic``, as a (samples, size) uint8 array."""
+        return self._fill[topic](start, stop)
+
+
+def encode_columns(log: RunLog, joint: str) -> Columns | None:
+    """Prepare ``log``'s ROS 2 messages for writing in bulk, bit-identical to :func:`encode`'s.
+
+    The first sample's messages, serialised by ``rosbags``, are the templates;
+    their layouts (:func:`ilic_cli.io.cdrcols.layout`) say where each column's
+    values go. Returns None when a template cannot be walked or a time stamp
+    does not fit CDR's int32 seconds; callers then use :func:`encode`, which
+    reports the problem.
+    """
+    from ilic_cli.io import cdrcols
+
+    topics, messages = encode(log, joint, ROS2)
+    first = {topic: data for topic, _, data in itertools.islice(messages, len(topics))}
+    ns = stamps_ns(log.t)
+    sec, nsec = np.divmod(ns, 1_000_000_000)
+    since = ns - ns[0]
+    dsec, dnsec = np.divmod(since, 1_000_000_000)
+    if int(sec.max()) >= 2**31 or int(dsec.max()) >= 2**31:
+        return None
+    layouts = {spec.topic: cdrcols.layout(first[spec.topic], spec.msgtype) for spec in topics}
+    if any(lay is None for lay in layouts.values()):
+        return None
+    ch = log.channels
+    extras = _extra_channels(log)
+    wanted: dict[str, dict[str, np.ndarray | None]] = {
+        TOPIC_STATES: {"position": ch["q"], "velocity": ch.get("qd"), "effort": ch["tau"]},
+        TOPIC_REFERENCE: {field: ch.get(name) for name, field in REFERENCE_FIELDS.items()},
+        TOPIC_EXTRAS: {},
+    }
+    fills: dict[str, Callable[[int, int], np.ndarray]] = {}
+    for spec in topics:
+        lay = layouts[spec.topic]
+        assert lay is not None
+        if spec.topic == TOPIC_METADATA:
+            continue
+        columns: list[tuple[int, np.ndarray]] = []
+        for field, values in wanted[spec.topic].items():
+            offset, count = lay.arrays[field]
+            if count != (0 if values is None else 1):
+                return None
+            if values is not None:
+                columns.append((offset, np.asarray(values, dtype=np.float64)))
+        if spec.topic == TOPIC_EXTRAS:
+            offset, count = lay.arrays["position"]
+            if count != 1 + len(extras):
+                return None
+            columns.append((offset, np.column_stack([log.t, *(ch[name] for name in extras)]).astype(np.float64, copy=False)))
+        times = [(lay.times[name], s, n) for name, s, n in (("stamp", sec, nsec), ("time_from_start", dsec, dnsec)) if name in lay.times]
+        fills[spec.topic] = functools.partial(_fill_rows, first[spec.topic], columns, times)
+    sizes = {topic: len(data) for topic, data in first.items()}
+    return Columns(topics, first[TOPIC_METADATA], ns, sizes, fills)
+
+
+def _fill_rows(template: bytes, columns: list[tuple[int, np.ndarray]], times: list[tuple[int, np.ndarray, np.ndarray]], start: int, stop: int) -> np.ndarray:
+    from ilic_cli.io import cdrcols
+
+    rows = cdrcols.fill_rows(template, stop - start)
+    for offset, sec, nsec in times:
+        cdrcols.put(rows, offset, "<i4", sec[start:stop].astype(np.int32))
+        cdrcols.put(rows, offset + 4, "<u4", nsec[start:stop].astype(np.uint32))
+    for offset, values in columns:
+        cdrcols.put(rows, offset, "<f8", values[start:stop])
+    return rows
