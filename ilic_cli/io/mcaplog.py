@@ -106,7 +106,7 @@ BATCH = 65536
 """Samples framed at a time by the bulk writer."""
 
 
-def write_columns(stream: Any, columns: rosencode.Columns, compression: str, *, profile: str, library: str, channel_metadata: dict[str, dict[str, str]] | None = None, metadata: tuple[str, dict[str, str]] | None = None) -> None:
+def write_columns(stream: Any, columns: rosencode.Columns, compression: str, *, profile: str, library: str) -> None:
     """Write ``columns`` as an MCAP file, record for record as the per-message writer does.
 
     Parameters
@@ -119,14 +119,8 @@ def write_columns(stream: Any, columns: rosencode.Columns, compression: str, *, 
         ``"zstd"``, ``"lz4"`` or ``""``.
     profile, library : str
         Header fields.
-    channel_metadata : dict, optional
-        Topic -> channel metadata (ROS 2 bags: ``offered_qos_profiles``).
-    metadata : (name, dict), optional
-        A metadata record written after the messages.
     """
-    import numpy as np
-
-    from ilic_cli.io.mcapframe import MESSAGE_HEAD, BulkWriter, frame_head
+    from ilic_cli.io.mcapframe import BulkWriter
 
     writer = BulkWriter(stream, compression)
     writer.start(profile=profile, library=library)
@@ -136,9 +130,24 @@ def write_columns(stream: Any, columns: rosencode.Columns, compression: str, *, 
         if spec.msgtype not in schema_ids:
             text, _ = rosschema.message_definition(spec.msgtype, rosschema.ROS2)
             schema_ids[spec.msgtype] = writer.register_schema(name=spec.msgtype, encoding="ros2msg", data=text.encode("utf-8"))
-        channel_ids[spec.topic] = writer.register_channel(topic=spec.topic, message_encoding="cdr", schema_id=schema_ids[spec.msgtype], metadata=(channel_metadata or {}).get(spec.topic))
+        channel_ids[spec.topic] = writer.register_channel(topic=spec.topic, message_encoding="cdr", schema_id=schema_ids[spec.msgtype])
     ns = columns.log_ns
     writer.add_message(channel_ids[rosschema.TOPIC_METADATA], int(ns[0]), columns.metadata, int(ns[0]), 0)
+    add_samples(writer, columns, channel_ids)
+    writer.finish()
+
+
+def add_samples(writer: Any, columns: rosencode.Columns, channel_ids: dict[str, int]) -> None:
+    """Frame the per-sample messages of ``columns`` and add them to ``writer`` (a :class:`~ilic_cli.io.mcapframe.BulkWriter`).
+
+    Each sample's messages follow each other in topic order; the message
+    sequence number is the sample index.
+    """
+    import numpy as np
+
+    from ilic_cli.io.mcapframe import MESSAGE_HEAD, frame_head
+
+    ns = columns.log_ns
     order = columns.sample_topics()
     slots = []
     width = 0
@@ -154,9 +163,6 @@ def write_columns(stream: Any, columns: rosencode.Columns, compression: str, *, 
             rows[:, offset + MESSAGE_HEAD : offset + size] = columns.rows(topic, start, stop)
             frame_head(rows, offset, size - 9, channel_id, sequence, ns[start:stop])
         writer.add_groups(rows, slots, ns[start:stop])
-    if metadata is not None:
-        writer.add_metadata(*metadata)
-    writer.finish()
 
 
 def _decompress(chunk: Any, limit: int, path: Path) -> bytes:

@@ -22,7 +22,6 @@ from typing import Any
 
 import numpy as np
 
-
 MAGIC = b"\x89MCAP0\r\n"
 OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END, OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0F, 0x02
 MESSAGE_HEAD = 31

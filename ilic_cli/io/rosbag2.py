@@ -49,10 +49,47 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     # folder named like the final target, then lift its files up into `path`.
     path.mkdir()
     inner = path / _target_name(path)
-    container.write_bag(Writer(inner, version=Writer.VERSION_LATEST, storage_plugin=plugin), log, joint, rosschema.ROS2)
+    columns = rosencode.encode_columns(log, joint) if options.fast else None
+    if columns is not None:
+        _write_columns(inner, plugin, columns)
+    else:
+        container.write_bag(Writer(inner, version=Writer.VERSION_LATEST, storage_plugin=plugin), log, joint, rosschema.ROS2)
     for item in sorted(inner.iterdir()):
         item.rename(path / item.name)
     inner.rmdir()
+
+
+def _write_columns(path: Path, plugin: Any, columns: rosencode.Columns) -> None:
+    """Write a bag with ``rosbags``' writer (metadata, topics, ``metadata.yaml``) and the messages in bulk.
+
+    The storage plugins are the bulk ones of :mod:`ilic_cli.io.rosbulk`; the
+    writer's message counts and time range are kept as its per-message
+    ``write`` would keep them.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from ilic_cli.io.rosbulk import BulkMcapStorage, BulkSqlite3Storage
+
+    class BulkBagWriter(Writer):
+        STORAGE_PLUGINS = {StoragePlugin.SQLITE3: BulkSqlite3Storage, StoragePlugin.MCAP: BulkMcapStorage}
+
+    writer = BulkBagWriter(path, version=Writer.VERSION_LATEST, storage_plugin=plugin)
+    ts = rosschema.typestore(rosschema.ROS2)
+    writer.open()
+    try:
+        connections = {spec.topic: writer.add_connection(spec.topic, spec.msgtype, typestore=ts) for spec in columns.topics}
+        first = int(columns.log_ns[0])
+        writer.write(connections[rosschema.TOPIC_METADATA], first, columns.metadata)
+        assert writer.storage is not None
+        writer.storage.add_samples(columns, {topic: conn.id for topic, conn in connections.items()})
+        for topic in columns.sample_topics():
+            writer.counts[connections[topic].id] += len(columns.log_ns)
+        writer.min_timestamp = min(writer.min_timestamp, int(columns.log_ns.min()))
+        writer.max_timestamp = max(writer.max_timestamp, int(columns.log_ns.max()))
+    except BaseException:
+        writer.abort()
+        raise
+    writer.close()
 
 
 def _target_name(tmp: Path) -> str:
