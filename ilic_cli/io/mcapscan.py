@@ -202,15 +202,43 @@ class _State:
         groups = int(bad[0]) if len(bad) else groups
         if groups < MIN_RUN:
             return 0
+        slots_of: dict[int, list[tuple[int, int]]] = {}
         for offset, _, length, channel in heads:
+            slots_of.setdefault(channel, []).append((offset, length))
+        for channel, slots in slots_of.items():
             sink = self.sinks.get(channel)
-            if sink is None:
-                continue
-            first = pos + offset
+            if sink is not None:
+                self._feed(sink, buf, pos, period, groups, slots)
+        return groups * period
+
+    def _feed(self, sink: Any, buf: np.ndarray, pos: int, period: int, groups: int, slots: list[tuple[int, int]]) -> None:
+        """Hand one channel's messages of a run to its sink, in file order.
+
+        One slot per group: a strided run. Several slots of one size: the
+        messages gathered in file order, then one run. Several sizes: one by one.
+        """
+        sizes = {length for _, length in slots}
+        if len(sizes) > 1:
+            for k in range(groups):
+                for offset, length in slots:
+                    self.single(buf, pos + k * period + offset, length)
+            return
+        length = sizes.pop()
+        size = length + 9 - MESSAGE_HEAD
+        if len(slots) == 1:
+            first = pos + slots[0][0]
             log_ns = np.ndarray((groups,), dtype="<u8", buffer=buf, offset=first + 15, strides=(period,))
             if int(log_ns.max()) >= 2**63:
                 for k in range(groups):
                     self.single(buf, first + k * period, length)
-                continue
-            sink.add_run(buf, first + MESSAGE_HEAD, period, groups, length + 9 - MESSAGE_HEAD, log_ns.astype(np.int64))
-        return groups * period
+            else:
+                sink.add_run(buf, first + MESSAGE_HEAD, period, groups, size, log_ns.astype(np.int64))
+            return
+        starts = (pos + np.array([offset for offset, _ in slots], dtype=np.int64)[None, :] + period * np.arange(groups, dtype=np.int64)[:, None]).reshape(-1)
+        log_ns = buf[starts[:, None] + 15 + np.arange(8)].copy().view("<u8").reshape(-1)
+        if int(log_ns.max()) >= 2**63:
+            for start in starts.tolist():
+                self.single(buf, start, length)
+            return
+        data = buf[starts[:, None] + MESSAGE_HEAD + np.arange(size)].reshape(-1)
+        sink.add_run(data, 0, size, len(starts), size, log_ns.astype(np.int64))
