@@ -21,6 +21,7 @@ channels are decoded too; other encodings are refused.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -165,6 +166,14 @@ def add_samples(writer: Any, columns: rosencode.Columns, channel_ids: dict[str, 
         writer.add_groups(rows, slots, ns[start:stop])
 
 
+@functools.lru_cache(maxsize=1)
+def _zstd() -> Any:
+    """One zstd decompressor, reused for every chunk."""
+    import zstandard
+
+    return zstandard.ZstdDecompressor()
+
+
 def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     size = int(chunk.uncompressed_size)
     if size > limit:
@@ -174,11 +183,15 @@ def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     elif chunk.compression == "zstd":
         import zstandard
 
-        import io
+        if zstandard.frame_content_size(chunk.data) == size:
+            # the frame declares the (already bounded) size: one call into a buffer of that size
+            data = _zstd().decompress(chunk.data, max_output_size=size)
+        else:
+            import io
 
-        # a streaming read stops at size + 1 bytes whatever the frame header claims
-        with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data)) as reader:
-            data = reader.read(size + 1)
+            # a streaming read stops at size + 1 bytes whatever the frame header claims
+            with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data)) as reader:
+                data = reader.read(size + 1)
     elif chunk.compression == "lz4":
         import lz4.frame
 

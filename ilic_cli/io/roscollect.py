@@ -27,6 +27,46 @@ BLOCK = 8192
 """Messages buffered as Python values before they are packed into NumPy blocks."""
 
 
+JOIN_BYTES = 1 << 20
+"""Small blocks of a column are joined once they hold this many bytes."""
+
+
+class _Blocks:
+    """The NumPy blocks of a growing column; small ones are joined into blocks of about :data:`JOIN_BYTES`.
+
+    Runs give many small arrays, which live on the C heap; glibc keeps freed
+    heap space, so joining them all only at the end would leave the process
+    holding the column twice. Joined blocks are mapped and unmapped whole, and
+    the small ones' space is reused for the next.
+    """
+
+    __slots__ = ("done", "recent", "recent_bytes")
+
+    def __init__(self) -> None:
+        self.done: list[np.ndarray] = []
+        self.recent: list[np.ndarray] = []
+        self.recent_bytes = 0
+
+    def add(self, values: np.ndarray) -> None:
+        self.recent.append(values)
+        self.recent_bytes += values.nbytes
+        if self.recent_bytes >= JOIN_BYTES:
+            self._join()
+
+    def _join(self) -> None:
+        if self.recent:
+            self.done.append(np.concatenate(self.recent) if len(self.recent) > 1 else self.recent[0])
+            self.recent = []
+            self.recent_bytes = 0
+
+    def concat(self, dtype: Any) -> np.ndarray:
+        """All values in one array (and no blocks kept)."""
+        self._join()
+        out = np.concatenate(self.done) if len(self.done) > 1 else self.done[0] if self.done else np.empty(0, dtype=dtype)
+        self.done = []
+        return out
+
+
 class _Numbers:
     """A growing column of scalars packed into NumPy blocks every :data:`BLOCK` items.
 
@@ -39,7 +79,7 @@ class _Numbers:
     def __init__(self, dtype: Any, small: bool = False) -> None:
         self.dtype = dtype
         self.items: list[Any] = []
-        self.blocks: list[np.ndarray] = []
+        self.blocks = _Blocks()
         self.small = small
 
     def block(self, values: np.ndarray) -> None:
@@ -47,21 +87,19 @@ class _Numbers:
         self.flush()
         if self.small and len(values) and int(values.max()) < 256 and int(values.min()) >= 0:
             values = values.astype(np.uint8)
-        self.blocks.append(values)
+        self.blocks.add(values)
 
     def flush(self) -> None:
         if self.items:
             block = np.asarray(self.items, dtype=self.dtype)
             if self.small and len(block) and int(block.max()) < 256 and int(block.min()) >= 0:
                 block = block.astype(np.uint8)
-            self.blocks.append(block)
+            self.blocks.add(block)
             self.items = []
 
     def array(self) -> np.ndarray:
         self.flush()
-        out = np.concatenate(self.blocks) if self.blocks else np.empty(0, dtype=self.dtype)
-        self.blocks = []
-        return out
+        return self.blocks.concat(self.dtype)
 
 
 class _Arrays:
@@ -71,7 +109,7 @@ class _Arrays:
 
     def __init__(self) -> None:
         self.items: list[Any] = []
-        self.blocks: list[np.ndarray] = []
+        self.blocks = _Blocks()
         self.counts = _Numbers(np.int32, small=True)
 
     def append(self, values: Any) -> None:
@@ -81,7 +119,7 @@ class _Arrays:
     def block(self, values: np.ndarray) -> None:
         """Append one (messages, width) float64 block after the items so far."""
         self.flush()
-        self.blocks.append(values.reshape(-1))
+        self.blocks.add(values.reshape(-1))
         self.counts.block(np.full(values.shape[0], values.shape[1] if values.ndim == 2 else 1, dtype=np.int32))
 
     def flush(self) -> None:
@@ -90,14 +128,13 @@ class _Arrays:
                 block = np.concatenate(self.items).astype(np.float64, copy=False)
             except (ValueError, TypeError):
                 block = np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1) for v in self.items])
-            self.blocks.append(block)
+            self.blocks.add(block)
             self.items = []
         self.counts.flush()
 
     def columns(self) -> tuple[np.ndarray, np.ndarray]:
         self.flush()
-        flat = np.concatenate(self.blocks) if self.blocks else np.empty(0)
-        self.blocks = []
+        flat = self.blocks.concat(np.float64)
         return flat, self.counts.array()
 
 

@@ -247,6 +247,12 @@ def _reference_series(source: Collected, topic: str, joint_index: int | None, pa
         raise LogError(path, f"reference topic {topic} has type {info.msgtype}; expected {TRAJECTORY_POINT} or {JOINT_STATE}")
     series = source.series(topic)
     width = series.fields["positions"][1]
+    if len(width) and bool((width == 1).all()):
+        # one position per message (the usual case): strided views, no index arrays
+        out1: dict[str, Any] = {"log_ns": series.log_ns}
+        for fieldname in ("positions", "velocities", "accelerations"):
+            out1[fieldname] = series.values_at(fieldname, 0)
+        return out1
     j = np.where(width == 1, 0, -1)
     if joint_index is not None:
         j = np.where((width != 1) & (width > joint_index), joint_index, j)
