@@ -10,14 +10,20 @@ per second for each path and their ratio; ``n/a`` where a format has no
 per-message path (``.mat``) or does not take the keyword yet (a
 ``TypeError``). Every read is checked to give the written columns.
 
+Then times ``ilic simulate --scenario paper-sim --duration 300`` to ``.mat``,
+``.mcap`` and a ROS 2 bag (``--format rosbag2``, sqlite3) as whole processes
+(start-up included) and prints each as a multiple of real time.
+
 Never asserted by tests: run it with ``make bench`` (or
-``python benchmarks/bench_io.py [--samples N] [--repeat R] [--fast-only]``).
+``python benchmarks/bench_io.py [--samples N] [--repeat R] [--fast-only] [--no-simulate]``).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -130,6 +136,23 @@ def bench(log: Any, repeat: int = 3, per_message: bool = True, formats: list[str
     return rows
 
 
+def simulate_rates(duration_s: float = 300.0) -> None:
+    """Wall time of ``ilic simulate`` to each output as a whole process, as a multiple of real time."""
+    work = Path(tempfile.mkdtemp(prefix="ilic-bench-sim-"))
+    env = dict(os.environ, CI="1")  # no progress display
+    try:
+        for label, out, extra in (("mat", "x.mat", []), ("mcap", "x.mcap", []), ("rosbag2 (sqlite3)", "x_bag", ["--format", "rosbag2"])):
+            args = [sys.executable, "-m", "ilic_cli", "simulate", "--scenario", "paper-sim", "--duration", f"{duration_s:g}", "-o", str(work / out), *extra]
+            t0 = time.perf_counter()
+            proc = subprocess.run(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, check=False)
+            wall = time.perf_counter() - t0
+            status = "" if proc.returncode == 0 else f"  status {proc.returncode}: {proc.stderr.strip().splitlines()[-1:]}"
+            print(f"ilic simulate --duration {duration_s:g} -o {out:<8} {wall:6.2f} s wall = {duration_s / wall:6.1f}x real time{status}", flush=True)
+            remove(work / out)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Simulate the log, then measure every format."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -137,6 +160,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeat", type=int, default=3, help="runs of each fast path (best is shown); per-message paths run once")
     parser.add_argument("--fast-only", action="store_true", help="skip the per-message paths")
     parser.add_argument("--format", action="append", help="only this format (repeatable)")
+    parser.add_argument("--no-simulate", action="store_true", help="skip the ilic simulate timings")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     t0 = time.perf_counter()
@@ -144,6 +168,8 @@ def main(argv: list[str] | None = None) -> None:
     print(f"paper-sim log: {len(log)} samples ({len(log) / 1000:.0f} s at 1 kHz), simulated in {time.perf_counter() - t0:.1f} s")
     print("rates in samples/s, fast path vs per-message path (ratio = per-message time / fast time); best of", args.repeat, "fast runs")
     bench(log, repeat=args.repeat, per_message=not args.fast_only, formats=args.format)
+    if not args.no_simulate:
+        simulate_rates()
 
 
 if __name__ == "__main__":
