@@ -28,26 +28,44 @@ from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from ilic_cli.io.rosencode import Columns
 
 ROWS_PER_INSERT = 65536 * 3
-"""Messages passed to one ``executemany``."""
+"""Messages prepared at a time."""
+
+ROWS_PER_STATEMENT = 256
+"""Rows of one multi-row ``INSERT`` (768 parameters, below every sqlite3 build's limit)."""
 
 
 class BulkSqlite3Storage(Sqlite3Writer):
     """``rosbags``' sqlite3 storage with :meth:`add_samples`."""
 
     def add_samples(self, columns: Columns, ids: dict[str, int]) -> None:
-        """Insert every per-sample message of ``columns`` (topic ids from ``ids``)."""
+        """Insert every per-sample message of ``columns`` (topic ids from ``ids``).
+
+        Rows go in :data:`ROWS_PER_STATEMENT` at a time through one multi-row
+        ``INSERT`` (the same rows, in the same order, as one ``INSERT`` each).
+        """
+        import numpy as np
+
         topics = columns.sample_topics()
-        ns = columns.log_ns.tolist()
-        step = max(1, ROWS_PER_INSERT // max(1, len(topics)))
-        for start in range(0, len(ns), step):
-            stop = min(start + step, len(ns))
-            blobs = []
-            for topic in topics:
+        per = max(1, len(topics))
+        step = max(1, ROWS_PER_INSERT // per)
+        one = "INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)"
+        many = "INSERT INTO messages (topic_id, timestamp, data) VALUES " + ", ".join(["(?, ?, ?)"] * ROWS_PER_STATEMENT)
+        for start in range(0, len(columns.log_ns), step):
+            stop = min(start + step, len(columns.log_ns))
+            table = np.empty((stop - start, per, 3), dtype=object)
+            stamps = columns.log_ns[start:stop].tolist()
+            for j, topic in enumerate(topics):
                 data = columns.rows(topic, start, stop).tobytes()
                 size = columns.sizes[topic]
-                blobs.append([data[k : k + size] for k in range(0, len(data), size)])
-            rows = [(ids[topic], stamp, blob[k]) for k, stamp in enumerate(ns[start:stop]) for topic, blob in zip(topics, blobs)]
-            self.cursor.executemany("INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)", rows)
+                table[:, j, 0] = ids[topic]
+                table[:, j, 1] = stamps
+                table[:, j, 2] = [data[k : k + size] for k in range(0, len(data), size)]
+            flat = table.reshape(-1).tolist()
+            del table
+            whole = len(flat) // (3 * ROWS_PER_STATEMENT) * 3 * ROWS_PER_STATEMENT
+            width = 3 * ROWS_PER_STATEMENT
+            self.cursor.executemany(many, (flat[k : k + width] for k in range(0, whole, width)))
+            self.cursor.executemany(one, (flat[k : k + 3] for k in range(whole, len(flat), 3)))
 
 
 class BulkMcapStorage:
