@@ -21,7 +21,7 @@ import pandas as pd
 import pytest
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import Selection, WriteOptions, csvlog, ros1fast, rosbag1, rosmsgs
+from ilic_cli.io import Selection, WriteOptions, container, csvlog, ros1fast, rosbag1, rosschema
 from ilic_cli.runlog import RunLog
 from tests.conftest import make_synthetic_log
 
@@ -164,7 +164,7 @@ def test_compressed_ilic_bag_from_rosbags_writer(tmp_path: Path, compression: st
     writer = Writer(path)
     writer.set_compression(Writer.CompressionFormat[compression.upper()])
     writer.chunk_threshold = 64 * 1024
-    rosmsgs.write_bag(writer, log, "axis", rosmsgs.ROS1)
+    container.write_bag(writer, log, "axis", rosschema.ROS1)
     ros1fast.collect(path, 2**30, rosbag1._declare)  # no Fallback: the vectorised path reads it
     fast = rosbag1.read(path, Selection(), fast=True)
     assert_same_log(fast, rosbag1.read(path, Selection(), fast=False))
@@ -197,7 +197,7 @@ def write_foreign_bag(path: Path, samples: int, *, names: Callable[[int], list[s
     """A bag as a ROS 1 robot records it, through the rosbags Writer."""
     from rosbags.rosbag1 import Writer
 
-    ts = rosmsgs.typestore("ros1")
+    ts = rosschema.typestore("ros1")
     writer = Writer(path)
     if compression:
         writer.set_compression(Writer.CompressionFormat[compression.upper()])

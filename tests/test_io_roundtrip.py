@@ -11,7 +11,7 @@ import scipy.io
 
 from ilic_cli.errors import ChoiceError, LogError
 from ilic_cli.io import Selection, WriteOptions, read_log, write_log
-from ilic_cli.io import rosmsgs
+from ilic_cli.io import rosschema
 from ilic_cli.runlog import RunLog
 from tests.clirun import run_cli
 
@@ -153,7 +153,7 @@ def test_mcap_decodes_with_an_independent_ros2_decoder(tmp_path: Path, synthetic
 
 # -- files from other tools -----------------------------------------------------
 def _foreign_states(joints: list[str], n: int = 50, t0_ns: int = 1_700_000_000_000_000_000) -> list[tuple[int, object]]:
-    ts = rosmsgs.typestore("ros2")
+    ts = rosschema.typestore("ros2")
     js = ts.types["sensor_msgs/msg/JointState"]
     header = ts.types["std_msgs/msg/Header"]
     stamp = ts.types["builtin_interfaces/msg/Time"]
@@ -180,8 +180,8 @@ def write_foreign_mcap(path: Path, topics: dict[str, list[str]]) -> None:
     """An MCAP as another tool writes it: plain mcap Writer, one JointState topic per entry."""
     from mcap.writer import Writer
 
-    ts = rosmsgs.typestore("ros2")
-    text, _ = rosmsgs.message_definition("sensor_msgs/msg/JointState")
+    ts = rosschema.typestore("ros2")
+    text, _ = rosschema.message_definition("sensor_msgs/msg/JointState")
     with open(path, "wb") as stream:
         writer = Writer(stream)
         writer.start(profile="ros2", library="other-tool")
@@ -237,7 +237,7 @@ def test_foreign_mcap_with_several_topics_needs_topic(tmp_path: Path) -> None:
 def test_foreign_rosbag1_multi_joint(tmp_path: Path) -> None:
     from rosbags.rosbag1 import Writer
 
-    ts = rosmsgs.typestore("ros1")
+    ts = rosschema.typestore("ros1")
     js = ts.types["sensor_msgs/msg/JointState"]
     header = ts.types["std_msgs/msg/Header"]
     stamp = ts.types["builtin_interfaces/msg/Time"]
@@ -296,15 +296,15 @@ def test_ros1_encoded_mcap_with_reference_at_half_rate(tmp_path: Path) -> None:
     """MCAP with ROS 1 messages (as from ROS 1 tools); the reference is interpolated onto the states."""
     from mcap.writer import Writer
 
-    ts = rosmsgs.typestore("ros1")
+    ts = rosschema.typestore("ros1")
     js, header, stamp = ts.types["sensor_msgs/msg/JointState"], ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
     point, duration = ts.types["trajectory_msgs/msg/JointTrajectoryPoint"], ts.types["builtin_interfaces/msg/Duration"]
     path = tmp_path / "ros1.mcap"
     with open(path, "wb") as stream:
         writer = Writer(stream)
         writer.start("ros1", "other-tool")
-        s1 = writer.register_schema("sensor_msgs/JointState", "ros1msg", rosmsgs.message_definition("sensor_msgs/msg/JointState", "ros1")[0].encode())
-        s2 = writer.register_schema("trajectory_msgs/JointTrajectoryPoint", "ros1msg", rosmsgs.message_definition("trajectory_msgs/msg/JointTrajectoryPoint", "ros1")[0].encode())
+        s1 = writer.register_schema("sensor_msgs/JointState", "ros1msg", rosschema.message_definition("sensor_msgs/msg/JointState", "ros1")[0].encode())
+        s2 = writer.register_schema("trajectory_msgs/JointTrajectoryPoint", "ros1msg", rosschema.message_definition("trajectory_msgs/msg/JointTrajectoryPoint", "ros1")[0].encode())
         c1 = writer.register_channel("/arm/states", "ros1", s1)
         c2 = writer.register_channel("/joint_reference", "ros1", s2)
         empty = np.array([], dtype=np.float64)

@@ -379,9 +379,9 @@ def test_mcap_chunk_that_expands_beyond_the_limit_is_refused_before_decompressio
 def test_ros1_chunk_that_expands_beyond_the_limit_is_refused(tmp_path: Path) -> None:
     from rosbags.rosbag1 import Writer
 
-    from ilic_cli.io import rosmsgs
+    from ilic_cli.io import rosschema
 
-    ts = rosmsgs.typestore("ros1")
+    ts = rosschema.typestore("ros1")
     string = ts.types["std_msgs/msg/String"]
     path = tmp_path / "bomb.bag"
     writer = Writer(path)
@@ -470,9 +470,9 @@ def test_reader_keeps_no_python_object_per_message(tmp_path: Path, monkeypatch: 
     """Decoded columns are NumPy blocks: memory per message stays near the values' size."""
     import tracemalloc
 
-    from ilic_cli.io import rosmsgs
+    from ilic_cli.io import roscollect
 
-    monkeypatch.setattr(rosmsgs, "BLOCK", 1000)
+    monkeypatch.setattr(roscollect, "BLOCK", 1000)
 
     path = write_log(make_synthetic_log(samples=20000), tmp_path / "run.mcap")
     read_log(path)  # warm up imports and type stores

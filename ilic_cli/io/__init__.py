@@ -1,7 +1,7 @@
 """Readers and writers for run logs, chosen by path or by an explicit format.
 
-The registry maps a format name to a module with ``read(path, selection)`` and
-``write(log, path, options)``; :func:`detect_format` picks the format from the
+The registry maps a format name to a module with ``read(path, selection, *, fast)``
+and ``write(log, path, options)``; :func:`detect_format` picks the format from the
 path (``.mat``, ``.csv``, ``.mcap``, ``.bag``, a ROS 2 bag folder).
 """
 
@@ -54,16 +54,28 @@ class Selection:
 
 @dataclass(frozen=True)
 class WriteOptions:
-    """Options for writers: ``storage`` is ``sqlite3`` or ``mcap`` (rosbag2 only)."""
+    """Options for writers.
+
+    Attributes
+    ----------
+    storage : str
+        ``sqlite3`` or ``mcap`` (rosbag2 only).
+    joint : str
+        Joint name unless the log's metadata names one.
+    fast : bool
+        Serialise whole columns at once (MCAP, ROS 2 bags); False: the
+        per-message writer, kept as the reference for the differential tests.
+    """
 
     storage: str = "sqlite3"
     joint: str = "axis"
+    fast: bool = True
 
 
 class LogFormat(Protocol):
     """What a format module provides: ``read`` and ``write``."""
 
-    def read(self, path: Path, selection: Selection) -> RunLog: ...
+    def read(self, path: Path, selection: Selection, *, fast: bool = True) -> RunLog: ...
 
     def write(self, log: RunLog, path: Path, options: WriteOptions) -> None: ...
 
@@ -124,12 +136,15 @@ def current_progress(path: Path) -> Iterator[Callable[[int, int], None] | None]:
         display.close()
 
 
-def read_log(path: str | Path, fmt: str | None = None, selection: Selection | None = None, *, validate: bool = True, progress: ProgressFactory | None = None) -> RunLog:
+def read_log(path: str | Path, fmt: str | None = None, selection: Selection | None = None, *, validate: bool = True, progress: ProgressFactory | None = None, fast: bool = True) -> RunLog:
     """Read a log file into a :class:`~ilic_cli.runlog.RunLog`.
 
     Raises :class:`LogError` (one line, naming the file) for a missing, empty,
     corrupt or unusable file. ``progress`` makes a progress display for the
-    file (called with its path) that streaming readers update.
+    file (called with its path) that streaming readers update. ``fast=False``
+    takes the per-message decoding path of the container formats (the
+    reference for the differential tests and benchmarks); both give the same
+    columns bit for bit.
     """
     from ilic_cli.runlog import validate_samples
 
@@ -141,7 +156,9 @@ def read_log(path: str | Path, fmt: str | None = None, selection: Selection | No
     name = detect_format(p, fmt)
     token = _PROGRESS.set(progress)
     try:
-        log = _module(name).read(p, selection or Selection())
+        # the keyword is passed only when it asks for the per-message path, so a
+        # format module without it still reads (and refuses fast=False with TypeError)
+        log = _module(name).read(p, selection or Selection(), **({} if fast else {"fast": False}))
     finally:
         _PROGRESS.reset(token)
     if len(log) >= 100_000:

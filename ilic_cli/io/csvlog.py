@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.errors import LogError
-from ilic_cli.io.rosmsgs import dump_json, meta_for_writing, parse_json_object
+from ilic_cli.io.rosjson import dump_json, meta_for_writing, parse_json_object
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions

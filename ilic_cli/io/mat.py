@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.errors import LogError
-from ilic_cli.io.rosmsgs import dump_json, meta_for_writing, parse_json_object, parse_units
+from ilic_cli.io.rosjson import dump_json, meta_for_writing, parse_json_object, parse_units
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -130,7 +130,7 @@ def _load(path: Path) -> dict[str, Any]:
         raise LogError(path, f"not a readable MATLAB .mat file ({type(exc).__name__}: {text})") from None
 
 
-def read(path: Path, selection: Selection) -> RunLog:
+def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     """Read an EMPS-style ``.mat`` file.
 
     Parameters

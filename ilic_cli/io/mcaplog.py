@@ -5,12 +5,15 @@ Writing: one schema per message type (encoding ``ros2msg``, the concatenated
 message encoding ``cdr``, zstd-compressed chunks (lz4 or none when the
 compressor is not importable) with chunk and data-section CRCs, library string
 ``ilic <version>``: the same log always gives the same bytes. Message bodies
-come from :mod:`ilic_cli.io.rosmsgs`.
+come from :mod:`ilic_cli.io.rosschema`.
 
-Reading streams the file once with :class:`mcap.stream_reader.StreamReader`
-(CRC validation on) and decodes each message as it passes into NumPy columns
-(:class:`ilic_cli.io.rosmsgs.Collector`): no Python object is kept per
-message, so a 1-hour 1 kHz log is read in bounded memory. Before a chunk is decompressed its declared size is
+Reading streams the file once, chunk by chunk, into NumPy columns
+(:class:`ilic_cli.io.roscollect.Collector`): no Python object is kept per
+message, so a 1-hour 1 kHz log is read in bounded memory. The fast path
+(:mod:`ilic_cli.io.mcapscan`) walks the records itself and decodes runs of
+same-layout messages as strided views; ``fast=False`` streams with
+:class:`mcap.stream_reader.StreamReader` (CRC validation on) and decodes
+message by message. Before a chunk is decompressed its declared size is
 checked against ``min(2 GiB, 64 x file size)`` and the decompressor is capped
 at that size, so a hostile file cannot exhaust memory. ``ros1`` encoded
 channels are decoded too; other encodings are refused.
@@ -18,11 +21,12 @@ channels are decoded too; other encodings are refused.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosmsgs
+from ilic_cli.io import roscollect, rosdecode, rosencode, rosschema
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -68,8 +72,13 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
 
     from ilic_cli import __version__
 
-    joint = rosmsgs.writer_joint(log, options.joint)
-    topics, messages = rosmsgs.encode(log, joint, rosmsgs.ROS2)
+    joint = rosencode.writer_joint(log, options.joint)
+    columns = rosencode.encode_columns(log, joint) if options.fast else None
+    if columns is not None:
+        with open(path, "wb") as stream:
+            write_columns(stream, columns, _compression_name(), profile="ros2", library=f"ilic {__version__}")
+        return
+    topics, messages = rosencode.encode(log, joint, rosschema.ROS2)
     with open(path, "wb") as stream:
         writer = Writer(stream, compression=_compression(), enable_crcs=True, enable_data_crcs=True)
         writer.start(profile="ros2", library=f"ilic {__version__}")
@@ -77,7 +86,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         channel_ids: dict[str, int] = {}
         for spec in topics:
             if spec.msgtype not in schema_ids:
-                text, _ = rosmsgs.message_definition(spec.msgtype, rosmsgs.ROS2)
+                text, _ = rosschema.message_definition(spec.msgtype, rosschema.ROS2)
                 schema_ids[spec.msgtype] = writer.register_schema(name=spec.msgtype, encoding="ros2msg", data=text.encode("utf-8"))
             channel_ids[spec.topic] = writer.register_channel(topic=spec.topic, message_encoding="cdr", schema_id=schema_ids[spec.msgtype])
         counts: dict[str, int] = {}
@@ -86,6 +95,83 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
             counts[topic] = seq + 1
             writer.add_message(channel_id=channel_ids[topic], log_time=log_ns, publish_time=log_ns, data=data, sequence=seq)
         writer.finish()
+
+
+def _compression_name() -> str:
+    from mcap.writer import CompressionType
+
+    return {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4"}.get(_compression(), "")
+
+
+BATCH = 65536
+"""Samples framed at a time by the bulk writer."""
+
+
+def write_columns(stream: Any, columns: rosencode.Columns, compression: str, *, profile: str, library: str) -> None:
+    """Write ``columns`` as an MCAP file, record for record as the per-message writer does.
+
+    Parameters
+    ----------
+    stream : binary file
+        Destination, at offset 0.
+    columns : rosencode.Columns
+        The messages (:func:`ilic_cli.io.rosencode.encode_columns`).
+    compression : str
+        ``"zstd"``, ``"lz4"`` or ``""``.
+    profile, library : str
+        Header fields.
+    """
+    from ilic_cli.io.mcapframe import BulkWriter
+
+    writer = BulkWriter(stream, compression)
+    writer.start(profile=profile, library=library)
+    schema_ids: dict[str, int] = {}
+    channel_ids: dict[str, int] = {}
+    for spec in columns.topics:
+        if spec.msgtype not in schema_ids:
+            text, _ = rosschema.message_definition(spec.msgtype, rosschema.ROS2)
+            schema_ids[spec.msgtype] = writer.register_schema(name=spec.msgtype, encoding="ros2msg", data=text.encode("utf-8"))
+        channel_ids[spec.topic] = writer.register_channel(topic=spec.topic, message_encoding="cdr", schema_id=schema_ids[spec.msgtype])
+    ns = columns.log_ns
+    writer.add_message(channel_ids[rosschema.TOPIC_METADATA], int(ns[0]), columns.metadata, int(ns[0]), 0)
+    add_samples(writer, columns, channel_ids)
+    writer.finish()
+
+
+def add_samples(writer: Any, columns: rosencode.Columns, channel_ids: dict[str, int]) -> None:
+    """Frame the per-sample messages of ``columns`` and add them to ``writer`` (a :class:`~ilic_cli.io.mcapframe.BulkWriter`).
+
+    Each sample's messages follow each other in topic order; the message
+    sequence number is the sample index.
+    """
+    import numpy as np
+
+    from ilic_cli.io.mcapframe import MESSAGE_HEAD, frame_head
+
+    ns = columns.log_ns
+    order = columns.sample_topics()
+    slots = []
+    width = 0
+    for topic in order:
+        size = MESSAGE_HEAD + columns.sizes[topic]
+        slots.append((width, size, channel_ids[topic]))
+        width += size
+    for start in range(0, len(ns), BATCH):
+        stop = min(start + BATCH, len(ns))
+        rows = np.empty((stop - start, width), dtype=np.uint8)
+        sequence = np.arange(start, stop, dtype=np.int64)
+        for topic, (offset, size, channel_id) in zip(order, slots):
+            rows[:, offset + MESSAGE_HEAD : offset + size] = columns.rows(topic, start, stop)
+            frame_head(rows, offset, size - 9, channel_id, sequence, ns[start:stop])
+        writer.add_groups(rows, slots, ns[start:stop])
+
+
+@functools.lru_cache(maxsize=1)
+def _zstd() -> Any:
+    """One zstd decompressor, reused for every chunk."""
+    import zstandard
+
+    return zstandard.ZstdDecompressor()
 
 
 def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
@@ -97,11 +183,15 @@ def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     elif chunk.compression == "zstd":
         import zstandard
 
-        import io
+        if zstandard.frame_content_size(chunk.data) == size:
+            # the frame declares the (already bounded) size: one call into a buffer of that size
+            data = _zstd().decompress(chunk.data, max_output_size=size)
+        else:
+            import io
 
-        # a streaming read stops at size + 1 bytes whatever the frame header claims
-        with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data)) as reader:
-            data = reader.read(size + 1)
+            # a streaming read stops at size + 1 bytes whatever the frame header claims
+            with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data)) as reader:
+                data = reader.read(size + 1)
     elif chunk.compression == "lz4":
         import lz4.frame
 
@@ -113,27 +203,37 @@ def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     return data
 
 
-def scan(path: Path, collector: rosmsgs.Collector | None = None, progress: Any = None) -> None:
+def scan(path: Path, collector: roscollect.Collector | None = None, progress: Any = None, *, fast: bool = True) -> None:
     """Read every record of an MCAP file once, checking CRCs; feed messages to ``collector``.
 
     Parameters
     ----------
     path : Path
         The MCAP file.
-    collector : rosmsgs.Collector, optional
+    collector : roscollect.Collector, optional
         Receives every channel (as a topic, ROS message types normalised to
         ``pkg/msg/Type``) and the messages of the topics it reads. Without it
         the file is only checked.
     progress : callable, optional
         Called as ``progress(bytes_read, file_size)`` after each chunk.
+    fast : bool
+        Decode runs of same-layout messages as columns (:mod:`ilic_cli.io.mcapscan`);
+        False: record by record with the ``mcap`` library's stream reader.
 
     Raises
     ------
     LogError
         For a truncated, corrupt (CRC mismatch) or hostile file.
     """
+    from ilic_cli.io.mcapscan import McapScanError
+
     try:
-        _scan(path, collector, progress)
+        if fast:
+            _scan_fast(path, collector, progress)
+        else:
+            _scan(path, collector, progress)
+    except McapScanError as exc:
+        raise LogError(path, f"not a readable MCAP file: {exc}") from None
     except LogError:
         raise
     except MemoryError:
@@ -160,7 +260,32 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def _scan(path: Path, collector: rosmsgs.Collector | None, progress: Any) -> None:
+def _topic(channel: Any, schema: Any) -> rosschema.RawTopic:
+    encoding = channel.message_encoding
+    kind = rosschema.ROS2 if encoding == "cdr" else rosschema.ROS1 if encoding == "ros1" else encoding
+    return rosschema.RawTopic(channel.topic, rosschema.normalize_msgtype(schema.name), kind)
+
+
+def _scan_fast(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:
+    from ilic_cli.io.mcapscan import scan as walk
+
+    limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(path.stat().st_size, 1))
+
+    def declare(channel: Any, schema: Any) -> Any:
+        return collector.declare(_topic(channel, schema)) if collector is not None else None
+
+    def decompress(chunk: Any, cap: int) -> bytes:
+        try:
+            return _decompress(chunk, cap, path)
+        except LogError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - zstd/lz4 errors on damaged data
+            raise LogError(path, f"not a readable MCAP file: a {chunk.compression} chunk cannot be decompressed (file is corrupt: {_describe(exc)})") from None
+
+    walk(path, declare, decompress, limit, progress)
+
+
+def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:
     from mcap.records import Channel, Chunk, Message, Schema
     from mcap.stream_reader import StreamReader, breakup_chunk
 
@@ -180,9 +305,7 @@ def _scan(path: Path, collector: rosmsgs.Collector | None, progress: Any) -> Non
             schema = schemas.get(record.schema_id)
             if schema is None:
                 return
-            encoding = record.message_encoding
-            kind = rosmsgs.ROS2 if encoding == "cdr" else rosmsgs.ROS1 if encoding == "ros1" else encoding
-            sinks[record.id] = collector.declare(rosmsgs.RawTopic(record.topic, rosmsgs.normalize_msgtype(schema.name), kind))
+            sinks[record.id] = collector.declare(_topic(record, schema))
 
     with open(path, "rb") as stream:
         reader = StreamReader(stream, emit_chunks=True, validate_crcs=True, record_size_limit=file_size)
@@ -212,7 +335,7 @@ def _scan(path: Path, collector: rosmsgs.Collector | None, progress: Any) -> Non
         progress(file_size, file_size)
 
 
-def read(path: Path, selection: Selection) -> RunLog:
+def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     """Read a run log from an MCAP file.
 
     Parameters
@@ -221,6 +344,8 @@ def read(path: Path, selection: Selection) -> RunLog:
         The MCAP file.
     selection : Selection
         Topic, reference topic and joint (for files not written by ilic).
+    fast : bool
+        Decode runs of same-layout messages as columns; False: message by message.
 
     Returns
     -------
@@ -228,7 +353,7 @@ def read(path: Path, selection: Selection) -> RunLog:
     """
     from ilic_cli.io import current_progress
 
-    collector = rosmsgs.Collector(path)
+    collector = roscollect.Collector(path)
     with current_progress(path) as progress:
-        scan(path, collector, progress)
-    return rosmsgs.decode_guarded(collector.finish(), selection, path, "MCAP")
+        scan(path, collector, progress, fast=fast)
+    return rosdecode.decode_guarded(collector.finish(), selection, path, "MCAP")

@@ -9,7 +9,7 @@ period must then carry the same bytes everywhere except in the numeric fields
 (record time, ``seq``, stamps, float64 arrays, durations), which is checked
 through strided NumPy views, and the numbers are taken as views. Records that
 do not repeat (layout changes: other string lengths, joint counts) are decoded
-one by one with today's per-message sinks of :mod:`ilic_cli.io.rosmsgs`.
+one by one with today's per-message sinks of :mod:`ilic_cli.io.roscollect`.
 
 The chunk's index data must list exactly the records found in the chunk
 (connection, time and offset); anything this module does not expect in a
@@ -17,7 +17,7 @@ file's structure raises :class:`Fallback`, and the caller reads the whole file
 through the ``rosbags`` reader instead, which reports what is wrong with it.
 
 Writing (:func:`write`) produces the same bytes as ``rosbags``' ROS 1
-``Writer`` fed with :func:`ilic_cli.io.rosmsgs.encode` (uncompressed chunks
+``Writer`` fed with :func:`ilic_cli.io.rosencode.encode` (uncompressed chunks
 closed after the first record past 1 MiB, index data, connection and
 chunk-info records), but serialises whole columns at once.
 """
@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import numpy as np
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosmsgs
+from ilic_cli.io import roscollect, rosencode, rosschema
 
 if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
@@ -222,31 +222,10 @@ class _ChunkRecords:
 
 
 def _inject(sink: Any, layout: _Layout, log_ns: np.ndarray, stamp: np.ndarray | None, arrays: dict[str, np.ndarray]) -> None:
-    """Append ``len(log_ns)`` messages of one layout to a per-message sink's columns.
-
-    The blocks go where the sink's own ``add`` puts decoded messages (its
-    private columns in :mod:`ilic_cli.io.rosmsgs`), so that ``finish`` orders,
-    joins and checks both kinds of messages alike.
-    """
+    """Append ``len(log_ns)`` messages of one layout to a per-message sink (:meth:`roscollect._Sink.add_columns`)."""
     m = len(log_ns)
-    if sink.error is not None or m == 0:
-        return
-    sink._flush()  # noqa: SLF001 - the sink's pending items go first
-    sink._log_ns.blocks.append(log_ns)  # noqa: SLF001
-    if isinstance(sink, rosmsgs._StringSink):  # noqa: SLF001
-        sink.count += m
-        return
-    for name, values in arrays.items():
-        column = sink._arrays[name]  # noqa: SLF001
-        column.blocks.append(values.reshape(-1))
-        column.counts.blocks.append(np.full(m, layout.arrays[name][1], dtype=np.int32))
-    if stamp is not None:
-        nid = sink._names.get(layout.names)  # noqa: SLF001
-        if nid is None:
-            nid = sink._names[layout.names] = len(sink._names)  # noqa: SLF001
-        sink._stamp.blocks.append(stamp)  # noqa: SLF001
-        sink._name_id.blocks.append(np.full(m, nid, dtype=np.int32))  # noqa: SLF001
-    sink.count += m
+    blocks = {name: values.reshape(m, layout.arrays[name][1]) for name, values in arrays.items()}
+    sink.add_columns(log_ns, blocks, stamp, layout.names if stamp is not None else None)
 
 
 class _ChunkWalker:
@@ -377,7 +356,7 @@ class _ChunkWalker:
             sink = self.conns[cid].sink
             if sink is None or sink.error is not None:
                 continue
-            if isinstance(sink, rosmsgs._StringSink) and sink.count == 0:  # noqa: SLF001
+            if not sink.fields and sink.count == 0:  # a String topic: its first message is decoded (and is the only one kept)
                 # the first String message is decoded (and the only one)
                 first = pos + starts[js[0]]
                 _, dstart, dend = _record_header(buf, first, len(buf))
@@ -387,7 +366,7 @@ class _ChunkWalker:
             stamp = None
             if lay.stamp_at >= 0:
                 stamp = column(lay.stamp_at, "<i4").astype(np.int64)[:, 0] * 1_000_000_000 + column(lay.stamp_at + 4, "<u4")[:, 0]
-            wanted = sink._arrays  # noqa: SLF001
+            wanted = sink.fields
             arrays = {name: column(at, "<f8", n).astype(np.float64) for name, (at, n) in lay.arrays.items() if name in wanted}
             _inject(sink, lay, log_ns, stamp, arrays)
         return pos + m * width
@@ -431,7 +410,7 @@ def _index_data(stream: BinaryIO, count: int) -> dict[int, tuple[np.ndarray, np.
     return out
 
 
-def collect(path: Path, limit: int, declare: Callable[[rosmsgs.Collector, list[Any]], dict[int, Any]]) -> rosmsgs.Collected:
+def collect(path: Path, limit: int, declare: Callable[[roscollect.Collector, list[Any]], dict[int, Any]]) -> roscollect.Collected:
     """Read every message of a ROS 1 bag into per-topic columns, vectorised where the layout repeats.
 
     Parameters
@@ -448,7 +427,7 @@ def collect(path: Path, limit: int, declare: Callable[[rosmsgs.Collector, list[A
     Returns
     -------
     Collected
-        As :meth:`rosmsgs.Collector.finish`.
+        As :meth:`roscollect.Collector.finish`.
 
     Raises
     ------
@@ -486,16 +465,16 @@ def collect(path: Path, limit: int, declare: Callable[[rosmsgs.Collector, list[A
         positions = [info.pos for info in infos]
         if len(set(ids)) != len(ids) or len(set(topics)) != len(topics) or positions != sorted(set(positions)):
             raise Fallback  # several connections per topic, or odd indexes: per message
-        collector = rosmsgs.Collector(path)
+        collector = roscollect.Collector(path)
         sinks = declare(collector, connections)
-        ts = rosmsgs.typestore(rosmsgs.ROS1)
+        ts = rosschema.typestore(rosschema.ROS1)
         conns: dict[int, _Conn] = {}
         for c in connections:
             sink = sinks.get(c.id)
-            msgtype = rosmsgs.normalize_msgtype(c.msgtype)
+            msgtype = rosschema.normalize_msgtype(c.msgtype)
             kind = KIND_OTHER
             if sink is not None:
-                kind = {rosmsgs.JOINT_STATE: KIND_STATE, rosmsgs.TRAJECTORY_POINT: KIND_POINT, rosmsgs.STRING: KIND_STRING}.get(msgtype, KIND_OTHER)
+                kind = {rosschema.JOINT_STATE: KIND_STATE, rosschema.TRAJECTORY_POINT: KIND_POINT, rosschema.STRING: KIND_STRING}.get(msgtype, KIND_OTHER)
                 if kind == KIND_OTHER:
                     raise Fallback
             conns[c.id] = _Conn(c.id, kind, sink, msgtype)
@@ -684,22 +663,22 @@ def write(log: RunLog, joint: str, path: Path) -> None:
     path : Path
         Destination file (replaced).
     """
-    topics, _ = rosmsgs.encode(log, joint, rosmsgs.ROS1)  # checks the log; its message iterator is not used
-    ns = rosmsgs.stamps_ns(log.t)
+    topics, _ = rosencode.encode(log, joint, rosschema.ROS1)  # checks the log; its message iterator is not used
+    ns = rosencode.stamps_ns(log.t)
     if int(ns[-1]) // 1_000_000_000 > 2**31 - 1:
         raise LogError(None, "time stamps too large for ROS 1 time (beyond 2038)")
-    ts = rosmsgs.typestore(rosmsgs.ROS1)
+    ts = rosschema.typestore(rosschema.ROS1)
     conn_of = {spec.topic: cid for cid, spec in enumerate(topics)}
     conn_records = b"".join(_connection_record(cid, spec.topic, spec.msgtype, ts) for cid, spec in enumerate(topics))
     ch = log.channels
-    extras = [name for name in ch if name not in {"t", *rosmsgs.STATE_FIELDS, *rosmsgs.REFERENCE_FIELDS}]
-    templates = [_state_template(conn_of[rosmsgs.TOPIC_STATES], [joint], [ch["q"], ch.get("qd"), ch["tau"]])]
-    if rosmsgs.TOPIC_REFERENCE in conn_of:
-        templates.append(_point_template(conn_of[rosmsgs.TOPIC_REFERENCE], [ch.get(n) for n in rosmsgs.REFERENCE_FIELDS]))
+    extras = [name for name in ch if name not in {"t", *rosschema.STATE_FIELDS, *rosschema.REFERENCE_FIELDS}]
+    templates = [_state_template(conn_of[rosschema.TOPIC_STATES], [joint], [ch["q"], ch.get("qd"), ch["tau"]])]
+    if rosschema.TOPIC_REFERENCE in conn_of:
+        templates.append(_point_template(conn_of[rosschema.TOPIC_REFERENCE], [ch.get(n) for n in rosschema.REFERENCE_FIELDS]))
     extra_matrix = np.column_stack([log.t, *(ch[name] for name in extras)]).astype(np.float64)
-    templates.append(_state_template(conn_of[rosmsgs.TOPIC_EXTRAS], [rosmsgs.TIME_NAME, *extras], [extra_matrix, None, None]))
-    meta_payload = rosmsgs._metadata_text(log, joint)  # noqa: SLF001
-    meta_record, meta_time_at = _record(conn_of[rosmsgs.TOPIC_METADATA], [_ros1_string(meta_payload)])
+    templates.append(_state_template(conn_of[rosschema.TOPIC_EXTRAS], [rosschema.TIME_NAME, *extras], [extra_matrix, None, None]))
+    meta_payload = rosencode.metadata_text(log, joint)
+    meta_record, meta_time_at = _record(conn_of[rosschema.TOPIC_METADATA], [_ros1_string(meta_payload)])
     meta_record = bytearray(meta_record)
     meta_record[meta_time_at : meta_time_at + 8] = _time(int(ns[0]))
 
@@ -714,7 +693,7 @@ def write(log: RunLog, joint: str, path: Path) -> None:
     conn_seq = np.array([t.conn for t in templates], dtype=np.int64)
 
     def record_conn(r: np.ndarray) -> np.ndarray:
-        return np.where(r == 0, conn_of[rosmsgs.TOPIC_METADATA], conn_seq[(np.maximum(r, 1) - 1) % k])
+        return np.where(r == 0, conn_of[rosschema.TOPIC_METADATA], conn_seq[(np.maximum(r, 1) - 1) % k])
 
     def record_time(r: np.ndarray) -> np.ndarray:
         return ns[np.maximum(r - 1, 0) // k]

@@ -1,7 +1,7 @@
 """ROS 1 bags (``.bag``, format 2.0) through ``rosbags.rosbag1``.
 
 Messages use the ROS 1 Noetic types of the ``rosbags`` type store (the same
-topics as every ROS container, see :mod:`ilic_cli.io.rosmsgs`), uncompressed
+topics as every ROS container, see :mod:`ilic_cli.io.roscollect`), uncompressed
 chunks, no caller id: the same log always gives the same bytes.
 
 Reading refuses connections whose MD5 sum differs from the built-in
@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosmsgs
+from ilic_cli.io import container, roscollect, rosdecode, rosencode, rosschema
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -47,7 +47,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         (:mod:`ilic_cli.io.ros1fast`), False writes message by message through
         ``rosbags``. Both give the same bytes.
     """
-    joint = rosmsgs.writer_joint(log, options.joint)
+    joint = rosencode.writer_joint(log, options.joint)
     if getattr(options, "fast", True):
         from ilic_cli.io import ros1fast
 
@@ -56,7 +56,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     from rosbags.rosbag1 import Writer
 
     path.unlink(missing_ok=True)  # rosbags refuses to overwrite the placeholder
-    rosmsgs.write_bag(Writer(path), log, joint, rosmsgs.ROS1)
+    container.write_bag(Writer(path), log, joint, rosschema.ROS1)
 
 
 def _bounded(decompress: Any, limit: int, path: Path) -> Any:
@@ -79,16 +79,16 @@ def _bounded(decompress: Any, limit: int, path: Path) -> Any:
     return run
 
 
-def _declare(collector: rosmsgs.Collector, connections: list[Any]) -> dict[int, Any]:
+def _declare(collector: roscollect.Collector, connections: list[Any]) -> dict[int, Any]:
     """Register ``rosbags`` connections with ``collector``; return connection id -> sink of those to read.
 
     A connection whose MD5 sum differs from the built-in definition gets a
     sink that holds the error (raised when its topic is used).
     """
-    ts = rosmsgs.typestore(rosmsgs.ROS1)
+    ts = rosschema.typestore(rosschema.ROS1)
     sinks: dict[int, Any] = {}
     for conn in connections:
-        topic = rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), rosmsgs.ROS1)
+        topic = rosschema.RawTopic(conn.topic, rosschema.normalize_msgtype(conn.msgtype), rosschema.ROS1)
         sink = collector.declare(topic)
         if sink is None:
             continue
@@ -99,12 +99,12 @@ def _declare(collector: rosmsgs.Collector, connections: list[Any]) -> dict[int, 
     return sinks
 
 
-def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
-    """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
-    collector = rosmsgs.Collector(path)
+def _collect(reader: Any, path: Path) -> roscollect.Collected:
+    """Stream the messages of every readable connection into a :class:`roscollect.Collector`."""
+    collector = roscollect.Collector(path)
     sinks = _declare(collector, reader.connections)
     wanted = [conn for conn in reader.connections if conn.id in sinks]
-    rosmsgs.feed_sinks(reader, wanted, sinks, path)
+    container.feed_sinks(reader, wanted, sinks, path)
     return collector.finish()
 
 
@@ -141,7 +141,7 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
         except Exception:  # noqa: BLE001 - Fallback, or anything unexpected on a damaged file: per message
             source = None
         if source is not None:
-            return rosmsgs.decode_guarded(source, selection, path, "ROS 1 bag")
+            return rosdecode.decode_guarded(source, selection, path, "ROS 1 bag")
     try:
         reader = Reader(path)
         reader.open()
@@ -152,11 +152,11 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     try:
         for pos, chunk in list(reader.chunks.items()):
             reader.chunks[pos] = chunk._replace(decompressor=_bounded(chunk.decompressor, limit, path))
-        with rosmsgs.guarded(path, "ROS 1 bag"):
+        with container.guarded(path, "ROS 1 bag"):
             source = _collect(reader, path)
-        return rosmsgs.decode_guarded(source, selection, path, "ROS 1 bag")
+        return rosdecode.decode_guarded(source, selection, path, "ROS 1 bag")
     finally:
-        rosmsgs.close_quietly(reader)
+        container.close_quietly(reader)
 
 
 def _describe(exc: BaseException) -> str:

@@ -1,10 +1,14 @@
 """ROS 2 bag folders through ``rosbags.rosbag2`` (storage ``sqlite3`` or ``mcap``).
 
 Writing creates a bag of format version 9 (Humble CDR types, the topics of
-:mod:`ilic_cli.io.rosmsgs`) with the storage plugin of
+:mod:`ilic_cli.io.rosschema`) with the storage plugin of
 ``WriteOptions.storage``. Reading accepts both storages; the ``.mcap`` files
 of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
-(CRCs, bounded decompression) before ``rosbags`` reads them.
+(CRCs, bounded decompression). With ``fast`` (the default) that scan of a
+bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag is
+read with one ``SELECT`` whose blobs are decoded in runs; ``rosbags`` still
+reads ``metadata.yaml`` and the topics. Otherwise ``rosbags`` streams the
+messages one by one.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosmsgs
+from ilic_cli.io import container, roscollect, rosdecode, rosencode, rosschema
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -40,15 +44,52 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     if options.storage not in STORAGES:
         raise LogError(None, f"unknown rosbag2 storage '{options.storage}' (choose from {', '.join(STORAGES)})")
     plugin = StoragePlugin.MCAP if options.storage == "mcap" else StoragePlugin.SQLITE3
-    joint = rosmsgs.writer_joint(log, options.joint)
+    joint = rosencode.writer_joint(log, options.joint)
     # rosbags names the storage file after the bag folder; write into a
     # folder named like the final target, then lift its files up into `path`.
     path.mkdir()
     inner = path / _target_name(path)
-    rosmsgs.write_bag(Writer(inner, version=Writer.VERSION_LATEST, storage_plugin=plugin), log, joint, rosmsgs.ROS2)
+    columns = rosencode.encode_columns(log, joint) if options.fast else None
+    if columns is not None:
+        _write_columns(inner, plugin, columns)
+    else:
+        container.write_bag(Writer(inner, version=Writer.VERSION_LATEST, storage_plugin=plugin), log, joint, rosschema.ROS2)
     for item in sorted(inner.iterdir()):
         item.rename(path / item.name)
     inner.rmdir()
+
+
+def _write_columns(path: Path, plugin: Any, columns: rosencode.Columns) -> None:
+    """Write a bag with ``rosbags``' writer (metadata, topics, ``metadata.yaml``) and the messages in bulk.
+
+    The storage plugins are the bulk ones of :mod:`ilic_cli.io.rosbulk`; the
+    writer's message counts and time range are kept as its per-message
+    ``write`` would keep them.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from ilic_cli.io.rosbulk import BulkMcapStorage, BulkSqlite3Storage
+
+    class BulkBagWriter(Writer):
+        STORAGE_PLUGINS = {StoragePlugin.SQLITE3: BulkSqlite3Storage, StoragePlugin.MCAP: BulkMcapStorage}
+
+    writer = BulkBagWriter(path, version=Writer.VERSION_LATEST, storage_plugin=plugin)
+    ts = rosschema.typestore(rosschema.ROS2)
+    writer.open()
+    try:
+        connections = {spec.topic: writer.add_connection(spec.topic, spec.msgtype, typestore=ts) for spec in columns.topics}
+        first = int(columns.log_ns[0])
+        writer.write(connections[rosschema.TOPIC_METADATA], first, columns.metadata)
+        assert writer.storage is not None
+        writer.storage.add_samples(columns, {topic: conn.id for topic, conn in connections.items()})
+        for topic in columns.sample_topics():
+            writer.counts[connections[topic].id] += len(columns.log_ns)
+        writer.min_timestamp = min(writer.min_timestamp, int(columns.log_ns.min()))
+        writer.max_timestamp = max(writer.max_timestamp, int(columns.log_ns.max()))
+    except BaseException:
+        writer.abort()
+        raise
+    writer.close()
 
 
 def _target_name(tmp: Path) -> str:
@@ -59,34 +100,149 @@ def _target_name(tmp: Path) -> str:
     return name or "bag"
 
 
-def _collect(reader: Any, path: Path) -> rosmsgs.Collected:
-    """Stream the messages of every readable connection into a :class:`rosmsgs.Collector`."""
+def _collect(reader: Any, path: Path, fast: bool) -> roscollect.Collected:
+    """Stream the messages of every readable connection into a :class:`roscollect.Collector`.
 
-    collector = rosmsgs.Collector(path)
+    With ``fast`` a bag with one uncompressed sqlite3 file is read with one
+    query (:func:`_feed_sqlite`); otherwise ``rosbags`` streams the messages.
+    """
+    collector = roscollect.Collector(path)
     sinks: dict[int, Any] = {}
     wanted = []
     for conn in reader.connections:
         fmt = getattr(conn.ext, "serialization_format", "cdr")
-        kind = rosmsgs.ROS2 if fmt == "cdr" else fmt
-        sink = collector.declare(rosmsgs.RawTopic(conn.topic, rosmsgs.normalize_msgtype(conn.msgtype), kind))
+        kind = rosschema.ROS2 if fmt == "cdr" else fmt
+        sink = collector.declare(rosschema.RawTopic(conn.topic, rosschema.normalize_msgtype(conn.msgtype), kind))
         if sink is not None:
             sinks[conn.id] = sink
             wanted.append(conn)
-    rosmsgs.feed_sinks(reader, wanted, sinks, path)
+    storage = _single_sqlite(reader) if fast else None
+    if storage is not None:
+        _feed_sqlite(storage, wanted, sinks, path)
+    else:
+        container.feed_sinks(reader, wanted, sinks, path)
     return collector.finish()
 
 
-def _precheck_mcap(path: Path) -> None:
+def _single_sqlite(reader: Any) -> Any:
+    """The bag's only storage when it is an uncompressed sqlite3 file, else None."""
+    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+
+    bag = getattr(reader, "storage", None)
+    storages = getattr(bag, "storages", None)
+    metadata = getattr(bag, "metadata", None)
+    if not isinstance(storages, list) or len(storages) != 1 or not isinstance(storages[0], Sqlite3Reader):
+        return None
+    if metadata is None or metadata.compression_mode or not isinstance(storages[0].path, Path):
+        return None
+    return storages[0]
+
+
+SQL_BATCH = 65536
+"""Rows fetched from sqlite3 at a time."""
+
+SQL_MMAP = 2**30
+"""Bytes of the database file sqlite3 may map into memory (an address range, not resident memory)."""
+
+
+def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: Path) -> None:
+    """Read the messages with one ``SELECT`` in insertion order and hand each topic's blobs to its sink as runs.
+
+    Within a batch of rows, a topic's messages of one size at a constant
+    distance in the joined blobs form one run
+    (:meth:`ilic_cli.io.roscollect._Sink.add_run`). Sinks sort by log time
+    (stably), which gives ``rosbags``' order: log time, then insertion.
+    """
+    import gc
+    import sqlite3
+
+    import numpy as np
+
+    from ilic_cli.io import current_progress
+
+    by_id: dict[int, Any] = {}
+    for conn in wanted:
+        for stored in storage.connections:
+            # rosbags' rule for matching a bag's topic with the storage's
+            if stored.topic == conn.topic and stored.msgtype == conn.msgtype and stored.ext == conn.ext and (not stored.digest or not conn.digest or stored.digest == conn.digest):
+                by_id[int(stored.id)] = sinks[conn.id]
+    total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections) or 1
+    done = 0
+    db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
+    collecting = gc.isenabled()
+    gc.disable()  # the rows are tuples without cycles; the collector would walk them over and over
+    try:
+        db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
+        with current_progress(path) as progress:
+            cursor = db.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id")
+            while rows := cursor.fetchmany(SQL_BATCH):
+                topic_ids, stamps, blobs = zip(*rows)
+                del rows
+                topic_id = np.array(topic_ids, dtype=np.int64)
+                log_ns = np.array(stamps, dtype=np.int64)
+                sizes = np.fromiter(map(len, blobs), dtype=np.int64, count=len(blobs))
+                buf = np.frombuffer(b"".join(blobs), dtype=np.uint8)
+                del blobs
+                starts = np.cumsum(sizes) - sizes
+                for tid, sink in by_id.items():
+                    mine = np.flatnonzero(topic_id == tid)
+                    if len(mine):
+                        _feed_runs(sink, buf, starts[mine], sizes[mine], log_ns[mine])
+                done += len(sizes)
+                if progress is not None:
+                    progress(done, total)
+    finally:
+        db.close()
+        if collecting:
+            gc.enable()
+
+
+def _feed_runs(sink: Any, buf: Any, starts: Any, sizes: Any, log_ns: Any) -> None:
+    """Split messages (``starts``, ``sizes`` in ``buf``) into runs of one size at one distance."""
+    import numpy as np
+
+    n = len(starts)
+    step = np.diff(starts)
+    # message i starts a new run when its size differs from the previous one's
+    # or the step to it differs from the step before (a run may then be cut
+    # one message early, never joined wrongly)
+    change = sizes[1:] != sizes[:-1]
+    change[1:] |= step[1:] != step[:-1]
+    bounds = [0, *(np.flatnonzero(change) + 1).tolist(), n]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        stride = int(step[a]) if b - a > 1 else 0
+        sink.add_run(buf, int(starts[a]), stride, b - a, int(sizes[a]), log_ns[a:b])
+
+
+def _scan_mcap(path: Path, fast: bool) -> roscollect.Collected | None:
+    """Check every ``.mcap`` file of the bag (CRCs, bounds); with ``fast`` and one file, also read it.
+
+    Returns the collected messages when the bag's only storage file was read, else None.
+    """
     from ilic_cli.io.mcaplog import scan
 
-    for file in sorted(path.glob("*.mcap")):
+    files = sorted(path.glob("*.mcap"))
+    collector = roscollect.Collector(path) if fast and len(files) == 1 else None
+    for file in files:
         try:
-            scan(file)
+            scan(file, collector, fast=fast)
         except LogError as exc:
             raise LogError(path, f"{file.name}: {exc.problem}") from None
+    return collector.finish() if collector is not None else None
 
 
-def read(path: Path, selection: Selection) -> RunLog:
+def _reads_only(reader: Any, path: Path) -> bool:
+    """Whether the bag's storage is the one uncompressed ``.mcap`` file :func:`_scan_mcap` read."""
+    bag = getattr(reader, "storage", None)
+    storages = getattr(bag, "storages", None)
+    metadata = getattr(bag, "metadata", None)
+    if not isinstance(storages, list) or len(storages) != 1 or metadata is None or metadata.compression_mode:
+        return False
+    stored = getattr(storages[0], "path", None)
+    return isinstance(stored, Path) and stored.suffix == ".mcap" and [stored.resolve()] == [p.resolve() for p in path.glob("*.mcap")]
+
+
+def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     """Read a run log from a ROS 2 bag folder.
 
     Parameters
@@ -95,6 +251,10 @@ def read(path: Path, selection: Selection) -> RunLog:
         The bag folder (with ``metadata.yaml``).
     selection : Selection
         Topic, reference topic and joint (for bags not written by ilic).
+    fast : bool
+        Decode runs of same-layout messages as columns (one query per topic
+        for sqlite3, the MCAP chunk walker for MCAP storage); False: message by
+        message through ``rosbags``.
 
     Returns
     -------
@@ -106,18 +266,18 @@ def read(path: Path, selection: Selection) -> RunLog:
         raise LogError(path, "a ROS 2 bag is a folder with metadata.yaml")
     if not (path / "metadata.yaml").is_file():
         raise LogError(path, "not a ROS 2 bag: no metadata.yaml in the folder")
-    _precheck_mcap(path)
+    scanned = _scan_mcap(path, fast)
     try:
         reader = Reader(path)
         reader.open()
     except LogError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags/sqlite/yaml raise many kinds on bad bags
-        raise LogError(path, f"not a readable ROS 2 bag ({type(exc).__name__}: {rosmsgs.short_text(exc)})") from None
+        raise LogError(path, f"not a readable ROS 2 bag ({type(exc).__name__}: {container.short_text(exc)})") from None
     try:
-        with rosmsgs.guarded(path, "ROS 2 bag"):
-            source = _collect(reader, path)
-        return rosmsgs.decode_guarded(source, selection, path, "ROS 2 bag")
+        with container.guarded(path, "ROS 2 bag"):
+            source = scanned if scanned is not None and _reads_only(reader, path) else _collect(reader, path, fast)
+        return rosdecode.decode_guarded(source, selection, path, "ROS 2 bag")
     finally:
-        rosmsgs.close_quietly(reader)
+        container.close_quietly(reader)
 

@@ -1,0 +1,176 @@
+"""Read and write rates of every log format: the fast (vectorised) path beside the per-message path.
+
+Simulates a ``paper-sim`` log (120 s at 1 kHz, 120k samples; ``--samples N``
+for another length, cut from a longer simulation when needed), writes it in
+every format -- ``.mat``, CSV, MCAP, ROS 1 ``.bag``, ROS 2 bag with sqlite3
+and with MCAP storage -- with ``WriteOptions(fast=True)`` and
+``fast=False``, and reads each file with ``read_log(..., fast=True)`` and
+``fast=False``, in one process, one format after the other. Prints samples
+per second for each path and their ratio; ``n/a`` where a format has no
+per-message path (``.mat``) or does not take the keyword yet (a
+``TypeError``). Every read is checked to give the written columns.
+
+Then times ``ilic simulate --scenario paper-sim --duration 300`` to ``.mat``,
+``.mcap`` and a ROS 2 bag (``--format rosbag2``, sqlite3) as whole processes
+(start-up included) and prints each as a multiple of real time.
+
+Never asserted by tests: run it with ``make bench`` (or
+``python benchmarks/bench_io.py [--samples N] [--repeat R] [--fast-only] [--no-simulate]``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# name, file or folder name, write options (besides fast)
+FORMATS: list[tuple[str, str, dict[str, Any]]] = [
+    ("mat", "log.mat", {}),
+    ("csv", "log.csv", {}),
+    ("mcap", "log.mcap", {}),
+    ("rosbag1", "log.bag", {}),
+    ("rosbag2-sqlite3", "bag_sqlite3", {"storage": "sqlite3"}),
+    ("rosbag2-mcap", "bag_mcap", {"storage": "mcap"}),
+]
+NO_PER_MESSAGE = {"mat"}
+"""Formats read and written whole, without a per-message path to compare with."""
+
+
+def paper_sim(samples: int) -> Any:
+    """A ``paper-sim`` log of ``samples`` samples at 1 kHz (deterministic, seed 1)."""
+    sys.path.insert(0, str(ROOT))
+    from ilic_cli.runlog import RunLog
+    from plant.scenarios import Overrides, run_scenario
+
+    log = run_scenario("paper-sim", Overrides(duration_s=max(samples / 1000.0, 31.0), seed=1))
+    if len(log) > samples:
+        log = RunLog({k: v[:samples] for k, v in log.channels.items()}, dict(log.units), dict(log.meta))
+    return log
+
+
+def timed(run: Callable[[], Any], repeat: int) -> tuple[float | None, Any]:
+    """Best wall time of ``repeat`` runs and the last result; None on TypeError (no such keyword yet)."""
+    best = None
+    result = None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        try:
+            result = run()
+        except TypeError:
+            return None, None
+        dt = time.perf_counter() - t0
+        best = dt if best is None else min(best, dt)
+    return best, result
+
+
+def remove(path: Path) -> None:
+    if path.is_dir():
+        shutil.rmtree(path)
+    elif path.exists():
+        path.unlink()
+
+
+def same_columns(a: Any, b: Any) -> bool:
+    return list(a.channels) == list(b.channels) and all(np.array_equal(a.channels[k].view(np.uint64), b.channels[k].view(np.uint64)) for k in a.channels)
+
+
+def rate(samples: int, seconds: float | None) -> str:
+    return "n/a" if seconds is None else f"{samples / seconds / 1e3:9.0f}k"
+
+
+def ratio(fast: float | None, slow: float | None) -> str:
+    return "n/a" if fast is None or slow is None else f"{slow / fast:6.1f}x"
+
+
+def bench(log: Any, repeat: int = 3, per_message: bool = True, formats: list[str] | None = None) -> list[dict[str, Any]]:
+    """Write and read ``log`` in every format; return one row of timings per format."""
+    from ilic_cli.io import WriteOptions, read_log, write_log
+
+    n = len(log)
+    rows = []
+    work = Path(tempfile.mkdtemp(prefix="ilic-bench-io-"))
+    try:
+        for name, file_name, extra in FORMATS:
+            if formats and name not in formats:
+                continue
+            path = work / file_name
+            row: dict[str, Any] = {"format": name}
+
+            def write(fast: bool, path: Path = path, extra: dict[str, Any] = extra) -> Path:
+                remove(path)
+                return write_log(log, path, options=WriteOptions(fast=fast, **extra))
+
+            row["write_fast"], _ = timed(lambda: write(True), repeat)
+            row["size_mb"] = sum(p.stat().st_size for p in (path.iterdir() if path.is_dir() else [path])) / 2**20
+            row["read_fast"], back = timed(lambda: read_log(path, fast=True), repeat)
+            row["exact"] = same_columns(back, log) if name != "mat" else None
+            row["write_slow"] = row["read_slow"] = None
+            if per_message and name not in NO_PER_MESSAGE:
+                row["read_slow"], slow = timed(lambda: read_log(path, fast=False), 1)
+                if slow is not None and not same_columns(slow, back):
+                    row["exact"] = False
+                if row["read_slow"] is not None:  # a module without the keyword ignores WriteOptions.fast too
+                    row["write_slow"], _ = timed(lambda: write(False), 1)
+            remove(path)
+            rows.append(row)
+            print(
+                f"{name:<16} write {rate(n, row['write_fast'])} vs {rate(n, row['write_slow'])} per message ({ratio(row['write_fast'], row['write_slow'])})"
+                f"   read {rate(n, row['read_fast'])} vs {rate(n, row['read_slow'])} per message ({ratio(row['read_fast'], row['read_slow'])})"
+                f"   {row['size_mb']:6.1f} MiB" + ("" if row["exact"] is not False else "   COLUMNS DIFFER"),
+                flush=True,
+            )
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return rows
+
+
+def simulate_rates(duration_s: float = 300.0) -> None:
+    """Wall time of ``ilic simulate`` to each output as a whole process, as a multiple of real time."""
+    work = Path(tempfile.mkdtemp(prefix="ilic-bench-sim-"))
+    env = dict(os.environ, CI="1")  # no progress display
+    try:
+        for label, out, extra in (("mat", "x.mat", []), ("mcap", "x.mcap", []), ("rosbag2 (sqlite3)", "x_bag", ["--format", "rosbag2"])):
+            args = [sys.executable, "-m", "ilic_cli", "simulate", "--scenario", "paper-sim", "--duration", f"{duration_s:g}", "-o", str(work / out), *extra]
+            t0 = time.perf_counter()
+            proc = subprocess.run(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, check=False)
+            wall = time.perf_counter() - t0
+            status = "" if proc.returncode == 0 else f"  status {proc.returncode}: {proc.stderr.strip().splitlines()[-1:]}"
+            print(f"ilic simulate --duration {duration_s:g} -o {out:<8} {wall:6.2f} s wall = {duration_s / wall:6.1f}x real time{status}", flush=True)
+            remove(work / out)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Simulate the log, then measure every format."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=int, default=120_000)
+    parser.add_argument("--repeat", type=int, default=3, help="runs of each fast path (best is shown); per-message paths run once")
+    parser.add_argument("--fast-only", action="store_true", help="skip the per-message paths")
+    parser.add_argument("--format", action="append", help="only this format (repeatable)")
+    parser.add_argument("--no-simulate", action="store_true", help="skip the ilic simulate timings")
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(ROOT))
+    t0 = time.perf_counter()
+    log = paper_sim(args.samples)
+    print(f"paper-sim log: {len(log)} samples ({len(log) / 1000:.0f} s at 1 kHz), simulated in {time.perf_counter() - t0:.1f} s")
+    print("rates in samples/s, fast path vs per-message path (ratio = per-message time / fast time); best of", args.repeat, "fast runs")
+    bench(log, repeat=args.repeat, per_message=not args.fast_only, formats=args.format)
+    if not args.no_simulate:
+        simulate_rates()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,513 @@
+"""Messages of a container -> per-topic NumPy columns (:class:`Collector`, sinks, :class:`Series`).
+
+Container modules stream every message once into a :class:`Collector`, which
+decodes it with the ``rosbags`` type store and keeps only NumPy columns of the
+values (no Python object per message). Only the built-in message types are
+decoded: definitions stored in a file are never compiled or executed.
+
+Containers that hold messages back to back (MCAP chunks, sqlite3 blobs) hand
+whole runs to :meth:`_Sink.add_run`, which decodes runs of same-layout ROS 2
+messages as columns (:mod:`ilic_cli.io.cdrcols`) and the rest one by one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.errors import LogError
+from ilic_cli.io import cdrcols
+from ilic_cli.io.container import short_text
+from ilic_cli.io.rosschema import JOINT_STATE, ROS1, ROS2, STRING, TRAJECTORY_POINT, RawTopic, typestore
+
+BLOCK = 8192
+"""Messages buffered as Python values before they are packed into NumPy blocks."""
+
+
+JOIN_BYTES = 1 << 20
+"""Small blocks of a column are joined once they hold this many bytes."""
+
+
+class _Blocks:
+    """The NumPy blocks of a growing column; small ones are joined into blocks of about :data:`JOIN_BYTES`.
+
+    Runs give many small arrays, which live on the C heap; glibc keeps freed
+    heap space, so joining them all only at the end would leave the process
+    holding the column twice. Joined blocks are mapped and unmapped whole, and
+    the small ones' space is reused for the next.
+    """
+
+    __slots__ = ("done", "recent", "recent_bytes")
+
+    def __init__(self) -> None:
+        self.done: list[np.ndarray] = []
+        self.recent: list[np.ndarray] = []
+        self.recent_bytes = 0
+
+    def add(self, values: np.ndarray) -> None:
+        self.recent.append(values)
+        self.recent_bytes += values.nbytes
+        if self.recent_bytes >= JOIN_BYTES:
+            self._join()
+
+    def _join(self) -> None:
+        if self.recent:
+            self.done.append(np.concatenate(self.recent) if len(self.recent) > 1 else self.recent[0])
+            self.recent = []
+            self.recent_bytes = 0
+
+    def concat(self, dtype: Any) -> np.ndarray:
+        """All values in one array (and no blocks kept)."""
+        self._join()
+        out = np.concatenate(self.done) if len(self.done) > 1 else self.done[0] if self.done else np.empty(0, dtype=dtype)
+        self.done = []
+        return out
+
+
+class _Numbers:
+    """A growing column of scalars packed into NumPy blocks every :data:`BLOCK` items.
+
+    With ``small=True`` (non-negative counts and indices) a block is stored as
+    uint8 when its values allow, else as the given dtype.
+    """
+
+    __slots__ = ("dtype", "items", "blocks", "small")
+
+    def __init__(self, dtype: Any, small: bool = False) -> None:
+        self.dtype = dtype
+        self.items: list[Any] = []
+        self.blocks = _Blocks()
+        self.small = small
+
+    def block(self, values: np.ndarray) -> None:
+        """Append ``values`` after the items so far."""
+        self.flush()
+        if self.small and len(values) and int(values.max()) < 256 and int(values.min()) >= 0:
+            values = values.astype(np.uint8)
+        self.blocks.add(values)
+
+    def flush(self) -> None:
+        if self.items:
+            block = np.asarray(self.items, dtype=self.dtype)
+            if self.small and len(block) and int(block.max()) < 256 and int(block.min()) >= 0:
+                block = block.astype(np.uint8)
+            self.blocks.add(block)
+            self.items = []
+
+    def array(self) -> np.ndarray:
+        self.flush()
+        return self.blocks.concat(self.dtype)
+
+
+class _Arrays:
+    """A growing column of small float arrays (one per message), flattened into NumPy blocks."""
+
+    __slots__ = ("items", "blocks", "counts")
+
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+        self.blocks = _Blocks()
+        self.counts = _Numbers(np.int32, small=True)
+
+    def append(self, values: Any) -> None:
+        self.items.append(values)
+        self.counts.items.append(len(values))
+
+    def block(self, values: np.ndarray) -> None:
+        """Append one (messages, width) float64 block after the items so far."""
+        self.flush()
+        self.blocks.add(values.reshape(-1))
+        self.counts.block(np.full(values.shape[0], values.shape[1] if values.ndim == 2 else 1, dtype=np.int32))
+
+    def flush(self) -> None:
+        if self.items:
+            try:
+                block = np.concatenate(self.items).astype(np.float64, copy=False)
+            except (ValueError, TypeError):
+                block = np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1) for v in self.items])
+            self.blocks.add(block)
+            self.items = []
+        self.counts.flush()
+
+    def columns(self) -> tuple[np.ndarray, np.ndarray]:
+        self.flush()
+        flat = self.blocks.concat(np.float64)
+        return flat, self.counts.array()
+
+
+@dataclass
+class Series:
+    """Decoded messages of one topic as columns (no per-message Python objects).
+
+    Attributes
+    ----------
+    topic : RawTopic
+        The topic.
+    log_ns : ndarray of int64
+        Log time of each message, sorted.
+    stamp_ns : ndarray of int64 or None
+        ``header.stamp`` of each message (JointState).
+    name_id : ndarray of int32 or None
+        Index into ``names`` of each message's ``name`` list (JointState).
+    names : list of tuple of str
+        Distinct ``name`` lists, in order of first appearance.
+    fields : dict
+        Array field -> ``(flat values, count per message)``.
+    text : str or None
+        Data of the first message (String).
+    """
+
+    topic: RawTopic
+    log_ns: np.ndarray
+    stamp_ns: np.ndarray | None = None
+    name_id: np.ndarray | None = None
+    names: list[tuple[str, ...]] = field(default_factory=list)
+    fields: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    text: str | None = None
+
+    def __len__(self) -> int:
+        return len(self.log_ns)
+
+    def values_at(self, fieldname: str, index: np.ndarray | int, keep: np.ndarray | None = None) -> np.ndarray | None:
+        """Element ``index[i]`` of ``fieldname`` for the messages ``keep``; None when one is too short."""
+        flat, counts = self.fields[fieldname]
+        if keep is None and np.ndim(index) == 0 and len(counts):
+            # the usual case: every message has the same width -> a strided view, no index arrays
+            width = int(counts[0])
+            j = int(index)
+            if width > j and bool((counts == width).all()):
+                return flat if width == 1 else np.ascontiguousarray(flat[j::width])
+            if not (counts > j).all():
+                return None
+        starts = np.cumsum(counts, dtype=np.int64) - counts
+        if keep is not None:
+            counts, starts = counts[keep], starts[keep]
+        if len(counts) == 0 or not (counts > index).all():
+            return None
+        return flat[starts + index]
+
+
+class _Sink:
+    """Decodes the messages of one topic into columns; the first failure is kept, raised on use."""
+
+    arrays: tuple[str, ...] = ()
+
+    def __init__(self, topic: RawTopic) -> None:
+        ts = typestore(topic.kind)
+        self.topic = topic
+        self.count = 0
+        self.error: str | None = None
+        self._deserialize = ts.deserialize_ros1 if topic.kind == ROS1 else ts.deserialize_cdr
+        self._log_ns = _Numbers(np.int64)
+        self._arrays = {name: _Arrays() for name in self.arrays}
+        self._last: tuple[cdrcols.Layout, np.ndarray, np.ndarray] | None = None
+        self._window = 256
+
+    def add(self, log_ns: int, data: bytes | memoryview) -> None:
+        """Decode one message (``log_ns``, raw ``data``) into the columns."""
+        if self.error is not None:
+            return
+        try:
+            msg = self._deserialize(data, self.topic.msgtype)
+            self._take(msg)
+        except Exception as exc:  # noqa: BLE001 - any decoding failure is bad input
+            self.error = f"message {self.count} on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {short_text(exc)})"
+            return
+        self._log_ns.items.append(log_ns)
+        self.count += 1
+        if len(self._log_ns.items) >= BLOCK:
+            self._flush()
+
+    def add_run(self, buf: np.ndarray, base: int, stride: int, count: int, size: int, log_ns: np.ndarray) -> None:
+        """Decode ``count`` messages of ``size`` bytes at ``base + i * stride`` in ``buf``.
+
+        Runs of ROS 2 messages with one layout become columns at once; a
+        message that starts no such run (another layout, encoding or type, a
+        malformed message) is decoded alone by :meth:`add`, so a run that
+        changes layout midway is split where it changes.
+        """
+        fast = self.topic.kind == ROS2 and self.topic.msgtype in cdrcols.FAST_TYPES
+        i = 0
+        while i < count and self.error is None:
+            start = base + i * stride
+            first = bytes(buf[start : start + size])
+            lay = self._layout(first) if fast else None
+            if lay is None:
+                self.add(int(log_ns[i]), first)
+                i += 1
+                continue
+            todo = min(count - i, self._window)
+            n = cdrcols.matching_rows(buf, start, stride, todo, lay)
+            self._window = min(self._window * 2, 1 << 20) if n == todo else 256
+            self._log_ns.block(np.asarray(log_ns[i : i + n], dtype=np.int64))
+            self._columns(buf, start, stride, n, lay)
+            self.count += n
+            i += n
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        """The array fields this sink keeps."""
+        return tuple(self._arrays)
+
+    def add_columns(self, log_ns: np.ndarray, arrays: Mapping[str, np.ndarray], stamp_ns: np.ndarray | None = None,
+                    names: tuple[str, ...] | None = None) -> None:
+        """Append ``len(log_ns)`` messages another reader decoded as columns (a vectorised run).
+
+        ``arrays[field]`` is a (messages, width) float64 block for each of
+        :attr:`fields` (a missing one: width 0); a JointState sink also takes
+        the messages' ``stamp_ns`` and their ``names``. The messages go after
+        those added so far, and :meth:`finish` orders and checks them all alike.
+        """
+        m = len(log_ns)
+        if self.error is not None or m == 0:
+            return
+        self._flush()
+        self._log_ns.block(np.asarray(log_ns, dtype=np.int64))
+        for name, column in self._arrays.items():
+            values = arrays.get(name)
+            column.block(np.empty((m, 0)) if values is None else np.asarray(values, dtype=np.float64).reshape(m, -1))
+        self._columns_added(m, stamp_ns, names)
+        self.count += m
+
+    def _columns_added(self, m: int, stamp_ns: np.ndarray | None, names: tuple[str, ...] | None) -> None:
+        pass
+
+    def _layout(self, data: bytes) -> cdrcols.Layout | None:
+        """Layout of ``data``: the last run's when the structural bytes are the same, else walked and checked."""
+        last = self._last
+        if last is not None and last[0].size == len(data):
+            lay, fixed, structure = last
+            if np.array_equal(np.frombuffer(data, dtype=np.uint8)[fixed], structure):
+                return lay
+        lay = cdrcols.layout(data, self.topic.msgtype)
+        if lay is None or not self._agrees(lay, data):
+            return None
+        fixed = np.flatnonzero(~lay.varying)
+        self._last = (lay, fixed, np.frombuffer(data, dtype=np.uint8)[fixed].copy())
+        return lay
+
+    def _agrees(self, lay: cdrcols.Layout, data: bytes) -> bool:
+        """Whether ``rosbags`` decodes ``data`` to the values ``lay`` finds (a check per run)."""
+        try:
+            msg = self._deserialize(data, self.topic.msgtype)
+            buf = np.frombuffer(data, dtype=np.uint8)
+            for name, (offset, count) in lay.arrays.items():
+                ours = cdrcols.column(buf, offset, 0, 1, "<f8", count).reshape(-1) if count else np.empty(0)
+                theirs = np.asarray(getattr(msg, name), dtype=np.float64)
+                if name in self._arrays and ours.view(np.int64).tolist() != theirs.view(np.int64).tolist():
+                    return False
+            return self._agrees_extra(lay, msg, buf)
+        except Exception:  # noqa: BLE001 - the per-message decoder reports the problem
+            return False
+
+    def _agrees_extra(self, lay: cdrcols.Layout, msg: Any, buf: np.ndarray) -> bool:
+        return True
+
+    def _columns(self, buf: np.ndarray, start: int, stride: int, n: int, lay: cdrcols.Layout) -> None:
+        for name, column in self._arrays.items():
+            offset, count = lay.arrays[name]
+            values = cdrcols.column(buf, start + offset, stride, n, "<f8", count) if count else np.empty((n, 0))
+            column.block(values.reshape(n, count))
+
+    def _take(self, msg: Any) -> None:
+        for name, column in self._arrays.items():
+            column.append(getattr(msg, name))
+
+    def _flush(self) -> None:
+        self._log_ns.flush()
+        for column in self._arrays.values():
+            column.flush()
+
+    def finish(self) -> Series:
+        """Return the columns, sorted by log time (stable)."""
+        series = Series(self.topic, self._log_ns.array())
+        for name, column in self._arrays.items():
+            series.fields[name] = column.columns()
+        self._extra(series)
+        _sort(series)
+        return series
+
+    def _extra(self, series: Series) -> None:
+        pass
+
+
+class _JointStateSink(_Sink):
+    arrays = ("position", "velocity", "effort")
+
+    def __init__(self, topic: RawTopic) -> None:
+        super().__init__(topic)
+        self._stamp = _Numbers(np.int64)
+        self._name_id = _Numbers(np.int32, small=True)
+        self._names: dict[tuple[str, ...], int] = {}
+
+    def _take(self, msg: Any) -> None:
+        key = tuple(msg.name)
+        nid = self._names.get(key)
+        if nid is None:
+            nid = self._names[key] = len(self._names)
+        stamp = msg.header.stamp
+        position, velocity, effort = msg.position, msg.velocity, msg.effort
+        self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
+        self._name_id.items.append(nid)
+        arrays = self._arrays
+        arrays["position"].append(position)
+        arrays["velocity"].append(velocity)
+        arrays["effort"].append(effort)
+
+    def _flush(self) -> None:
+        super()._flush()
+        self._stamp.flush()
+        self._name_id.flush()
+
+    def _agrees_extra(self, lay: cdrcols.Layout, msg: Any, buf: np.ndarray) -> bool:
+        stamp = msg.header.stamp
+        ours = int(cdrcols.times_ns(buf, lay.times["stamp"], 0, 1)[0])
+        return ours == int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec) and tuple(str(x) for x in msg.name) == lay.strings["name"]
+
+    def _columns(self, buf: np.ndarray, start: int, stride: int, n: int, lay: cdrcols.Layout) -> None:
+        super()._columns(buf, start, stride, n, lay)
+        key = lay.strings["name"]
+        nid = self._names.get(key)
+        if nid is None:
+            nid = self._names[key] = len(self._names)
+        self._stamp.block(cdrcols.times_ns(buf, start + lay.times["stamp"], stride, n))
+        self._name_id.block(np.full(n, nid, dtype=np.int32))
+
+    def _columns_added(self, m: int, stamp_ns: np.ndarray | None, names: tuple[str, ...] | None) -> None:
+        assert stamp_ns is not None and names is not None, "JointState columns need their stamps and names"
+        nid = self._names.get(names)
+        if nid is None:
+            nid = self._names[names] = len(self._names)
+        self._stamp.block(np.asarray(stamp_ns, dtype=np.int64))
+        self._name_id.block(np.full(m, nid, dtype=np.int32))
+
+    def _extra(self, series: Series) -> None:
+        series.stamp_ns = self._stamp.array()
+        series.name_id = self._name_id.array()
+        series.names = [tuple(str(x) for x in key) for key in self._names]
+
+
+class _PointSink(_Sink):
+    arrays = ("positions", "velocities", "accelerations")
+
+
+class _StringSink(_Sink):
+    """Keeps the data of the first message only (later ones are counted, not decoded)."""
+
+    def __init__(self, topic: RawTopic) -> None:
+        super().__init__(topic)
+        self._text: str | None = None
+
+    def add(self, log_ns: int, data: bytes | memoryview) -> None:
+        """Decode the first message; count the others."""
+        if self.count == 0 and self.error is None:
+            try:
+                self._text = str(self._deserialize(data, self.topic.msgtype).data)
+            except Exception as exc:  # noqa: BLE001
+                self.error = f"message 0 on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {short_text(exc)})"
+                return
+        self._log_ns.items.append(log_ns)
+        self.count += 1
+        if len(self._log_ns.items) >= BLOCK:
+            self._flush()
+
+    def _agrees_extra(self, lay: cdrcols.Layout, msg: Any, buf: np.ndarray) -> bool:
+        return str(msg.data) == lay.strings["data"]
+
+    def _columns(self, buf: np.ndarray, start: int, stride: int, n: int, lay: cdrcols.Layout) -> None:
+        if self.count == 0:
+            self._text = lay.strings["data"]
+
+    def _extra(self, series: Series) -> None:
+        series.text = self._text
+
+
+_SINKS: dict[str, type[_Sink]] = {JOINT_STATE: _JointStateSink, TRAJECTORY_POINT: _PointSink, STRING: _StringSink}
+
+
+def _sort(series: Series) -> None:
+    """Put the messages of ``series`` in log-time order (stable) when they are not."""
+    log_ns = series.log_ns
+    if len(log_ns) < 2 or bool((log_ns[1:] >= log_ns[:-1]).all()):
+        return
+    order = np.argsort(log_ns, kind="stable")
+    series.log_ns = log_ns[order]
+    if series.stamp_ns is not None:
+        series.stamp_ns = series.stamp_ns[order]
+    if series.name_id is not None:
+        series.name_id = series.name_id[order]
+    for name, (flat, counts) in series.fields.items():
+        starts = (np.cumsum(counts, dtype=np.int64) - counts)[order]
+        counts = counts[order]
+        total = int(counts.sum())
+        shift = np.repeat(starts - (np.cumsum(counts, dtype=np.int64) - counts), counts)
+        series.fields[name] = (flat[np.arange(total, dtype=np.int64) + shift], counts)
+
+
+class Collector:
+    """Streams a container's messages into per-topic columns in one pass.
+
+    Container modules :meth:`declare` every topic (channel, connection) and
+    feed the messages of the topics that can matter to the returned sink's
+    ``add(log_ns, data)``; :meth:`finish` gives the :class:`Collected` that
+    :func:`decode` reads. Only the built-in types of :data:`READ_TYPES` in
+    ROS 1 or ROS 2 (CDR) encoding are decoded; memory grows with the decoded
+    values (about 60 bytes per JointState message), not with Python objects.
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.topics: dict[str, RawTopic] = {}
+        self._sinks: dict[str, _Sink | None] = {}
+
+    def declare(self, topic: RawTopic) -> _Sink | None:
+        """Register ``topic``; return the sink for its messages, or None when they are not read."""
+        known = self.topics.get(topic.name)
+        if known is not None and known != topic:
+            raise LogError(self.path, f"topic {topic.name} appears with two message types")
+        self.topics[topic.name] = topic
+        if topic.name not in self._sinks:
+            sink_type = _SINKS.get(topic.msgtype)
+            self._sinks[topic.name] = sink_type(topic) if sink_type is not None and topic.kind in (ROS1, ROS2) else None
+        return self._sinks[topic.name]
+
+    def finish(self) -> Collected:
+        """Return the collected columns."""
+        data = {name: sink for name, sink in self._sinks.items() if sink is not None}
+        self._sinks = {}
+        return Collected(self.path, dict(self.topics), data)
+
+
+class Collected:
+    """Topics and their decoded columns (from :meth:`Collector.finish`)."""
+
+    def __init__(self, path: Path, topics: dict[str, RawTopic], sinks: dict[str, _Sink]) -> None:
+        self.path = path
+        self.topics = topics
+        self._sinks = sinks
+        self._series: dict[str, Series] = {}
+
+    def series(self, name: str) -> Series:
+        """The columns of topic ``name``; raises the topic's first decoding error."""
+        if name in self._series:
+            return self._series[name]
+        topic = self.topics[name]
+        if topic.kind not in (ROS1, ROS2):
+            raise LogError(self.path, f"topic {topic.name} uses message encoding '{topic.kind}'; only ROS 2 CDR and ROS 1 messages can be read")
+        sink = self._sinks.get(name)
+        if sink is None:
+            raise LogError(self.path, f"topic {topic.name} has unsupported message type {topic.msgtype}")
+        if sink.error is not None:
+            raise LogError(self.path, sink.error)
+        series = self._series[name] = sink.finish()
+        del self._sinks[name]
+        return series
+
+    def release(self, name: str) -> None:
+        """Free the columns of topic ``name``."""
+        self._series.pop(name, None)
+        self._sinks.pop(name, None)

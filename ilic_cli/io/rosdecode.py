@@ -1,0 +1,337 @@
+"""Collected ROS columns -> RunLog.
+
+A file with ``/ilic/metadata`` is read back exactly. Any other file is
+read from its ``sensor_msgs/JointState`` topic (``Selection.topic``, or the only
+one, or ``/joint_states``) for one joint (``Selection.joint`` or the only one):
+``q`` from ``position``, ``qd`` from ``velocity``, ``tau`` from ``effort``, ``t``
+from ``header.stamp`` (log time when every stamp is zero) relative to the first
+sample; the reference from ``Selection.ref_topic`` or ``/joint_reference``
+(``JointTrajectoryPoint`` or ``JointState``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ilic_cli.errors import ChoiceError, LogError
+from ilic_cli.io.container import guarded
+from ilic_cli.io.roscollect import Collected
+from ilic_cli.io.rosjson import parse_json_object, parse_units
+from ilic_cli.io.rosschema import (
+    FORMAT_TAG,
+    FORMAT_VERSION,
+    JOINT_STATE,
+    REFERENCE_FIELDS,
+    STATE_FIELDS,
+    STRING,
+    TIME_NAME,
+    TOPIC_EXTRAS,
+    TOPIC_METADATA,
+    TOPIC_REFERENCE,
+    TOPIC_STATES,
+    TRAJECTORY_POINT,
+)
+
+if TYPE_CHECKING:
+    from ilic_cli.io import Selection
+    from ilic_cli.runlog import RunLog
+
+
+def decode(source: Collected, selection: Selection, path: Path) -> RunLog:
+    """Build a :class:`RunLog` from the collected messages of a container.
+
+    Parameters
+    ----------
+    source : Collected
+        Topics and decoded columns of the file.
+    selection : Selection
+        Topic, reference topic and joint to read (see the module docstring).
+    path : Path
+        The file, named in errors.
+
+    Returns
+    -------
+    RunLog
+        Not yet validated (``read_log`` validates).
+    """
+    topics = source.topics
+    meta_topic = topics.get(TOPIC_METADATA)
+    if meta_topic is not None and meta_topic.msgtype == STRING and selection.topic in (None, TOPIC_STATES):
+        return _decode_ilic(source, selection, path)
+    return _decode_foreign(source, selection, path)
+
+
+def decode_guarded(source: Collected, selection: Selection, path: Path, container: str) -> RunLog:
+    """:func:`decode`, turning any unexpected library failure into a one-line :class:`LogError`.
+
+    Parameters
+    ----------
+    source, selection, path
+        As for :func:`decode`.
+    container : str
+        Container name for the message (``"MCAP"``, ``"ROS 1 bag"``...).
+    """
+    with guarded(path, container):
+        return decode(source, selection, path)
+
+
+def _read_metadata(source: Collected, path: Path) -> dict[str, Any]:
+    series = source.series(TOPIC_METADATA)
+    if len(series) == 0 or series.text is None:
+        raise LogError(path, f"{TOPIC_METADATA} has no message")
+    payload = parse_json_object(series.text, path, f"{TOPIC_METADATA} message")
+    if payload.get("format") != FORMAT_TAG:
+        raise LogError(path, f"{TOPIC_METADATA} is not ilic metadata")
+    if not isinstance(payload.get("version"), int) or payload["version"] > FORMAT_VERSION:
+        raise LogError(path, f"{TOPIC_METADATA} has unsupported version {payload.get('version')!r}; upgrade ilic")
+    return payload
+
+
+def _decode_ilic(source: Collected, selection: Selection, path: Path) -> RunLog:
+    from ilic_cli.runlog import RunLog
+
+    payload = _read_metadata(source, path)
+    joint = payload.get("joint")
+    if not isinstance(joint, str):
+        raise LogError(path, f"{TOPIC_METADATA} has no joint name")
+    if selection.joint is not None and selection.joint != joint:
+        raise LogError(path, f"no joint '{selection.joint}' (joints: {joint})")
+    units = parse_units(payload.get("units", {}), path)
+    meta = payload.get("meta", {})
+    if not isinstance(meta, dict):
+        raise LogError(path, f"{TOPIC_METADATA}: meta is not a JSON object")
+    if TOPIC_STATES not in source.topics or source.topics[TOPIC_STATES].msgtype != JOINT_STATE:
+        raise LogError(path, f"no {TOPIC_STATES} topic of type {JOINT_STATE}")
+    ref_name = selection.ref_topic or TOPIC_REFERENCE
+    states = _joint_state_series(source, TOPIC_STATES, joint, path, strict=True)
+    if ref_name != TOPIC_STATES:
+        source.release(TOPIC_STATES)
+    channels: dict[str, np.ndarray] = {}
+    for channel, fieldname in STATE_FIELDS.items():
+        if states[fieldname] is not None:
+            channels[channel] = states[fieldname]
+    n = len(states["log_ns"])
+    if ref_name in source.topics:
+        ref = _reference_series(source, ref_name, 0, path)
+        source.release(ref_name)
+        if len(ref["log_ns"]) != n:
+            raise LogError(path, f"{ref_name} has {len(ref['log_ns'])} messages but {TOPIC_STATES} has {n}")
+        for channel, fieldname in REFERENCE_FIELDS.items():
+            if ref[fieldname] is not None:
+                channels[channel] = ref[fieldname]
+    elif selection.ref_topic:
+        raise LogError(path, f"no topic {selection.ref_topic} (topics: {', '.join(sorted(source.topics))})")
+    stamp_ns = states["stamp_ns"]
+    del states
+    if TOPIC_EXTRAS in source.topics:
+        extras = _extras_series(source, path)
+        source.release(TOPIC_EXTRAS)
+        if len(extras[TIME_NAME]) != n:
+            raise LogError(path, f"{TOPIC_EXTRAS} has {len(extras[TIME_NAME])} messages but {TOPIC_STATES} has {n}")
+        t = extras.pop(TIME_NAME)
+        channels.update(extras)
+    else:
+        t = stamp_ns.astype(np.float64) / 1e9
+    del stamp_ns
+    source.release(TOPIC_STATES)
+    channels["t"] = t
+    return RunLog(channels, {k: v for k, v in units.items() if k in channels}, dict(meta))
+
+
+def _first(mask: np.ndarray) -> int | None:
+    """Index of the first True in ``mask``, or None."""
+    hits = np.flatnonzero(mask)
+    return int(hits[0]) if len(hits) else None
+
+
+def _extras_series(source: Collected, path: Path) -> dict[str, np.ndarray]:
+    series = source.series(TOPIC_EXTRAS)
+    if len(series) == 0:
+        return {TIME_NAME: np.empty(0)}
+    assert series.name_id is not None
+    names = list(series.names[int(series.name_id[0])])
+    if TIME_NAME not in names or len(set(names)) != len(names):
+        raise LogError(path, f"{TOPIC_EXTRAS} names {names} must be distinct and include '{TIME_NAME}'")
+    flat, counts = series.fields["position"]
+    changed = _first(series.name_id != series.name_id[0])
+    wrong = _first(counts != len(names))
+    if changed is not None and (wrong is None or changed <= wrong):
+        raise LogError(path, f"message {changed} on {TOPIC_EXTRAS} changes the channel names")
+    if wrong is not None:
+        raise LogError(path, f"message {wrong} on {TOPIC_EXTRAS} has {int(counts[wrong])} values for {len(names)} names")
+    if len(names) == 1:
+        return {names[0]: flat}
+    matrix = flat.reshape(len(series), len(names))
+    return {name: matrix[:, j].copy() for j, name in enumerate(names)}
+
+
+def _joint_state_series(source: Collected, topic: str, joint: str | None, path: Path, *, strict: bool) -> dict[str, Any]:
+    """Collect one joint's samples from a JointState topic.
+
+    With ``strict`` every message must carry the joint; otherwise messages
+    without it are skipped. ``joint=None`` picks the only joint, or raises
+    listing the joints.
+    """
+    series = source.series(topic)
+    if len(series) == 0:
+        raise LogError(path, f"topic {topic} has no messages")
+    assert series.name_id is not None and series.stamp_ns is not None
+    # name lists in order of first appearance (in log-time order)
+    if len(series.names) == 1:
+        in_order = list(series.names)
+    else:
+        ids, first_at = np.unique(series.name_id, return_index=True)
+        in_order = [series.names[int(i)] for i in ids[np.argsort(first_at, kind="stable")]]
+    if joint is None:
+        seen: dict[str, None] = {}
+        for names in in_order:
+            for name in names:
+                seen.setdefault(name, None)
+        joints = list(seen)
+        if len(joints) > 1:
+            listed = ", ".join(joints[:20]) + (", ..." if len(joints) > 20 else "")
+            raise ChoiceError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one", "joint")
+        joint = joints[0] if joints else ""
+    # per name list: index of the joint, -1 when named without it, -2 when unnamed
+    table = np.array([names.index(joint) if joint in names else (-1 if names else -2) for names in series.names], dtype=np.int64)
+    pos_counts = series.fields["position"][1]
+    if len(table) == 1 and table[0] >= 0:
+        # one name list for every message, with the joint: no per-message index arrays
+        jj = int(table[0])
+        no_position = _first(pos_counts <= jj)
+        if no_position is not None:
+            raise LogError(path, f"message {no_position} on {topic}: no position for joint '{joint}'")
+        out = {"joint": joint, "log_ns": series.log_ns, "stamp_ns": series.stamp_ns}
+        for fieldname in ("position", "velocity", "effort"):
+            out[fieldname] = series.values_at(fieldname, jj)
+        return out
+    j = table[series.name_id]
+    j = np.where((j == -2) & (joint == "") & (pos_counts == 1), 0, j)
+    missing_joint = _first(j == -1) if strict else None
+    keep = j >= 0
+    no_position = _first(keep & (pos_counts <= j))
+    if missing_joint is not None and (no_position is None or missing_joint < no_position):
+        raise LogError(path, f"message {missing_joint} on {topic} has no joint '{joint}'")
+    if no_position is not None:
+        raise LogError(path, f"message {no_position} on {topic}: no position for joint '{joint}'")
+    if not keep.any():
+        available = sorted({name for names in series.names for name in names})
+        raise LogError(path, f"topic {topic} has no joint '{joint}' (joints: {', '.join(available) or 'none'})")
+    all_kept = bool(keep.all())
+    mask = None if all_kept else keep
+    jk = j if all_kept else j[keep]
+    out: dict[str, Any] = {
+        "joint": joint,
+        "log_ns": series.log_ns if all_kept else series.log_ns[keep],
+        "stamp_ns": series.stamp_ns if all_kept else series.stamp_ns[keep],
+    }
+    for fieldname in ("position", "velocity", "effort"):
+        out[fieldname] = series.values_at(fieldname, jk, mask)
+    return out
+
+
+def _reference_series(source: Collected, topic: str, joint_index: int | None, path: Path, joint: str | None = None) -> dict[str, Any]:
+    info = source.topics[topic]
+    if info.msgtype == JOINT_STATE:
+        states = _joint_state_series(source, topic, joint, path, strict=False)
+        return {
+            "log_ns": states["log_ns"],
+            "positions": states["position"],
+            "velocities": states["velocity"],
+            "accelerations": None,
+        }
+    if info.msgtype != TRAJECTORY_POINT:
+        raise LogError(path, f"reference topic {topic} has type {info.msgtype}; expected {TRAJECTORY_POINT} or {JOINT_STATE}")
+    series = source.series(topic)
+    width = series.fields["positions"][1]
+    if len(width) and bool((width == 1).all()):
+        # one position per message (the usual case): strided views, no index arrays
+        out1: dict[str, Any] = {"log_ns": series.log_ns}
+        for fieldname in ("positions", "velocities", "accelerations"):
+            out1[fieldname] = series.values_at(fieldname, 0)
+        return out1
+    j = np.where(width == 1, 0, -1)
+    if joint_index is not None:
+        j = np.where((width != 1) & (width > joint_index), joint_index, j)
+    bad = _first(j < 0)
+    if bad is not None:
+        raise LogError(path, f"message {bad} on {topic} has {int(width[bad])} positions; cannot tell which belongs to the joint")
+    out: dict[str, Any] = {"log_ns": series.log_ns}
+    for fieldname in ("positions", "velocities", "accelerations"):
+        out[fieldname] = series.values_at(fieldname, j)
+    return out
+
+
+def _choose_state_topic(source: Collected, selection: Selection, path: Path) -> str:
+    topics = source.topics
+    if selection.topic is not None:
+        if selection.topic not in topics:
+            raise LogError(path, f"no topic {selection.topic} (topics: {', '.join(sorted(topics)) or 'none'})")
+        if topics[selection.topic].msgtype != JOINT_STATE:
+            raise LogError(path, f"topic {selection.topic} has type {topics[selection.topic].msgtype}, not {JOINT_STATE}")
+        return selection.topic
+    candidates = sorted(name for name, info in topics.items() if info.msgtype == JOINT_STATE and name != TOPIC_EXTRAS)
+    if len(candidates) == 1:
+        return candidates[0]
+    if TOPIC_STATES in candidates:
+        return TOPIC_STATES
+    if not candidates:
+        listed = ", ".join(f"{n} ({i.msgtype})" for n, i in sorted(topics.items())) or "none"
+        raise LogError(path, f"no {JOINT_STATE} topic (topics: {listed})")
+    raise ChoiceError(path, f"several {JOINT_STATE} topics ({', '.join(candidates)}); choose one", "topic")
+
+
+def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunLog:
+    from ilic_cli.quality import nominal_rate_hz
+    from ilic_cli.runlog import RunLog
+
+    topic = _choose_state_topic(source, selection, path)
+    states = _joint_state_series(source, topic, selection.joint, path, strict=False)
+    joint = states["joint"]
+    stamps = states["stamp_ns"]
+    time_source = "header.stamp"
+    if not stamps.any():
+        stamps = states["log_ns"]
+        time_source = "log_time"
+    order = np.argsort(stamps, kind="stable")
+    stamps = stamps[order]
+    start = int(stamps[0])
+    t = (stamps - start).astype(np.float64) / 1e9
+    channels: dict[str, np.ndarray] = {"t": t}
+    for channel, fieldname in STATE_FIELDS.items():
+        if states[fieldname] is not None:
+            channels[channel] = states[fieldname][order]
+    ref_name = selection.ref_topic or (TOPIC_REFERENCE if TOPIC_REFERENCE in source.topics else None)
+    if ref_name is not None:
+        if ref_name not in source.topics:
+            raise LogError(path, f"no topic {ref_name} (topics: {', '.join(sorted(source.topics))})")
+        joint_index = _joint_index(source, topic, joint)
+        ref = _reference_series(source, ref_name, joint_index, path, joint=joint)
+        log_ns = states["log_ns"][order]
+        for channel, fieldname in REFERENCE_FIELDS.items():
+            values = ref[fieldname]
+            if values is None:
+                continue
+            if len(values) == len(log_ns):
+                channels[channel] = values[np.argsort(ref["log_ns"], kind="stable")]
+            elif len(values) >= 2:
+                ref_order = np.argsort(ref["log_ns"], kind="stable")
+                channels[channel] = np.interp(log_ns.astype(np.float64), ref["log_ns"][ref_order].astype(np.float64), values[ref_order])
+    meta: dict[str, Any] = {"joint": joint, "topic": topic, "start_time_ns": start, "time_source": time_source}
+    if ref_name is not None:
+        meta["ref_topic"] = ref_name
+    rate = nominal_rate_hz(t)
+    if rate:
+        meta["sample_rate_hz"] = rate
+    return RunLog(channels, {}, meta)
+
+
+def _joint_index(source: Collected, topic: str, joint: str) -> int | None:
+    series = source.series(topic)
+    if len(series) == 0 or series.name_id is None:
+        return None
+    names = series.names[int(series.name_id[0])]
+    return names.index(joint) if joint in names else None

@@ -1,0 +1,112 @@
+"""What ilic writes into ROS containers: topics, message types, type stores, definitions.
+
+Topics written (message types from the ``rosbags`` type stores, ROS 2 Humble
+for CDR and ROS 1 Noetic for ROS 1 serialisation):
+
+``/joint_states`` -- ``sensor_msgs/msg/JointState``
+    ``header.stamp`` = sample time, ``name`` = ``[joint]``, ``position`` =
+    ``[q]``, ``velocity`` = ``[qd]`` (empty without ``qd``), ``effort`` = ``[tau]``.
+``/joint_reference`` -- ``trajectory_msgs/msg/JointTrajectoryPoint``
+    ``positions`` = ``[q_ref]``, ``velocities`` = ``[qd_ref]``,
+    ``accelerations`` = ``[qdd_ref]`` (empty where missing), ``time_from_start``
+    = time since the first sample. Only written when the log has a reference.
+``/ilic/extras`` -- ``sensor_msgs/msg/JointState``
+    ``name`` = ``["t_s", <other channels>...]``, ``position`` = their values;
+    ``t_s`` is the exact float64 time, so ``t`` round-trips bit for bit.
+``/ilic/metadata`` -- ``std_msgs/msg/String``
+    One message, JSON ``{"format": "ilic-runlog", "version": 1, "joint": ...,
+    "units": {...}, "meta": {...}}``.
+
+Message log time = sample time in integer nanoseconds (shifted by whole
+seconds when ``t`` starts below zero). Nothing depends on the wall clock.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Any
+
+TOPIC_STATES = "/joint_states"
+TOPIC_REFERENCE = "/joint_reference"
+TOPIC_EXTRAS = "/ilic/extras"
+TOPIC_METADATA = "/ilic/metadata"
+
+JOINT_STATE = "sensor_msgs/msg/JointState"
+TRAJECTORY_POINT = "trajectory_msgs/msg/JointTrajectoryPoint"
+STRING = "std_msgs/msg/String"
+
+READ_TYPES = frozenset({JOINT_STATE, TRAJECTORY_POINT, STRING})
+"""Message types the readers decode; containers may skip messages of other types."""
+
+TIME_NAME = "t_s"
+"""Name of the exact float64 time in ``/ilic/extras``."""
+
+FORMAT_TAG = "ilic-runlog"
+FORMAT_VERSION = 1
+
+STATE_FIELDS = {"q": "position", "qd": "velocity", "tau": "effort"}
+REFERENCE_FIELDS = {"q_ref": "positions", "qd_ref": "velocities", "qdd_ref": "accelerations"}
+
+ROS2 = "ros2"
+ROS1 = "ros1"
+
+
+# -- type stores -------------------------------------------------------------
+@functools.lru_cache(maxsize=None)
+def typestore(kind: str) -> Any:
+    """Return the ``rosbags`` type store: ROS 2 Humble (``"ros2"``) or ROS 1 Noetic (``"ros1"``)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS1_NOETIC if kind == ROS1 else Stores.ROS2_HUMBLE)
+
+
+def message_definition(msgtype: str, kind: str = ROS2) -> tuple[str, str]:
+    """Return ``(definition text, hash)`` of a built-in message type.
+
+    For ``"ros2"`` the text is the ``ros2msg`` concatenated definition that MCAP
+    viewers decode and the hash is RIHS01; for ``"ros1"`` it is the ROS 1
+    definition and its MD5 sum.
+    """
+    ts = typestore(kind)
+    if kind == ROS1:
+        text, digest = ts.generate_msgdef(msgtype)
+    else:
+        text, _ = ts.generate_msgdef(msgtype, ros_version=2)
+        digest = ts.hash_rihs01(msgtype)
+    return text, digest
+
+
+def normalize_msgtype(name: str) -> str:
+    """Return ``pkg/msg/Type`` for ``pkg/Type`` or ``pkg/msg/Type``."""
+    parts = name.strip().split("/")
+    if len(parts) == 2:
+        return f"{parts[0]}/msg/{parts[1]}"
+    return name.strip()
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    """A topic to create: name and message type."""
+
+    topic: str
+    msgtype: str
+
+
+@dataclass(frozen=True)
+class RawTopic:
+    """A topic in a container, as the container module reports it.
+
+    Attributes
+    ----------
+    name : str
+        Topic name.
+    msgtype : str
+        Message type, normalised to ``pkg/msg/Type``.
+    kind : str
+        ``"ros2"`` (CDR) or ``"ros1"`` serialisation; anything else cannot be decoded.
+    """
+
+    name: str
+    msgtype: str
+    kind: str
