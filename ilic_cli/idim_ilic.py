@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.filtering import central_difference, decimation_factor, lowpass_decimate
+from ilic_cli.idim_ls import usable_mask, valid_rows
 from ilic_cli.lsq import LSResult, finite_or_none, solve_batch
 from ilic_cli.regressor import Kinematics, Model
 
@@ -194,8 +195,6 @@ def estimate_windows(
     results = solve_batch(Wd, yd, model.names, sigma="eq8")
     masked: dict[int, str] = {}
     if valid is not None and not np.all(valid):
-        from ilic_cli.idim_ls import valid_rows
-
         rows = valid_rows(np.atleast_2d(valid), r)
         for i in np.flatnonzero(~rows.all(axis=1)):
             keep = rows[i]
@@ -314,8 +313,6 @@ def identify_ilic(
     q_ref_actual = q_ref
     q_ref, qd_ref, qdd_ref = (delay_samples(np.asarray(a, dtype=np.float64), lag) for a in (q_ref, qd_ref, qdd_ref))
     cut = (lambda a: None if a is None else np.asarray(a[:m], dtype=np.float64).reshape(K, n))
-    from ilic_cli.idim_ls import usable_mask
-
     valid = usable_mask(valid, np.shape(t))
     mask = None if valid is None else valid[:m].reshape(K, n)
     windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut(q), t=cut(t), valid=mask)

@@ -51,11 +51,18 @@ def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> 
     fit = doc["fit"]
     for key in ("relative_error_pct", "heldout_relative_error_pct", "simulation_force_relative_error_pct"):
         assert set(fit[key]) >= {"before", "after"}
+    # the README's figures, at their printed digits
+    assert [f["effect"] for f in doc["findings"]] == ["asymmetric_friction", "position_ripple", "stribeck", "delay"]
+    assert fit["relative_error_pct"]["before"] == pytest.approx(4.03, abs=0.005)
+    assert doc["findings"][0]["evidence"]["relative_error_pct"] == pytest.approx(3.06, abs=0.005)  # asymmetric friction alone
+    assert fit["relative_error_pct"]["after"] == pytest.approx(2.07, abs=0.005)
+    assert doc["findings"][3]["parameters"]["delay"]["value"] == pytest.approx(-0.55e-3, abs=0.005e-3)
     sim = fit["simulation_force_relative_error_pct"]
-    assert sim["before"] == pytest.approx(5.85, abs=0.3)  # published 5.848 % (variable-step solver)
-    assert sim["after"] < sim["before"] - 1.0  # 5.86 % -> 4.39 %: the drive lag net of the zero-order hold, a negative Stribeck level
+    assert sim["before"] == pytest.approx(5.86, abs=0.005)  # published 5.848 % (variable-step solver)
+    assert sim["after"] == pytest.approx(4.39, abs=0.005)  # the drive lag net of the zero-order hold, a negative Stribeck level
     effects = doc["model_file"]["effects"]
-    assert effects["stribeck"]["Fs"] < 0 and abs(effects["delay"]["delay"]) < 0.2e-3
+    assert effects["stribeck"]["Fs"] < 0
+    assert effects["delay"]["delay"] == pytest.approx(-0.55e-3 + 0.5e-3, abs=0.005e-3)  # -0.5 ms of it is the zero-order hold
     for name in ("report.md", "report.json", "model.json", "residual.png", "spectrum.png", "force_fit.png"):
         assert (tmp_path / "diag" / name).is_file()
 

@@ -103,13 +103,14 @@ def _good_log(folder: Path) -> Path:
 
 # command -> (argv for a good log, dotted function the command reaches, made to fail)
 INTERNAL: dict[str, tuple[Callable[[Path, Path], list[str]], str]] = {
-    "info": (lambda log, d: ["info", str(log)], "ilic_cli.quality.assess_log"),
-    "convert": (lambda log, d: ["convert", str(log), str(d / "out.mcap")], "ilic_cli.io.write_log"),
-    "identify": (lambda log, d: ["identify", str(log)], "ilic_cli.identify.identify"),
-    "simulate": (lambda log, d: ["simulate", "--scenario", "paper-sim", "--duration", "1", "-o", str(d / "sim.mcap")], "plant.scenarios.run_scenario"),
-    "replay": (lambda log, d: ["replay", str(log), "--model", str(_model_file(d)), "-o", str(d / "replay.mcap")], "ilic_cli.io.read_log"),
-    "diagnose": (lambda log, d: ["diagnose", str(log)], "ilic_cli.io.read_log"),
+    "info": (lambda log, d: ["info", str(log)], "ilic_cli.commands.info.assess_log"),
+    "convert": (lambda log, d: ["convert", str(log), str(d / "out.mcap")], "ilic_cli.commands.convert.write_log"),
+    "identify": (lambda log, d: ["identify", str(log)], "ilic_cli.commands.identify.identify"),
+    "simulate": (lambda log, d: ["simulate", "--scenario", "paper-sim", "--duration", "1", "-o", str(d / "sim.mcap")], "ilic_cli.commands.simulate.run_scenario"),
+    "replay": (lambda log, d: ["replay", str(log), "--model", str(_model_file(d)), "-o", str(d / "replay.mcap")], "ilic_cli.commands.common.read_log"),
+    "diagnose": (lambda log, d: ["diagnose", str(log)], "ilic_cli.commands.common.read_log"),
 }
+"""Command -> (arguments, the name the command module calls, patched there to fail)."""
 
 
 @pytest.mark.parametrize("command", list(INTERNAL))
@@ -124,9 +125,6 @@ def test_internal_failure_is_exit_1_one_line_traceback_only_with_debug(tmp_path:
         raise RuntimeError("simulated bug")
 
     monkeypatch.setattr(module, func, boom)
-    # the command modules import these names at call time, except identify's
-    if command == "identify":
-        monkeypatch.setattr("ilic_cli.identify.identify", boom)
     log = _good_log(tmp_path)
     args = build(log, tmp_path)
     res = run_cli(*args)

@@ -19,7 +19,7 @@ import pytest
 
 from ilic_cli import parameters
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
-from ilic_cli.effects import EFFECTS, catalogue_ids, make_effects, plant_ids
+from ilic_cli.effects import EFFECTS, make_effects, plant_ids
 from ilic_cli.errors import ParameterError
 from ilic_cli.identify import identify
 from ilic_cli.io import read_log, write_log

@@ -9,6 +9,10 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
+from ilic_cli.errors import ChoiceError, IlicError
+from ilic_cli.io import Selection, read_log
+from ilic_cli.parameters import PARAMETERS
+
 if TYPE_CHECKING:
     from ilic_cli.io import Selection
     from ilic_cli.runlog import RunLog
@@ -29,7 +33,6 @@ def input_options(func: F) -> F:
 
 def selection(topic: str | None, ref_topic: str | None, joint: str | None) -> Selection:
     """Build the reader's :class:`~ilic_cli.io.Selection` from the shared options."""
-    from ilic_cli.io import Selection
 
     return Selection(topic=topic, ref_topic=ref_topic, joint=joint)
 
@@ -40,9 +43,7 @@ PROGRESS_MIN_BYTES = 20 * 2**20
 
 def load(path: str | Path, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> RunLog:
     """Read a log with the shared input options (with a progress bar for large files on a terminal)."""
-    from ilic_cli.io import read_log
 
-    from ilic_cli.errors import ChoiceError
 
     progress = ReadProgress if progress_enabled() and _size(Path(path)) >= PROGRESS_MIN_BYTES else None
     try:
@@ -116,7 +117,6 @@ OPTIONS: dict[str, str] = {
 
 def option_for(parameter: str) -> str | None:
     """The option a parameter's value comes from (``Fc`` -> ``--param``, ``stribeck.vs`` -> ``--effect``); ``None`` if none does."""
-    from ilic_cli.parameters import PARAMETERS
 
     if parameter in OPTIONS:
         return OPTIONS[parameter]
@@ -129,7 +129,6 @@ def option_for(parameter: str) -> str | None:
 
 def parse_assignment(text: str, option: str) -> tuple[str, float]:
     """Parse ``NAME=VALUE`` with a finite float value (``--param``, ``--chi0``)."""
-    from ilic_cli.errors import IlicError
 
     key, eq, value = text.partition("=")
     if not eq or not key.strip():
@@ -145,8 +144,8 @@ def parse_assignment(text: str, option: str) -> tuple[str, float]:
 
 def parse_effect_option(text: str) -> tuple[str, dict[str, float]]:
     """Parse ``ID`` or ``ID:k=v,k=v`` (``--effect``)."""
-    from ilic_cli.effects import plant_ids
-    from ilic_cli.errors import IlicError
+    from ilic_cli.effects import plant_ids  # deferred: the effects pull in numba, which info and convert never need
+
 
     eid, _, rest = text.partition(":")
     eid = eid.strip()
@@ -171,7 +170,6 @@ def structure_or_model_file(model: str | None, structure: str | None) -> tuple[s
     Returns ``(structure, model file)``; ``--model rigid`` (no such file) is
     the deprecated spelling of ``--structure rigid`` for this release.
     """
-    from ilic_cli.errors import IlicError
 
     if model is None:
         return structure, None

@@ -7,6 +7,13 @@ from pathlib import Path
 import click
 
 from ilic_cli.commands.common import STRUCTURES, input_options, load, note
+from ilic_cli.diagnosis import DiagnoseSettings, SelectSettings, diagnose
+from ilic_cli.diagnosis.plots import write_plots
+from ilic_cli.diagnosis.report import to_json, to_markdown
+from ilic_cli.effects import catalogue_ids
+from ilic_cli.errors import IlicError
+from ilic_cli.io.atomic import atomic_write_text
+from ilic_cli.modelfile import load_model_file
 
 
 @click.command("diagnose")
@@ -40,11 +47,6 @@ def command(log: Path, model_path: Path | None, structure: str, against: Path | 
       ilic diagnose DATA_EMPS.mat --validate DATA_EMPS_PULSES.mat --out diag/
       ilic diagnose run.mcap --model model.json --format json
     """
-    from ilic_cli.diagnosis import DiagnoseSettings, SelectSettings, diagnose
-    from ilic_cli.effects import catalogue_ids
-    from ilic_cli.diagnosis.report import to_json, to_markdown
-    from ilic_cli.errors import IlicError
-    from ilic_cli.modelfile import load_model_file
 
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise IlicError(out_dir, "--out must be a folder")
@@ -73,9 +75,6 @@ def command(log: Path, model_path: Path | None, structure: str, against: Path | 
 def _write_outputs(result, out_dir: Path, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
     import json
 
-    from ilic_cli.diagnosis.plots import write_plots
-    from ilic_cli.diagnosis.report import to_json, to_markdown
-    from ilic_cli.io.atomic import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "report.md", to_markdown(result), inputs=inputs)

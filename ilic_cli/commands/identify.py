@@ -6,7 +6,17 @@ from pathlib import Path
 
 import click
 
+from ilic_cli import identify_report as render
 from ilic_cli.commands.common import STRUCTURES, input_options, load, note, option_for, parse_effect_option, structure_or_model_file
+from ilic_cli.effects import get
+from ilic_cli.errors import IlicError, ParameterError
+from ilic_cli.identify import identify
+from ilic_cli.idim_ilic import ILICSettings
+from ilic_cli.idim_ls import LSSettings
+from ilic_cli.io.atomic import atomic_write_text, same_path
+from ilic_cli.modelfile import load_model_file, model_document
+from ilic_cli.parameters import DEFAULTS
+from ilic_cli.plotting import plot_identify
 
 
 @click.command("identify")
@@ -45,14 +55,6 @@ def command(log: Path, method: str, structure: str | None, model: str | None, ef
       ilic identify DATA_EMPS.mat --method ls --effect position_ripple:L=0.0125
       ilic identify sim.mcap --format json --out report/
     """
-    from ilic_cli import identify_report as render
-    from ilic_cli.effects import get
-    from ilic_cli.errors import IlicError, ParameterError
-    from ilic_cli.idim_ilic import ILICSettings
-    from ilic_cli.idim_ls import LSSettings
-    from ilic_cli.identify import identify
-    from ilic_cli.modelfile import load_model_file
-    from ilic_cli.parameters import DEFAULTS
 
     structure, model_path = structure_or_model_file(model, structure)
     doc = load_model_file(model_path) if model_path is not None else None
@@ -98,9 +100,6 @@ def command(log: Path, method: str, structure: str | None, model: str | None, ef
 
 
 def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
-    from ilic_cli import identify_report as render
-    from ilic_cli.io.atomic import atomic_write_text
-    from ilic_cli.modelfile import model_document
 
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "report.md", render.to_markdown(result), inputs=inputs)
@@ -111,7 +110,6 @@ def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[P
     atomic_write_text(out_dir / "model.json", render.to_json(doc), inputs=inputs)
     written = [out_dir / n for n in ("report.md", "report.csv", "report.json", "model.json")]
     if plot_format != "none":
-        from ilic_cli.plotting import plot_identify
 
         written += plot_identify(result, run, out_dir, plot_format)
     note(f"ilic: wrote {', '.join(str(p) for p in written)}")
@@ -119,8 +117,6 @@ def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[P
 
 def _refuse_overwriting_inputs(out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:
     """Refuse an --out folder where a report file would replace an input (checked before any work)."""
-    from ilic_cli.errors import IlicError
-    from ilic_cli.io.atomic import same_path
 
     names = ["report.md", "report.csv", "report.json", "model.json"]
     if plot_format != "none":

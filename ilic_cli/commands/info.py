@@ -9,6 +9,8 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ilic_cli.commands.common import input_options, load
+from ilic_cli.io import detect_format
+from ilic_cli.quality import assess_log, nominal_rate_hz
 
 if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
@@ -34,7 +36,6 @@ def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
         ``scenario``, ``true_parameters``, ``joint``, ``meta`` (the rest) and
         ``quality`` (:meth:`QualityReport.to_dict`).
     """
-    from ilic_cli.quality import assess_log, nominal_rate_hz
 
     meta = log.meta
     rate = meta.get("sample_rate_hz")
@@ -129,7 +130,6 @@ def command(log_path: Path, out_format: str, input_format: str | None, topic: st
     """Print the summary of LOG on stdout."""
     import json
 
-    from ilic_cli.io import detect_format
 
     fmt = detect_format(log_path, input_format)
     log = load(log_path, input_format, topic, ref_topic, joint)

@@ -7,6 +7,13 @@ from pathlib import Path
 import click
 
 from ilic_cli.commands.common import LOG_FORMATS, input_options, load, note
+from ilic_cli.errors import IlicError, ParameterError
+from ilic_cli.io import write_log
+from ilic_cli.io.atomic import same_path
+from ilic_cli.modelfile import load_model_file
+from ilic_cli.prepare import prepare_log
+from plant.dynamics import plant_model
+from plant.replay import simulate_replay
 
 
 @click.command("replay")
@@ -30,14 +37,7 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
     Example:
       ilic replay DATA_EMPS.mat --model report/model.json -o replay.mcap
     """
-    from ilic_cli.errors import IlicError, ParameterError
-    from ilic_cli.io import write_log
-    from ilic_cli.modelfile import load_model_file
-    from ilic_cli.prepare import prepare_log
-    from plant.dynamics import plant_model
-    from plant.replay import simulate_replay
 
-    from ilic_cli.io.atomic import same_path
 
     if substeps < 1:
         raise IlicError("--substeps", f"must be >= 1 (got {substeps})")

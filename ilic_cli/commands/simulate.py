@@ -6,8 +6,13 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import (LOG_FORMATS, STRUCTURES, note, option_for, parse_assignment, parse_effect_option, progress_enabled,
-                                      structure_or_model_file)
+from ilic_cli.commands.common import LOG_FORMATS, STRUCTURES, note, option_for, parse_assignment, parse_effect_option, progress_enabled, structure_or_model_file
+from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.io import write_log
+from ilic_cli.io.atomic import same_path
+from ilic_cli.modelfile import load_model_file
+from plant.dynamics import plant_model
+from plant.scenarios import DEFAULT_EMPS_LOG, Overrides, check, get_scenario, run_scenario
 
 SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 
@@ -63,7 +68,6 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
       ilic simulate --scenario paper-sim --param M=90 --effect stribeck:Fs=5,vs=0.01 -o s.mcap
       ilic simulate --scenario emps-benchmark -o emps_sim.mat
     """
-    from ilic_cli.errors import ParameterError
 
     try:
         _simulate(scenario, duration, seed, output, out_format, params, effects, controller, omega, xi, alpha, structure, model, velocity, chi0,
@@ -78,10 +82,6 @@ def _simulate(scenario: str, duration: float | None, seed: int, output: Path, ou
               velocity: str | None, chi0: tuple[str, ...], window_s: float | None, sigma_max: float | None, no_ilic: bool, kp: float | None,
               kv: float | None, gtau: float | None, substeps: int, noise_tau: float | None, noise_q: float | None, resolution: float | None,
               tau_sensor: str | None, trajectory_seed: int | None, log_path: Path | None, published_setup: bool) -> None:
-    from ilic_cli.errors import ParameterError, SimulationError
-    from ilic_cli.io import write_log
-    from ilic_cli.modelfile import load_model_file
-    from plant.scenarios import Overrides, check, get_scenario, run_scenario
 
     get_scenario(scenario)
     structure, model_path = structure_or_model_file(model, structure)
@@ -90,7 +90,6 @@ def _simulate(scenario: str, duration: float | None, seed: int, output: Path, ou
     if model_path is not None:
         doc = load_model_file(model_path)
         try:
-            from plant.dynamics import plant_model
 
             rigid, plant_effects = plant_model(doc["parameters"], doc["effects"])
         except ParameterError as exc:
@@ -122,8 +121,6 @@ def _simulate(scenario: str, duration: float | None, seed: int, output: Path, ou
             ov.pd[key] = value
     check(scenario, ov)
     if get_scenario(scenario).reference == "log":  # refuse before simulating, not after
-        from ilic_cli.io.atomic import same_path
-        from plant.scenarios import DEFAULT_EMPS_LOG
 
         if same_path(log_path or DEFAULT_EMPS_LOG, output):
             raise SimulationError(output, "output would overwrite the replayed log; choose another output path")

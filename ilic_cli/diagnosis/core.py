@@ -7,7 +7,6 @@ command module renders it (:mod:`ilic_cli.diagnosis.report`) and plots it
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 

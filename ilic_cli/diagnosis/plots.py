@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ilic_cli.diagnosis.core import Diagnosis
+from ilic_cli.io.atomic import atomic_path
 
 
 def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
@@ -15,8 +16,6 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from scipy import signal
-
-    from ilic_cli.io.atomic import atomic_path
 
     r = diag.residual
     written: list[Path] = []

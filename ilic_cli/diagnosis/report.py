@@ -6,7 +6,7 @@ import json
 import math
 from typing import Any
 
-from ilic_cli.diagnosis.core import Diagnosis, Finding
+from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.diagnosis.locate import Region
 
 

@@ -71,6 +71,7 @@ def stamps_ns(t: np.ndarray) -> np.ndarray:
 
 
 def metadata_text(log: RunLog, joint: str) -> str:
+    """The JSON of the ``/ilic/metadata`` message (format, version, joint, units, metadata)."""
     payload = {
         "format": FORMAT_TAG,
         "version": FORMAT_VERSION,
