@@ -9,13 +9,12 @@ aligned on the end of the record.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Callable
 
 import numpy as np
-
-from ilic_cli import iir
 
 PARALLEL_MIN_SIZE = 200_000
 """Arrays at least this large are filtered in threads (SciPy's filters release the GIL)."""
@@ -65,8 +64,10 @@ def filtfilt_matlab(b: np.ndarray, a: np.ndarray, x: np.ndarray, axis: int = 0, 
 
     ``keep``: indices along ``axis`` to return (decimation while filtering).
     """
+    from scipy.signal import filtfilt
+
     padlen = 3 * (max(len(a), len(b)) - 1)
-    return _in_threads(lambda c: iir.filtfilt(b, a, c, padlen), x, axis, keep)
+    return _in_threads(lambda c: filtfilt(b, a, c, axis=-1, padtype="odd", padlen=padlen), x, axis, keep)
 
 
 def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 4, *, matlab: bool = True, axis: int = 0) -> np.ndarray:
@@ -85,14 +86,16 @@ def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, ord
         published digits); otherwise second-order sections with SciPy's
         default padding (numerically safer at very low cut-offs).
     """
+    from scipy import signal
+
     wn = cutoff_hz / (fs_hz / 2.0)
     if not 0.0 < wn < 1.0:
         raise ValueError(f"cut-off {cutoff_hz} Hz must lie between 0 and the Nyquist frequency {fs_hz / 2} Hz")
     if matlab:
-        b, a = iir.butter(order, wn)
+        b, a = signal.butter(order, wn)
         return filtfilt_matlab(b, a, x, axis=axis)
-    (sos,) = iir.butter(order, wn, "sos")
-    return np.moveaxis(iir.sosfiltfilt(sos, np.moveaxis(np.asarray(x, dtype=np.float64), axis, -1)), -1, axis)
+    sos = signal.butter(order, wn, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=axis)
 
 
 def central_difference(x: np.ndarray, dt_s: float) -> np.ndarray:
@@ -123,9 +126,11 @@ def decimate_matlab(x: np.ndarray, r: int, axis: int = 0) -> np.ndarray:
     Applied column-wise to a 2-D array, this is the parallel decimation of
     the observation matrix (paper section III).
     """
+    from scipy import signal
+
     if r == 1:
         return np.asarray(x)
-    b, a = iir.cheby1(8, 0.05, 0.8 / r)
+    b, a = signal.cheby1(8, 0.05, 0.8 / r)
     x = np.asarray(x)
     return filtfilt_matlab(b, a, x, axis=axis, keep=kept_indices(x.shape[axis], r))
 
@@ -138,10 +143,21 @@ def lowpass_decimate(x: np.ndarray, r: int, cutoff_hz: float, fs_hz: float, orde
     cut-offs (5 Hz at 1 kHz) where the transfer-function form is not. Kept
     samples are aligned on the end of the record, as :func:`decimate_matlab`.
     """
-    (sos,) = iir.butter(order, cutoff_hz / (fs_hz / 2.0), "sos")
+    from scipy import signal
+
+    sos = _butter_sos(order, cutoff_hz / (fs_hz / 2.0)).copy()
     n = x.shape[axis]
     padlen = min(n - 1, 3 * (2 * len(sos) + 1))
-    return _in_threads(lambda c: iir.sosfiltfilt(sos, c, padlen), x, axis, kept_indices(n, r))
+    return _in_threads(lambda c: signal.sosfiltfilt(sos, c, axis=-1, padlen=padlen), x, axis, kept_indices(n, r))
+
+
+@functools.lru_cache(maxsize=32)
+def _butter_sos(order: int, wn: float) -> np.ndarray:
+    """Butterworth low-pass in second-order sections (cached: the online loop designs it every window)."""
+    from scipy import signal
+
+    sos = signal.butter(order, wn, output="sos")
+    return sos
 
 
 def bilinear_lfilter(b_s: list[float], a_s: list[float], fs_hz: float, x: np.ndarray) -> np.ndarray:
@@ -149,7 +165,8 @@ def bilinear_lfilter(b_s: list[float], a_s: list[float], fs_hz: float, x: np.nda
 
     The filter starts in the steady state of ``x[0]`` (no start-up transient).
     """
-    from scipy.signal import bilinear  # deferred: scipy.signal is slow to import (diagnosis only)
+    from scipy import signal
 
-    b, a = bilinear(b_s, a_s, fs=fs_hz)
-    return iir.lfilter(b, a, np.asarray(x, dtype=np.float64)[None, :], iir.lfilter_zi(b, a)[None, :] * x[0])[0]
+    b, a = signal.bilinear(b_s, a_s, fs=fs_hz)
+    out, _ = signal.lfilter(b, a, x, zi=signal.lfilter_zi(b, a) * x[0])
+    return np.asarray(out)
