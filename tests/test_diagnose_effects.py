@@ -122,3 +122,21 @@ def test_concealed_offset_is_named_when_the_model_has_none(offset: float, seed: 
     assert abs(got - offset) <= 0.15 * abs(offset), got
     ho = diag.fit["heldout_relative_error_pct"]
     assert ho["after"] < ho["before"]
+
+
+@pytest.mark.parametrize("fv_pos, fv_neg", [(203.5, 218.5), (218.5, 203.5)], ids=["backward-higher", "forward-higher"])
+def test_asymmetric_friction_sides_are_recovered(fv_pos: float, fv_neg: float) -> None:
+    """The asymmetry itself (15 N·s/m, of either sign) is recovered within 15 %, on the right side;
+    the Coulomb levels report the offset as Coulomb asymmetry (Fc ± offset), and the model file keeps Fc symmetric."""
+    log, _ = simulated_log({"asymmetric_friction": {"Fv_pos": fv_pos, "Fv_neg": fv_neg, "Fc_pos": 20.39, "Fc_neg": 20.39}}, seed=2, traj_seed=3)
+    diag = diagnose(log, settings=DiagnoseSettings(simulate=False))
+    assert [f.effect.id for f in diag.findings] == ["asymmetric_friction"]
+    p = diag.findings[0].parameters
+    asymmetry = p["Fv_neg"].value - p["Fv_pos"].value
+    assert abs(asymmetry - (fv_neg - fv_pos)) <= 0.15 * abs(fv_neg - fv_pos), asymmetry
+    fc, offset = diag.model_file["parameters"]["Fc"], diag.model_file["parameters"]["offset"]
+    assert p["Fc_pos"].value == pytest.approx(fc + offset) and p["Fc_neg"].value == pytest.approx(fc - offset)
+    assert offset == pytest.approx(TRUE.offset, abs=0.15 * abs(TRUE.offset))
+    plant = diag.model_file["effects"]["asymmetric_friction"]
+    assert plant["Fc_pos"] == plant["Fc_neg"] == fc
+    assert plant["Fv_neg"] - plant["Fv_pos"] == pytest.approx(asymmetry)
