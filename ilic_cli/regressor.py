@@ -89,10 +89,6 @@ class Model:
             raise ValueError(f"columns already in the model: {sorted(clash)}")
         return Model(name or self.name, self.columns + tuple(columns))
 
-    def without(self, *names: str) -> Model:
-        """Return a model without the named columns."""
-        return Model(self.name, tuple(c for c in self.columns if c.name not in names))
-
 
 def _positive(kin: Kinematics) -> np.ndarray:
     return (1.0 + kin.sgn) / 2.0

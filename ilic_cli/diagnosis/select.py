@@ -118,23 +118,32 @@ def effect_columns(data: IDIMData, effect: Effect, value: Any = None, *, remembe
     return data.decimate_once((effect.id, value), full) if remember else data.decimate(full())
 
 
+def extended(base: Model, steps: list[Step] | tuple[Step, ...], fs_hz: float) -> Model:
+    """The regressor of ``base`` plus the columns of ``steps`` (a time shift adds none)."""
+    columns = [c for s in steps for c in s.effect.regressor_columns(s.value, fs_hz)]
+    return base.extend(*columns, name=base.name + "".join(f"+{s.effect.id}" for s in steps)) if columns else base
+
+
 def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
-    """The decimated system ``(W, y, names)`` of ``base`` plus ``steps`` on ``data``.
+    """The decimated system ``(W, y, names)`` of :func:`extended` ``(base, steps)`` on ``data``.
 
     ``data`` must have been prepared with ``base`` (its ``W`` holds the base
-    columns); ``rows`` (default :func:`moving_rows`) selects the rows.
+    columns, decimated once); each step's columns are decimated once on
+    ``data`` (:func:`effect_columns`) and join them in the order of the
+    extended model. ``rows`` (default :func:`moving_rows`) selects the rows.
     """
-    cols = [data.W]
-    names = list(base.names)
+    model = extended(base, steps, data.fs_hz)
     y = data.y
+    cols = [data.W]
     for s in steps:
         if s.effect.shift:
             y = shifted_force(data, float(s.value or 0.0))
         else:
             cols.append(effect_columns(data, s.effect, s.value))
-            names.extend(s.effect.column_names)
     keep = moving_rows(data) if rows is None else rows
-    return np.hstack(cols)[keep], y[keep], tuple(names)
+    W = np.hstack(cols)
+    assert W.shape[1] == len(model.names)
+    return W[keep], y[keep], model.names
 
 
 @dataclass(frozen=True)
