@@ -176,12 +176,11 @@ class Effect:
         ``(q, qd, prm) -> force`` added to the inverse dynamics, with ``prm``
         the parameter values in the order of ``params`` (a float64 array);
         NumPy operations only, so the plant can compile it.
-    compiled : bool
-        The plant's kernel has a compiled form of this effect (checked
-        against ``force`` and the inverse dynamics by the tests).
     plant : bool
         Part of the plant (a model-file effect); ``offset`` is not (it is a
-        rigid parameter), nor is anything without ``params``.
+        rigid parameter). The plant's kernel has a compiled form of the
+        built-in effects (``plant.dynamics.SLOTS``) and compiles ``force`` for
+        any other.
     check : callable, optional
         ``(values) -> None``: rules beyond each parameter's range.
     form, signature : str
@@ -215,7 +214,6 @@ class Effect:
     explanation: str
     params: tuple[PlantParam, ...] = ()
     force: Callable[[Any, Any, np.ndarray], Any] | None = None
-    compiled: bool = False
     plant: bool = True
     check: Callable[[Mapping[str, float]], None] | None = None
     form: str = ""
@@ -593,7 +591,6 @@ ASYMMETRIC_FRICTION = register(Effect(
             PlantParam("Fv_neg", "N/(m/s)", 240.4236, "viscous friction, negative velocity"),
             PlantParam("Fc_pos", "N", 20.1440, "Coulomb friction, positive velocity", low=0.0),
             PlantParam("Fc_neg", "N", 20.6277, "Coulomb friction, negative velocity (a magnitude)", low=0.0)),
-    compiled=True,
     form="extra viscous coefficient for negative velocity: dFv * qd * (1 - sign(qd))/2 (Coulomb asymmetry is the constant offset)",
     signature="residual proportional to velocity on one side of zero only; mean residual differs between positive and negative velocity bins",
     signature_kinds=("velocity",),
@@ -609,7 +606,6 @@ STRIBECK = register(Effect(
     params=(PlantParam("Fs", "N", 5.0, "static friction in excess of Coulomb (negative: lower at low speed)"),
             PlantParam("vs", "m/s", 0.01, "Stribeck velocity", low=0.0, low_open=True)),
     force=lambda q, qd, prm: prm[0] * np.exp(-((qd / prm[1]) ** 2)) * np.sign(qd),
-    compiled=True,
     form="Fs * sign(qd) * exp(-(qd/vs)^2), vs searched",
     signature="residual with the sign of the velocity, concentrated in the low-speed bins and at velocity reversals",
     signature_kinds=("velocity", "reversal"),
@@ -626,7 +622,6 @@ POSITION_RIPPLE = register(Effect(
     params=(PlantParam("A", "N", 2.0, "amplitude"), PlantParam("L", "m", 0.01, "spatial period", low=0.0, low_open=True),
             PlantParam("phase", "rad", 0.0, "phase")),
     force=lambda q, qd, prm: prm[0] * np.sin(2.0 * np.pi * q / prm[1] + prm[2]),
-    compiled=True,
     form="A * sin(2 pi q / P) + B * cos(2 pi q / P), spatial period P searched",
     signature="residual periodic in position: a peak in the residual against position, at frequency velocity/P in time",
     signature_kinds=("position", "frequency"),
@@ -642,7 +637,6 @@ SPRING = register(Effect(
     "A cable chain or a gravity-like preload pulls the carriage towards one end with a force proportional to position.",
     params=(PlantParam("k", "N/m", 100.0, "stiffness"), PlantParam("q0", "m", 0.1, "rest position")),
     force=lambda q, qd, prm: prm[0] * (q - prm[1]),
-    compiled=True,
     form="k * q (its rest position is absorbed by the offset)",
     signature="residual growing linearly with position, same sign in both directions of motion",
     signature_kinds=("position",),
@@ -656,7 +650,6 @@ PAYLOAD_CHANGE = register(Effect(
     "payload_change", "payload change",
     "A mass is added to (or removed from) the carriage during the run, changing the inertia from that time on.",
     params=(PlantParam("dM", "kg", 10.0, "mass added"), PlantParam("t_change", "s", 60.0, "time of the change", low=0.0)),
-    compiled=True,
     form="dM * qdd * [t >= tc], change time tc searched",
     signature="residual proportional to acceleration, after a given time only",
     signature_kinds=("drift", "time"),
@@ -682,7 +675,6 @@ DELAY = register(Effect(
     "delay", "actuation delay",
     "The logged force and the force acting on the axis are not simultaneous: the measurement lags (d > 0) or the drive lags the command (d < 0).",
     params=(PlantParam("delay", "s", 0.002, "logged force = applied force this much earlier; negative: the drive lags the command"),),
-    compiled=True,
     check=_delay_check,
     form="IDM(t) = tau_logged(t + d): the logged force is shifted by the delay d, searched",
     signature="residual proportional to the rate of change of the force; cross-correlation of force and model peaks at a non-zero lag",
@@ -705,7 +697,6 @@ FLEXIBILITY = register(Effect(
     params=(PlantParam("stiffness", "N/m", 2.0e6, "coupling stiffness", low=0.0, low_open=True),
             PlantParam("damping", "N/(m/s)", 500.0, "coupling damping", low=0.0),
             PlantParam("load_fraction", "", 0.3, "share of M behind the coupling")),
-    compiled=True,
     check=_flex_check,
     form="M_load * (H(s) - 1) qdd with H the load's spring-damper response: resonance frequency f_res searched, then its damping ratio",
     signature="residual proportional to acceleration at high frequency: oscillations after acceleration steps and pulses; a spectral peak",
@@ -721,16 +712,15 @@ FLEXIBILITY = register(Effect(
 
 SATURATION = register(Effect(
     "saturation", "drive saturation", "The drive cannot apply more than its peak force: the applied force is clipped.",
-    params=(PlantParam("force_max", "N", 350.0, "largest force the drive applies", low=0.0, low_open=True),), compiled=True,
+    params=(PlantParam("force_max", "N", 350.0, "largest force the drive applies", low=0.0, low_open=True),),
 ))
 
 QUANTIZATION = register(Effect(
     "quantization", "encoder quantization", "The encoder measures the position in whole counts (EMPS: about 2e-7 m per count).",
-    params=(PlantParam("resolution", "m", 2.0e-7, "one count", low=0.0, low_open=True),), compiled=True,
+    params=(PlantParam("resolution", "m", 2.0e-7, "one count", low=0.0, low_open=True),),
 ))
 
 NOISE = register(Effect(
     "noise", "measurement noise", "Gaussian noise on the logged force and on the measured position (seeded, drawn up front).",
     params=(PlantParam("tau_std", "N", 0.0, "force noise std", low=0.0), PlantParam("q_std", "m", 0.0, "position noise std", low=0.0)),
-    compiled=True,
 ))
