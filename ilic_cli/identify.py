@@ -7,7 +7,7 @@ Takes a :class:`~ilic_cli.runlog.RunLog`, returns an :class:`IdentifyReport`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -169,7 +169,7 @@ def identify(
     report = IdentifyReport(source=src, model=structure, fs_hz=fs, samples=len(log), warnings=list(prepared.warnings), effects=effects)
     if method in ("ls", "both"):
         try:
-            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid)
+            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid, segments=prepared.segments)
         except ValueError as exc:
             raise IdentificationError(src, str(exc)) from None
         if not report.ls.result.full_rank:
@@ -191,6 +191,7 @@ def identify(
             )
         except ValueError as exc:
             raise IdentificationError(src, str(exc)) from None
+        report.ilic = _without_cut_windows(report.ilic, prepared.gap_samples, fs, report.warnings)
         not_essential: dict[str, list[int]] = {}
         for w in report.ilic.windows:
             if w.note and not w.note.startswith("not essential"):
@@ -210,14 +211,27 @@ def identify(
         if op.valid is not None:
             report.warnings.append(f"validation log {osrc}: {op.saturation_note()}")
         if report.ls is not None:
-            res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid)
+            res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
             report.validation.append(Validation(osrc, "IDIM-LS", res))
         if report.ilic is not None and report.ilic.windows:
             theta = report.ilic.windows[-1].result.theta
             if np.all(np.isfinite(theta)):
-                res = cross_validate(theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid)
+                res = cross_validate(theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
                 report.validation.append(Validation(osrc, f"IDIM-ILIC (k={report.ilic.windows[-1].k})", res))
     return report
+
+
+def _without_cut_windows(ilic: ILICResult, gap_samples: np.ndarray, fs_hz: float, warnings: list[str]) -> ILICResult:
+    """``ilic`` without the windows a gap of the time stamps cuts (their filtered rows would span it), said in ``warnings``."""
+    if not len(gap_samples) or not ilic.windows:
+        return ilic
+    n = int(round(ilic.settings.window_s * fs_hz))
+    cut = {int(i) // n for i in gap_samples if (int(i) % n) < n - 1}
+    kept = [w for i, w in enumerate(ilic.windows) if i not in cut]
+    dropped = [w.k for i, w in enumerate(ilic.windows) if i in cut]
+    if dropped:
+        warnings.append(f"IDIM-ILIC: window(s) k = {_ranges(dropped)} dropped: a gap in the time stamps cuts them")
+    return replace(ilic, windows=kept)
 
 
 def _ranges(ks: list[int]) -> str:

@@ -187,7 +187,7 @@ def prepare(
         (or all True) keeps every row.
     """
     dt = 1.0 / fs_hz
-    if len(q) <= settings.trim + 3 * settings.decimation * 9:
+    if len(q) < min_samples(settings):
         raise ValueError(f"too few samples ({len(q)}) for IDIM-LS with trim {settings.trim} and decimation {settings.decimation}")
     qf = butter_lowpass_zero_phase(np.asarray(q, dtype=np.float64), settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab)
     qd = central_difference(qf, dt)
@@ -214,19 +214,50 @@ def prepare(
     return IDIMData(kin=kin, tau=y_full, W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
 
 
-def idim_ls(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings(), *, valid: np.ndarray | None = None) -> IDIMLSResult:
+def min_samples(settings: LSSettings) -> int:
+    """Fewest samples :func:`prepare` takes (edge trim plus the decimation filter's padding)."""
+    return settings.trim + 3 * settings.decimation * 9 + 1
+
+
+def _systems(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings,
+             valid: np.ndarray | None, segments: tuple[tuple[int, int], ...] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(W, y, t_dec)`` of the contiguous ``segments`` (default: the whole log), each filtered and decimated on its own, stacked.
+
+    Segments shorter than :func:`min_samples` are left out; none left is an error.
+    """
+    spans = segments or ((0, len(q)),)
+    parts = []
+    for a, b in spans:
+        if b - a < min_samples(settings) and len(spans) > 1:
+            continue
+        data = prepare(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, valid=None if valid is None else valid[a:b])
+        parts.append((data.W, data.y, data.t_dec))
+    if not parts:
+        raise ValueError(f"no contiguous part of the log has the {min_samples(settings)} samples IDIM-LS needs")
+    W, y, td = (np.concatenate(x) for x in zip(*parts, strict=True))
+    return W, y, td
+
+
+def idim_ls(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings(), *,
+            valid: np.ndarray | None = None, segments: tuple[tuple[int, int], ...] | None = None) -> IDIMLSResult:
     """IDIM-LS estimate of ``model`` from measured position and force.
 
     ``valid`` (boolean, one per sample) masks samples such as a saturated
     drive: the decimated rows they touch are left out (see :func:`prepare`).
+    ``segments`` (``(start, stop)`` sample ranges between gaps of the time
+    stamps): each is filtered, differentiated and decimated on its own, never
+    across a gap, and their rows are solved together; the estimate equals that
+    of the segments' rows stacked by hand.
     """
-    data = prepare(t, q, tau, fs_hz, model, settings, valid=valid)
-    result = solve(data.W, data.y, model.names, sigma=settings.sigma)
-    return IDIMLSResult(model=model.name, result=result, settings=settings, t=data.t_dec, y=data.y, y_hat=data.W @ result.theta)
+    t, q, tau = (np.asarray(a, dtype=np.float64) for a in (t, q, tau))
+    W, y, t_dec = _systems(t, q, tau, fs_hz, model, settings, valid, segments)
+    result = solve(W, y, model.names, sigma=settings.sigma)
+    return IDIMLSResult(model=model.name, result=result, settings=settings, t=t_dec, y=y, y_hat=W @ result.theta)
 
 
 def cross_validate(theta: np.ndarray, t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings(),
-                   *, valid: np.ndarray | None = None) -> LSResult:
-    """Apply estimates ``theta`` to another log with the same processing (cross-test validation; ``valid`` as :func:`prepare`)."""
-    data = prepare(t, q, tau, fs_hz, model, settings, valid=valid)
-    return evaluate(data.W, data.y, np.asarray(theta, dtype=np.float64), model.names)
+                   *, valid: np.ndarray | None = None, segments: tuple[tuple[int, int], ...] | None = None) -> LSResult:
+    """Apply estimates ``theta`` to another log with the same processing (cross-test validation; ``valid``, ``segments`` as :func:`idim_ls`)."""
+    t, q, tau = (np.asarray(a, dtype=np.float64) for a in (t, q, tau))
+    W, y, _ = _systems(t, q, tau, fs_hz, model, settings, valid, segments)
+    return evaluate(W, y, np.asarray(theta, dtype=np.float64), model.names)

@@ -1,8 +1,19 @@
 """One preparation of a log for the numerics: its rate, its quality and the samples that may be used.
 
 ``identify``, ``diagnose`` and ``replay`` all start here, so the rate, the
-data-quality warnings and the saturation masking are worked out once and
-the same way for each.
+data-quality warnings, the saturation masking and the contiguous parts
+between gaps of the time stamps are worked out once and the same way for
+each. The rules:
+
+* **rate**: the log's nominal rate (:func:`ilic_cli.quality.nominal_rate_hz`:
+  the mean step over the log, gaps left out, rounded to a round rate within
+  0.05 %), so that stamp jitter of a fixed-rate loop averages out;
+* **gaps** (steps above 1.5 periods): identification filters, differentiates
+  and decimates each contiguous part on its own and never across a gap
+  (IDIM-LS stacks their rows, IDIM-ILIC drops the windows a gap cuts);
+  ``diagnose`` and ``replay`` refuse such a log (a closed-loop replay cannot
+  span a gap);
+* **saturation**: samples on the plateau of a saturated drive are masked.
 """
 
 from __future__ import annotations
@@ -11,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ilic_cli.quality import assess_log, saturation_mask
+from ilic_cli.errors import LogError
+from ilic_cli.quality import assess_log, saturation_mask, segments
 from ilic_cli.runlog import RunLog
 
 
@@ -30,16 +42,33 @@ class PreparedLog:
         (:func:`ilic_cli.quality.saturation_mask`); ``None`` when every one may.
     warnings : tuple of str
         The data-quality warnings, prefixed.
+    segments : tuple of (int, int)
+        The contiguous runs of samples between gaps of the time stamps
+        (``(start, stop)``; one run without gaps).
     """
 
     log: RunLog
     fs_hz: float
     valid: np.ndarray | None
     warnings: tuple[str, ...]
+    segments: tuple[tuple[int, int], ...] = ()
 
     @property
     def source(self) -> str:
         return str(self.log.meta.get("source", ""))
+
+    @property
+    def gap_samples(self) -> np.ndarray:
+        """Index of the last sample before each gap."""
+        return np.array([b - 1 for _, b in self.segments[:-1]], dtype=np.int64)
+
+    def require_contiguous(self, what: str) -> None:
+        """Refuse a log with gaps for ``what`` (a closed-loop replay cannot span a gap)."""
+        if len(self.segments) > 1:
+            t = self.log.t
+            longest = max(float(t[b] - t[b - 1]) for _, b in self.segments[:-1])
+            raise LogError(self.source, f"{len(self.segments) - 1} gap(s) in the time stamps (the longest {longest:.3g} s): {what} needs one "
+                           "contiguous recording; cut the log at the gaps (identify uses the contiguous parts by itself)")
 
     def saturation_note(self) -> str | None:
         """``saturated drive: X % of the samples masked``, or ``None`` without masking."""
@@ -60,4 +89,5 @@ def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
     if quality.saturation_limit is not None and "vir" in log.channels:
         saturated = saturation_mask(log["vir"], quality.saturation_limit)
         valid = ~saturated if saturated.any() else None
-    return PreparedLog(log=log, fs_hz=log.fs_hz, valid=valid, warnings=warnings)
+    fs = log.fs_hz
+    return PreparedLog(log=log, fs_hz=fs, valid=valid, warnings=warnings, segments=segments(log.t, fs))

@@ -149,11 +149,13 @@ class QualityReport:
 def nominal_rate_hz(t: np.ndarray) -> float | None:
     """Return the nominal sample rate of time stamps ``t`` (Hz).
 
-    The measured rate is ``1 / median(diff(t))``. The nominal rate is the first
-    of these candidates within 0.05 % of it: the measured rate rounded to an
-    integer (1000.016 Hz -> 1000 Hz), the inverse of the median step rounded to
-    three significant digits (3.0001 ms -> 333.33 Hz), else the measured rate
-    rounded to six significant digits.
+    The measured rate is the inverse of the mean step over the whole log, gaps
+    left out (steps above :data:`GAP_FACTOR` median steps): stamp jitter of a
+    fixed-rate loop averages out (a median step does not). The nominal rate is
+    the first of these candidates within 0.05 % of it: the measured rate
+    rounded to an integer (1000.016 Hz -> 1000 Hz), the inverse of the mean
+    step rounded to three significant digits (3.0001 ms -> 333.33 Hz), else
+    the measured rate rounded to six significant digits.
 
     Parameters
     ----------
@@ -169,15 +171,28 @@ def nominal_rate_hz(t: np.ndarray) -> float | None:
     t = np.asarray(t, dtype=np.float64).reshape(-1)
     if len(t) < 2:
         return None
-    step = float(np.median(np.diff(t)))
-    if not (step > 0 and math.isfinite(step)):
+    steps = np.diff(t)
+    median = float(np.median(steps))
+    if not (median > 0 and math.isfinite(median)):
         return None
+    step = float(np.mean(steps[steps <= GAP_FACTOR * median]))
     rate = 1.0 / step
     candidates = [float(round(rate)), 1.0 / float(f"{step:.3g}")]
     for cand in candidates:
         if cand > 0 and abs(cand - rate) <= _RATE_TOLERANCE * rate:
             return float(f"{cand:.12g}")
     return float(f"{rate:.6g}")
+
+
+def gap_starts(t: np.ndarray, rate_hz: float) -> np.ndarray:
+    """Indices ``i`` where the step ``t[i+1] - t[i]`` is a gap (above :data:`GAP_FACTOR` periods)."""
+    return np.flatnonzero(np.diff(np.asarray(t, dtype=np.float64)) > GAP_FACTOR / rate_hz)
+
+
+def segments(t: np.ndarray, rate_hz: float) -> tuple[tuple[int, int], ...]:
+    """The contiguous runs of samples between gaps, as ``(start, stop)`` index ranges."""
+    cuts = [0, *(gap_starts(t, rate_hz) + 1).tolist(), len(t)]
+    return tuple((a, b) for a, b in zip(cuts[:-1], cuts[1:]) if b > a)
 
 
 def sampling_stats(t: np.ndarray, rate_hz: float | None = None) -> dict[str, Any]:
@@ -202,7 +217,8 @@ def sampling_stats(t: np.ndarray, rate_hz: float | None = None) -> dict[str, Any
         return {"nominal_rate_hz": rate, "median_step_s": None, "max_step_s": None, "jitter": 0.0, "gaps": 0, "dropped_samples": 0, "irregular": False}
     period = 1.0 / rate
     step = np.diff(t)
-    is_gap = step > GAP_FACTOR * period
+    is_gap = np.zeros(len(step), dtype=bool)
+    is_gap[gap_starts(t, rate)] = True
     gaps = int(is_gap.sum())
     dropped = int(np.maximum(np.rint(step[is_gap] / period) - 1, 1).sum()) if gaps else 0
     regular = step[~is_gap]

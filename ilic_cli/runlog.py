@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.errors import LogError
+from ilic_cli.quality import nominal_rate_hz
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -104,14 +105,14 @@ class RunLog:
 
     @property
     def dt_s(self) -> float:
-        """Nominal sample period (s): from ``sample_rate_hz`` or the median step."""
+        """Nominal sample period (s): from ``sample_rate_hz``, else :func:`ilic_cli.quality.nominal_rate_hz` of the stamps."""
         rate = self.meta.get("sample_rate_hz")
         if rate:
             return 1.0 / float(rate)
-        t = self.t
-        if len(t) < 2:
-            raise LogError(self.meta.get("source"), "fewer than two samples: no sample period")
-        return float(np.median(np.diff(t)))
+        nominal = nominal_rate_hz(self.t) if len(self.t) >= 2 else None
+        if nominal is None:
+            raise LogError(self.meta.get("source"), "fewer than two increasing time stamps: no sample period")
+        return 1.0 / nominal
 
     @property
     def fs_hz(self) -> float:

@@ -44,7 +44,6 @@ PROGRESS_MIN_BYTES = 20 * 2**20
 def load(path: str | Path, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> RunLog:
     """Read a log with the shared input options (with a progress bar for large files on a terminal)."""
 
-
     progress = ReadProgress if progress_enabled() and _size(Path(path)) >= PROGRESS_MIN_BYTES else None
     try:
         return read_log(path, input_format, selection(topic, ref_topic, joint), progress=progress)
@@ -145,7 +144,6 @@ def parse_assignment(text: str, option: str) -> tuple[str, float]:
 def parse_effect_option(text: str) -> tuple[str, dict[str, float]]:
     """Parse ``ID`` or ``ID:k=v,k=v`` (``--effect``)."""
     from ilic_cli.effects import plant_ids  # deferred: the effects pull in numba, which info and convert never need
-
 
     eid, _, rest = text.partition(":")
     eid = eid.strip()

@@ -11,8 +11,6 @@ from ilic_cli.commands.common import LOG_FORMATS, input_options, load, note
 from ilic_cli.errors import LogError
 from ilic_cli.io import WriteOptions, detect_format, write_log
 from ilic_cli.io.atomic import same_path
-from ilic_cli.quality import assess_log
-from ilic_cli.runlog import RunLog
 
 if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
@@ -38,6 +36,7 @@ def resample(log: RunLog, rate_hz: float) -> RunLog:
     """
     import numpy as np
 
+    from ilic_cli.runlog import RunLog  # deferred: numpy
 
     t = log.t
     span = float(t[-1] - t[0])
@@ -64,6 +63,7 @@ def resample(log: RunLog, rate_hz: float) -> RunLog:
 @input_options
 def command(source: Path, target: Path, out_format: str | None, storage: str, resample_hz: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
     """Read IN, optionally resample, write OUT atomically (never over IN)."""
+    from ilic_cli.quality import assess_log  # deferred: numpy; `ilic convert --help` stays instant
 
 
     if same_path(source, target):

@@ -75,7 +75,6 @@ def command(log: Path, model_path: Path | None, structure: str, against: Path | 
 def _write_outputs(result, out_dir: Path, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
     import json
 
-
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "report.md", to_markdown(result), inputs=inputs)
     atomic_write_text(out_dir / "report.json", to_json(result), inputs=inputs)

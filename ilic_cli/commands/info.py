@@ -10,7 +10,6 @@ import click
 
 from ilic_cli.commands.common import input_options, load
 from ilic_cli.io import detect_format
-from ilic_cli.quality import assess_log, nominal_rate_hz
 
 if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
@@ -36,6 +35,7 @@ def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
         ``scenario``, ``true_parameters``, ``joint``, ``meta`` (the rest) and
         ``quality`` (:meth:`QualityReport.to_dict`).
     """
+    from ilic_cli.quality import assess_log, nominal_rate_hz  # deferred: numpy; `ilic info --help` stays instant
 
     meta = log.meta
     rate = meta.get("sample_rate_hz")
@@ -129,7 +129,6 @@ def render_markdown(summary: dict[str, Any]) -> str:
 def command(log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
     """Print the summary of LOG on stdout."""
     import json
-
 
     fmt = detect_format(log_path, input_format)
     log = load(log_path, input_format, topic, ref_topic, joint)

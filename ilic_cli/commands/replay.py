@@ -38,7 +38,6 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
       ilic replay DATA_EMPS.mat --model report/model.json -o replay.mcap
     """
 
-
     if substeps < 1:
         raise IlicError("--substeps", f"must be >= 1 (got {substeps})")
     if same_path(log, output):  # refuse before any work (and before any warning)
@@ -49,7 +48,9 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
     except ParameterError as exc:
         raise exc.at(model_file) from None
     run = load(log, input_format, topic, ref_topic, joint)
-    for w in prepare_log(run).warnings:
+    prepared = prepare_log(run)
+    prepared.require_contiguous("a replay")
+    for w in prepared.warnings:
         note(f"ilic: warning: {w}")
     sim = simulate_replay(run, params, effects, substeps=substeps, seed=seed)
     sim.meta["model_file"] = str(model_file)

@@ -198,12 +198,15 @@ def diagnose(
     """
     settings = settings or DiagnoseSettings()
     prepared = prepare_log(log)
+    prepared.require_contiguous("diagnosis")
     fs = prepared.fs_hz
     src = prepared.source
     warnings: list[str] = list(prepared.warnings)
     base = base_model(model_doc, settings.model)
     data = _prepare(prepared, base, settings.ls)
     vprepared = prepare_log(validate, prefix=f"validation log {validate.meta.get('source', '')}") if validate is not None else None
+    if vprepared is not None:
+        vprepared.require_contiguous("diagnosis")
     vdata = _prepare(vprepared, base, settings.ls) if vprepared is not None else None
     for p in (prepared, vprepared):
         if p is not None and p.saturation_note() is not None:

@@ -1,0 +1,78 @@
+"""The time base of a log: gaps split identification into contiguous parts, stamp jitter averages out.
+
+DATA_EMPS.mat with samples removed (a dropped-message gap) or with jittered
+stamps must give the published IDIM-LS estimate, not a silently wrong one;
+diagnose and replay, whose closed-loop replay cannot span a gap, refuse it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ilic_cli.identify import identify
+from ilic_cli.idim_ls import LSSettings, idim_ls, prepare
+from ilic_cli.lsq import solve
+from ilic_cli.io import read_log, write_log
+from ilic_cli.quality import nominal_rate_hz, segments
+from ilic_cli.regressor import get_model
+from ilic_cli.runlog import RunLog
+from tests.clirun import run_cli
+
+M_PUBLISHED = 95.1089
+
+
+def _without(log: RunLog, start: int, count: int) -> RunLog:
+    keep = np.ones(len(log), dtype=bool)
+    keep[start : start + count] = False
+    return RunLog({k: v[keep] for k, v in log.channels.items()}, dict(log.units), dict(log.meta))
+
+
+@pytest.fixture(scope="module")
+def emps(emps_mat: Path) -> RunLog:
+    return read_log(emps_mat)
+
+
+def test_a_gap_splits_identification_into_its_segments(emps: RunLog, tmp_path: Path) -> None:
+    gapped = _without(emps, 12000, 200)
+    assert segments(gapped.t, gapped.fs_hz) == ((0, 12000), (12000, len(gapped)))
+    report = identify(gapped, method="ls")
+    M = float(report.ls.result.theta[0])  # type: ignore[union-attr]
+    assert abs(M - M_PUBLISHED) <= 1e-3 * M_PUBLISHED, M
+    # exactly the identification of the two segments' rows stacked
+    model, s = get_model("rigid-offset"), LSSettings()
+    parts = [prepare(gapped.t[a:b], gapped["q"][a:b], gapped["tau"][a:b], 1000.0, model, s) for a, b in ((0, 12000), (12000, len(gapped)))]
+    stacked = solve(np.concatenate([p.W for p in parts]), np.concatenate([p.y for p in parts]), model.names, sigma=s.sigma)
+    assert np.array_equal(report.ls.result.theta, stacked.theta)  # type: ignore[union-attr]
+    # not across the gap: the whole-log processing (as before this rule) is visibly wrong
+    across = idim_ls(gapped.t, gapped["q"], gapped["tau"], 1000.0, model, s)
+    assert abs(float(across.result.theta[0]) - M_PUBLISHED) > 10 * abs(M - M_PUBLISHED)
+    # the command line says so and gives the same answer; the IDIM-ILIC window the gap cuts is dropped
+    path = write_log(gapped, tmp_path / "gap.mcap")
+    res = run_cli("identify", str(path), "--format", "json")
+    assert res.status == 0, res.stderr
+    assert "gap" in res.stderr and "dropped: a gap in the time stamps cuts them" in res.stderr
+
+
+def test_stamp_jitter_averages_out(emps: RunLog) -> None:
+    rng = np.random.default_rng(8)
+    t = emps.t + rng.uniform(-0.15e-3, 0.15e-3, len(emps))
+    meta = {k: v for k, v in emps.meta.items() if k != "sample_rate_hz"}
+    jittered = RunLog({**emps.channels, "t": t}, dict(emps.units), meta)
+    assert nominal_rate_hz(t) == 1000.0 and jittered.fs_hz == 1000.0
+    M = float(identify(jittered, method="ls").ls.result.theta[0])  # type: ignore[union-attr]
+    assert abs(M - M_PUBLISHED) <= 5e-4 * M_PUBLISHED, M
+
+
+def test_diagnose_and_replay_refuse_a_gap(emps: RunLog, tmp_path: Path) -> None:
+    path = write_log(_without(emps, 12000, 200), tmp_path / "gap.mcap")
+    res = run_cli("diagnose", str(path), "--no-simulation")
+    assert res.status == 2 and "1 gap(s) in the time stamps" in res.stderr and "diagnosis needs one contiguous recording" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+    model = tmp_path / "m.json"
+    model.write_text('{"M": 95.1, "Fv": 203.5, "Fc": 20.4}')
+    res = run_cli("replay", str(path), "--model", str(model), "-o", str(tmp_path / "r.mcap"))
+    assert res.status == 2 and "a replay needs one contiguous recording" in res.stderr
+    assert not (tmp_path / "r.mcap").exists()
