@@ -22,7 +22,16 @@ CTC_REPLAY_KEYS = ("omega", "xi", "alpha", "model", "window_s", "sigma_max_pct",
 """CTC settings a replay takes over from the log (the parameters come from its ``*_hat`` channels or the model)."""
 
 
+def records_controller(log: RunLog) -> bool:
+    """Whether ``log`` records the controller that ran (``meta["controller"]``, or the PD command ``vir``)."""
+    return bool(log.meta.get("controller")) or "vir" in log
+
+
 def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
+    """The controller the log records (:func:`records_controller`); a log with none is refused."""
+    if not records_controller(log):
+        raise SimulationError(log.meta.get("source"), "the log records no controller (its kind and gains): a replay needs the loop that ran; "
+                              "give the PD loop's gains and drive gain, or choose CTC")
     ctl = dict(log.meta.get("controller") or {})
     kind = str(ctl.get("kind", "")).lower()
     if kind == "pd" or (not kind and "vir" in log):

@@ -103,7 +103,7 @@ def _good_log(folder: Path) -> Path:
 
 # command -> (argv for a good log, dotted function the command reaches, made to fail)
 INTERNAL: dict[str, tuple[Callable[[Path, Path], list[str]], str]] = {
-    "info": (lambda log, d: ["info", str(log)], "ilic_cli.commands.info.assess_log"),
+    "info": (lambda log, d: ["info", str(log)], "ilic_cli.quality.assess_log"),  # imported by the command at call time
     "convert": (lambda log, d: ["convert", str(log), str(d / "out.mcap")], "ilic_cli.commands.convert.write_log"),
     "identify": (lambda log, d: ["identify", str(log)], "ilic_cli.commands.identify.identify"),
     "simulate": (lambda log, d: ["simulate", "--scenario", "paper-sim", "--duration", "1", "-o", str(d / "sim.mcap")], "ilic_cli.commands.simulate.run_scenario"),

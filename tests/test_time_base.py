@@ -76,3 +76,27 @@ def test_diagnose_and_replay_refuse_a_gap(emps: RunLog, tmp_path: Path) -> None:
     res = run_cli("replay", str(path), "--model", str(model), "-o", str(tmp_path / "r.mcap"))
     assert res.status == 2 and "a replay needs one contiguous recording" in res.stderr
     assert not (tmp_path / "r.mcap").exists()
+
+
+def test_a_log_without_its_controller_is_refused_or_given_one(emps: RunLog, tmp_path: Path) -> None:
+    """diagnose and replay use the controller the log records; without one they refuse unless the options give it,
+    and the "held command" rule applies only to a log whose force is the recorded command."""
+    from ilic_cli.diagnosis.compare import tau_sensor
+
+    bare = RunLog({k: emps[k] for k in ("t", "q", "tau", "q_ref")}, {}, {"source": "bare.csv"})
+    assert tau_sensor(emps) == "command" and tau_sensor(bare) is None
+    path = write_log(bare, tmp_path / "bare.csv")
+    model = tmp_path / "m.json"
+    model.write_text('{"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "offset": -3.1648}')
+    for args in (["diagnose", str(path)], ["replay", str(path), "--model", str(model), "-o", str(tmp_path / "r.mcap")]):
+        res = run_cli(*args)
+        assert res.status == 2 and "the log records no controller" in res.stderr and "--controller pd --kp --kv --drive-gain" in res.stderr, res.stderr
+    res = run_cli("replay", str(path), "--model", str(model), "-o", str(tmp_path / "r.mcap"), "--controller", "pd", "--kp", "160.18")
+    assert res.status == 2 and "pd needs --kv, --drive-gain" in res.stderr
+    res = run_cli("replay", str(path), "--model", str(model), "-o", str(tmp_path / "r.mcap"), "--controller", "pd", "--kp", "160.18", "--kv", "243.45",
+                  "--drive-gain", "35.15065188")
+    assert res.status == 0, res.stderr
+    assert read_log(tmp_path / "r.mcap").meta["controller"]["kind"] == "pd"
+    # a log that records its controller keeps it
+    res = run_cli("replay", str(write_log(emps, tmp_path / "emps.mcap")), "--model", str(model), "-o", str(tmp_path / "r2.mcap"), "--controller", "ctc")
+    assert res.status == 2 and "records its controller" in res.stderr

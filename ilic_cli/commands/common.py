@@ -14,7 +14,6 @@ from ilic_cli.io import Selection, read_log
 from ilic_cli.parameters import PARAMETERS
 
 if TYPE_CHECKING:
-    from ilic_cli.io import Selection
     from ilic_cli.runlog import RunLog
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -160,6 +159,46 @@ def parse_effect_option(text: str) -> tuple[str, dict[str, float]]:
             except ValueError:
                 raise IlicError("--effect", f"'{text}': '{value}' is not a number") from None
     return eid, params
+
+
+def controller_options(func: F) -> F:
+    """Add ``--controller``, ``--kp``, ``--kv`` and ``--drive-gain`` (the loop of a log that records none)."""
+    func = click.option("--drive-gain", "drive_gain", type=click.FloatRange(min=0, min_open=True), default=None, help="PD drive gain (N/V) of a log without a recorded controller.")(func)
+    func = click.option("--kv", type=click.FloatRange(min=0, min_open=True), default=None, help="PD velocity gain of a log without a recorded controller.")(func)
+    func = click.option("--kp", type=click.FloatRange(min=0, min_open=True), default=None, help="PD position gain (1/s) of a log without a recorded controller.")(func)
+    func = click.option("--controller", "controller", type=click.Choice(["pd", "ctc"]), default=None,
+                        help="The loop that ran, for a log that records none (pd needs --kp, --kv, --drive-gain; ctc: the paper's gains).")(func)
+    return func
+
+
+def with_controller(log: RunLog, where: Path, controller: str | None, kp: float | None, kv: float | None, drive_gain: float | None) -> RunLog:
+    """``log`` with the controller the options give when it records none; refuse a log with neither.
+
+    A log that records its controller keeps it: the options are refused then,
+    rather than silently overriding the recording.
+    """
+    from ilic_cli.runlog import RunLog  # deferred: numpy (info and convert --help stay instant)
+    from plant.replay import records_controller  # deferred: the plant pulls in numba
+
+    given = controller is not None or any(v is not None for v in (kp, kv, drive_gain))
+    if records_controller(log):
+        if given:
+            raise IlicError("--controller", f"{where} records its controller; the options apply only to a log that records none")
+        return log
+    if controller is None:
+        raise IlicError(where, "the log records no controller (its kind and gains): give the loop that ran with --controller pd --kp --kv "
+                        "--drive-gain, or --controller ctc")
+    meta = dict(log.meta)
+    if controller == "pd":
+        missing = [name for name, v in (("--kp", kp), ("--kv", kv), ("--drive-gain", drive_gain)) if v is None]
+        if missing:
+            raise IlicError("--controller", f"pd needs {', '.join(missing)}")
+        meta["controller"], meta["drive_gain"] = {"kind": "pd", "kp": kp, "kv": kv}, drive_gain
+    else:
+        if any(v is not None for v in (kp, kv, drive_gain)):
+            raise IlicError("--controller", "--kp, --kv and --drive-gain are PD gains; ctc takes none")
+        meta["controller"] = {"kind": "ctc"}
+    return RunLog(dict(log.channels), dict(log.units), meta)
 
 
 def structure_or_model_file(model: str | None, structure: str | None) -> tuple[str | None, Path | None]:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import STRUCTURES, input_options, load, note
+from ilic_cli.commands.common import STRUCTURES, controller_options, input_options, load, note, with_controller
 from ilic_cli.diagnosis import DiagnoseSettings, SelectSettings, diagnose
 from ilic_cli.diagnosis.plots import write_plots
 from ilic_cli.diagnosis.report import to_json, to_markdown
@@ -28,9 +28,11 @@ from ilic_cli.modelfile import load_model_file
 @click.option("--no-simulation", "no_simulation", is_flag=True, help="Skip the replay through the plant.")
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="What to print on stdout.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report.md, report.json, model.json and plots.")
+@controller_options
 @input_options
 def command(log: Path, model_path: Path | None, structure: str, against: Path | None, validate: Path | None, alpha: float, folds: int, effects: str | None, no_simulation: bool, out_format: str, out_dir: Path | None,
-            input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+            controller: str | None, kp: float | None, kv: float | None, drive_gain: float | None, input_format: str | None, topic: str | None, ref_topic: str | None,
+            joint: str | None) -> None:
     """Find and model the physics the rigid model leaves out of LOG.
 
     Identifies the rigid model (IDIM-LS), locates where the force residual is
@@ -59,6 +61,8 @@ def command(log: Path, model_path: Path | None, structure: str, against: Path | 
             raise IlicError("--effects", f"unknown effect {', '.join(unknown) or '(none given)'} (catalogue: {', '.join(catalogue)})")
     model_doc = load_model_file(model_path) if model_path is not None else None
     run = load(log, input_format, topic, ref_topic, joint)
+    if not no_simulation and against is None:  # the replay needs the loop that ran
+        run = with_controller(run, log, controller, kp, kv, drive_gain)
     sim = load(against, None, topic, ref_topic, joint) if against is not None else None
     other = load(validate, None, topic, ref_topic, joint) if validate is not None else None
     settings = DiagnoseSettings(model=structure, select=SelectSettings(alpha=alpha, folds=folds, effects=chosen), simulate=not no_simulation)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import LOG_FORMATS, input_options, load, note
+from ilic_cli.commands.common import LOG_FORMATS, controller_options, input_options, load, note, with_controller
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.io import write_log
 from ilic_cli.io.atomic import same_path
@@ -23,9 +23,10 @@ from plant.replay import simulate_replay
 @click.option("--format", "out_format", type=click.Choice(LOG_FORMATS), default=None, help="Output format [default: from the extension].")
 @click.option("--substeps", type=int, default=10, show_default=True, help="Integration steps per control period.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the noise effects, if any.")
+@controller_options
 @input_options
-def command(log: Path, model_file: Path, output: Path, out_format: str | None, substeps: int, seed: int, input_format: str | None, topic: str | None,
-            ref_topic: str | None, joint: str | None) -> None:
+def command(log: Path, model_file: Path, output: Path, out_format: str | None, substeps: int, seed: int, controller: str | None, kp: float | None,
+            kv: float | None, drive_gain: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
     """Replay LOG's reference (and pulses) through the plant under LOG's controller.
 
     The controller is the log's: the PD loop with its kp, kv and drive gain
@@ -47,7 +48,7 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
         params, effects = plant_model(doc["parameters"], doc["effects"])
     except ParameterError as exc:
         raise exc.at(model_file) from None
-    run = load(log, input_format, topic, ref_topic, joint)
+    run = with_controller(load(log, input_format, topic, ref_topic, joint), log, controller, kp, kv, drive_gain)
     prepared = prepare_log(run)
     prepared.require_contiguous("a replay")
     for w in prepared.warnings:

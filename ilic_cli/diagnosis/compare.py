@@ -50,9 +50,18 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
     return simulate_replay(log, params, effects, tau_sensor=tau_sensor(log))
 
 
-def tau_sensor(log: RunLog) -> str:
-    """How ``log``'s force samples the drive force: the sensor it was simulated with, else ``command`` (``tau = gtau*vir``)."""
-    return str((log.meta.get("simulation") or {}).get("tau_sensor") or "command")
+def tau_sensor(log: RunLog) -> str | None:
+    """How ``log``'s force samples the drive force, when the log says so; else ``None``.
+
+    The sensor a simulated log was made with (``meta["simulation"]["tau_sensor"]``);
+    ``command`` when the force is the recorded drive command times the drive
+    gain (a ``vir`` channel and a ``drive_gain``, as in the EMPS recordings);
+    nothing is assumed for any other log.
+    """
+    sensor = (log.meta.get("simulation") or {}).get("tau_sensor")
+    if sensor:
+        return str(sensor)
+    return "command" if "vir" in log and log.meta.get("drive_gain") else None
 
 
 def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float]:
