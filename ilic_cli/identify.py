@@ -15,7 +15,7 @@ import numpy as np
 from ilic_cli.effects import EFFECTS, Fit, get
 from ilic_cli.errors import IdentificationError, ParameterError
 from ilic_cli.filtering import kept_indices
-from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic
+from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic, tracking_error_ratio
 from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, idim_ls
 from ilic_cli.lsq import LSResult
 from ilic_cli.parameters import PARAMETERS
@@ -174,8 +174,16 @@ def identify(
             raise IdentificationError(src, str(exc)) from None
         if not report.ls.result.full_rank:
             report.warnings.append("IDIM-LS: the observation matrix is rank-deficient; the trajectory does not excite every parameter")
+    if method == "both":
+        reason = ilic_unusable(log, fs, ilic_settings)
+        if reason is not None:
+            report.warnings.append(f"IDIM-ILIC not run: {reason}; IDIM-LS only")
+            method = "ls"
+    elif method == "ilic":
+        reason = ilic_unusable(log, fs, ilic_settings)
+        if reason is not None:
+            raise IdentificationError(src, f"IDIM-ILIC cannot run: {reason}")
     if method in ("ilic", "both"):
-        log.require("q_ref")
         try:
             report.ilic = identify_ilic(
                 log.t,
@@ -219,6 +227,24 @@ def identify(
                 res = cross_validate(theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
                 report.validation.append(Validation(osrc, f"IDIM-ILIC (k={report.ilic.windows[-1].k})", res))
     return report
+
+
+TRACKING_LIMIT = 0.5
+"""A reference whose tracking error ratio ``||q_ref - q|| / ||q - mean(q)||`` exceeds this does not
+track the measured joint (a well-tuned loop is near 1e-3; another joint's reference is near 1 or above)."""
+
+
+def ilic_unusable(log: RunLog, fs_hz: float, settings: ILICSettings) -> str | None:
+    """Why IDIM-ILIC cannot run on ``log`` (no reference, shorter than one window, a reference that does not track), else ``None``."""
+    if "q_ref" not in log:
+        return "the log has no reference position (q_ref)"
+    if len(log) < int(round(settings.window_s * fs_hz)):
+        return f"the log ({len(log) / fs_hz:.3g} s) is shorter than one window ({settings.window_s:g} s)"
+    ratio = float(tracking_error_ratio(log["q_ref"], log["q"]))
+    if not ratio <= TRACKING_LIMIT:
+        return (f"the reference does not track the measured joint (tracking error ratio {ratio:.3g}, above {TRACKING_LIMIT:g}): "
+                "check that the reference is this joint's")
+    return None
 
 
 def _without_cut_windows(ilic: ILICResult, gap_samples: np.ndarray, fs_hz: float, warnings: list[str]) -> ILICResult:

@@ -96,7 +96,24 @@ def test_missing_reference_channel_for_ilic(tmp_path: Path) -> None:
     write_log(RunLog({k: v for k, v in log.channels.items() if k in ("t", "q", "tau")}, meta=log.meta), p)
     res = run_cli("identify", str(p), "--method", "ilic")
     assert res.status == 2
-    assert res.stderr.strip() == f"ilic: error: {p}: missing required channel 'q_ref'"
+    assert res.stderr.strip() == f"ilic: error: {p}: IDIM-ILIC cannot run: the log has no reference position (q_ref)"
+    # the default (both) falls back to IDIM-LS and says so
+    res = run_cli("identify", str(p), "--format", "json")
+    assert res.status == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["ilic"] is None and doc["ls"]["parameters"]["M"]["value"] > 0
+    assert "IDIM-ILIC not run: the log has no reference position (q_ref); IDIM-LS only" in res.stderr
+
+
+def test_a_reference_that_does_not_track_is_refused(tmp_path: Path) -> None:
+    """Another joint's reference (here the measured motion reversed) is not fitted into nonsense."""
+    log = synthetic(duration_s=13.0)
+    wrong = log.with_channels(q_ref=log["q_ref"][::-1].copy())
+    p = write_log(wrong, tmp_path / "wrong.csv")
+    res = run_cli("identify", str(p), "--method", "ilic")
+    assert res.status == 2 and "the reference does not track the measured joint (tracking error ratio" in res.stderr
+    res = run_cli("identify", str(p), "--format", "json")
+    assert res.status == 0 and json.loads(res.stdout)["ilic"] is None and "IDIM-ILIC not run" in res.stderr
 
 
 def test_log_shorter_than_window(tmp_path: Path) -> None:
