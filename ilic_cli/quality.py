@@ -184,6 +184,33 @@ def nominal_rate_hz(t: np.ndarray) -> float | None:
     return float(f"{rate:.6g}")
 
 
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9}
+"""Time units a log may use, with their size in seconds."""
+
+
+def time_unit(t: np.ndarray, declared: str | None = None) -> tuple[str, str]:
+    """The unit of time stamps ``t`` and the rule that chose it: ``(unit, rule)``.
+
+    A declared unit (a units line, a column name such as ``t_ns``) is taken
+    as it is. Otherwise the unit is the one among s, ms, µs and ns whose
+    sample rate, from the median step, lies closest to 1 kHz in decades: the
+    units are three decades apart, so a rate between 32 Hz and 32 kHz is never
+    mistaken (nanosecond stamps of a 1 kHz loop step by 1e6, read as seconds
+    they would be a 1 µHz log).
+    """
+    if declared:
+        unit = declared.strip().replace("usec", "us").replace("sec", "s")
+        if unit not in TIME_UNITS:
+            raise ValueError(f"unknown time unit '{declared}' (known: {', '.join(TIME_UNITS)})")
+        return unit, "declared"
+    steps = np.diff(np.asarray(t, dtype=np.float64))
+    step = float(np.median(steps)) if len(steps) else 0.0
+    if not (step > 0 and math.isfinite(step)):
+        return "s", "default (no positive step)"
+    best = min(("s", "ms", "us", "ns"), key=lambda u: abs(math.log10(1.0 / (step * TIME_UNITS[u])) - 3.0))
+    return best, "the sample rate closest to 1 kHz in decades"
+
+
 def gap_starts(t: np.ndarray, rate_hz: float) -> np.ndarray:
     """Indices ``i`` where the step ``t[i+1] - t[i]`` is a gap (above :data:`GAP_FACTOR` periods)."""
     return np.flatnonzero(np.diff(np.asarray(t, dtype=np.float64)) > GAP_FACTOR / rate_hz)

@@ -100,3 +100,19 @@ def test_a_log_without_its_controller_is_refused_or_given_one(emps: RunLog, tmp_
     # a log that records its controller keeps it
     res = run_cli("replay", str(write_log(emps, tmp_path / "emps.mcap")), "--model", str(model), "-o", str(tmp_path / "r2.mcap"), "--controller", "ctc")
     assert res.status == 2 and "records its controller" in res.stderr
+
+
+@pytest.mark.parametrize(("unit", "scale"), [("s", 1.0), ("ms", 1e3), ("us", 1e6), ("ns", 1e9)])
+def test_time_in_any_unit_reads_as_seconds(emps: RunLog, tmp_path: Path, unit: str, scale: float) -> None:
+    """A CSV written by pandas with its time in s, ms, µs or ns (relative or epoch) identifies identically."""
+    import pandas as pd
+
+    t0 = 0.0 if unit in ("s", "ms") else 1.7e9  # epoch stamps too
+    frame = pd.DataFrame({"t": np.round((emps.t + t0) * scale) if unit == "ns" else (emps.t + t0) * scale, "q": emps["q"], "tau": emps["tau"]})
+    path = tmp_path / f"time_{unit}.csv"
+    frame.to_csv(path, index=False)
+    log = read_log(path)
+    assert log.meta["time_unit"]["unit"] == unit and log.units["t"] == "s"
+    assert log.fs_hz == 1000.0
+    M = float(identify(log, method="ls").ls.result.theta[0])  # type: ignore[union-attr]
+    assert M == pytest.approx(float(identify(emps, method="ls").ls.result.theta[0]), rel=1e-12)  # type: ignore[union-attr]

@@ -31,10 +31,11 @@ import numpy as np
 
 from ilic_cli.errors import LogError
 from ilic_cli.io.rosjson import dump_json, meta_for_writing, parse_json_object
+from ilic_cli.quality import TIME_UNITS, nominal_rate_hz, time_unit
+from ilic_cli.runlog import RunLog
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
-    from ilic_cli.runlog import RunLog
 
 UNITS_PREFIX = "# units:"
 META_PREFIX = "# meta:"
@@ -123,8 +124,6 @@ def _read_fast(path: Path) -> RunLog | None:
     """
     import pandas as pd
 
-    from ilic_cli.quality import nominal_rate_hz
-    from ilic_cli.runlog import RunLog
 
     with open(path, "rb") as stream:
         top = _top_lines(stream)
@@ -168,19 +167,11 @@ def _read_fast(path: Path) -> RunLog | None:
         return None
     channels = {name: np.ascontiguousarray(values[:, j]) for j, name in enumerate(header)}
     del values
-    if meta is None:
-        meta = {}
-        if "t" in channels:
-            rate = nominal_rate_hz(channels["t"])
-            if rate:
-                meta["sample_rate_hz"] = rate
-    return RunLog(channels, {k: v for k, v in units.items() if k in channels}, meta)
+    return _log(channels, units, meta, path)
 
 
 def _read_rows(path: Path) -> RunLog:
     """Read a CSV log row by row with the ``csv`` module (every check, every error worded)."""
-    from ilic_cli.quality import nominal_rate_hz
-    from ilic_cli.runlog import RunLog
 
     try:
         text = path.read_text(encoding="utf-8-sig")  # tolerate a byte-order mark (Excel)
@@ -225,9 +216,27 @@ def _read_rows(path: Path) -> RunLog:
                 shown = cell.strip()[:40] or "(empty)"
                 raise LogError(path, f"row at line {line_no}, column '{header[j]}': '{shown}' is not a number") from None
     channels = {name: np.asarray(values, dtype=np.float64) for name, values in zip(header, columns)}
+    return _log(channels, units, meta, path)
+
+
+def _log(channels: dict[str, np.ndarray], units: dict[str, str], meta: dict[str, Any] | None, path: Path) -> RunLog:
+    """The log of parsed columns; a CSV without ilic's metadata line gets its rate, and its time in seconds.
+
+    The time unit of such a CSV is the declared one (``# units: t=ns``) or
+    :func:`ilic_cli.quality.time_unit`'s (the rule is recorded in
+    ``meta["time_unit"]``); ilic's own CSV files are in seconds.
+    """
     if meta is None:
         meta = {}
         if "t" in channels:
+            try:
+                unit, rule = time_unit(channels["t"], units.get("t"))
+            except ValueError as exc:
+                raise LogError(path, str(exc)) from None
+            if unit != "s":
+                channels["t"] = channels["t"] * TIME_UNITS[unit]
+            units = {**units, "t": "s"}
+            meta["time_unit"] = {"unit": unit, "rule": rule}
             rate = nominal_rate_hz(channels["t"])
             if rate:
                 meta["sample_rate_hz"] = rate
