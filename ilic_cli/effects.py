@@ -405,6 +405,14 @@ def effects_to_dict(effects: Mapping[str, EffectParams]) -> dict[str, dict[str, 
     return {eid: effects[eid].to_dict() for eid in EFFECTS if eid in effects}
 
 
+def unit_of(name: str) -> str:
+    """The unit of a regressor column: a rigid parameter's (:mod:`ilic_cli.parameters`) or an effect column's."""
+    unit = parameters.unit(name)
+    if unit:
+        return unit
+    return next((c.unit for e in EFFECTS.values() for c in e.columns if c.name == name), "")
+
+
 def applicable(effect: Effect, base_names: tuple[str, ...]) -> bool:
     """Whether ``effect`` adds something to a model with columns ``base_names`` (not already its columns or its parameters)."""
     return not any(n in base_names for n in (*effect.column_names, *effect.names))

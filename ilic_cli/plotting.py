@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ilic_cli.effects import unit_of
 from ilic_cli.io.atomic import atomic_path
 
 if TYPE_CHECKING:
@@ -39,7 +40,10 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
     per-window ratio ‖e_q‖/‖q − q̄‖.
     """
     plt = _pyplot()
+    from matplotlib.ticker import MaxNLocator
+
     written: list[Path] = []
+    true = (log.meta.get("true_parameters") or {}) if isinstance(log.meta.get("true_parameters"), dict) else {}
     if report.ilic is not None and report.ilic.windows:
         names = report.ilic.names
         fig, axes = plt.subplots(len(names), 1, figsize=(8, 2.2 * len(names)), sharex=True, squeeze=False)
@@ -50,25 +54,33 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
             s = np.where(np.isfinite(s), s, np.nan)
             ax.plot(ks, v, "o-", label="IDIM-ILIC χ̂ᵏ")
             ax.fill_between(ks, v - s, v + s, alpha=0.3, label="±σ")
-            if report.ls is not None:
+            shown = [v, v - s, v + s]
+            if report.ls is not None and i < len(report.ls.result.theta):
                 ax.axhline(report.ls.result.theta[i], color="k", ls="--", lw=1, label="IDIM-LS")
-            ax.set_ylabel(n)
+                shown.append(np.array([report.ls.result.theta[i]]))
+            if n in true:
+                ax.axhline(float(true[n]), color="tab:green", ls=":", lw=1.5, label="true (simulated)")
+                shown.append(np.array([float(true[n])]))
+            scale_y(ax, np.concatenate(shown))
+            ax.set_ylabel(f"{n} ({unit_of(n)})")
             ax.grid(alpha=0.3)
         axes[0, 0].legend(loc="best", fontsize=8)
-        axes[-1, 0].set_xlabel("window k")
-        from matplotlib.ticker import MaxNLocator
-
+        axes[-1, 0].set_xlabel("window k (-)")
         axes[-1, 0].xaxis.set_major_locator(MaxNLocator(integer=True))
         fig.suptitle("Parameter estimates per window")
         written.append(_save(fig, outdir / f"parameters.{image_format}"))
     if report.ls is not None and report.ls.y is not None and report.ls.y_hat is not None:
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
         t = report.ls.t if report.ls.t is not None else np.arange(len(report.ls.y))
-        ax1.plot(t, report.ls.y, lw=0.8, label="measured (decimated)")
-        ax1.plot(t, report.ls.y_hat, lw=0.8, label="IDIM-LS model")
+        ax1.plot(t, report.ls.y_hat, lw=1.4, color="C1", label="IDIM-LS model")
+        ax1.plot(t, report.ls.y, lw=0.6, color="C0", label="measured (decimated)")
         ax1.set_ylabel("force (N)")
         ax1.legend(fontsize=8)
-        ax2.plot(t, report.ls.y - report.ls.y_hat, lw=0.8, color="C3")
+        error = report.ls.y - report.ls.y_hat
+        ax2.plot(t, error, lw=0.8, color="C3")
+        edges = edge_rows(len(error))
+        scale_y(ax2, error[edges:len(error) - edges])
+        mark_edges(ax2, t, edges)
         ax2.set_ylabel("error (N)")
         ax2.set_xlabel("t (s)")
         for ax in (ax1, ax2):
@@ -79,7 +91,7 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         fig, ax = plt.subplots(figsize=(9, 3))
         ax.plot(log.t, log["q_ref"] - log["q"], lw=0.6)
         ax.set_xlabel("t (s)")
-        ax.set_ylabel("e_q = q_ref − q")
+        ax.set_ylabel("e_q = q_ref − q (m)")
         ax.grid(alpha=0.3)
         if report.ilic is not None:
             for w in report.ilic.windows:
@@ -88,3 +100,29 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
             ax.set_title(f"Tracking error (‖e_q‖/‖q−q̄‖ per window: {ratios}{', …' if len(report.ilic.windows) > 6 else ''})")
         written.append(_save(fig, outdir / f"tracking.{image_format}"))
     return written
+
+
+EDGE_FRACTION = 0.02
+"""Share of the rows at each end left out of an error axis's scale (the zero-phase filters' edge transients)."""
+
+
+def edge_rows(n: int) -> int:
+    """Rows at each end of ``n`` left out of an error axis's scale (:data:`EDGE_FRACTION`)."""
+    return int(EDGE_FRACTION * n)
+
+
+def scale_y(ax, values: np.ndarray, margin: float = 0.08) -> None:  # type: ignore[no-untyped-def]
+    """Scale ``ax``'s y axis on the finite ``values`` with a margin (no empty band, no line on the frame)."""
+    finite = values[np.isfinite(values)]
+    if not len(finite):
+        return
+    lo, hi = float(finite.min()), float(finite.max())
+    pad = margin * (hi - lo) if hi > lo else max(abs(hi), 1e-12) * margin
+    ax.set_ylim(lo - pad, hi + pad)
+
+
+def mark_edges(ax, t: np.ndarray, edges: int) -> None:  # type: ignore[no-untyped-def]
+    """Shade the rows left out of the scale at both ends."""
+    if edges > 0 and len(t) > 2 * edges:
+        ax.axvspan(t[0], t[edges], color="0.85", zorder=0, label="edges (not scaled)")
+        ax.axvspan(t[-edges - 1], t[-1], color="0.85", zorder=0)

@@ -5,8 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.io.atomic import atomic_path
+from ilic_cli.plotting import edge_rows, mark_edges, scale_y
 
 
 def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
@@ -47,10 +50,13 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     for key, label in (("before", "rigid model"), ("after", "augmented model")):
         e = r[key]
         f, P = signal.welch(e - e.mean(), fs=fs, nperseg=min(len(e), 256))
-        ax.semilogy(f, P, label=label)
+        ax.loglog(f[1:], P[1:], label=label)
     for g in sig:
         if g.kind == "frequency":
-            ax.axvline(0.5 * (g.bounds[0] + g.bounds[1]), color="tab:red", alpha=0.4)
+            centre = 0.5 * (g.bounds[0] + g.bounds[1])
+            ax.axvline(centre, color="tab:red", alpha=0.4)
+            ax.annotate(f"{centre:.3g} Hz", (centre, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12), textcoords="offset points",
+                        color="tab:red", fontsize=8)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("residual PSD (N^2/Hz)")
     ax.legend()
@@ -58,24 +64,29 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     save(fig, "spectrum.png")
 
     fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
-    axes[0].plot(r["t"], r["y"], lw=0.6, label="recorded (decimated)")
-    axes[0].plot(r["t"], r["y_before"], lw=0.6, label="rigid IDIM model")
-    axes[0].plot(r["t"], r["y_after"], lw=0.6, label="augmented IDIM model")
+    axes[0].plot(r["t"], r["y_before"], lw=1.2, ls="--", label="rigid IDIM model")
+    axes[0].plot(r["t"], r["y_after"], lw=1.2, ls=":", label="augmented IDIM model")
+    axes[0].plot(r["t"], r["y"], lw=0.5, color="k", label="recorded (decimated)")
     axes[0].set_ylabel("force (N)")
     axes[0].legend(loc="upper right")
     sim = diag.simulation
     if sim is not None and "tau_before" in sim.signals:
         s = sim.signals
-        axes[1].plot(s["t"], s["tau_before"] - s["tau"], lw=0.4, label="simulation - recording, rigid")
+        t, diffs = s["t"], [s["tau_before"] - s["tau"]]
+        axes[1].plot(t, diffs[0], lw=0.4, label="simulation - recording, rigid")
         if "tau_after" in s:
-            axes[1].plot(s["t"], s["tau_after"] - s["tau"], lw=0.4, label="simulation - recording, augmented")
+            diffs.append(s["tau_after"] - s["tau"])
+            axes[1].plot(t, diffs[1], lw=0.4, label="simulation - recording, augmented")
         axes[1].set_ylabel("force difference (N)")
-        axes[1].legend(loc="upper right")
     else:
-        axes[1].plot(r["t"], r["before"], lw=0.5, label="rigid")
-        axes[1].plot(r["t"], r["after"], lw=0.5, label="augmented")
+        t, diffs = r["t"], [r["before"], r["after"]]
+        axes[1].plot(t, diffs[0], lw=0.5, label="rigid")
+        axes[1].plot(t, diffs[1], lw=0.5, label="augmented")
         axes[1].set_ylabel("IDIM residual (N)")
-        axes[1].legend(loc="upper right")
+    edges = edge_rows(len(t))
+    scale_y(axes[1], np.concatenate([d[edges:len(d) - edges] for d in diffs]))
+    mark_edges(axes[1], t, edges)
+    axes[1].legend(loc="upper right")
     axes[1].set_xlabel("time (s)")
     fig.tight_layout()
     save(fig, "force_fit.png")
