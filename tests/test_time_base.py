@@ -116,3 +116,19 @@ def test_time_in_any_unit_reads_as_seconds(emps: RunLog, tmp_path: Path, unit: s
     assert log.fs_hz == 1000.0
     M = float(identify(log, method="ls").ls.result.theta[0])  # type: ignore[union-attr]
     assert M == pytest.approx(float(identify(emps, method="ls").ls.result.theta[0]), rel=1e-12)  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_a_ros2_bag_is_named_by_its_folder_its_storage_file_or_its_metadata(tmp_path: Path, storage: str) -> None:
+    from ilic_cli.io import WriteOptions
+    from tests.conftest import make_synthetic_log
+
+    folder = write_log(make_synthetic_log(samples=300), tmp_path / "bag", "rosbag2", WriteOptions(storage=storage))
+    want = read_log(folder)
+    storage_file = next(p for p in folder.iterdir() if p.suffix in (".db3", ".mcap"))
+    for path in (storage_file, folder / "metadata.yaml"):
+        got = read_log(path)
+        assert got.meta["source"] == str(folder)
+        for name in want.channels:
+            assert np.array_equal(got[name], want[name]), (path, name)
+        assert run_cli("info", str(path)).status == 0

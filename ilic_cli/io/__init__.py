@@ -80,9 +80,22 @@ class LogFormat(Protocol):
     def write(self, log: RunLog, path: Path, options: WriteOptions) -> None: ...
 
 
+def bag_folder(path: Path, fmt: str | None = None) -> Path:
+    """The ROS 2 bag folder a path inside it names (its ``metadata.yaml``, or its ``.db3``/``.mcap`` storage file); else ``path``.
+
+    An explicit format other than ``rosbag2`` keeps the path as given (an
+    ``.mcap`` storage file can be read as plain MCAP with ``mcap``).
+    """
+    if fmt not in (None, "rosbag2") or path.is_dir():
+        return path
+    if path.name == "metadata.yaml" or (path.suffix.lower() in (".db3", ".mcap") and (path.parent / "metadata.yaml").is_file()):
+        return path.parent
+    return path
+
+
 def detect_format(path: str | Path, fmt: str | None = None, *, for_writing: bool = False) -> str:
-    """Return the format name for ``path`` (or check the explicit ``fmt``)."""
-    p = Path(path)
+    """Return the format name for ``path`` (or check the explicit ``fmt``); a path inside a ROS 2 bag names the bag (:func:`bag_folder`)."""
+    p = Path(path) if for_writing else bag_folder(Path(path), fmt)
     if fmt:
         if fmt not in FORMATS:
             raise LogError(p, f"unknown format '{fmt}' (choose from {', '.join(FORMATS)})")
@@ -148,7 +161,7 @@ def read_log(path: str | Path, fmt: str | None = None, selection: Selection | No
     """
     from ilic_cli.runlog import validate_samples
 
-    p = Path(path)
+    p = bag_folder(Path(path), fmt)
     if not p.exists():
         raise LogError(p, "no such file or folder")
     if p.is_file() and p.stat().st_size == 0:
