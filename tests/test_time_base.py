@@ -132,3 +132,20 @@ def test_a_ros2_bag_is_named_by_its_folder_its_storage_file_or_its_metadata(tmp_
         for name in want.channels:
             assert np.array_equal(got[name], want[name]), (path, name)
         assert run_cli("info", str(path)).status == 0
+
+
+def test_resampling_a_jittered_log_does_not_make_it_worse(emps: RunLog, tmp_path: Path) -> None:
+    rng = np.random.default_rng(8)
+    meta = {k: v for k, v in emps.meta.items() if k != "sample_rate_hz"}
+    jittered = RunLog({**emps.channels, "t": emps.t + rng.uniform(-0.15e-3, 0.15e-3, len(emps))}, dict(emps.units), meta)
+    src = write_log(jittered, tmp_path / "jitter.mcap")
+    res = run_cli("convert", str(src), str(tmp_path / "uniform.mcap"), "--resample", "1000")
+    assert res.status == 0, res.stderr
+    out = read_log(tmp_path / "uniform.mcap")
+    assert out.meta["resampled"]["method"].startswith("restamped")
+    assert np.array_equal(out["q"], emps["q"]) and np.array_equal(out["tau"], emps["tau"])
+    M = float(identify(out, method="ls").ls.result.theta[0])  # type: ignore[union-attr]
+    assert abs(M - M_PUBLISHED) <= 5e-4 * M_PUBLISHED
+    # another rate is interpolated, and says so
+    assert run_cli("convert", str(src), str(tmp_path / "500.mcap"), "--resample", "500").status == 0
+    assert read_log(tmp_path / "500.mcap").meta["resampled"]["method"] == "linear"

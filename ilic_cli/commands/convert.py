@@ -32,13 +32,25 @@ def resample(log: RunLog, rate_hz: float) -> RunLog:
         Samples at ``t[0] + k / rate_hz`` for every ``k`` with the time inside
         the original span; every channel interpolated linearly (discrete
         channels such as ``pulses`` too). ``sample_rate_hz`` is set to
-        ``rate_hz`` and ``resampled`` records the original sample count.
+        ``rate_hz`` and ``resampled`` records the original sample count and
+        the rule. A fixed-rate loop whose stamps only jitter (no gap, every
+        step within half a period of the nominal one) at ``rate_hz`` keeps its
+        samples and is restamped on the uniform grid instead: interpolating
+        between jittered stamps would distort samples taken on time.
     """
     import numpy as np
 
+    from ilic_cli.quality import nominal_rate_hz  # deferred: numpy
     from ilic_cli.runlog import RunLog  # deferred: numpy
 
     t = log.t
+    nominal = nominal_rate_hz(t)
+    if nominal and abs(nominal - rate_hz) <= 5e-4 * rate_hz and np.all(np.abs(np.diff(t) * nominal - 1.0) < 0.5):
+        meta = dict(log.meta)
+        meta["sample_rate_hz"] = float(rate_hz)
+        meta["resampled"] = {"method": "restamped (stamp jitter of a fixed-rate loop)", "from_samples": len(log), "rate_hz": float(rate_hz)}
+        grid = t[0] + np.arange(len(t), dtype=np.float64) / rate_hz
+        return RunLog({**log.channels, "t": grid}, dict(log.units), meta)
     span = float(t[-1] - t[0])
     count = int(np.floor(span * rate_hz * (1 + 1e-12))) + 1
     if count < 2:
@@ -59,7 +71,8 @@ def resample(log: RunLog, rate_hz: float) -> RunLog:
 @click.argument("target", metavar="OUT", type=click.Path(path_type=Path))
 @click.option("--format", "out_format", type=click.Choice(LOG_FORMATS), default=None, help="Format of OUT (default: from its extension; no extension: ROS 2 bag folder).")
 @click.option("--storage", type=click.Choice(["sqlite3", "mcap"]), default="sqlite3", show_default=True, help="Storage plugin of a ROS 2 bag.")
-@click.option("--resample", "resample_hz", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ", help="Interpolate linearly onto a uniform grid at HZ.")
+@click.option("--resample", "resample_hz", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
+              help="Put the log on a uniform grid at HZ: restamped when the stamps only jitter at that rate, else interpolated linearly.")
 @input_options
 def command(source: Path, target: Path, out_format: str | None, storage: str, resample_hz: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
     """Read IN, optionally resample, write OUT atomically (never over IN)."""
