@@ -321,7 +321,7 @@ def test_pandas_written_csv_reads_the_same_both_ways(tmp_path: Path, case: str) 
     frame = _pandas_frame(5000)
     path = tmp_path / "p.csv"
     frame.to_csv(path, index=False, **PANDAS_CASES[case])
-    assert csvlog._read_fast(path) is not None  # the fast reader takes these files
+    assert csvlog._read_fast(path, {}) is not None  # the fast reader takes these files
     fast = csvlog.read(path, Selection(), fast=True)
     assert_same_log(fast, csvlog.read(path, Selection(), fast=False))
     if case in ("default", "crlf", "%.17g"):
@@ -376,7 +376,7 @@ def test_damaged_csv_gives_the_same_outcome_both_ways(tmp_path: Path) -> None:
         bad.write_bytes(bytes(raw))
         fast = outcome(lambda: csvlog.read(bad, Selection(), fast=True))
         assert_same_outcome(fast, outcome(lambda: csvlog.read(bad, Selection(), fast=False)))
-        taken += csvlog._read_fast(bad) is not None
+        taken += csvlog._read_fast(bad, {}) is not None
     assert taken >= 10  # damaged files are still read by the fast path (a flipped digit)
 
 

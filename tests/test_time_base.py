@@ -149,3 +149,30 @@ def test_resampling_a_jittered_log_does_not_make_it_worse(emps: RunLog, tmp_path
     # another rate is interpolated, and says so
     assert run_cli("convert", str(src), str(tmp_path / "500.mcap"), "--resample", "500").status == 0
     assert read_log(tmp_path / "500.mcap").meta["resampled"]["method"] == "linear"
+
+
+@pytest.mark.parametrize("layout", ["ros-names", "index-semicolon", "tab-ns", "columns-option"])
+def test_csv_layouts_written_by_pandas(emps: RunLog, tmp_path: Path, layout: str) -> None:
+    """Common column names, pandas' index column, ';' and tab separators, and an explicit --columns mapping."""
+    import json
+
+    import pandas as pd
+
+    base = {"q": emps["q"], "tau": emps["tau"], "q_ref": emps["q_ref"]}
+    path = tmp_path / f"{layout}.csv"
+    args: list[str] = []
+    if layout == "ros-names":
+        pd.DataFrame({"time": emps.t, "position": base["q"], "velocity": np.gradient(base["q"], 1e-3), "effort": base["tau"], "reference": base["q_ref"]}).to_csv(path, index=False)
+    elif layout == "index-semicolon":
+        pd.DataFrame({"t": emps.t, "q": base["q"], "tau": base["tau"], "q_ref": base["q_ref"]}).to_csv(path, sep=";")
+    elif layout == "tab-ns":
+        pd.DataFrame({"timestamp_ns": np.round(emps.t * 1e9 + 1.7e18), "pos": base["q"], "torque": base["tau"]}).to_csv(path, sep="\t", index=False)
+    else:
+        pd.DataFrame({"zeit": emps.t, "lage": base["q"], "kraft": base["tau"], "soll": base["q_ref"]}).to_csv(path, index=False)
+        args = ["--columns", "t=zeit,q=lage,tau=kraft,q_ref=soll"]
+    res = run_cli("identify", str(path), "--method", "ls", "--format", "json", *args)
+    assert res.status == 0, res.stderr
+    M = json.loads(res.stdout)["ls"]["parameters"]["M"]["value"]
+    assert M == pytest.approx(M_PUBLISHED, abs=5e-5)
+    bad = run_cli("identify", str(path), "--method", "ls", "--columns", "q=nothing")
+    assert bad.status == 2 and "no column 'nothing' for q" in bad.stderr

@@ -22,7 +22,9 @@ LOG_FORMATS = ["mat", "csv", "mcap", "rosbag1", "rosbag2"]
 
 
 def input_options(func: F) -> F:
-    """Add ``--input-format``, ``--topic``, ``--ref-topic`` and ``--joint``."""
+    """Add ``--input-format``, ``--topic``, ``--ref-topic``, ``--joint`` and ``--columns``."""
+    func = click.option("--columns", default=None, metavar="t=NAME,q=NAME,...",
+                        help="CSV: which columns hold t, q, qd, tau and q_ref (default: these names or common ones such as time, position, effort).")(func)
     func = click.option("--joint", default=None, help="Joint name to read (default: the only joint).")(func)
     func = click.option("--ref-topic", default=None, help="Topic with the reference (default: /joint_reference).")(func)
     func = click.option("--topic", default=None, help="Topic with the measured JointState (default: the only one, or /joint_states).")(func)
@@ -30,22 +32,29 @@ def input_options(func: F) -> F:
     return func
 
 
-def selection(topic: str | None, ref_topic: str | None, joint: str | None) -> Selection:
-    """Build the reader's :class:`~ilic_cli.io.Selection` from the shared options."""
-
-    return Selection(topic=topic, ref_topic=ref_topic, joint=joint)
+def selection(topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None = None) -> Selection:
+    """Build the reader's :class:`~ilic_cli.io.Selection` from the shared options (``--columns t=time,q=pos``)."""
+    mapping: dict[str, str] = {}
+    for item in (columns or "").split(","):
+        if not item.strip():
+            continue
+        channel, eq, name = item.partition("=")
+        if not eq or not channel.strip() or not name.strip():
+            raise IlicError("--columns", f"'{item.strip()}': expected CHANNEL=COLUMN (e.g. t=time,q=position,tau=effort)")
+        mapping[channel.strip()] = name.strip()
+    return Selection(topic=topic, ref_topic=ref_topic, joint=joint, columns=tuple(mapping.items()))
 
 
 PROGRESS_MIN_BYTES = 20 * 2**20
 """Files (or bag folders) at least this large show a progress bar while they are read."""
 
 
-def load(path: str | Path, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> RunLog:
+def load(path: str | Path, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None = None) -> RunLog:
     """Read a log with the shared input options (with a progress bar for large files on a terminal)."""
 
     progress = ReadProgress if progress_enabled() and _size(Path(path)) >= PROGRESS_MIN_BYTES else None
     try:
-        return read_log(path, input_format, selection(topic, ref_topic, joint), progress=progress)
+        return read_log(path, input_format, selection(topic, ref_topic, joint, columns), progress=progress)
     except ChoiceError as exc:
         raise ChoiceError(exc.where, f"{exc.problem} with --{exc.choice}", exc.choice) from None
 

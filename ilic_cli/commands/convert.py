@@ -74,7 +74,7 @@ def resample(log: RunLog, rate_hz: float) -> RunLog:
 @click.option("--resample", "resample_hz", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
               help="Put the log on a uniform grid at HZ: restamped when the stamps only jitter at that rate, else interpolated linearly.")
 @input_options
-def command(source: Path, target: Path, out_format: str | None, storage: str, resample_hz: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+def command(source: Path, target: Path, out_format: str | None, storage: str, resample_hz: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
     """Read IN, optionally resample, write OUT atomically (never over IN)."""
     from ilic_cli.quality import assess_log  # deferred: numpy; `ilic convert --help` stays instant
 
@@ -82,7 +82,7 @@ def command(source: Path, target: Path, out_format: str | None, storage: str, re
     if same_path(source, target):
         raise LogError(target, "output would overwrite the input; choose another output path")
     fmt = detect_format(target, out_format, for_writing=True)
-    log = load(source, input_format, topic, ref_topic, joint)
+    log = load(source, input_format, topic, ref_topic, joint, columns)
     if resample_hz is not None:
         log = resample(log, resample_hz)
     else:

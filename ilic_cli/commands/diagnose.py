@@ -32,7 +32,7 @@ from ilic_cli.modelfile import load_model_file
 @input_options
 def command(log: Path, model_path: Path | None, structure: str, against: Path | None, validate: Path | None, alpha: float, folds: int, effects: str | None, no_simulation: bool, out_format: str, out_dir: Path | None,
             controller: str | None, kp: float | None, kv: float | None, drive_gain: float | None, input_format: str | None, topic: str | None, ref_topic: str | None,
-            joint: str | None) -> None:
+            joint: str | None, columns: str | None) -> None:
     """Find and model the physics the rigid model leaves out of LOG.
 
     Identifies the rigid model (IDIM-LS), locates where the force residual is
@@ -60,11 +60,11 @@ def command(log: Path, model_path: Path | None, structure: str, against: Path | 
         if unknown or not chosen:
             raise IlicError("--effects", f"unknown effect {', '.join(unknown) or '(none given)'} (catalogue: {', '.join(catalogue)})")
     model_doc = load_model_file(model_path) if model_path is not None else None
-    run = load(log, input_format, topic, ref_topic, joint)
+    run = load(log, input_format, topic, ref_topic, joint, columns)
     if not no_simulation and against is None:  # the replay needs the loop that ran
         run = with_controller(run, log, controller, kp, kv, drive_gain)
-    sim = load(against, None, topic, ref_topic, joint) if against is not None else None
-    other = load(validate, None, topic, ref_topic, joint) if validate is not None else None
+    sim = load(against, None, topic, ref_topic, joint, columns) if against is not None else None
+    other = load(validate, None, topic, ref_topic, joint, columns) if validate is not None else None
     settings = DiagnoseSettings(model=structure, select=SelectSettings(alpha=alpha, folds=folds, effects=chosen), simulate=not no_simulation)
     result = diagnose(run, settings=settings, model_doc=model_doc, against=sim, validate=other)
     for w in result.warnings:

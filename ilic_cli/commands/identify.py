@@ -40,7 +40,7 @@ from ilic_cli.plotting import plot_identify
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
 @click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
 @input_options
-def command(log: Path, method: str, structure: str | None, model: str | None, effects: tuple[str, ...], validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, ref_lag: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+def command(log: Path, method: str, structure: str | None, model: str | None, effects: tuple[str, ...], validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, ref_lag: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
     """Identify the axis's parameters from LOG by IDIM-LS and IDIM-ILIC.
 
     IDIM-LS (paper section III) filters and differentiates the measured
@@ -83,8 +83,8 @@ def command(log: Path, method: str, structure: str | None, model: str | None, ef
         raise IlicError(out_dir, "--out must be a folder")
     if out_dir is not None:
         _refuse_overwriting_inputs(out_dir, plot_format, (log, *validate))
-    run = load(log, input_format, topic, ref_topic, joint)
-    others = [load(p, None, topic, ref_topic, joint) for p in validate]
+    run = load(log, input_format, topic, ref_topic, joint, columns)
+    others = [load(p, None, topic, ref_topic, joint, columns) for p in validate]
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
     ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
     try:

@@ -126,12 +126,12 @@ def render_markdown(summary: dict[str, Any]) -> str:
 @click.argument("log_path", metavar="LOG", type=click.Path(path_type=Path))
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="Markdown text or JSON (JSON only on stdout).")
 @input_options
-def command(log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+def command(log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
     """Print the summary of LOG on stdout."""
     import json
 
     fmt = detect_format(log_path, input_format)
-    log = load(log_path, input_format, topic, ref_topic, joint)
+    log = load(log_path, input_format, topic, ref_topic, joint, columns)
     summary = summarize(log, log_path, fmt)
     if out_format == "json":
         click.echo(json.dumps(summary, indent=2, default=_json_default))

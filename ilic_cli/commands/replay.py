@@ -26,7 +26,7 @@ from plant.replay import simulate_replay
 @controller_options
 @input_options
 def command(log: Path, model_file: Path, output: Path, out_format: str | None, substeps: int, seed: int, controller: str | None, kp: float | None,
-            kv: float | None, drive_gain: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None) -> None:
+            kv: float | None, drive_gain: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
     """Replay LOG's reference (and pulses) through the plant under LOG's controller.
 
     The controller is the log's: the PD loop with its kp, kv and drive gain
@@ -48,7 +48,7 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
         params, effects = plant_model(doc["parameters"], doc["effects"])
     except ParameterError as exc:
         raise exc.at(model_file) from None
-    run = with_controller(load(log, input_format, topic, ref_topic, joint), log, controller, kp, kv, drive_gain)
+    run = with_controller(load(log, input_format, topic, ref_topic, joint, columns), log, controller, kp, kv, drive_gain)
     prepared = prepare_log(run)
     prepared.require_contiguous("a replay")
     for w in prepared.warnings:

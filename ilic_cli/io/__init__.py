@@ -45,11 +45,16 @@ class Selection:
         Topic with the reference; ``None``: ``/joint_reference`` when present.
     joint : str or None
         Joint name; ``None``: the only joint.
+    columns : tuple of (str, str)
+        CSV: ``(channel, column name)`` pairs naming the columns that hold
+        ``t``, ``q``, ``qd``, ``tau``, ``q_ref`` (others: by their usual names,
+        :data:`ilic_cli.io.csvlog.ALIASES`).
     """
 
     topic: str | None = None
     ref_topic: str | None = None
     joint: str | None = None
+    columns: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,8 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     path : Path
         The CSV file.
     selection : Selection
-        Ignored (a CSV file holds one axis).
+        ``selection.columns`` names the columns of the standard channels (a
+        CSV file holds one axis; its topics and joints do not apply).
     fast : bool
         Parse the rows with pandas' C parser (:func:`_read_fast`); a file it
         does not take is read row by row, which also words every error.
@@ -73,14 +74,32 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     RunLog
     """
     if fast:
-        log = _read_fast(path)
+        log = _read_fast(path, dict(selection.columns))
         if log is not None:
             return log
-    return _read_rows(path)
+    return _read_rows(path, dict(selection.columns))
 
 
-DATA_BYTES = b"0123456789.+-eE,\r\n"
-"""The only bytes the fast reader accepts below the header row (anything else: row by row)."""
+DATA_BYTES = b"0123456789.+-eE\r\n"
+"""The only bytes the fast reader accepts below the header row besides the delimiter (anything else: row by row)."""
+
+DELIMITERS = (",", ";", "\t")
+"""Field delimiters a CSV may use; the header row's most frequent one is taken."""
+
+ALIASES: dict[str, tuple[str, ...]] = {
+    "t": ("t", "time", "timestamp", "stamp", "t_s", "time_s", "t_ms", "time_ms", "t_us", "time_us", "t_ns", "time_ns", "timestamp_ns", "timestamp_us",
+          "timestamp_ms"),
+    "q": ("q", "position", "pos", "q_meas", "position_measured", "actual_position"),
+    "qd": ("qd", "velocity", "vel", "velocity_measured", "actual_velocity"),
+    "tau": ("tau", "effort", "torque", "force", "current", "effort_measured", "actual_effort"),
+    "q_ref": ("q_ref", "reference", "ref", "position_ref", "reference_position", "setpoint", "desired_position", "position_desired", "qg"),
+}
+"""Column names (any case) recognised for each standard channel of a CSV not written by ilic; ``--columns`` names any other."""
+
+
+def _delimiter(header: str) -> str:
+    """The header row's most frequent delimiter (``,`` when it has none)."""
+    return max(DELIMITERS, key=lambda d: (header.count(d), d == ","))
 
 _BLOCK = 1 << 24
 
@@ -112,7 +131,7 @@ def _top_lines(stream: Any) -> tuple[list[str], int] | None:
             return lines, stream.tell()
 
 
-def _read_fast(path: Path) -> RunLog | None:
+def _read_fast(path: Path, columns: dict[str, str]) -> RunLog | None:
     """Read a CSV log with ``pandas.read_csv(engine="c")``; None when the file needs the row-by-row reader.
 
     The comment lines and the header row are read as :func:`_read_rows` does.
@@ -143,18 +162,21 @@ def _read_fast(path: Path) -> RunLog | None:
         header_text = lines[-1]
         if '"' in header_text or "\x00" in header_text:
             return None
-        header = [name.strip() for name in header_text.split(",")]
-        if any(not name for name in header) or len(set(header)) != len(header):
+        sep = _delimiter(header_text)
+        header = [name.strip() for name in header_text.split(sep)]
+        if any(not name for name in header[1:]) or len(set(header)) != len(header):
             return None
+        allowed = DATA_BYTES + sep.encode()
         while True:
             block = stream.read(_BLOCK)
             if not block:
                 break
-            if block.translate(None, DATA_BYTES):
+            if block.translate(None, allowed):
                 return None
         stream.seek(data_at)
         try:
-            frame = pd.read_csv(stream, header=None, dtype=np.float64, engine="c", na_filter=False, keep_default_na=False, skip_blank_lines=True, quoting=3)
+            frame = pd.read_csv(stream, header=None, sep=sep, dtype=np.float64, engine="c", na_filter=False, keep_default_na=False,
+                                skip_blank_lines=True, quoting=3)
         except MemoryError:
             raise LogError(path, "CSV content needs more memory than available") from None
         except Exception:  # noqa: BLE001 - any parser complaint: the row-by-row reader words it
@@ -167,10 +189,10 @@ def _read_fast(path: Path) -> RunLog | None:
         return None
     channels = {name: np.ascontiguousarray(values[:, j]) for j, name in enumerate(header)}
     del values
-    return _log(channels, units, meta, path)
+    return _log(channels, units, meta, path, columns)
 
 
-def _read_rows(path: Path) -> RunLog:
+def _read_rows(path: Path, columns: dict[str, str]) -> RunLog:
     """Read a CSV log row by row with the ``csv`` module (every check, every error worded)."""
 
     try:
@@ -192,17 +214,17 @@ def _read_rows(path: Path) -> RunLog:
         raise LogError(path, "no header row with channel names")
     header_line = index + 1
     try:
-        rows = list(csv.reader(io.StringIO("\n".join(lines[index:]))))
+        rows = list(csv.reader(io.StringIO("\n".join(lines[index:])), delimiter=_delimiter(lines[index])))
     except csv.Error as exc:
         raise LogError(path, f"not valid CSV ({exc})") from None
     header = [name.strip() for name in rows[0]]
-    if any(not name for name in header):
+    if any(not name for name in header[1:]) or (not header[0] and len(header) == 1):
         raise LogError(path, f"line {header_line}: empty column name in the header")
     dupes = sorted({name for name in header if header.count(name) > 1})
     if dupes:
         raise LogError(path, f"line {header_line}: duplicated column(s) {', '.join(dupes)}")
     width = len(header)
-    columns: list[list[float]] = [[] for _ in header]
+    fields: list[list[float]] = [[] for _ in header]
     for offset, row in enumerate(rows[1:], start=1):
         line_no = header_line + offset
         if not row or (len(row) == 1 and not row[0].strip()):
@@ -211,36 +233,77 @@ def _read_rows(path: Path) -> RunLog:
             raise LogError(path, f"row at line {line_no} has {len(row)} fields, the header has {width}")
         for j, cell in enumerate(row):
             try:
-                columns[j].append(float(cell))
+                fields[j].append(float(cell))
             except ValueError:
                 shown = cell.strip()[:40] or "(empty)"
                 raise LogError(path, f"row at line {line_no}, column '{header[j]}': '{shown}' is not a number") from None
-    channels = {name: np.asarray(values, dtype=np.float64) for name, values in zip(header, columns)}
-    return _log(channels, units, meta, path)
+    channels = {name: np.asarray(values, dtype=np.float64) for name, values in zip(header, fields)}
+    return _log(channels, units, meta, path, columns)
 
 
-def _log(channels: dict[str, np.ndarray], units: dict[str, str], meta: dict[str, Any] | None, path: Path) -> RunLog:
-    """The log of parsed columns; a CSV without ilic's metadata line gets its rate, and its time in seconds.
+def _log(channels: dict[str, np.ndarray], units: dict[str, str], meta: dict[str, Any] | None, path: Path, columns: dict[str, str]) -> RunLog:
+    """The log of parsed columns; a CSV without ilic's metadata line is read by the stated rules.
 
-    The time unit of such a CSV is the declared one (``# units: t=ns``) or
-    :func:`ilic_cli.quality.time_unit`'s (the rule is recorded in
-    ``meta["time_unit"]``); ilic's own CSV files are in seconds.
+    * an index column (an empty first column name, pandas' ``to_csv``
+      default, or ``Unnamed: 0``) counting 0, 1, 2, ... is dropped;
+    * the standard channels come from the columns ``columns`` names
+      (``--columns``), else from the first name of :data:`ALIASES` present
+      (any case); the choice is recorded in ``meta["columns"]``;
+    * the time is in seconds: the declared unit (``# units: t=ns`` or a name
+      such as ``time_ns``) or :func:`ilic_cli.quality.time_unit`'s (the rule is
+      recorded in ``meta["time_unit"]``).
+
+    ilic's own CSV files keep their names, and are in seconds.
     """
-    if meta is None:
-        meta = {}
-        if "t" in channels:
-            try:
-                unit, rule = time_unit(channels["t"], units.get("t"))
-            except ValueError as exc:
-                raise LogError(path, str(exc)) from None
-            if unit != "s":
-                channels["t"] = channels["t"] * TIME_UNITS[unit]
-            units = {**units, "t": "s"}
-            meta["time_unit"] = {"unit": unit, "rule": rule}
-            rate = nominal_rate_hz(channels["t"])
-            if rate:
-                meta["sample_rate_hz"] = rate
+    first = next(iter(channels), None)
+    if first is not None and (first == "" or first.startswith("Unnamed:")):
+        index = channels.pop(first)
+        if not np.array_equal(index, np.arange(len(index), dtype=np.float64)):
+            raise LogError(path, "the first column has no name and does not count 0, 1, 2, ...: name it")
+    if meta is not None:
+        return RunLog(channels, {k: v for k, v in units.items() if k in channels}, meta)
+    meta = {}
+    unknown = sorted(set(columns) - set(ALIASES))
+    if unknown:
+        raise LogError(path, f"--columns names channel '{unknown[0]}' (channels: {', '.join(ALIASES)})")
+    lower = {name.lower(): name for name in channels}
+    chosen: dict[str, str] = {}
+    for channel, aliases in ALIASES.items():
+        if channel in columns:
+            if columns[channel] not in channels:
+                raise LogError(path, f"no column '{columns[channel]}' for {channel} (columns: {', '.join(channels)})")
+            chosen[channel] = columns[channel]
+        elif channel not in channels:
+            found = next((lower[a] for a in aliases if a in lower), None)
+            if found is not None and found not in chosen.values():
+                chosen[channel] = found
+    renamed = {channel: channels.pop(name) for channel, name in chosen.items()}
+    for channel, name in chosen.items():
+        if name in units:
+            units[channel] = units.pop(name)
+    channels = {**renamed, **channels}
+    if chosen:
+        meta["columns"] = {channel: name for channel, name in chosen.items() if channel != name}
+    if "t" in channels:
+        declared = units.get("t") or _unit_in_name(chosen.get("t", ""))
+        try:
+            unit, rule = time_unit(channels["t"], declared)
+        except ValueError as exc:
+            raise LogError(path, str(exc)) from None
+        if unit != "s":
+            channels["t"] = channels["t"] * TIME_UNITS[unit]
+        units = {**units, "t": "s"}
+        meta["time_unit"] = {"unit": unit, "rule": rule}
+        rate = nominal_rate_hz(channels["t"])
+        if rate:
+            meta["sample_rate_hz"] = rate
     return RunLog(channels, {k: v for k, v in units.items() if k in channels}, meta)
+
+
+def _unit_in_name(name: str) -> str | None:
+    """``ns`` for a column named ``time_ns`` (and ``us``, ``ms``, ``s``)."""
+    suffix = name.lower().rsplit("_", 1)[-1] if "_" in name else ""
+    return suffix if suffix in TIME_UNITS else None
 
 
 def _check_unit(name: str, unit: str) -> None:
