@@ -495,7 +495,7 @@ def _col(name: str, description: str, unit: str = "") -> EffectColumn:
 def _asym_estimate(fit: Fit) -> EstimateResult:
     fv = fit.combination({"Fv": 1.0})
     fvn = fit.combination({"Fv": 1.0, "dFv_neg": 1.0})
-    est = {"Fv_pos": Estimate(*fv, "N/(m/s)"), "Fv_neg": Estimate(*fvn, "N/(m/s)")}
+    est = {"Fv_pos": Estimate(*fv, "N·s/m"), "Fv_neg": Estimate(*fvn, "N·s/m")}
     fc = fit.combination({"Fc": 1.0}) if fit.has("Fc") else (0.0, 0.0)
     note = ""
     if fit.has("offset"):
@@ -568,7 +568,7 @@ def _flex_estimate(fit: Fit) -> EstimateResult:
     c = 2.0 * zeta * math.sqrt(max(k * ml[0], 0.0))
     est = {"f_res": Estimate(f_res, fit.value_std, "Hz"), "damping_ratio": Estimate(zeta, None, ""), "M_load": Estimate(*ml, "kg"),
            "load_fraction": Estimate(frac, ml[1] / M if M > 0 else None, ""), "stiffness": Estimate(k, k_std, "N/m"),
-           "damping": Estimate(c, None, "N/(m/s)")}
+           "damping": Estimate(c, None, "N·s/m")}
     plant = {"stiffness": k, "damping": c, "load_fraction": frac} if 0 < frac < 1 else None
     return est, plant, "" if plant else "the load fraction is outside (0, 1): not a plant flexibility"
 
@@ -595,14 +595,14 @@ MAX_DELAY_S = 1.0
 ASYMMETRIC_FRICTION = register(Effect(
     "asymmetric_friction", "asymmetric friction",
     "Friction differs between the two directions of motion, e.g. from wear or fatigue of the screw on one side.",
-    params=(PlantParam("Fv_pos", "N/(m/s)", 166.7061, "viscous friction, positive velocity"),
-            PlantParam("Fv_neg", "N/(m/s)", 240.4236, "viscous friction, negative velocity"),
+    params=(PlantParam("Fv_pos", "N·s/m", 166.7061, "viscous friction, positive velocity"),
+            PlantParam("Fv_neg", "N·s/m", 240.4236, "viscous friction, negative velocity"),
             PlantParam("Fc_pos", "N", 20.1440, "Coulomb friction, positive velocity", low=0.0),
             PlantParam("Fc_neg", "N", 20.6277, "Coulomb friction, negative velocity (a magnitude)", low=0.0)),
     form="extra viscous coefficient for negative velocity: dFv * qd * (1 - sign(qd))/2 (Coulomb asymmetry is the constant offset)",
     signature="residual proportional to velocity on one side of zero only; mean residual differs between positive and negative velocity bins",
     signature_kinds=("velocity",),
-    columns=(_col("dFv_neg", "extra viscous friction at negative velocity", "N/(m/s)"),),
+    columns=(_col("dFv_neg", "extra viscous friction at negative velocity", "N·s/m"),),
     build=lambda kin, value, fs_hz: np.c_[kin.qd * (1.0 - kin.sgn) / 2.0],
     estimate=_asym_estimate,
     sentence=lambda p: f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward",
@@ -703,7 +703,7 @@ FLEXIBILITY = register(Effect(
     "flexibility", "transmission flexibility",
     "The carriage is coupled to the motor through a compliant screw and belt, so part of the mass lags the measured motion near a resonance.",
     params=(PlantParam("stiffness", "N/m", 2.0e6, "coupling stiffness", low=0.0, low_open=True),
-            PlantParam("damping", "N/(m/s)", 500.0, "coupling damping", low=0.0),
+            PlantParam("damping", "N·s/m", 500.0, "coupling damping", low=0.0),
             PlantParam("load_fraction", "", 0.3, "share of M behind the coupling")),
     check=_flex_check,
     form="M_load * (H(s) - 1) qdd with H the load's spring-damper response: resonance frequency f_res searched, then its damping ratio",

@@ -12,7 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.effects import EFFECTS, Fit, get
+from ilic_cli import parameters
+from ilic_cli.effects import EFFECTS, Fit, get, unit_of
 from ilic_cli.errors import IdentificationError, ParameterError
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic, tracking_error_ratio
@@ -52,11 +53,18 @@ class IdentifyReport:
     warnings: list[str] = field(default_factory=list)
     effects: dict[str, Any] = field(default_factory=dict)
     """Effects identified as regressor columns: id -> nonlinear value (``None`` for a linear one)."""
+    joint: str | None = None
+    """The joint's name, when the log names it."""
+    joint_type: str = "prismatic"
+    """``prismatic`` or ``revolute`` (from the position's unit): the parameters' units."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "source": self.source,
             "model": self.model,
+            "joint": self.joint,
+            "joint_type": self.joint_type,
+            "units": {n: parameters.unit(n, self.joint_type) or unit_of(n) for n in (self.ls.result.names if self.ls else self.ilic.names if self.ilic else ())},
             "effects": {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.effects.items()},
             "sample_rate_hz": self.fs_hz,
             "samples": self.samples,
@@ -166,7 +174,8 @@ def identify(
     model = with_effects(structure, effects, fs)
     if effects and method != "ls":
         raise ParameterError("method", method, "'ls' with effect columns (IDIM-ILIC windows identify the structure's own parameters)")
-    report = IdentifyReport(source=src, model=structure, fs_hz=fs, samples=len(log), warnings=list(prepared.warnings), effects=effects)
+    report = IdentifyReport(source=src, model=structure, fs_hz=fs, samples=len(log), warnings=list(prepared.warnings), effects=effects,
+                            joint=log.meta.get("joint"), joint_type=parameters.joint_type(log.units.get("q")))
     if method in ("ls", "both"):
         try:
             report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid, segments=prepared.segments)

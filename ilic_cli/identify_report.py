@@ -9,11 +9,13 @@ import json
 import math
 from typing import TYPE_CHECKING, Any
 
+from ilic_cli import parameters
+from ilic_cli.effects import unit_of
+
 if TYPE_CHECKING:
     from ilic_cli.identify import IdentifyReport
 
 MAX_WINDOW_COLUMNS = 8
-UNITS = {"M": "kg", "Fv": "N·s/m", "Fc": "N", "offset": "N", "Fv_pos": "N·s/m", "Fc_pos": "N", "Fv_neg": "N·s/m", "Fc_neg": "N"}
 
 
 def fmt(x: float | None, decimals: int = 4) -> str:
@@ -41,20 +43,22 @@ def _table(header: list[str], rows: list[list[str]]) -> list[str]:
     return lines
 
 
-def _label(name: str) -> str:
-    unit = UNITS.get(name)
+def _label(name: str, joint_type: str = "prismatic") -> str:
+    """``name (unit)``: the unit on the report's joint (:mod:`ilic_cli.parameters`) or of an effect's column."""
+    unit = parameters.unit(name, joint_type) or unit_of(name)
     return f"{name} ({unit})" if unit else name
 
 
 def to_markdown(report: IdentifyReport) -> str:
     """The report as Markdown: IDIM-LS table, Table II layout, validation."""
     out: list[str] = [f"# Identification of {report.source or 'log'}", ""]
-    out.append(f"Model `{report.model}`; {report.samples} samples at {report.fs_hz:g} Hz.")
+    joint = f"joint `{report.joint}` ({report.joint_type})" if report.joint else f"a {report.joint_type} joint"
+    out.append(f"Model `{report.model}` of {joint}; {report.samples} samples at {report.fs_hz:g} Hz.")
     out.append("")
     if report.ls is not None:
         r = report.ls.result
         out += ["## IDIM-LS", ""]
-        out += _table(["parameter", "value", "std", "rel. std %"], [[_label(n), fmt(v), fmt(s), fmt(p)] for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True)])
+        out += _table(["parameter", "value", "std", "rel. std %"], [[_label(n, report.joint_type), fmt(v), fmt(s), fmt(p)] for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True)])
         out += ["", f"Condition number {fmt(r.condition_number)}; error norm {fmt(r.error_norm)}; relative error {fmt(r.relative_error_pct)} %; error std {fmt(r.sigma_rho)}.", ""]
     if report.ilic is not None:
         wins = report.ilic.windows
@@ -72,7 +76,7 @@ def to_markdown(report: IdentifyReport) -> str:
         rows: list[list[str]] = []
         names = report.ilic.names
         for i, n in enumerate(names):
-            row = [_label(n)]
+            row = [_label(n, report.joint_type)]
             for w in shown:
                 mark = "" if w.essential[i] else " †"
                 row += [fmt_sig(w.result.theta[i]) + mark, fmt_sig(w.result.rel_std_pct[i], 2)]

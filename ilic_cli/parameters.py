@@ -46,12 +46,12 @@ class Parameter:
 
 PARAMETERS: dict[str, Parameter] = {p.name: p for p in (
     Parameter("M", "kg", "kg·m²", "mass (motor rotor, screw, nut and carriage)"),
-    Parameter("Fv", "N/(m/s)", "N·m/(rad/s)", "viscous friction"),
+    Parameter("Fv", "N·s/m", "N·m·s/rad", "viscous friction"),
     Parameter("Fc", "N", "N·m", "Coulomb friction"),
     Parameter("offset", "N", "N·m", "force offset (amplifier offset, Coulomb asymmetry)"),
-    Parameter("Fv_pos", "N/(m/s)", "N·m/(rad/s)", "viscous friction, positive velocity"),
+    Parameter("Fv_pos", "N·s/m", "N·m·s/rad", "viscous friction, positive velocity"),
     Parameter("Fc_pos", "N", "N·m", "Coulomb friction, positive velocity"),
-    Parameter("Fv_neg", "N/(m/s)", "N·m/(rad/s)", "viscous friction, negative velocity"),
+    Parameter("Fv_neg", "N·s/m", "N·m·s/rad", "viscous friction, negative velocity"),
     Parameter("Fc_neg", "N", "N·m", "Coulomb friction, negative velocity (a magnitude)"),
 )}
 """Every identifiable parameter of the rigid axis, by name."""
@@ -71,6 +71,15 @@ STRUCTURES: dict[str, tuple[str, ...]] = {
 
 DEFAULTS = {"M": 95.0, "Fv": 200.0, "Fc": 20.0, "offset": 0.0}
 """The plant's default rigid parameters (paper section VI-E)."""
+
+
+ROTARY_UNITS = frozenset({"rad", "radian", "radians"})
+"""Position units of a revolute joint."""
+
+
+def joint_type(position_unit: str | None) -> str:
+    """``revolute`` for a position in radians, else ``prismatic`` (the EMPS, the default)."""
+    return "revolute" if (position_unit or "").strip().lower() in ROTARY_UNITS else "prismatic"
 
 
 def unit(name: str, joint: str = "prismatic") -> str:

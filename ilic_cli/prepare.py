@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ilic_cli.errors import LogError
+from ilic_cli.errors import LogError, ParameterError
 from ilic_cli.quality import assess_log, saturation_mask, segments
 from ilic_cli.runlog import RunLog
 
@@ -91,3 +91,34 @@ def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
         valid = ~saturated if saturated.any() else None
     fs = log.fs_hz
     return PreparedLog(log=log, fs_hz=fs, valid=valid, warnings=warnings, segments=segments(log.t, fs))
+
+
+def to_load_side(log: RunLog, gear_ratio: float, torque_constant: float | None = None, load_joint: str = "prismatic") -> RunLog:
+    """A motor-side log seen from the load, through a transmission of ``gear_ratio``.
+
+    ``gear_ratio`` is the motor angle per unit of load motion (rad/m of a ball
+    screw, rad/rad of a gearbox): the load position is ``q / gear_ratio`` (and
+    so its velocities and accelerations), and the force on the load is the
+    motor torque times ``gear_ratio``. With ``torque_constant`` (N·m/A) the
+    logged ``tau`` is the motor current: the torque is ``torque_constant *
+    tau``. Parameters identified on the result are the load's, in the units of
+    a ``load_joint`` (kg, N·s/m, N or kg·m², N·m·s/rad, N·m).
+    """
+    if not (gear_ratio > 0 and np.isfinite(gear_ratio)):
+        raise ParameterError("gear_ratio", gear_ratio, "a positive number (motor rad per load unit)")
+    if torque_constant is not None and not (torque_constant > 0 and np.isfinite(torque_constant)):
+        raise ParameterError("torque_constant", torque_constant, "a positive number (N·m/A)")
+    if load_joint not in ("prismatic", "revolute"):
+        raise ParameterError("load_joint", load_joint, "prismatic or revolute")
+    position, force = ("m", "N") if load_joint == "prismatic" else ("rad", "N·m")
+    scale = {"q": (1 / gear_ratio, position), "q_ref": (1 / gear_ratio, position), "qd": (1 / gear_ratio, f"{position}/s"),
+             "qd_ref": (1 / gear_ratio, f"{position}/s"), "qdd_ref": (1 / gear_ratio, f"{position}/s^2"),
+             "tau": ((torque_constant or 1.0) * gear_ratio, force)}
+    channels, units = dict(log.channels), dict(log.units)
+    for name, (factor, unit) in scale.items():
+        if name in channels:
+            channels[name] = channels[name] * factor
+            units[name] = unit
+    meta = {**log.meta, "transmission": {"gear_ratio": gear_ratio, "torque_constant": torque_constant, "load_joint": load_joint,
+                                         "motor_units": {n: log.units.get(n, "") for n in scale if n in log.channels}}}
+    return RunLog(channels, units, meta)

@@ -176,3 +176,28 @@ def test_csv_layouts_written_by_pandas(emps: RunLog, tmp_path: Path, layout: str
     assert M == pytest.approx(M_PUBLISHED, abs=5e-5)
     bad = run_cli("identify", str(path), "--method", "ls", "--columns", "q=nothing")
     assert bad.status == 2 and "no column 'nothing' for q" in bad.stderr
+
+
+def test_motor_side_log_with_gear_ratio_and_torque_constant_gives_the_load_side_parameters(emps: RunLog, tmp_path: Path) -> None:
+    """Motor radians and current in A, through a ball screw of 2*pi/0.01 rad/m and 0.25 N·m/A: the EMPS estimates to 1e-9."""
+    import json
+
+    ratio, kt = 2 * np.pi / 0.01, 0.25
+    motor = RunLog({"t": emps.t, "q": emps["q"] * ratio, "tau": emps["tau"] / (ratio * kt), "q_ref": emps["q_ref"] * ratio},
+                   {"q": "rad", "tau": "A", "q_ref": "rad"}, {"sample_rate_hz": 1000.0, "joint": "motor_1"})
+    path = write_log(motor, tmp_path / "motor.csv")
+    plain = json.loads(run_cli("identify", str(path), "--method", "ls", "--format", "json").stdout)
+    assert plain["joint_type"] == "revolute" and plain["units"]["M"] == "kg·m²"  # as logged: a revolute joint in rad
+    res = run_cli("identify", str(path), "--method", "ls", "--format", "json", "--gear-ratio", str(ratio), "--torque-constant", str(kt))
+    assert res.status == 0, res.stderr
+    doc = json.loads(res.stdout)
+    want = identify(emps, method="ls").ls.result  # type: ignore[union-attr]
+    for name, value in zip(want.names, want.theta, strict=True):
+        assert doc["ls"]["parameters"][name]["value"] == pytest.approx(float(value), rel=1e-9), name
+    assert doc["joint_type"] == "prismatic" and doc["units"] == {"M": "kg", "Fv": "N·s/m", "Fc": "N", "offset": "N"} and doc["joint"] == "motor_1"
+    md = run_cli("identify", str(path), "--method", "ls", "--gear-ratio", str(ratio), "--torque-constant", str(kt)).stdout
+    assert "| M (kg) |" in md and "joint `motor_1` (prismatic)" in md
+    bad = run_cli("identify", str(path), "--torque-constant", "0.25")
+    assert bad.status == 2 and "--torque-constant: needs --gear-ratio" in bad.stderr
+    bad = run_cli("identify", str(path), "--gear-ratio", "-2")
+    assert bad.status == 2 and "--gear-ratio: gear_ratio = -2 must be a positive number" in bad.stderr

@@ -105,7 +105,7 @@ def test_structures_and_columns_come_from_the_parameter_vocabulary() -> None:
         assert model.names == parameters.STRUCTURES[name]
         assert model.units == tuple(parameters.unit(n) for n in model.names)
     assert set(CHI_LAYOUT) == set(parameters.PARAMETERS)
-    assert parameters.unit("Fv", "revolute") == "N·m/(rad/s)" and parameters.unit("M", "revolute") == "kg·m²"
+    assert parameters.unit("Fv", "revolute") == "N·m·s/rad" and parameters.unit("Fv") == "N·s/m" and parameters.unit("M", "revolute") == "kg·m²"
     assert parameters.structure_of(["M", "Fv", "Fc", "offset", "ripple_sin"]) == "rigid-offset"
     with pytest.raises(ParameterError, match="structure = 'flexible' must be one of rigid, rigid-offset, asymmetric"):
         parameters.structure_names("flexible")

@@ -117,7 +117,8 @@ OPTIONS: dict[str, str] = {
     "structure": "--structure", "kp": "--kp", "kv": "--kv", "gtau": "--drive-gain", "vmax": "--vmax", "duration": "--duration",
     "substeps": "--substeps", "published_setup": "--published-setup", "tau_sensor": "--tau-sensor", "effect": "--effect",
     "method": "--method", "clock_s": "--published-setup", "noise.tau_std": "--noise-tau", "noise.q_std": "--noise-q",
-    "quantization.resolution": "--resolution", "parameter": "--param",
+    "quantization.resolution": "--resolution", "parameter": "--param", "gear_ratio": "--gear-ratio", "torque_constant": "--torque-constant",
+    "load_joint": "--load-joint",
 }
 """Parameter of a :class:`~ilic_cli.errors.ParameterError` -> the option that sets it."""
 

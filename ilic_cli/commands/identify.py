@@ -15,6 +15,7 @@ from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io.atomic import atomic_write_text, same_path
 from ilic_cli.modelfile import load_model_file, model_document
+from ilic_cli.prepare import to_load_side
 from ilic_cli.parameters import DEFAULTS
 from ilic_cli.plotting import plot_identify
 
@@ -25,6 +26,9 @@ from ilic_cli.plotting import plot_identify
 @click.option("--structure", "structure", type=click.Choice(STRUCTURES), default=None, help="Model structure (regressor columns) [default: the model file's, else rigid-offset].")
 @click.option("--model", "model", default=None, metavar="FILE", help="Model file (model.json): its structure and effects are identified again (--model STRUCTURE: deprecated spelling of --structure).")
 @click.option("--effect", "effects", multiple=True, metavar="ID[:k=v,...]", help="Identify this effect's regressor columns too (IDIM-LS; nonlinear parameters fixed at the given or default values); repeatable.")
+@click.option("--gear-ratio", "gear_ratio", type=float, default=None, help="Motor-side log: motor rad per unit of load motion (rad/m of a screw, rad/rad of a gearbox); parameters are the load's.")
+@click.option("--torque-constant", "torque_constant", type=float, default=None, help="Motor-side log whose tau is the motor current (A): torque constant (N·m/A); needs --gear-ratio.")
+@click.option("--load-joint", "load_joint", type=click.Choice(["prismatic", "revolute"]), default="prismatic", show_default=True, help="The load's joint, for --gear-ratio (its units).")
 @click.option("--validate", "validate", multiple=True, type=click.Path(path_type=Path), help="Apply the estimates to this log too (cross-test validation); repeatable.")
 @click.option("--window", "window_s", type=click.FloatRange(min=0, min_open=True), default=6.2, show_default=True, help="IDIM-ILIC window T_obs (s).")
 @click.option("--sigma-max", "sigma_max", type=click.FloatRange(min=0, min_open=True), default=15.0, show_default=True, help="%σ_max: parameters above it are not essential.")
@@ -40,7 +44,8 @@ from ilic_cli.plotting import plot_identify
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
 @click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
 @input_options
-def command(log: Path, method: str, structure: str | None, model: str | None, effects: tuple[str, ...], validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, ref_lag: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
+def command(log: Path, method: str, structure: str | None, model: str | None, effects: tuple[str, ...], gear_ratio: float | None,
+            torque_constant: float | None, load_joint: str, validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, ref_lag: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
     """Identify the axis's parameters from LOG by IDIM-LS and IDIM-ILIC.
 
     IDIM-LS (paper section III) filters and differentiates the measured
@@ -85,6 +90,13 @@ def command(log: Path, method: str, structure: str | None, model: str | None, ef
         _refuse_overwriting_inputs(out_dir, plot_format, (log, *validate))
     run = load(log, input_format, topic, ref_topic, joint, columns)
     others = [load(p, None, topic, ref_topic, joint, columns) for p in validate]
+    if torque_constant is not None and gear_ratio is None:
+        raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
+    if gear_ratio is not None:
+        try:
+            run, others = to_load_side(run, gear_ratio, torque_constant, load_joint), [to_load_side(o, gear_ratio, torque_constant, load_joint) for o in others]
+        except ParameterError as exc:
+            raise exc.at(option_for(exc.parameter)) from None
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
     ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
     try:

@@ -265,7 +265,7 @@ def _log(channels: dict[str, np.ndarray], units: dict[str, str], meta: dict[str,
     meta = {}
     unknown = sorted(set(columns) - set(ALIASES))
     if unknown:
-        raise LogError(path, f"--columns names channel '{unknown[0]}' (channels: {', '.join(ALIASES)})")
+        raise LogError(path, f"no standard channel '{unknown[0]}' to map a column to (channels: {', '.join(ALIASES)})")
     lower = {name.lower(): name for name in channels}
     chosen: dict[str, str] = {}
     for channel, aliases in ALIASES.items():
