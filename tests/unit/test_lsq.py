@@ -142,14 +142,43 @@ def test_batch_solves_each_system_independently() -> None:
 
 def test_evaluate_fixed_parameters() -> None:
     """Cross-test validation: fixed theta, sample-std convention."""
-    r = evaluate(W_LINE, Y_LINE, np.array([0.0, 1.0]), NAMES)  # residuals [0, 0, -1, 0]
-    assert list(r.theta) == [0.0, 1.0]
-    assert r.error_norm == pytest.approx(1.0)
-    assert r.sigma_rho == pytest.approx(0.5)  # deviations .25, .25, -.75, .25: 0.75 / 3
-    assert r.relative_error_pct == pytest.approx(100 / math.sqrt(11))
-    assert r.std == pytest.approx([0.5 * math.sqrt(0.7), 0.5 * math.sqrt(0.2)])
-    assert np.isinf(r.rel_std_pct[0]) and r.rel_std_pct[1] == pytest.approx(50 * math.sqrt(0.2))
+    r = evaluate(W_LINE, Y_LINE, np.array([0.0, 2.0]), NAMES)  # residuals [0, -1, -3, -3], mean -1.75
+    assert list(r.theta) == [0.0, 2.0]
+    assert r.error_norm == pytest.approx(math.sqrt(19.0))
+    assert r.sigma_rho == pytest.approx(1.5)  # deviations 1.75, .75, -1.25, -1.25: 6.75 / 3 = 2.25
+    assert r.relative_error_pct == pytest.approx(100 * math.sqrt(19.0 / 11.0))
+    assert r.std == pytest.approx([1.5 * math.sqrt(0.7), 1.5 * math.sqrt(0.2)])
+    assert np.isinf(r.rel_std_pct[0]) and r.rel_std_pct[1] == pytest.approx(100 * 1.5 * math.sqrt(0.2) / 2.0)
     lmax, lmin = (18 + math.sqrt(244)) / 2, (18 - math.sqrt(244)) / 2
     assert r.condition_number == pytest.approx(math.sqrt(lmax / lmin))
     assert r.rows == 4 and r.rank == 2 and r.names == NAMES
     assert evaluate(np.c_[X, X], Y_LINE, np.array([0.5, 0.5]), NAMES).rank == 1
+    W3 = np.random.default_rng(4).standard_normal((20, 3))
+    assert evaluate(W3, W3 @ [1.0, 2.0, 3.0] + 1.0, np.ones(3), ("a", "b", "c")).condition_number == pytest.approx(np.linalg.cond(W3))
+
+
+def test_results_are_immutable() -> None:
+    import dataclasses
+
+    r = solve(W_LINE, Y_LINE, NAMES)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        r.rank = 3  # type: ignore[misc]
+
+
+def test_small_forces_have_a_finite_relative_error() -> None:
+    r = solve(W_LINE, 0.01 * Y_LINE, NAMES)  # ||y|| = 0.033
+    assert r.relative_error_pct == pytest.approx(100 * math.sqrt(0.7 / 11), rel=1e-9)
+
+
+def test_rank_deficient_noisy_system_is_the_minimum_norm_solution() -> None:
+    rng = np.random.default_rng(6)
+    x = np.linspace(-1.0, 1.0, 50)
+    W = np.c_[x, x, np.cos(3 * x)]
+    y = 2.0 * x + 0.5 * np.cos(3 * x) + 0.1 * rng.standard_normal(50)
+    r = solve(W, y, ("a", "b", "c"))
+    want = np.linalg.lstsq(W, y, rcond=None)[0]
+    assert r.theta == pytest.approx(want, rel=1e-9)
+    # the identifiable parameter's std is that of the reduced system [x, cos 3x]
+    reduced = solve(np.c_[x, np.cos(3 * x)], y, ("ab", "c"))
+    sig_ratio = math.sqrt((50 - 2) / (50 - 3))  # eq. 8 divides by r - b with b = 3 columns
+    assert r.std[2] == pytest.approx(reduced.std[1] * sig_ratio, rel=1e-9)
