@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ilic_cli.idim_ls import LSSettings, cross_validate, idim_ls, prepare, usable_mask, valid_rows
+from ilic_cli.idim_ls import IDIMData, IDIMLSResult, LSSettings, cross_validate, idim_ls, prepare, usable_mask, valid_rows
 from ilic_cli.regressor import get_model
 from tests.unit.synth import FS, asymmetric_force, motion, rigid_force
 
@@ -71,7 +71,7 @@ def test_usable_mask() -> None:
     assert usable_mask(np.ones(5), (5,)) is None  # every sample usable: no mask at all
     m = usable_mask(np.array([1, 1, 0, 1, 1]), (5,))
     assert m is not None and m.dtype == bool and list(m) == [True, True, False, True, True]
-    with pytest.raises(ValueError, match="samples"):
+    with pytest.raises(ValueError, match=r"^valid has \(4,\) samples, the log \(5,\)$"):
         usable_mask(np.ones(4, dtype=bool), (5,))
 
 
@@ -163,11 +163,49 @@ def test_everything_masked_is_refused(log: tuple[np.ndarray, ...]) -> None:
     t, q, tau = log
     valid = np.zeros(len(t), dtype=bool)
     valid[:80] = True  # 31 valid trimmed samples: rows 0, 10, 20 only, too few for 3 parameters
-    with pytest.raises(ValueError, match="masked"):
+    with pytest.raises(ValueError, match=r"^only 3 decimated rows are left .* too few for 3 parameters$"):
         prepare(t, q, tau, FS, get_model("rigid"), valid=valid)
-    with pytest.raises(ValueError, match="too few samples"):
+    valid[:90] = True  # rows 0, 10, 20, 30: one more than the parameters is still too few
+    with pytest.raises(ValueError, match=r"^only 4 decimated rows are left once the invalid \(saturated\) samples are masked; too few for 3 parameters$"):
+        prepare(t, q, tau, FS, get_model("rigid"), valid=valid)
+    valid[:100] = True  # rows 0..40: five
+    assert len(prepare(t, q, tau, FS, get_model("rigid"), valid=valid).y) == 5
+    with pytest.raises(ValueError, match=r"^too few samples \(319\) for IDIM-LS with trim 49 and decimation 10$"):
         prepare(t[:319], q[:319], tau[:319], FS, get_model("rigid"))
-    prepare(t[:400], q[:400], tau[:400], FS, get_model("rigid"))  # enough
+    assert len(prepare(t[:320], q[:320], tau[:320], FS, get_model("rigid")).y) == 28  # the shortest log accepted
+
+
+def test_results_and_settings_are_immutable(log: tuple[np.ndarray, ...]) -> None:
+    """LSSettings() is a shared default argument: neither it nor the results may change after the fact."""
+    import dataclasses
+
+    t, q, tau = log
+    res = idim_ls(t, q, tau, FS, get_model("rigid"))
+    data = prepare(t, q, tau, FS, get_model("rigid"))
+    for obj, attr in ((LSSettings(), "trim"), (res, "model"), (data, "fs_hz")):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, attr, 0)
+    bare = IDIMLSResult(model="rigid", result=res.result, settings=LSSettings())
+    assert bare.t is None and bare.y is None and bare.y_hat is None
+    assert IDIMData(kin=data.kin, tau=data.tau, W=data.W, y=data.y, fs_hz=FS, settings=LSSettings()).rows is None
+    frame = res.to_frame()
+    assert list(frame.columns) == ["parameter", "value", "std", "rel_std_pct"]
+    np.testing.assert_array_equal(frame["value"], res.result.theta)
+    np.testing.assert_array_equal(frame["std"], res.result.std)
+    np.testing.assert_array_equal(frame["rel_std_pct"], res.result.rel_std_pct)
+
+
+def test_scipy_anti_alias_filter_keeps_the_band_and_stops_aliases() -> None:
+    """matlab=False: Butterworth anti-alias at MATLAB decimate's cut-off, 0.8 of the decimated Nyquist (40 Hz
+    for 1 kHz / 10): a 30 Hz tone passes (within 2 %), a 60 Hz one (above the new 50 Hz Nyquist) is stopped."""
+    t, q, qd, qdd = motion(10_000)
+    data = prepare(t, q, rigid_force(qd, qdd), FS, get_model("rigid"), LSSettings(matlab=False))
+    tt, td = data.kin.t, data.t_dec
+    for f, lo, hi in ((30.0, 0.98, 1.0), (60.0, 0.0, 0.01)):
+        d = data.decimate(np.sin(2 * np.pi * f * tt))[50:-50]
+        basis = np.c_[np.sin(2 * np.pi * f * td), np.cos(2 * np.pi * f * td)][50:-50]
+        amp = float(np.hypot(*np.linalg.lstsq(basis, d, rcond=None)[0]))  # amplitude of the tone in the decimated rows
+        assert lo <= amp <= hi + 1e-9, (f, amp)
 
 
 def test_sigma_conventions(log: tuple[np.ndarray, ...]) -> None:
