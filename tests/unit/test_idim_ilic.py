@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from ilic_cli.idim_ilic import (ILICSettings, delay_samples, essential_mask, estimate_window, estimate_windows, identify_ilic, reference_derivatives,
+from ilic_cli.idim_ilic import (ILICResult, ILICSettings, WindowEstimate, delay_samples, essential_mask, estimate_window, estimate_windows, identify_ilic, reference_derivatives,
                                 reference_lag, tracking_error_ratio, update_parameters)
 from ilic_cli.lsq import solve
 from ilic_cli.regressor import get_model
@@ -237,3 +237,97 @@ def test_identify_ilic_given_derivatives_and_mask() -> None:
         assert w.result.theta == pytest.approx([95.0, 200.0, 20.0], rel=1e-9)
     with pytest.raises(ValueError, match="shorter than one window"):
         identify_ilic(t[:1999], q[:1999], tau[:1999], FS, model, ILICSettings(window_s=2.0))
+
+
+def test_window_and_result_records() -> None:
+    """The JSON and table layouts of the windows (``ilic identify --format json|csv``)."""
+    import dataclasses
+
+    t, q, qd, qdd, tau = windows(2)
+    res = identify_ilic(t.ravel(), q.ravel(), tau.ravel(), FS, get_model("rigid"), ILICSettings(window_s=2.0, ref_lag=0), qd_ref=qd.ravel(), qdd_ref=qdd.ravel(),
+                        q=q.ravel() + 1e-4)
+    w = res.windows[1]
+    d = w.to_dict()
+    assert set(d) == {"k", "t_start", "t_end", "parameters", "essential", "relative_error_pct", "condition_number", "tracking_error_ratio", "note"}
+    assert (d["k"], d["t_start"], d["t_end"]) == (2, 2.0, 3.999)
+    assert d["relative_error_pct"] == pytest.approx(w.result.relative_error_pct)
+    assert d["condition_number"] == pytest.approx(w.result.condition_number)
+    assert d["tracking_error_ratio"] == pytest.approx(w.tracking_error_ratio) and d["tracking_error_ratio"] > 0
+    top = res.to_dict()
+    assert set(top) == {"method", "model", "window_s", "cutoff_hz", "sigma_max_pct", "ref_lag_samples", "windows", "dropped_tail_s"}
+    assert (top["model"], top["cutoff_hz"], top["sigma_max_pct"], top["dropped_tail_s"], top["ref_lag_samples"]) == ("rigid", 5.0, 15.0, 0.0, 0)
+    frame = res.to_frame()
+    assert list(frame.columns) == ["k", "t_start", "t_end", "M", "M_std", "M_rel_std_pct", "M_essential", "Fv", "Fv_std", "Fv_rel_std_pct", "Fv_essential",
+                                   "Fc", "Fc_std", "Fc_rel_std_pct", "Fc_essential", "relative_error_pct", "tracking_error_ratio"]
+    row = frame.iloc[1]
+    assert (row["t_start"], row["t_end"]) == (2.0, 3.999)
+    assert row["Fv_std"] == w.result.std[1] and row["Fv_rel_std_pct"] == w.result.rel_std_pct[1]
+    assert bool(row["Fv_essential"]) is True and bool(row["M_essential"]) is True
+    assert row["relative_error_pct"] == w.result.relative_error_pct and row["tracking_error_ratio"] == w.tracking_error_ratio
+    bare = WindowEstimate(k=1, t_start=0.0, t_end=1.0, result=w.result, essential=w.essential)
+    assert bare.tracking_error_ratio is None and bare.note == "" and bare.to_dict()["tracking_error_ratio"] is None
+    empty = ILICResult(model="rigid", names=("M",), settings=ILICSettings())
+    assert empty.windows == [] and empty.dropped_s == 0.0 and empty.ref_lag == 0
+    for obj, attr in ((ILICSettings(), "window_s"), (w, "k"), (res, "model")):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, attr, 1)
+    assert estimate_window(get_model("rigid"), qd[0], qdd[0], tau[0], FS, ILICSettings()).k == 1
+
+
+def test_position_and_time_columns_see_the_reference_and_the_clock() -> None:
+    from ilic_cli.regressor import Column
+
+    t, q, qd, qdd, tau = windows(2)
+    model = get_model("rigid").extend(Column("k", "N/m", lambda k: k.q), Column("c", "N/s", lambda k: k.t))
+    out = estimate_windows(model, qd, qdd, tau + 300.0 * q + 2.0 * t, FS, ILICSettings(), q_ref=q, t=t)
+    for w in out:
+        assert w.result.theta == pytest.approx([95.0, 200.0, 20.0, 300.0, 2.0], rel=1e-6)
+
+
+def test_exactly_as_many_rows_as_parameters_is_not_solved() -> None:
+    """Rows every 80 samples end on 1999: 79, 159, 239, 319, ...; a row needs 79 valid samples either side."""
+    t, q, qd, qdd, tau = windows(1)
+    for last_valid, rows, rank in ((318, 3, 0), (398, 4, 3)):
+        valid = np.zeros(t.shape, dtype=bool)
+        valid[0, : last_valid + 1] = True
+        w = estimate_windows(get_model("rigid"), qd, qdd, tau, FS, ILICSettings(), t=t, valid=valid)[0]
+        assert w.result.rank == rank, last_valid
+        assert w.note.startswith(f"{100 * (1 - rows / 25):.3g} % of the rows masked")
+
+
+def test_exact_notes() -> None:
+    t, q, qd, qdd, tau = windows(1)
+    qd[0], qdd[0] = 0.5, 0.0
+    w = estimate_windows(get_model("rigid"), qd, qdd, rigid_force(qd, qdd, offset=0.0), FS, ILICSettings())[0]
+    assert w.note == "rank-deficient: M, Fv, Fc not excited in this window"
+
+
+def test_lag_search_edges_and_window_length_errors() -> None:
+    t, q_ref, _, _ = motion(6000)
+    q = delay_samples(q_ref, 5)
+    assert reference_lag(q_ref, q, 0) == 0  # no search: no lag
+    # the default search reaches 50 ms: a 60-sample lag is capped there
+    tau = np.zeros(6000)
+    res = identify_ilic(t, q_ref, tau + 1.0, FS, get_model("rigid"), ILICSettings(window_s=2.0), q=delay_samples(q_ref, 60))
+    assert res.ref_lag == 50
+    with pytest.raises(ValueError, match=r"^the log \(2 s\) is shorter than one window \(2 s\); pass a shorter --window$"):
+        identify_ilic(t[:1999], q_ref[:1999], tau[:1999], FS, get_model("rigid"), ILICSettings(window_s=2.0))
+    with pytest.raises(ValueError, match="shorter than one window"):
+        identify_ilic(t, q_ref, tau, FS, get_model("rigid"), ILICSettings(window_s=1e-4))  # zero samples per window
+
+
+def test_missing_acceleration_is_computed_from_the_reference() -> None:
+    t, q, qd, qdd = motion(4000)
+    tau = rigid_force(qd, qdd, offset=0.0)
+    s = ILICSettings(window_s=2.0, ref_lag=0)
+    both = identify_ilic(t, q, tau, FS, get_model("rigid"), s)
+    only_qd = identify_ilic(t, q, tau, FS, get_model("rigid"), s, qd_ref=qd)
+    for a, b in zip(both.windows, only_qd.windows, strict=True):
+        np.testing.assert_array_equal(a.result.theta, b.result.theta)
+    assert both.windows[0].result.theta == pytest.approx([95.0, 200.0, 20.0], rel=1e-2)  # central differences of q_ref
+
+
+def test_tracking_error_ratio_small_spread_and_standstill() -> None:
+    q = 0.1 * np.array([0.0, 1.0, 2.0, 3.0])  # spread sqrt(0.05) < 1
+    assert tracking_error_ratio(q + [0.0, 0.0, 0.0, 0.1], q) == pytest.approx(0.1 / math.sqrt(0.05))
+    assert math.isinf(tracking_error_ratio(np.ones(4), np.ones(4)))  # no motion at all: no ratio
