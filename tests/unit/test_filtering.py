@@ -173,3 +173,55 @@ def test_lowpass_decimate_short_record_pads_what_it_can() -> None:
     y = lowpass_decimate(x, 3, 5.0, 1000.0)
     assert y.shape == (4,)
     np.testing.assert_allclose(y, 1.0, atol=1e-9)
+
+
+def test_threaded_blocks_give_the_serial_result() -> None:
+    """Several blocks of rows filtered in threads: the same numbers as one row at a time."""
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal((5, 60_000))
+    b, a = signal.butter(2, 0.05)
+    old = filtering.CHUNK_ELEMENTS
+    try:
+        filtering.CHUNK_ELEMENTS = 2 * 60_000  # two rows per block: three blocks, two workers on 2 cores
+        got = filtfilt_matlab(b, a, x, axis=1)
+    finally:
+        filtering.CHUNK_ELEMENTS = old
+    for i in range(5):
+        np.testing.assert_allclose(got[i], signal.filtfilt(b, a, x[i], padtype="odd", padlen=6), atol=1e-10)
+
+
+def test_stacked_observation_matrices_decimate_along_time() -> None:
+    """(K windows, n samples, b columns) decimated along axis 1, as IDIM-ILIC does with its regressor."""
+    rng = np.random.default_rng(8)
+    W = np.cumsum(rng.standard_normal((2, 700, 3)), axis=1)
+    got = lowpass_decimate(W, 80, 5.0, 1000.0, 4, axis=1)
+    assert got.shape == (2, 9, 3)
+    for k in range(2):
+        for j in range(3):
+            np.testing.assert_allclose(got[k, :, j], lowpass_decimate(W[k, :, j], 80, 5.0, 1000.0, 4), atol=1e-9)
+    got0 = decimate_matlab(W, 10, axis=1)
+    assert got0.shape == (2, 70, 3)
+    np.testing.assert_allclose(got0[1, :, 2], decimate_matlab(W[1, :, 2], 10), atol=1e-9)
+
+
+def test_defaults_are_the_benchmarks() -> None:
+    """Order 4 and MATLAB's transfer-function filtfilt by default (benchmark: 4th-order Butterworth)."""
+    rng = np.random.default_rng(9)
+    x = np.cumsum(rng.standard_normal(2000))
+    b, a = signal.butter(4, 100.0 / 500.0)
+    np.testing.assert_allclose(butter_lowpass_zero_phase(x, 100.0, 1000.0), signal.filtfilt(b, a, x, padtype="odd", padlen=12), atol=1e-9)
+    sos = signal.butter(4, 5.0 / 500.0, output="sos")
+    full = signal.sosfiltfilt(sos, x, padlen=3 * (2 * len(sos) + 1))
+    np.testing.assert_allclose(lowpass_decimate(x, 80, 5.0, 1000.0), full[1999::-80][::-1], atol=1e-9)
+
+
+def test_short_record_pads_all_it_has() -> None:
+    x = np.random.default_rng(10).standard_normal(10)
+    sos = signal.butter(4, 5.0 / 500.0, output="sos")
+    full = signal.sosfiltfilt(sos, x, padlen=9)  # the padding cannot exceed n - 1 samples
+    np.testing.assert_allclose(lowpass_decimate(x, 3, 5.0, 1000.0), full[9::-3][::-1], atol=1e-12)
+
+
+def test_cutoff_error_names_the_nyquist_frequency() -> None:
+    with pytest.raises(ValueError, match=r"^cut-off 600.0 Hz must lie between 0 and the Nyquist frequency 500.0 Hz$"):
+        butter_lowpass_zero_phase(np.zeros(100), 600.0, 1000.0)

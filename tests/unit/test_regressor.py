@@ -71,16 +71,33 @@ def test_extend_and_without() -> None:
     assert base.extend(spring, name="with-spring").name == "with-spring"
     q = np.array([0.1, 0.2, 0.3, 0.4, 0.5])
     np.testing.assert_array_equal(ext.matrix(Kinematics(qd=QD, qdd=QDD, q=q))[:, 3], q)
-    with pytest.raises(ValueError, match="already in the model"):
+    with pytest.raises(ValueError, match=r"^columns already in the model: \['Fv'\]$"):
         base.extend(Column("Fv", "N", lambda k: k.qd))
     assert ext.without("k").names == base.names
     assert ext.without("M", "Fc").names == ("Fv", "k")
     assert base.names == ("M", "Fv", "Fc")  # unchanged
 
 
+def test_units_of_every_parameter() -> None:
+    units = {n: u for m in MODELS.values() for n, u in zip(m.names, m.units, strict=True)}
+    assert units == {"M": "kg", "Fv": "N/(m/s)", "Fc": "N", "offset": "N", "Fv_pos": "N/(m/s)", "Fc_pos": "N", "Fv_neg": "N/(m/s)", "Fc_neg": "N"}
+
+
+def test_records_are_immutable_with_empty_defaults() -> None:
+    import dataclasses
+
+    kin = Kinematics(qd=QD, qdd=QDD)
+    assert kin.q is None and kin.t is None and kin.sign_qd is None and dict(kin.extra) == {}
+    col = Column("k", "N/m", lambda k: k.qd)
+    assert col.description == ""
+    for obj, attr in ((kin, "qd"), (col, "name"), (get_model("rigid"), "name")):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, attr, None)
+
+
 def test_model_names() -> None:
     assert set(MODELS) == {"rigid", "rigid-offset", "asymmetric"}
     for name in MODELS:
         assert get_model(name).name == name
-    with pytest.raises(ValueError, match="unknown model 'flexible'"):
+    with pytest.raises(ValueError, match=r"^unknown model 'flexible' \(choose from rigid, rigid-offset, asymmetric\)$"):
         get_model("flexible")
