@@ -158,20 +158,105 @@ def test_heldout_errors_of_an_exact_model_vanish_and_a_wrong_one_do_not() -> Non
     assert not np.isnan(e).any()
 
 
+def newey_west_p(e_before: np.ndarray, e_after: np.ndarray) -> float:
+    """One-sided p-value by the Diebold-Mariano docstring's formula (Bartlett weights, floor(4 (n/100)^(2/9)) lags).
+
+    Parameters
+    ----------
+    e_before, e_after : ndarray
+        Errors of the two models.
+    """
+    d = e_before**2 - e_after**2
+    n = len(d)
+    dc = d - d.mean()
+    L = int(4 * (n / 100) ** (2 / 9))
+    lrv = dc @ dc / n + sum(2 * (1 - k / (L + 1)) * (dc[k:] @ dc[:-k]) / n for k in range(1, L + 1))
+    return float(stats.norm.sf(d.mean() / math.sqrt(lrv / n)))
+
+
 def test_diebold_mariano() -> None:
     assert diebold_mariano(np.ones(2), np.zeros(2)) == 1.0  # too short
     assert diebold_mariano(np.ones(10), np.zeros(10)) == 0.0  # always better, no variance
     assert diebold_mariano(np.zeros(10), np.ones(10)) == 1.0
+    assert diebold_mariano(np.ones(10), np.ones(10)) == 1.0  # identical errors: not better
+    three = (np.array([1.0, 2.0, 3.0]), np.zeros(3))  # n = 3 is enough: one lag
+    assert diebold_mariano(*three) == pytest.approx(newey_west_p(*three), rel=1e-9)
+    assert 0.001 < diebold_mariano(*three) < 0.05
     rng = np.random.default_rng(5)
     e = rng.standard_normal(500)
-    # by the docstring's formula: Bartlett long-run variance with floor(4 (n/100)^(2/9)) lags
-    after = e * 0.9 + 0.1 * rng.standard_normal(500)
-    d = e**2 - after**2
-    n = len(d)
-    dc = d - d.mean()
-    L = int(4 * (n / 100) ** (2 / 9))
-    assert L == 5
-    lrv = dc @ dc / n + sum(2 * (1 - k / (L + 1)) * (dc[k:] @ dc[:-k]) / n for k in range(1, L + 1))
-    assert diebold_mariano(e, after) == pytest.approx(stats.norm.sf(d.mean() / math.sqrt(lrv / n)), rel=1e-9)
+    assert int(4 * (500 / 100) ** (2 / 9)) == 5
+    for c in (0.98, 0.99):  # p about 2e-4 and 0.17
+        after = e * c + 0.1 * rng.standard_normal(500)
+        p = newey_west_p(e, after)
+        assert 1e-5 < p < 0.5
+        assert diebold_mariano(e, after) == pytest.approx(p, rel=1e-9)
+        assert diebold_mariano(0.01 * e, 0.01 * after) == pytest.approx(p, rel=1e-9)  # scale-free
     with_nan = np.r_[np.nan, e]
     assert diebold_mariano(with_nan, np.r_[0.0, after]) == pytest.approx(diebold_mariano(e, after))
+
+
+def test_small_scale_inputs_give_the_same_statistics() -> None:
+    """Scale invariance: the autocorrelation, the AR order and the F statistic do not depend on the unit of the force."""
+    alt = 0.01 * np.array([1.0, -1.0, 1.0, -1.0])
+    assert lag1_autocorrelation(alt) == pytest.approx(-0.75)
+    rng = np.random.default_rng(6)
+    w = rng.standard_normal(4000)
+    for scale in (0.01, 1.2, 1.5, 100.0):
+        assert len(ar_fit(scale * w)) == 0, scale  # white noise at any scale: no lag
+    e = np.zeros(4000)
+    for i in range(1, 4000):
+        e[i] = 0.6 * e[i - 1] + w[i]
+    a = ar_fit(e)
+    for scale in (0.01, 100.0):
+        np.testing.assert_allclose(ar_fit(scale * e), a, rtol=1e-9)
+    np.testing.assert_allclose(ar_fit(e + 100.0), a, rtol=1e-6)  # the mean is removed
+    n = 60
+    t = np.linspace(0, 1, n)
+    W0 = np.c_[np.ones(n), t]
+    W1 = np.c_[W0, np.sin(6 * t)]
+    y = W0 @ [1.0, 2.0] + 0.3 * np.sin(6 * t) + 0.5 * rng.standard_normal(n)
+    big = nested_f_test(W0, y, W1, y, q=1, max_order=0)
+    small = nested_f_test(W0, 0.001 * y, W1, 0.001 * y, q=1, max_order=0)
+    assert small.F == pytest.approx(big.F, rel=1e-9) and small.delta_bic == pytest.approx(big.delta_bic, rel=1e-9)
+
+
+def test_ar_order_is_at_most_a_quarter_of_the_series() -> None:
+    """An alternating series is AR(1) with a = -1: found as soon as one lag fits in (n - 1)/4 rows."""
+    alt = np.array([1.0, -1.0] * 10)
+    assert len(ar_fit(alt[:4])) == 0
+    assert len(ar_fit(alt[:5])) == 1 and ar_fit(alt[:5])[0] < -0.9
+    assert len(ar_fit(alt[:8])) == 1
+    assert 1 <= len(ar_fit(alt[:9])) <= 2
+
+
+def test_f_test_edge_cases() -> None:
+    W0 = np.c_[np.ones(4), X]
+    W1 = np.c_[W0, X**2]
+    y = Y_LINE
+    res = nested_f_test(W0, y, W1, y, q=1, max_order=0)  # 4 rows, 2 + 1 parameters: df2 = 1
+    assert (res.df1, res.df2) == (1, 1)
+    assert res.trials == 1 and res.p_adjusted == res.p_value  # one comparison by default
+    eye = np.eye(4)
+    y3 = np.array([1.0, 2.0, 3.0, 0.0])
+    assert lstsq(eye[:, :3], y3)[1] == 0.0
+    exact = nested_f_test(eye[:, :2], y3, eye[:, :3], y3, q=1, max_order=0)  # the larger model fits exactly
+    assert math.isinf(exact.F) and exact.p_value == 0.0 and exact.delta_bic == float("-inf")
+    d = res.to_dict()
+    assert set(d) == {"test", "F", "df1", "df2", "p_value", "bonferroni_trials", "p_adjusted", "whitening_ar_order", "residual_lag1_autocorrelation", "delta_bic"}
+    assert d["test"] == "nested-model F-test on AR-prewhitened decimated IDIM data, Bonferroni-corrected"
+    assert (d["df1"], d["df2"], d["p_value"], d["whitening_ar_order"], d["residual_lag1_autocorrelation"], d["delta_bic"]) == (
+        1, 1, res.p_value, 0, res.rho, res.delta_bic)
+    import dataclasses
+
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.F = 0.0  # type: ignore[misc]
+
+
+def test_gls_covariance_one_degree_of_freedom_and_default_folds() -> None:
+    W = W_LINE[:3]
+    theta, rss = lstsq(W, Y_LINE[:3])
+    np.testing.assert_allclose(gls_covariance(W, Y_LINE[:3], theta, max_order=0), rss / 1 * np.linalg.inv(W.T @ W), rtol=1e-9)
+    folds = blocked_folds(200)  # README: blocked 5-fold cross-validation
+    assert len(folds) == 5
+    train, test = folds[2]
+    assert (test[0], test[-1]) == (80, 119) and 69 in train and 70 not in train and 129 not in train and 130 in train  # 10 rows guard
