@@ -14,7 +14,10 @@ are run here, not by ``mutmut run``, for two reasons:
   run leaves nothing mutated behind and other work can go on beside it.
 
 Which tests cover which module, and the share of mutants sampled, are in
-``[tool.ilic-mutation]`` of ``pyproject.toml``. A mutant is *killed* when the
+``[tool.ilic-mutation]`` of ``pyproject.toml``; so are the *planted* bugs
+(``[[tool.ilic-mutation.planted]]``: hand-written mutants that mutmut's
+operators do not produce, such as the bugs of issue 14), run after the
+modules and scored on their own line. A mutant is *killed* when the
 tests fail (or error, or exceed the time limit: ``timeouts`` counted apart),
 *survived* when they pass. Survivors are written with their diff to
 ``out/mutation/<module>.txt``.
@@ -25,6 +28,7 @@ Usage::
     python tools/mutation.py ilic_cli/lsq.py     # one module
     python tools/mutation.py --sample 0.3        # a deterministic 30 % sample per module
     python tools/mutation.py --tests tests/test_identify_sim.py ilic_cli/idim_ls.py   # other tests
+    python tools/mutation.py --planted-only          # the hand-planted bugs only
 """
 
 from __future__ import annotations
@@ -230,6 +234,37 @@ def run_module(path: str, tests: list[str], sample: float, seed: int, out_dir: P
     return score
 
 
+def run_planted(planted: list[dict], paths: list[str] | None) -> ModuleScore:
+    """Run the hand-planted bugs (``old`` replaced by ``new`` in ``path``) against their ``tests``.
+
+    Parameters
+    ----------
+    planted : list of dict
+        Entries with ``path``, ``old``, ``new``, ``tests`` and ``why``.
+    paths : list of str or None
+        Only the entries on these modules (``None``: all).
+    """
+    score = ModuleScore("planted bugs")
+    start = time.perf_counter()
+    for bug in planted:
+        if paths is not None and bug["path"] not in paths:
+            continue
+        source = (ROOT / bug["path"]).read_text()
+        if source.count(bug["old"]) != 1:
+            raise SystemExit(f"mutation: planted bug '{bug['why']}' no longer applies to {bug['path']} (its original text is gone); update [tool.ilic-mutation.planted]")
+        outcome = run_child(bug["tests"], 60.0, (module_name(bug["path"]), bug["path"], source.replace(bug["old"], bug["new"])))
+        score.total += 1
+        if outcome == "failed":
+            score.killed += 1
+        elif outcome == "timeout":
+            score.timeouts += 1
+        else:
+            score.survivors.append(f"{bug['path']}: {bug['why']}")
+        print(f"  planted: {bug['why']}: {'killed' if outcome != 'passed' else 'SURVIVED'}", flush=True)
+    score.seconds = time.perf_counter() - start
+    return score
+
+
 def main(argv: list[str] | None = None) -> int:
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["ilic-mutation"]
     modules: dict[str, dict] = config["modules"]
@@ -241,6 +276,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=config.get("out", "out/mutation"), help="folder for the survivors' diffs")
     ap.add_argument("--show-survivors", action="store_true", help="print the surviving mutants")
     ap.add_argument("-v", "--verbose", action="store_true", help="print every mutant's outcome")
+    ap.add_argument("--planted-only", action="store_true", help="run only the planted bugs (of the given modules)")
     args = ap.parse_args(argv)
     os.chdir(ROOT)
     sys.path.insert(0, str(ROOT))
@@ -249,7 +285,7 @@ def main(argv: list[str] | None = None) -> int:
     paths = args.paths or list(modules)
     scores = []
     t_all = time.perf_counter()
-    for path in paths:
+    for path in [] if args.planted_only else paths:
         if path not in modules and not args.tests:
             raise SystemExit(f"mutation: {path} is not configured in [tool.ilic-mutation.modules]; pass --tests")
         cfg = modules.get(path, {})
@@ -261,6 +297,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{path}: killed {s.killed + s.timeouts} / {s.total} ({s.score_pct:.1f} %; {s.timeouts} by timeout{sampled}), {s.seconds:.0f} s", flush=True)
         if args.show_survivors:
             print("\n".join(s.survivors))
+    planted = run_planted(config.get("planted", []), None if not args.paths else paths) if not args.tests else None
+    if planted is not None and planted.total:
+        print(f"planted bugs: killed {planted.killed + planted.timeouts} / {planted.total} ({planted.score_pct:.1f} %), {planted.seconds:.0f} s", flush=True)
     killed = sum(s.killed + s.timeouts for s in scores)
     total = sum(s.total for s in scores)
     print(f"total: killed {killed} / {total} ({100.0 * killed / max(total, 1):.1f} %), {time.perf_counter() - t_all:.0f} s; survivors in {args.out}/")

@@ -60,6 +60,7 @@ def test_infinite_std_is_never_essential() -> None:
     r = solve(np.c_[X, X], Y_LINE, ("a", "b"))
     assert not r.full_rank
     assert not essential_mask(r, 1e300).any()
+    assert not essential_mask(r, math.inf).any()  # even with no limit at all (--sigma-max inf)
 
 
 def test_update_replaces_only_essential_parameters() -> None:
