@@ -1,12 +1,13 @@
 # make demo: simulate the paper's scenario, identify it, write a report and plots under out/demo/
 # make test: run the test suite (the command CI runs)
 # make bench: print speed ratios (benchmarks/)
+# make mutation: mutation score of the numerics, per module (not part of make test; about 25 min on 2 cores)
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench bench-large clean
+.PHONY: demo test bench bench-large mutation clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -28,6 +29,20 @@ bench: $(STAMP)
 
 bench-large: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py --large
+
+# Mutation testing (issue 14). Tool: mutmut 2.x, for its mutation operators only.
+# mutmut 3 (3.8.1 installable here; not adopted) copies the tree into mutants/,
+# mutates only function bodies and chooses the tests itself: no per-module test
+# command. cosmic-ray (8.7.0) needs a session database and a config per module
+# for the same kind of operators. tools/mutation.py takes mutmut's mutants and
+# runs each module's targeted unit tests ([tool.ilic-mutation] in pyproject.toml)
+# in forked children of one warm interpreter: no file of the tree is rewritten,
+# and a mutant costs ~0.3 s instead of ~1.5 s of interpreter start and imports.
+# Prints killed / total (%) per module; survivors' diffs in out/mutation/.
+MUTATION_ARGS ?=
+mutation: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[mutation]'
+	$(BIN)/python tools/mutation.py $(MUTATION_ARGS)
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
@@ -14,6 +16,43 @@ SHARED_EMPS = Path(__file__).parents[1].parent / "shared" / "emps"
 """``../shared/emps`` relative to the repository root (read-only data, never copied)."""
 
 EMPS_FILES = ("DATA_EMPS.mat", "DATA_EMPS_PULSES.mat")
+
+
+def skip_outside_ci(why: str) -> None:
+    """Skip the calling test (or module) with ``why``; under ``CI`` fail instead.
+
+    The one rule for skipping in this suite: nothing skips in CI (``CI`` set
+    to a non-empty value), where a missing recording or a failed import is a
+    failure. Every skip goes through this helper.
+
+    Parameters
+    ----------
+    why : str
+        What is missing.
+    """
+    if os.environ.get("CI"):
+        pytest.fail(f"{why} (CI: nothing may skip)", pytrace=False)
+    pytest.skip(why, allow_module_level=True)
+
+
+def import_or_skip(name: str) -> ModuleType:
+    """Import module ``name``; when that fails, skip outside CI and fail under CI (:func:`skip_outside_ci`).
+
+    Parameters
+    ----------
+    name : str
+        Dotted module name.
+
+    Returns
+    -------
+    ModuleType
+        The imported module.
+    """
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        skip_outside_ci(f"cannot import {name}: {exc}")
+        raise  # unreachable: skip_outside_ci always raises
 
 
 def require_shared() -> Path:
@@ -27,10 +66,8 @@ def require_shared() -> Path:
     missing = [name for name in EMPS_FILES if not (SHARED_EMPS / name).is_file()]
     if not missing:
         return SHARED_EMPS
-    why = f"EMPS recordings missing from {SHARED_EMPS}: {', '.join(missing)}"
-    if not os.environ.get("CI"):
-        pytest.skip(why)
-    pytest.fail(why + " (CI must provide ../shared beside the clone)")
+    skip_outside_ci(f"EMPS recordings missing from {SHARED_EMPS}: {', '.join(missing)}; CI must provide ../shared beside the clone")
+    raise AssertionError("unreachable")
 
 
 @pytest.fixture(scope="session")

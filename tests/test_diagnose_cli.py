@@ -11,9 +11,10 @@ import pytest
 from ilic_cli.io import write_log
 from ilic_cli.modelfile import load_model_file
 from ilic_cli.runlog import RunLog
+from tests.conftest import import_or_skip
 from tests.clirun import run_cli
 
-pytest.importorskip("plant.closed_loop")
+import_or_skip("plant.closed_loop")
 from tests.test_diagnose_effects import simulated_log  # noqa: E402
 
 

@@ -17,8 +17,9 @@ from ilic_cli.diagnosis import DiagnoseSettings, diagnose
 from ilic_cli.idim_ls import idim_ls
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
+from tests.conftest import import_or_skip
 
-plant_cl = pytest.importorskip("plant.closed_loop")
+plant_cl = import_or_skip("plant.closed_loop")
 from plant.controllers import PDSettings  # noqa: E402
 from plant.dynamics import RigidParameters, force_model, make_effects  # noqa: E402
 from plant.trajectories import DEFAULT_MOVES, Move, exciting_cycle  # noqa: E402

@@ -250,6 +250,8 @@ class Searcher:
         # local minima, best first, re-evaluated with exact columns
         interior = np.r_[True, r[1:] < r[:-1]] & np.r_[r[:-1] < r[1:], True]
         idx = np.flatnonzero(interior)
+        if idx.size == 0:  # the minimum lies on a plateau (values whose columns coincide on these rows)
+            idx = np.array([int(np.argmin(r))])
         idx = idx[np.argsort(r[idx])][:n_best]
         exact_rss = [self.rss(effect, W0, y, float(values[i]), rows) for i in idx]
         return float(values[idx[int(np.argmin(exact_rss))]])

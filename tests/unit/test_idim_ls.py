@@ -1,0 +1,247 @@
+"""IDIM-LS on noise-free synthetic logs: masking, trimming, decimation, mirror symmetry."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ilic_cli.idim_ls import IDIMData, IDIMLSResult, LSSettings, cross_validate, idim_ls, prepare, usable_mask, valid_rows
+from ilic_cli.regressor import get_model
+from tests.unit.synth import FS, asymmetric_force, motion, rigid_force
+
+
+def brute_valid_rows(valid: np.ndarray, r: int) -> np.ndarray:
+    """Reference for :func:`valid_rows`: a direct loop over every kept sample and every sample of its span.
+
+    Parameters
+    ----------
+    valid : ndarray of bool, shape (n,)
+        Usable full-rate samples.
+    r : int
+        Decimation factor.
+
+    Returns
+    -------
+    ndarray of bool
+        For each kept sample (the last one, then every ``r``-th backwards),
+        whether every sample within ``r - 1`` of it is valid.
+    """
+    n = len(valid)
+    kept = sorted(range(n - 1, -1, -r))
+    out = []
+    for i in kept:
+        ok = True
+        for j in range(n):
+            if abs(j - i) <= r - 1 and not valid[j]:
+                ok = False
+        out.append(ok)
+    return np.array(out, dtype=bool)
+
+
+@pytest.mark.parametrize("r", [1, 2, 3, 4, 10])
+@pytest.mark.parametrize("n", [37, 40, 41])
+def test_valid_rows_one_invalid_sample_at_every_offset(n: int, r: int) -> None:
+    for bad in range(n):
+        valid = np.ones(n, dtype=bool)
+        valid[bad] = False
+        got = valid_rows(valid, r)
+        want = brute_valid_rows(valid, r)
+        np.testing.assert_array_equal(got, want, err_msg=f"n={n} r={r} invalid sample {bad}")
+        # a row is dropped exactly when its kept sample lies within r - 1 samples of the invalid one
+        assert (~got).sum() == sum(1 for i in range(n - 1, -1, -r) if abs(i - bad) <= r - 1)
+
+
+def test_valid_rows_random_masks_and_stacked_windows() -> None:
+    rng = np.random.default_rng(5)
+    for _ in range(40):
+        n, r = int(rng.integers(5, 90)), int(rng.integers(1, 12))
+        valid = rng.random((3, n)) > 0.08
+        got = valid_rows(valid, r)
+        assert got.shape == (3, math.ceil(n / r))
+        for k in range(3):
+            np.testing.assert_array_equal(got[k], brute_valid_rows(valid[k], r))
+    assert valid_rows(np.ones(25, dtype=bool), 10).all()
+    assert not valid_rows(np.zeros(25, dtype=bool), 10).any()
+
+
+def test_usable_mask() -> None:
+    assert usable_mask(None, (5,)) is None
+    assert usable_mask(np.ones(5), (5,)) is None  # every sample usable: no mask at all
+    m = usable_mask(np.array([1, 1, 0, 1, 1]), (5,))
+    assert m is not None and m.dtype == bool and list(m) == [True, True, False, True, True]
+    with pytest.raises(ValueError, match=r"^valid has \(4,\) samples, the log \(5,\)$"):
+        usable_mask(np.ones(4, dtype=bool), (5,))
+
+
+def test_settings_are_the_benchmark_procedure() -> None:
+    s = LSSettings()
+    assert (s.cutoff_hz, s.order, s.decimation, s.trim, s.matlab, s.sigma) == (100.0, 4, 10, 49, True, "sample_std")
+    assert s.to_dict()["decimation"] == 10
+
+
+def assert_truth(theta: np.ndarray) -> None:
+    """The rigid-offset truth of :func:`rigid_force` within 0.2 % (M, Fv, Fc) and 0.05 N (offset)."""
+    assert theta[:3] == pytest.approx([95.0, 200.0, 20.0], rel=2e-3)
+    assert theta[3] == pytest.approx(-3.0, abs=0.05)
+
+
+@pytest.fixture(scope="module")
+def log() -> tuple[np.ndarray, ...]:
+    t, q, qd, qdd = motion(10_000)
+    return t, q, rigid_force(qd, qdd)
+
+
+def test_noise_free_log_gives_the_truth(log: tuple[np.ndarray, ...]) -> None:
+    t, q, tau = log
+    res = idim_ls(t, q, tau, FS, get_model("rigid-offset"))
+    assert res.result.names == ("M", "Fv", "Fc", "offset")
+    assert_truth(res.result.theta)
+    assert res.result.relative_error_pct < 0.2
+    d = res.to_dict()
+    assert d["method"] == "IDIM-LS" and d["model"] == "rigid-offset" and d["settings"]["trim"] == 49
+    assert list(res.to_frame()["parameter"]) == ["M", "Fv", "Fc", "offset"]
+    assert res.y_hat == pytest.approx(res.result.theta @ prepare(t, q, tau, FS, get_model("rigid-offset")).W.T)
+    # SciPy filtering instead of MATLAB's: the same answer within the same tolerance
+    sci = idim_ls(t, q, tau, FS, get_model("rigid-offset"), LSSettings(matlab=False))
+    assert_truth(sci.result.theta)
+
+
+def test_trim_and_end_aligned_rows(log: tuple[np.ndarray, ...]) -> None:
+    """The first ``trim`` samples are dropped, then the rows are the samples aligned on the end of the record."""
+    t, q, tau = log
+    n = len(t)
+    for trim in (49, 50):
+        data = prepare(t, q, tau, FS, get_model("rigid"), LSSettings(trim=trim))
+        assert data.kin.t[0] == t[trim] and len(data.kin.t) == n - trim
+        np.testing.assert_array_equal(data.tau, tau[trim:])
+        rows = len(range(n - 1, trim - 1, -10))
+        assert data.W.shape == (rows, 3) and data.y.shape == (rows,)
+        np.testing.assert_array_equal(data.t_dec, t[n - 1 : trim - 1 : -10][::-1])
+    assert prepare(t, q, tau, FS, get_model("rigid")).W.shape[0] == 996  # ceil(9951 / 10)
+
+
+def test_decimate_matches_the_system_columns(log: tuple[np.ndarray, ...]) -> None:
+    t, q, tau = log
+    valid = np.ones(len(t), dtype=bool)
+    valid[3000:3005] = False
+    for v in (None, valid):
+        data = prepare(t, q, tau, FS, get_model("rigid"), valid=v)
+        np.testing.assert_allclose(data.decimate(data.kin.qd), data.W[:, 1], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(data.decimate(data.tau), data.y, rtol=1e-12, atol=1e-12)
+        assert len(data.t_dec) == len(data.y)
+
+
+def test_masked_rows_are_exactly_those_touching_a_saturated_sample(log: tuple[np.ndarray, ...]) -> None:
+    t, q, tau = log
+    n, trim, r = len(t), 49, 10
+    valid = np.ones(n, dtype=bool)
+    valid[4321:4330] = False  # a saturated plateau
+    valid[7000] = False
+    data = prepare(t, q, tau, FS, get_model("rigid-offset"), valid=valid)
+    keep = brute_valid_rows(valid[trim:], r)
+    assert data.rows is not None
+    np.testing.assert_array_equal(data.rows, keep)
+    # rows every 10 trimmed samples from 0: 4270, 4280 are within 9 of the plateau (4272..4280), 6950, 6960 of 6951
+    assert len(data.y) == keep.sum() == 996 - 2 - 2
+    np.testing.assert_array_equal(data.t_dec, t[n - 1 : trim - 1 : -r][::-1][keep])
+    res = idim_ls(t, q, tau, FS, get_model("rigid-offset"), valid=valid)
+    assert_truth(res.result.theta)
+    assert res.result.rows == keep.sum()
+
+
+def test_no_invalid_sample_is_bit_identical(log: tuple[np.ndarray, ...]) -> None:
+    t, q, tau = log
+    a = idim_ls(t, q, tau, FS, get_model("rigid-offset"))
+    b = idim_ls(t, q, tau, FS, get_model("rigid-offset"), valid=np.ones(len(t), dtype=bool))
+    np.testing.assert_array_equal(a.result.theta, b.result.theta)
+    np.testing.assert_array_equal(a.result.std, b.result.std)
+
+
+def test_everything_masked_is_refused(log: tuple[np.ndarray, ...]) -> None:
+    t, q, tau = log
+    valid = np.zeros(len(t), dtype=bool)
+    valid[:80] = True  # 31 valid trimmed samples: rows 0, 10, 20 only, too few for 3 parameters
+    with pytest.raises(ValueError, match=r"^only 3 decimated rows are left .* too few for 3 parameters$"):
+        prepare(t, q, tau, FS, get_model("rigid"), valid=valid)
+    valid[:90] = True  # rows 0, 10, 20, 30: one more than the parameters is still too few
+    with pytest.raises(ValueError, match=r"^only 4 decimated rows are left once the invalid \(saturated\) samples are masked; too few for 3 parameters$"):
+        prepare(t, q, tau, FS, get_model("rigid"), valid=valid)
+    valid[:100] = True  # rows 0..40: five
+    assert len(prepare(t, q, tau, FS, get_model("rigid"), valid=valid).y) == 5
+    with pytest.raises(ValueError, match=r"^too few samples \(319\) for IDIM-LS with trim 49 and decimation 10$"):
+        prepare(t[:319], q[:319], tau[:319], FS, get_model("rigid"))
+    assert len(prepare(t[:320], q[:320], tau[:320], FS, get_model("rigid")).y) == 28  # the shortest log accepted
+
+
+def test_results_and_settings_are_immutable(log: tuple[np.ndarray, ...]) -> None:
+    """LSSettings() is a shared default argument: neither it nor the results may change after the fact."""
+    import dataclasses
+
+    t, q, tau = log
+    res = idim_ls(t, q, tau, FS, get_model("rigid"))
+    data = prepare(t, q, tau, FS, get_model("rigid"))
+    for obj, attr in ((LSSettings(), "trim"), (res, "model"), (data, "fs_hz")):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, attr, 0)
+    bare = IDIMLSResult(model="rigid", result=res.result, settings=LSSettings())
+    assert bare.t is None and bare.y is None and bare.y_hat is None
+    assert IDIMData(kin=data.kin, tau=data.tau, W=data.W, y=data.y, fs_hz=FS, settings=LSSettings()).rows is None
+    frame = res.to_frame()
+    assert list(frame.columns) == ["parameter", "value", "std", "rel_std_pct"]
+    np.testing.assert_array_equal(frame["value"], res.result.theta)
+    np.testing.assert_array_equal(frame["std"], res.result.std)
+    np.testing.assert_array_equal(frame["rel_std_pct"], res.result.rel_std_pct)
+
+
+def test_scipy_anti_alias_filter_keeps_the_band_and_stops_aliases() -> None:
+    """matlab=False: Butterworth anti-alias at MATLAB decimate's cut-off, 0.8 of the decimated Nyquist (40 Hz
+    for 1 kHz / 10): a 30 Hz tone passes (within 2 %), a 60 Hz one (above the new 50 Hz Nyquist) is stopped."""
+    t, q, qd, qdd = motion(10_000)
+    data = prepare(t, q, rigid_force(qd, qdd), FS, get_model("rigid"), LSSettings(matlab=False))
+    tt, td = data.kin.t, data.t_dec
+    for f, lo, hi in ((30.0, 0.98, 1.0), (60.0, 0.0, 0.01)):
+        d = data.decimate(np.sin(2 * np.pi * f * tt))[50:-50]
+        basis = np.c_[np.sin(2 * np.pi * f * td), np.cos(2 * np.pi * f * td)][50:-50]
+        amp = float(np.hypot(*np.linalg.lstsq(basis, d, rcond=None)[0]))  # amplitude of the tone in the decimated rows
+        assert lo <= amp <= hi + 1e-9, (f, amp)
+
+
+def test_sigma_conventions(log: tuple[np.ndarray, ...]) -> None:
+    """With an offset column the residual has zero mean: eq. 8 and the sample std differ by sqrt((r-1)/(r-b))."""
+    t, q, tau = log
+    rng = np.random.default_rng(0)
+    tau = tau + rng.normal(0, 2.0, len(t))
+    a = idim_ls(t, q, tau, FS, get_model("rigid-offset"), LSSettings(sigma="eq8")).result
+    b = idim_ls(t, q, tau, FS, get_model("rigid-offset")).result
+    assert a.sigma_rho / b.sigma_rho == pytest.approx(math.sqrt((a.rows - 1) / (a.rows - 4)), rel=1e-9)
+
+
+def test_asymmetric_mirror_swaps_the_sides() -> None:
+    """q -> -q and tau -> -tau swap (Fv_pos, Fc_pos) with (Fv_neg, Fc_neg), exactly; the truth is recovered on each side."""
+    t, q, qd, qdd = motion(10_000)
+    truth = {"M": 95.0, "Fv_pos": 215.0, "Fc_pos": 22.0, "Fv_neg": 185.0, "Fc_neg": 17.0}
+    tau = asymmetric_force(qd, qdd, **truth)
+    model = get_model("asymmetric")
+    a = dict(zip(model.names, idim_ls(t, q, tau, FS, model).result.theta, strict=True))
+    m = dict(zip(model.names, idim_ls(t, -q, -tau, FS, model).result.theta, strict=True))
+    for name, value in truth.items():
+        assert a[name] == pytest.approx(value, rel=1e-2), name
+    swap = {"M": "M", "Fv_pos": "Fv_neg", "Fv_neg": "Fv_pos", "Fc_pos": "Fc_neg", "Fc_neg": "Fc_pos"}
+    for name, other in swap.items():
+        assert m[name] == pytest.approx(a[other], rel=1e-9, abs=1e-9), name
+
+
+def test_cross_validation_applies_fixed_parameters(log: tuple[np.ndarray, ...]) -> None:
+    t, q, tau = log
+    model = get_model("rigid-offset")
+    own = idim_ls(t, q, tau, FS, model).result
+    cv = cross_validate(own.theta, t, q, tau, FS, model)
+    assert cv.relative_error_pct == pytest.approx(own.relative_error_pct, rel=1e-9)
+    wrong = cross_validate(own.theta * [1.1, 1.0, 1.0, 1.0], t, q, tau, FS, model)
+    assert wrong.relative_error_pct > 5 * own.relative_error_pct
+    valid = np.ones(len(t), dtype=bool)
+    valid[5000:5100] = False
+    # trimmed samples 4951..5050 are invalid: the rows 4950, 4960, ..., 5050 (11) touch them
+    assert cross_validate(own.theta, t, q, tau, FS, model, valid=valid).rows == own.rows - 11
