@@ -1,0 +1,175 @@
+"""The effect definitions: ranges, values, columns, the fit -> plant mapping and back, words (exact cases)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ilic_cli import effects as fx
+from ilic_cli.effects import EFFECTS, Estimate, Fit
+from ilic_cli.errors import ParameterError
+from ilic_cli.regressor import Kinematics
+
+
+def test_registry_order_and_kinds() -> None:
+    assert list(EFFECTS) == ["asymmetric_friction", "stribeck", "position_ripple", "spring", "payload_change", "offset", "delay", "flexibility",
+                             "saturation", "quantization", "noise"]
+    assert fx.catalogue_ids() == ("asymmetric_friction", "stribeck", "position_ripple", "spring", "payload_change", "offset", "delay", "flexibility")
+    assert "offset" not in fx.plant_ids() and "noise" in fx.plant_ids()
+    assert [e for e in EFFECTS if EFFECTS[e].shift] == ["delay"]
+    assert [e for e in EFFECTS if EFFECTS[e].nonlinear] == ["stribeck", "position_ripple", "payload_change", "delay", "flexibility"]
+    with pytest.raises(ValueError, match="already defined"):
+        fx.register(EFFECTS["spring"])
+    with pytest.raises(ParameterError) as err:
+        fx.get("warp")
+    assert err.value.parameter == "effect"
+
+
+@pytest.mark.parametrize(
+    ("eid", "given", "label", "rule"),
+    [
+        ("stribeck", {"vs": 0.0}, "stribeck.vs", "> 0"),
+        ("stribeck", {"vs": -0.01}, "stribeck.vs", "> 0"),
+        ("position_ripple", {"L": 0.0}, "position_ripple.L", "> 0"),
+        ("payload_change", {"t_change": -1.0}, "payload_change.t_change", ">= 0"),
+        ("flexibility", {"stiffness": 0.0}, "flexibility.stiffness", "> 0"),
+        ("flexibility", {"damping": -1.0}, "flexibility.damping", ">= 0"),
+        ("flexibility", {"load_fraction": 1.0}, "flexibility.load_fraction", "in (0, 1)"),
+        ("flexibility", {"load_fraction": 0.0}, "flexibility.load_fraction", "in (0, 1)"),
+        ("delay", {"delay": 1.5}, "delay.delay", "within +-1 s"),
+        ("delay", {"delay": -1.5}, "delay.delay", "within +-1 s"),
+        ("saturation", {"force_max": 0.0}, "saturation.force_max", "> 0"),
+        ("quantization", {"resolution": -1e-7}, "quantization.resolution", "> 0"),
+        ("noise", {"tau_std": -0.1}, "noise.tau_std", ">= 0"),
+        ("asymmetric_friction", {"Fc_neg": -0.5}, "asymmetric_friction.Fc_neg", ">= 0"),
+        ("spring", {"k": math.nan}, "spring.k", "finite"),
+        ("spring", {"stiffness": 1.0}, "spring.stiffness", "a parameter of 'spring' (k, q0)"),
+        ("spring", {"k": "stiff"}, "spring.k", "a number"),
+    ],
+)
+def test_values_break_their_rule(eid: str, given: dict, label: str, rule: str) -> None:
+    with pytest.raises(ParameterError) as err:
+        EFFECTS[eid].values(given)
+    assert (err.value.parameter, err.value.rule) == (label, rule)
+
+
+def test_values_accept_the_boundaries_and_fill_defaults() -> None:
+    assert EFFECTS["delay"].values({"delay": -1.0}) == {"delay": -1.0}
+    assert EFFECTS["payload_change"].values({"t_change": 0.0}) == {"dM": 10.0, "t_change": 0.0}
+    assert EFFECTS["stribeck"].values({"Fs": -4.0}) == {"Fs": -4.0, "vs": 0.01}  # a negative level is a shape correction
+    assert EFFECTS["noise"].values() == {"tau_std": 0.0, "q_std": 0.0}
+    assert EFFECTS["flexibility"].values({"damping": 0.0})["damping"] == 0.0
+
+
+def test_make_effects_and_its_json() -> None:
+    eff = fx.make_effects({"spring": {"k": 3.0}, "noise": True, "delay": None, "stribeck": False})
+    assert list(eff) == ["spring", "noise"] and eff["spring"].to_dict() == {"k": 3.0, "q0": 0.1}
+    assert eff["spring"].vector().tolist() == [3.0, 0.1] and eff["spring"]["k"] == 3.0 and eff["spring"].id == "spring"
+    assert fx.make_effects({"spring": eff["spring"]})["spring"] is eff["spring"]
+    assert list(fx.effects_to_dict({"noise": eff["noise"], "spring": eff["spring"]})) == ["spring", "noise"]  # registry order
+    with pytest.raises(ParameterError, match="a plant effect"):
+        fx.make_effects({"offset": {}})
+    with pytest.raises(ParameterError, match="an object of parameter -> value"):
+        fx.make_effects({"spring": [1, 2]})
+
+
+def test_force_terms() -> None:
+    q = np.array([0.0, 0.0025, 0.005])
+    qd = np.array([-0.02, 0.0, 0.01])
+    np.testing.assert_allclose(EFFECTS["stribeck"].force(q, qd, np.array([5.0, 0.01])), [-5.0 * math.exp(-4.0), 0.0, 5.0 * math.exp(-1.0)], rtol=1e-15)
+    np.testing.assert_allclose(EFFECTS["position_ripple"].force(q, qd, np.array([2.0, 0.01, 0.0])), [0.0, 2.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(EFFECTS["spring"].force(q, qd, np.array([100.0, 0.0025])), [-0.25, 0.0, 0.25], rtol=1e-15)
+
+
+def test_columns() -> None:
+    qd = np.array([-2.0, -1.0, 0.0, 1.0, 2.0])
+    kin = Kinematics(qd=qd, qdd=np.array([1.0, 2.0, 3.0, 4.0, 5.0]), q=np.array([0.0, 0.25, 0.5, 0.75, 1.0]), t=np.arange(5.0))
+    np.testing.assert_array_equal(EFFECTS["asymmetric_friction"].matrix(kin)[:, 0], [-2.0, -1.0, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(EFFECTS["stribeck"].matrix(kin, 1.0)[:, 0], np.sign(qd) * np.exp(-(qd**2)), rtol=1e-15)
+    ripple = EFFECTS["position_ripple"].matrix(kin, 1.0)
+    np.testing.assert_allclose(ripple, np.c_[np.sin(2 * np.pi * kin.q), np.cos(2 * np.pi * kin.q)], atol=1e-15)
+    np.testing.assert_array_equal(EFFECTS["spring"].matrix(kin)[:, 0], kin.q)
+    np.testing.assert_array_equal(EFFECTS["payload_change"].matrix(kin, 2.0)[:, 0], [0.0, 0.0, 3.0, 4.0, 5.0])
+    np.testing.assert_array_equal(EFFECTS["offset"].matrix(kin)[:, 0], np.ones(5))
+    assert EFFECTS["delay"].matrix(kin, 0.001).shape == (5, 0)
+    cols = EFFECTS["position_ripple"].regressor_columns(1.0)
+    assert [c.name for c in cols] == ["ripple_sin", "ripple_cos"] and [c.unit for c in cols] == ["N", "N"]
+    np.testing.assert_allclose(cols[1].build(kin), ripple[:, 1])
+    assert fx.unit_of("dFv_neg") == "N·s/m" and fx.unit_of("M_load") == "kg" and fx.unit_of("Fv") == "N·s/m" and fx.unit_of("nothing") == ""
+
+
+def test_applicable() -> None:
+    assert fx.applicable(EFFECTS["asymmetric_friction"], ("M", "Fv", "Fc"))
+    assert not fx.applicable(EFFECTS["asymmetric_friction"], ("M", "Fv_pos", "Fc_pos", "Fv_neg", "Fc_neg"))
+    assert not fx.applicable(EFFECTS["offset"], ("M", "Fv", "Fc", "offset"))
+    assert fx.applicable(EFFECTS["offset"], ("M", "Fv", "Fc"))
+
+
+def _fit(values: dict[str, float], value: object = None, value_std: float | None = None, hold_s: float = 0.0, std: float = 0.0) -> Fit:
+    names = tuple(values)
+    return Fit(names, np.array(list(values.values())), np.eye(len(names)) * std**2, value, value_std, hold_s)
+
+
+def test_fit_combination_and_lookup() -> None:
+    fit = Fit(("a", "b"), np.array([2.0, 3.0]), np.array([[4.0, 1.0], [1.0, 9.0]]))
+    assert fit.combination({"a": 1.0, "b": -1.0}) == (-1.0, math.sqrt(4.0 + 9.0 - 2.0))
+    assert fit.get("b") == 3.0 and fit.get("c", 7.0) == 7.0 and fit.has("a") and not fit.has("c")
+
+
+def test_asymmetric_friction_to_plant() -> None:
+    est, plant, note = EFFECTS["asymmetric_friction"].fit_to_plant(_fit({"M": 95.0, "Fv": 200.0, "Fc": 20.0, "offset": -3.0, "dFv_neg": 15.0}))
+    assert plant == {"Fv_pos": 200.0, "Fv_neg": 215.0, "Fc_pos": 20.0, "Fc_neg": 20.0}
+    assert (est["Fc_pos"].value, est["Fc_neg"].value) == (17.0, 23.0) and "cannot be told apart" in note
+    est, plant, note = EFFECTS["asymmetric_friction"].fit_to_plant(_fit({"M": 95.0, "Fv": 200.0, "Fc": 20.0, "dFv_neg": -15.0}))
+    assert plant == {"Fv_pos": 200.0, "Fv_neg": 185.0, "Fc_pos": 20.0, "Fc_neg": 20.0} and "Fc_pos" not in est and note == ""
+
+
+def test_stribeck_to_plant() -> None:
+    effect = EFFECTS["stribeck"]
+    _, plant, note = effect.fit_to_plant(_fit({"Fc": 20.0, "Fs": 3.0}, value=0.02))
+    assert plant == {"Fs": 3.0, "vs": 0.02} and note == ""
+    _, plant, note = effect.fit_to_plant(_fit({"Fc": 20.0, "Fs": -6.0}, value=0.02))
+    assert plant == {"Fs": -6.0, "vs": 0.02} and "14 N" in note
+    _, plant, note = effect.fit_to_plant(_fit({"Fc": 5.0, "Fs": -6.0}, value=0.02))
+    assert plant is None and "below 0" in note
+    _, plant, _ = effect.fit_to_plant(_fit({"Fc_pos": 4.0, "Fc_neg": 9.0, "Fs": -5.0}, value=0.02))
+    assert plant is None  # the lower side decides
+    assert effect.describe({"Fs": Estimate(3.0, None), "vs": Estimate(0.02, None)}) == "Stribeck friction (extra friction Fs = 3 N below vs = 20 mm/s)"
+
+
+def test_ripple_spring_payload_delay_to_plant() -> None:
+    est, plant, _ = EFFECTS["position_ripple"].fit_to_plant(_fit({"ripple_sin": 3.0, "ripple_cos": 4.0}, value=0.01, std=0.1))
+    assert plant == {"A": 5.0, "L": 0.01, "phase": math.atan2(4.0, 3.0)}
+    assert est["A"].std == pytest.approx(0.1) and est["phase"].std == pytest.approx(0.1 / 5.0)
+    _, plant, note = EFFECTS["spring"].fit_to_plant(_fit({"offset": 1.0, "k_spring": 12.0}))
+    assert plant == {"k": 12.0, "q0": 0.0} and "absorbed by the offset" in note
+    est, plant, _ = EFFECTS["payload_change"].fit_to_plant(_fit({"dM": 0.8}, value=11.7, value_std=0.2))
+    assert plant == {"dM": 0.8, "t_change": 11.7} and est["t_change"].std == 0.2 and est["t_change"].unit == "s"
+    _, plant, note = EFFECTS["delay"].fit_to_plant(_fit({}, value=-0.0006, hold_s=0.0005))
+    assert plant == {"delay": pytest.approx(-0.0001)} and "zero-order hold" in note and "drive lag" in note
+    _, plant, note = EFFECTS["delay"].fit_to_plant(_fit({}, value=0.002))
+    assert plant == {"delay": 0.002} and note == ""
+    _, plant, _ = EFFECTS["offset"].fit_to_plant(_fit({"offset": -3.0}))
+    assert plant is None
+
+
+def test_flexibility_to_plant_and_back() -> None:
+    effect = EFFECTS["flexibility"]
+    M, frac, f_res, zeta = 95.0, 0.3, 30.0, 0.05
+    est, plant, _ = effect.fit_to_plant(_fit({"M": M, "M_load": frac * M}, value=(f_res, zeta)))
+    k = (2 * math.pi * f_res) ** 2 * frac * M
+    assert plant == pytest.approx({"stiffness": k, "damping": 2 * zeta * math.sqrt(k * frac * M), "load_fraction": frac})
+    back = effect.value_from_plant(effect.values(plant), M)
+    assert back == pytest.approx((f_res, zeta))
+    _, plant, note = effect.fit_to_plant(_fit({"M": M, "M_load": -1.0}, value=f_res))
+    assert plant is None and "outside (0, 1)" in note
+    assert effect.impossible(np.array([-1.0]), f_res) is not None and effect.impossible(np.array([1.0]), f_res) is None
+
+
+def test_value_from_plant_of_the_scanned_effects() -> None:
+    assert EFFECTS["stribeck"].value_from_plant({"Fs": 1.0, "vs": 0.03}, 95.0) == 0.03
+    assert EFFECTS["position_ripple"].value_from_plant({"A": 1.0, "L": 0.004, "phase": 0.0}, 95.0) == 0.004
+    assert EFFECTS["delay"].value_from_plant({"delay": -0.001}, 95.0) == -0.001
+    assert EFFECTS["spring"].value_from_plant({"k": 1.0, "q0": 0.0}, 95.0) is None
