@@ -4,8 +4,13 @@ Writing: one schema per message type (encoding ``ros2msg``, the concatenated
 ``.msg`` text that Foxglove and other MCAP viewers decode), channels with
 message encoding ``cdr``, zstd-compressed chunks (lz4 or none when the
 compressor is not importable) with chunk and data-section CRCs, library string
-``ilic <version>``: the same log always gives the same bytes. Message bodies
-come from :mod:`ilic_cli.io.rosschema`.
+``ilic <version>``: the same log always gives the same bytes. The topics are
+those of :mod:`ilic_cli.io.rosschema`. ``WriteOptions.fast`` (the default)
+fills whole columns into ``rosbags``-serialised message templates
+(:func:`ilic_cli.io.rosencode.encode_columns`) and frames them in bulk
+(:class:`ilic_cli.io.mcapframe.BulkWriter`); ``fast=False`` serialises each
+message with ``rosbags`` and adds it with :class:`mcap.writer.Writer`. Both
+give the same bytes.
 
 Reading streams the file once, chunk by chunk, into NumPy columns
 (:class:`ilic_cli.io.roscollect.Collector`): no Python object is kept per
