@@ -287,7 +287,21 @@ def _scan_fast(path: Path, collector: roscollect.Collector | None, progress: Any
         except Exception as exc:  # noqa: BLE001 - zstd/lz4 errors on damaged data
             raise LogError(path, f"not a readable MCAP file: a {chunk.compression} chunk cannot be decompressed (file is corrupt: {_describe(exc)})") from None
 
-    walk(path, declare, decompress, limit, progress)
+    walk(path, declare, decompress, limit, progress, _message_counts(path))
+
+
+def _message_counts(path: Path) -> dict[int, int]:
+    """Channel id -> message count from the file's summary (via ``mcap``); empty when there is none or it is unreadable."""
+    from mcap.reader import SeekingReader
+
+    try:
+        with open(path, "rb") as stream:
+            summary = SeekingReader(stream, validate_crcs=False).get_summary()
+        if summary is None or summary.statistics is None:
+            return {}
+        return {int(k): int(v) for k, v in summary.statistics.channel_message_counts.items()}
+    except Exception:  # noqa: BLE001 - a hint only; the scan checks the file
+        return {}
 
 
 def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:

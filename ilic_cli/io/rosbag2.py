@@ -169,6 +169,7 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
             # rosbags' rule for matching a bag's topic with the storage's
             if stored.topic == conn.topic and stored.msgtype == conn.msgtype and stored.ext == conn.ext and (not stored.digest or not conn.digest or stored.digest == conn.digest):
                 by_id[int(stored.id)] = sinks[conn.id]
+                sinks[conn.id].reserve(int(getattr(stored, "msgcount", 0) or 0))
     total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections) or 1
     done = 0
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)

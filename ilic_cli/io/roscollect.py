@@ -40,14 +40,37 @@ class _Blocks:
     the small ones' space is reused for the next.
     """
 
-    __slots__ = ("done", "recent", "recent_bytes")
+    __slots__ = ("done", "recent", "recent_bytes", "buffer", "filled")
 
     def __init__(self) -> None:
         self.done: list[np.ndarray] = []
         self.recent: list[np.ndarray] = []
         self.recent_bytes = 0
+        self.buffer: np.ndarray | None = None
+        self.filled = 0
+
+    def reserve(self, n: int, dtype: Any) -> None:
+        """Expect about ``n`` values: fill one array of that size instead of joining blocks at the end.
+
+        A hint only (from a file's summary): more values spill into blocks, fewer are cut.
+        """
+        if n > 0 and self.buffer is None and not self.done and not self.recent:
+            try:
+                self.buffer = np.empty(n, dtype=dtype)
+            except (MemoryError, ValueError):
+                self.buffer = None
+            self.filled = 0
 
     def add(self, values: np.ndarray) -> None:
+        buffer = self.buffer
+        if buffer is not None:
+            end = self.filled + len(values)
+            if end <= len(buffer) and values.dtype == buffer.dtype:
+                buffer[self.filled : end] = values
+                self.filled = end
+                return
+            self.done.append(buffer[: self.filled])
+            self.buffer = None
         self.recent.append(values)
         self.recent_bytes += values.nbytes
         if self.recent_bytes >= JOIN_BYTES:
@@ -61,6 +84,9 @@ class _Blocks:
 
     def concat(self, dtype: Any) -> np.ndarray:
         """All values in one array (and no blocks kept)."""
+        buffer, self.buffer = self.buffer, None
+        if buffer is not None:
+            return buffer if self.filled == len(buffer) else buffer[: self.filled].copy()
         self._join()
         out = np.concatenate(self.done) if len(self.done) > 1 else self.done[0] if self.done else np.empty(0, dtype=dtype)
         self.done = []
@@ -81,6 +107,11 @@ class _Numbers:
         self.items: list[Any] = []
         self.blocks = _Blocks()
         self.small = small
+
+    def reserve(self, n: int) -> None:
+        """Expect about ``n`` values (see :meth:`_Blocks.reserve`); not for small columns."""
+        if not self.small:
+            self.blocks.reserve(n, self.dtype)
 
     def block(self, values: np.ndarray) -> None:
         """Append ``values`` after the items so far."""
@@ -105,12 +136,13 @@ class _Numbers:
 class _Arrays:
     """A growing column of small float arrays (one per message), flattened into NumPy blocks."""
 
-    __slots__ = ("items", "blocks", "counts")
+    __slots__ = ("items", "blocks", "counts", "expected")
 
     def __init__(self) -> None:
         self.items: list[Any] = []
         self.blocks = _Blocks()
         self.counts = _Numbers(np.int32, small=True)
+        self.expected = 0
 
     def append(self, values: Any) -> None:
         self.items.append(values)
@@ -119,6 +151,10 @@ class _Arrays:
     def block(self, values: np.ndarray) -> None:
         """Append one (messages, width) float64 block after the items so far."""
         self.flush()
+        if self.expected and values.ndim == 2 and values.shape[1]:
+            # the first block tells the width: reserve for the expected messages
+            self.blocks.reserve(self.expected * values.shape[1], np.float64)
+            self.expected = 0
         self.blocks.add(values.reshape(-1))
         self.counts.block(np.full(values.shape[0], values.shape[1] if values.ndim == 2 else 1, dtype=np.int32))
 
@@ -205,6 +241,16 @@ class _Sink:
         self._arrays = {name: _Arrays() for name in self.arrays}
         self._last: tuple[cdrcols.Layout, np.ndarray, np.ndarray] | None = None
         self._window = 256
+
+    def reserve(self, n: int) -> None:
+        """Expect about ``n`` messages (a hint from the file's summary; see :meth:`_Blocks.reserve`)."""
+        self._log_ns.reserve(n)
+        for column in self._arrays.values():
+            column.expected = n
+        self._reserve_extra(n)
+
+    def _reserve_extra(self, n: int) -> None:
+        pass
 
     def add(self, log_ns: int, data: bytes | memoryview) -> None:
         """Decode one message (``log_ns``, raw ``data``) into the columns."""
@@ -333,6 +379,9 @@ class _JointStateSink(_Sink):
         super()._flush()
         self._stamp.flush()
         self._name_id.flush()
+
+    def _reserve_extra(self, n: int) -> None:
+        self._stamp.reserve(n)
 
     def _agrees_extra(self, lay: cdrcols.Layout, msg: Any, buf: np.ndarray) -> bool:
         stamp = msg.header.stamp
