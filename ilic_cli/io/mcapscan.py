@@ -33,6 +33,9 @@ MAX_PERIOD_RECORDS = 16
 MIN_RUN = 4
 """Fewest repetitions of a group handled as a run (shorter ones are parsed record by record)."""
 
+MAX_SKIP = 255
+"""Most message records taken one by one between two searches for a run (irregular files)."""
+
 MAX_HINT_EXPANSION = 64
 """A summary's message count is capped at this many times the file size over the 31 bytes of a message head."""
 
@@ -132,6 +135,10 @@ class _State:
         self.counts = counts
         self.schemas: dict[int, Any] = {}
         self.sinks: dict[int, Any] = {}
+        # after failed searches for a run, the next few message records are
+        # taken one by one without searching (1, 3, 7, ... up to MAX_SKIP)
+        self.skip = 0
+        self.backoff = 1
 
     def schema(self, record: Any) -> None:
         self.schemas[record.id] = record
@@ -169,10 +176,16 @@ class _State:
             if stop > end:
                 raise McapScanError("file is truncated or corrupt (a record runs past the end of its chunk)")
             if opcode == OP_MESSAGE:
-                advanced = self._run(buf, pos, end)
+                advanced = self._run(buf, pos, end) if self.skip == 0 else 0
                 if advanced:
+                    self.backoff = 1
                     pos += advanced
                     continue
+                if self.skip:
+                    self.skip -= 1
+                else:
+                    self.skip = self.backoff - 1
+                    self.backoff = min(2 * self.backoff, MAX_SKIP + 1)
                 self.single(buf, pos, length)
             elif opcode == OP_SCHEMA:
                 self.schema(Schema.read(ReadDataStream(io.BytesIO(buf[pos + 9 : stop].tobytes()))))

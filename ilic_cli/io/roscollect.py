@@ -26,6 +26,12 @@ from ilic_cli.io.rosschema import JOINT_STATE, ROS1, ROS2, STRING, TRAJECTORY_PO
 BLOCK = 8192
 """Messages buffered as Python values before they are packed into NumPy blocks."""
 
+MIN_RUN = 4
+"""Fewest same-layout messages decoded as columns (unless they are all that is left of a run)."""
+
+MAX_SKIP = 255
+"""Most messages decoded alone before a layout is tried again (irregular topics)."""
+
 
 JOIN_BYTES = 1 << 20
 """Small blocks of a column are joined once they hold this many bytes."""
@@ -241,6 +247,8 @@ class _Sink:
         self._arrays = {name: _Arrays() for name in self.arrays}
         self._last: tuple[cdrcols.Layout, np.ndarray, np.ndarray] | None = None
         self._window = 256
+        self._skip = 0
+        self._backoff = 1
 
     def reserve(self, n: int) -> None:
         """Expect about ``n`` messages (a hint from the file's summary; see :meth:`_Blocks.reserve`)."""
@@ -273,33 +281,56 @@ class _Sink:
         Runs of ROS 2 messages with one layout become columns at once; a
         message that starts no such run (another layout, encoding or type, a
         malformed message) is decoded alone by :meth:`add`, so a run that
-        changes layout midway is split where it changes.
+        changes layout midway is split where it changes. Runs shorter than
+        :data:`MIN_RUN` do not pay: their messages are decoded alone, and after
+        each such run more of the following messages are (1, 3, 7, ... up to
+        :data:`MAX_SKIP`) before a layout is tried again.
         """
         fast = self.topic.kind == ROS2 and self.topic.msgtype in cdrcols.FAST_TYPES
         i = 0
         while i < count and self.error is None:
             start = base + i * stride
             first = bytes(buf[start : start + size])
-            lay = self._layout(first) if fast else None
-            if lay is None:
-                self.add(int(log_ns[i]), first)
-                i += 1
+            left = count - i
+            lay = None
+            tried = False
+            if fast and self._skip:
+                self._skip -= 1
+            elif fast:
+                tried = True
+                lay = self._layout(first, walk=left > 1)
+            todo = min(left, self._window)
+            n = cdrcols.matching_rows(buf, start, stride, todo, lay) if lay is not None else 0
+            if n == 0 or (n < MIN_RUN and n < left):
+                # no layout, or a run too short to pay: its messages alone
+                for k in range(max(n, 1)):
+                    at = start + k * stride
+                    self.add(int(log_ns[i + k]), first if k == 0 else bytes(buf[at : at + size]))
+                i += max(n, 1)
+                if tried:
+                    self._skip = self._backoff - 1
+                    self._backoff = min(2 * self._backoff, MAX_SKIP + 1)
                 continue
-            todo = min(count - i, self._window)
-            n = cdrcols.matching_rows(buf, start, stride, todo, lay)
+            self._backoff = 1
             self._window = min(self._window * 2, 1 << 20) if n == todo else 256
             self._log_ns.block(np.asarray(log_ns[i : i + n], dtype=np.int64))
             self._columns(buf, start, stride, n, lay)
             self.count += n
             i += n
 
-    def _layout(self, data: bytes) -> cdrcols.Layout | None:
-        """Layout of ``data``: the last run's when the structural bytes are the same, else walked and checked."""
+    def _layout(self, data: bytes, walk: bool = True) -> cdrcols.Layout | None:
+        """Layout of ``data``: the last run's when the structural bytes are the same, else walked and checked.
+
+        ``walk=False`` (a lone message) only tries the last run's layout: a
+        new one would cost more than decoding the message by itself.
+        """
         last = self._last
         if last is not None and last[0].size == len(data):
             lay, fixed, structure = last
             if np.array_equal(np.frombuffer(data, dtype=np.uint8)[fixed], structure):
                 return lay
+        if not walk:
+            return None
         lay = cdrcols.layout(data, self.topic.msgtype)
         if lay is None or not self._agrees(lay, data):
             return None
