@@ -156,7 +156,6 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
     (:meth:`ilic_cli.io.roscollect._Sink.add_run`). Sinks sort by log time
     (stably), which gives ``rosbags``' order: log time, then insertion.
     """
-    import gc
     import sqlite3
 
     import numpy as np
@@ -173,8 +172,6 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
     total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections) or 1
     done = 0
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
-    collecting = gc.isenabled()
-    gc.disable()  # the rows are tuples without cycles; the collector would walk them over and over
     try:
         db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
         with current_progress(path) as progress:
@@ -197,8 +194,6 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
                     progress(done, total)
     finally:
         db.close()
-        if collecting:
-            gc.enable()
 
 
 def _feed_runs(sink: Any, buf: Any, starts: Any, sizes: Any, log_ns: Any) -> None:
