@@ -348,10 +348,10 @@ def test_bulk_bag_writer_is_deterministic(tmp_path: Path, storage: str) -> None:
 @pytest.mark.parametrize("hint", [0, 5, 40, 1000])
 def test_column_size_hints_are_only_hints(hint: int) -> None:
     """A wrong message count in a summary neither loses nor invents values."""
-    from ilic_cli.io.roscollect import _Blocks
+    from ilic_cli.io.roscolumns import Blocks
 
     parts = [np.arange(k, k + 7, dtype=np.int64) for k in range(0, 70, 7)]
-    blocks = _Blocks()
+    blocks = Blocks()
     blocks.reserve(hint, np.int64)
     for part in parts:
         blocks.add(part)
