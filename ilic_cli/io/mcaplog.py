@@ -71,7 +71,8 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     path : Path
         Destination file (a temporary path chosen by ``write_log``).
     options : WriteOptions
-        ``options.joint`` names the joint unless ``log.meta["joint"]`` does.
+        ``options.joint`` names the joint unless ``log.meta["joint"]`` does;
+        ``options.fast`` picks the bulk writer (the same bytes as the per-message one).
     """
     from mcap.writer import Writer
 

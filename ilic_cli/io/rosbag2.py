@@ -40,7 +40,8 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         Folder to create (must not exist yet). The storage file inside is
         named after the final target (``NAME/NAME.db3``), not the temporary folder.
     options : WriteOptions
-        ``options.storage`` (``"sqlite3"`` or ``"mcap"``) and ``options.joint``.
+        ``options.storage`` (``"sqlite3"`` or ``"mcap"``), ``options.joint`` and
+        ``options.fast`` (messages in bulk, or one by one through ``rosbags``).
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
 
