@@ -344,3 +344,16 @@ def test_bulk_bag_writer_is_deterministic(tmp_path: Path, storage: str) -> None:
     assert names == sorted(p.name for p in second.iterdir()) and len(names) == 2
     for name in names:
         assert (first / name).read_bytes() == (second / name).read_bytes(), name
+
+
+@pytest.mark.parametrize("hint", [0, 5, 40, 1000])
+def test_column_size_hints_are_only_hints(hint: int) -> None:
+    """A wrong message count in a summary neither loses nor invents values."""
+    from ilic_cli.io.roscolumns import Blocks
+
+    parts = [np.arange(k, k + 7, dtype=np.int64) for k in range(0, 70, 7)]
+    blocks = Blocks()
+    blocks.reserve(hint, np.int64)
+    for part in parts:
+        blocks.add(part)
+    assert np.array_equal(blocks.concat(np.int64), np.arange(70))

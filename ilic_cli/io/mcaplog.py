@@ -4,8 +4,13 @@ Writing: one schema per message type (encoding ``ros2msg``, the concatenated
 ``.msg`` text that Foxglove and other MCAP viewers decode), channels with
 message encoding ``cdr``, zstd-compressed chunks (lz4 or none when the
 compressor is not importable) with chunk and data-section CRCs, library string
-``ilic <version>``: the same log always gives the same bytes. Message bodies
-come from :mod:`ilic_cli.io.rosschema`.
+``ilic <version>``: the same log always gives the same bytes. The topics are
+those of :mod:`ilic_cli.io.rosschema`. ``WriteOptions.fast`` (the default)
+fills whole columns into ``rosbags``-serialised message templates
+(:func:`ilic_cli.io.rosencode.encode_columns`) and frames them in bulk
+(:class:`ilic_cli.io.mcapframe.BulkWriter`); ``fast=False`` serialises each
+message with ``rosbags`` and adds it with :class:`mcap.writer.Writer`. Both
+give the same bytes.
 
 Reading streams the file once, chunk by chunk, into NumPy columns
 (:class:`ilic_cli.io.roscollect.Collector`): no Python object is kept per
@@ -66,7 +71,8 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     path : Path
         Destination file (a temporary path chosen by ``write_log``).
     options : WriteOptions
-        ``options.joint`` names the joint unless ``log.meta["joint"]`` does.
+        ``options.joint`` names the joint unless ``log.meta["joint"]`` does;
+        ``options.fast`` picks the bulk writer (the same bytes as the per-message one).
     """
     from mcap.writer import Writer
 
@@ -282,7 +288,21 @@ def _scan_fast(path: Path, collector: roscollect.Collector | None, progress: Any
         except Exception as exc:  # noqa: BLE001 - zstd/lz4 errors on damaged data
             raise LogError(path, f"not a readable MCAP file: a {chunk.compression} chunk cannot be decompressed (file is corrupt: {_describe(exc)})") from None
 
-    walk(path, declare, decompress, limit, progress)
+    walk(path, declare, decompress, limit, progress, _message_counts(path))
+
+
+def _message_counts(path: Path) -> dict[int, int]:
+    """Channel id -> message count from the file's summary (via ``mcap``); empty when there is none or it is unreadable."""
+    from mcap.reader import SeekingReader
+
+    try:
+        with open(path, "rb") as stream:
+            summary = SeekingReader(stream, validate_crcs=False).get_summary()
+        if summary is None or summary.statistics is None:
+            return {}
+        return {int(k): int(v) for k, v in summary.statistics.channel_message_counts.items()}
+    except Exception:  # noqa: BLE001 - a hint only; the scan checks the file
+        return {}
 
 
 def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:

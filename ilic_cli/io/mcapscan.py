@@ -33,6 +33,12 @@ MAX_PERIOD_RECORDS = 16
 MIN_RUN = 4
 """Fewest repetitions of a group handled as a run (shorter ones are parsed record by record)."""
 
+MAX_SKIP = 255
+"""Most message records taken one by one between two searches for a run (irregular files)."""
+
+MAX_HINT_EXPANSION = 64
+"""A summary's message count is capped at this many times the file size over the 31 bytes of a message head."""
+
 
 class McapScanError(Exception):
     """A structural problem found while walking an MCAP file (reported as a :class:`LogError`)."""
@@ -42,7 +48,7 @@ Declare = Callable[[Any, Any], Any]
 """``declare(channel, schema)`` -> sink or None, called for each new channel record."""
 
 
-def scan(path: Path, declare: Declare, decompress: Callable[[Any, int], bytes], limit: int, progress: Callable[[int, int], None] | None) -> None:
+def scan(path: Path, declare: Declare, decompress: Callable[[Any, int], bytes], limit: int, progress: Callable[[int, int], None] | None, counts: dict[int, int] | None = None) -> None:
     """Walk every record of the MCAP file at ``path``.
 
     Parameters
@@ -58,6 +64,9 @@ def scan(path: Path, declare: Declare, decompress: Callable[[Any, int], bytes], 
         Largest accepted uncompressed chunk.
     progress : callable or None
         ``progress(bytes_read, file_size)`` after each chunk.
+    counts : dict, optional
+        Channel id -> message count from the file's summary: a hint for the
+        sinks' column sizes (:meth:`ilic_cli.io.roscollect._Sink.reserve`), never trusted.
 
     Raises
     ------
@@ -68,7 +77,8 @@ def scan(path: Path, declare: Declare, decompress: Callable[[Any, int], bytes], 
     from mcap.records import Channel, Chunk, Schema
 
     size = path.stat().st_size
-    state = _State(declare)
+    most = MAX_HINT_EXPANSION * size // MESSAGE_HEAD
+    state = _State(declare, {cid: min(int(n), most) for cid, n in (counts or {}).items()})
     with open(path, "rb") as stream:
         magic = stream.read(8)
         if magic != MAGIC:
@@ -120,10 +130,15 @@ def scan(path: Path, declare: Declare, decompress: Callable[[Any, int], bytes], 
 class _State:
     """Schemas, channels and sinks seen so far, and the chunk walker."""
 
-    def __init__(self, declare: Declare) -> None:
+    def __init__(self, declare: Declare, counts: dict[int, int]) -> None:
         self.declare = declare
+        self.counts = counts
         self.schemas: dict[int, Any] = {}
         self.sinks: dict[int, Any] = {}
+        # after failed searches for a run, the next few message records are
+        # taken one by one without searching (1, 3, 7, ... up to MAX_SKIP)
+        self.skip = 0
+        self.backoff = 1
 
     def schema(self, record: Any) -> None:
         self.schemas[record.id] = record
@@ -131,7 +146,9 @@ class _State:
     def channel(self, record: Any) -> None:
         schema = self.schemas.get(record.schema_id)
         if schema is not None:
-            self.sinks[record.id] = self.declare(record, schema)
+            sink = self.sinks[record.id] = self.declare(record, schema)
+            if sink is not None and self.counts.get(record.id):
+                sink.reserve(self.counts[record.id])
 
     def single(self, buf: np.ndarray, at: int, length: int) -> None:
         """One message record whose opcode is at ``at`` (its body starts at ``at + 9``)."""
@@ -159,10 +176,16 @@ class _State:
             if stop > end:
                 raise McapScanError("file is truncated or corrupt (a record runs past the end of its chunk)")
             if opcode == OP_MESSAGE:
-                advanced = self._run(buf, pos, end)
+                advanced = self._run(buf, pos, end) if self.skip == 0 else 0
                 if advanced:
+                    self.backoff = 1
                     pos += advanced
                     continue
+                if self.skip:
+                    self.skip -= 1
+                else:
+                    self.skip = self.backoff - 1
+                    self.backoff = min(2 * self.backoff, MAX_SKIP + 1)
                 self.single(buf, pos, length)
             elif opcode == OP_SCHEMA:
                 self.schema(Schema.read(ReadDataStream(io.BytesIO(buf[pos + 9 : stop].tobytes()))))

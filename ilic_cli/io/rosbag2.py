@@ -2,7 +2,10 @@
 
 Writing creates a bag of format version 9 (Humble CDR types, the topics of
 :mod:`ilic_cli.io.rosschema`) with the storage plugin of
-``WriteOptions.storage``. Reading accepts both storages; the ``.mcap`` files
+``WriteOptions.storage``, through ``rosbags``' writer; with
+``WriteOptions.fast`` (the default) its storage takes the messages in bulk
+(:mod:`ilic_cli.io.rosbulk`: an sqlite3 file identical to the per-message
+one, or an MCAP file with zstd chunks). Reading accepts both storages; the ``.mcap`` files
 of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
 (CRCs, bounded decompression). With ``fast`` (the default) that scan of a
 bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag is
@@ -37,7 +40,8 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         Folder to create (must not exist yet). The storage file inside is
         named after the final target (``NAME/NAME.db3``), not the temporary folder.
     options : WriteOptions
-        ``options.storage`` (``"sqlite3"`` or ``"mcap"``) and ``options.joint``.
+        ``options.storage`` (``"sqlite3"`` or ``"mcap"``), ``options.joint`` and
+        ``options.fast`` (messages in bulk, or one by one through ``rosbags``).
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -153,7 +157,6 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
     (:meth:`ilic_cli.io.roscollect._Sink.add_run`). Sinks sort by log time
     (stably), which gives ``rosbags``' order: log time, then insertion.
     """
-    import gc
     import sqlite3
 
     import numpy as np
@@ -166,11 +169,10 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
             # rosbags' rule for matching a bag's topic with the storage's
             if stored.topic == conn.topic and stored.msgtype == conn.msgtype and stored.ext == conn.ext and (not stored.digest or not conn.digest or stored.digest == conn.digest):
                 by_id[int(stored.id)] = sinks[conn.id]
+                sinks[conn.id].reserve(int(getattr(stored, "msgcount", 0) or 0))
     total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections) or 1
     done = 0
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
-    collecting = gc.isenabled()
-    gc.disable()  # the rows are tuples without cycles; the collector would walk them over and over
     try:
         db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
         with current_progress(path) as progress:
@@ -193,8 +195,6 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
                     progress(done, total)
     finally:
         db.close()
-        if collecting:
-            gc.enable()
 
 
 def _feed_runs(sink: Any, buf: Any, starts: Any, sizes: Any, log_ns: Any) -> None:

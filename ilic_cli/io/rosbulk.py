@@ -35,7 +35,16 @@ ROWS_PER_STATEMENT = 256
 
 
 class BulkSqlite3Storage(Sqlite3Writer):
-    """``rosbags``' sqlite3 storage with :meth:`add_samples`."""
+    """``rosbags``' sqlite3 storage with :meth:`add_samples`.
+
+    The database is not synced to disk at commit (``PRAGMA synchronous = OFF``),
+    like every other output, which ``write_log`` writes to a temporary path and
+    renames; the file's bytes are the same.
+    """
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        super().__init__(path, compression)
+        self.conn.execute("PRAGMA synchronous = OFF")
 
     def add_samples(self, columns: Columns, ids: dict[str, int]) -> None:
         """Insert every per-sample message of ``columns`` (topic ids from ``ids``).

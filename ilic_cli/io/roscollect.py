@@ -1,4 +1,4 @@
-"""Messages of a container -> per-topic NumPy columns (:class:`Collector`, sinks, :class:`Series`).
+"""Messages of a container -> per-topic NumPy columns (:class:`Collector` and its sinks).
 
 Container modules stream every message once into a :class:`Collector`, which
 decodes it with the ``rosbags`` type store and keeps only NumPy columns of the
@@ -7,13 +7,13 @@ decoded: definitions stored in a file are never compiled or executed.
 
 Containers that hold messages back to back (MCAP chunks, sqlite3 blobs) hand
 whole runs to :meth:`_Sink.add_run`, which decodes runs of same-layout ROS 2
-messages as columns (:mod:`ilic_cli.io.cdrcols`) and the rest one by one.
+messages as columns (:mod:`ilic_cli.io.cdrcols`) and the rest one by one. The columns themselves
+are :mod:`ilic_cli.io.roscolumns`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -22,173 +22,17 @@ import numpy as np
 from ilic_cli.errors import LogError
 from ilic_cli.io import cdrcols
 from ilic_cli.io.container import short_text
+from ilic_cli.io.roscolumns import Arrays, Numbers, Series, sort_series
 from ilic_cli.io.rosschema import JOINT_STATE, ROS1, ROS2, STRING, TRAJECTORY_POINT, RawTopic, typestore
 
 BLOCK = 8192
 """Messages buffered as Python values before they are packed into NumPy blocks."""
 
+MIN_RUN = 4
+"""Fewest same-layout messages decoded as columns (unless they are all that is left of a run)."""
 
-JOIN_BYTES = 1 << 20
-"""Small blocks of a column are joined once they hold this many bytes."""
-
-
-class _Blocks:
-    """The NumPy blocks of a growing column; small ones are joined into blocks of about :data:`JOIN_BYTES`.
-
-    Runs give many small arrays, which live on the C heap; glibc keeps freed
-    heap space, so joining them all only at the end would leave the process
-    holding the column twice. Joined blocks are mapped and unmapped whole, and
-    the small ones' space is reused for the next.
-    """
-
-    __slots__ = ("done", "recent", "recent_bytes")
-
-    def __init__(self) -> None:
-        self.done: list[np.ndarray] = []
-        self.recent: list[np.ndarray] = []
-        self.recent_bytes = 0
-
-    def add(self, values: np.ndarray) -> None:
-        self.recent.append(values)
-        self.recent_bytes += values.nbytes
-        if self.recent_bytes >= JOIN_BYTES:
-            self._join()
-
-    def _join(self) -> None:
-        if self.recent:
-            self.done.append(np.concatenate(self.recent) if len(self.recent) > 1 else self.recent[0])
-            self.recent = []
-            self.recent_bytes = 0
-
-    def concat(self, dtype: Any) -> np.ndarray:
-        """All values in one array (and no blocks kept)."""
-        self._join()
-        out = np.concatenate(self.done) if len(self.done) > 1 else self.done[0] if self.done else np.empty(0, dtype=dtype)
-        self.done = []
-        return out
-
-
-class _Numbers:
-    """A growing column of scalars packed into NumPy blocks every :data:`BLOCK` items.
-
-    With ``small=True`` (non-negative counts and indices) a block is stored as
-    uint8 when its values allow, else as the given dtype.
-    """
-
-    __slots__ = ("dtype", "items", "blocks", "small")
-
-    def __init__(self, dtype: Any, small: bool = False) -> None:
-        self.dtype = dtype
-        self.items: list[Any] = []
-        self.blocks = _Blocks()
-        self.small = small
-
-    def block(self, values: np.ndarray) -> None:
-        """Append ``values`` after the items so far."""
-        self.flush()
-        if self.small and len(values) and int(values.max()) < 256 and int(values.min()) >= 0:
-            values = values.astype(np.uint8)
-        self.blocks.add(values)
-
-    def flush(self) -> None:
-        if self.items:
-            block = np.asarray(self.items, dtype=self.dtype)
-            if self.small and len(block) and int(block.max()) < 256 and int(block.min()) >= 0:
-                block = block.astype(np.uint8)
-            self.blocks.add(block)
-            self.items = []
-
-    def array(self) -> np.ndarray:
-        self.flush()
-        return self.blocks.concat(self.dtype)
-
-
-class _Arrays:
-    """A growing column of small float arrays (one per message), flattened into NumPy blocks."""
-
-    __slots__ = ("items", "blocks", "counts")
-
-    def __init__(self) -> None:
-        self.items: list[Any] = []
-        self.blocks = _Blocks()
-        self.counts = _Numbers(np.int32, small=True)
-
-    def append(self, values: Any) -> None:
-        self.items.append(values)
-        self.counts.items.append(len(values))
-
-    def block(self, values: np.ndarray) -> None:
-        """Append one (messages, width) float64 block after the items so far."""
-        self.flush()
-        self.blocks.add(values.reshape(-1))
-        self.counts.block(np.full(values.shape[0], values.shape[1] if values.ndim == 2 else 1, dtype=np.int32))
-
-    def flush(self) -> None:
-        if self.items:
-            try:
-                block = np.concatenate(self.items).astype(np.float64, copy=False)
-            except (ValueError, TypeError):
-                block = np.concatenate([np.asarray(v, dtype=np.float64).reshape(-1) for v in self.items])
-            self.blocks.add(block)
-            self.items = []
-        self.counts.flush()
-
-    def columns(self) -> tuple[np.ndarray, np.ndarray]:
-        self.flush()
-        flat = self.blocks.concat(np.float64)
-        return flat, self.counts.array()
-
-
-@dataclass
-class Series:
-    """Decoded messages of one topic as columns (no per-message Python objects).
-
-    Attributes
-    ----------
-    topic : RawTopic
-        The topic.
-    log_ns : ndarray of int64
-        Log time of each message, sorted.
-    stamp_ns : ndarray of int64 or None
-        ``header.stamp`` of each message (JointState).
-    name_id : ndarray of int32 or None
-        Index into ``names`` of each message's ``name`` list (JointState).
-    names : list of tuple of str
-        Distinct ``name`` lists, in order of first appearance.
-    fields : dict
-        Array field -> ``(flat values, count per message)``.
-    text : str or None
-        Data of the first message (String).
-    """
-
-    topic: RawTopic
-    log_ns: np.ndarray
-    stamp_ns: np.ndarray | None = None
-    name_id: np.ndarray | None = None
-    names: list[tuple[str, ...]] = field(default_factory=list)
-    fields: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
-    text: str | None = None
-
-    def __len__(self) -> int:
-        return len(self.log_ns)
-
-    def values_at(self, fieldname: str, index: np.ndarray | int, keep: np.ndarray | None = None) -> np.ndarray | None:
-        """Element ``index[i]`` of ``fieldname`` for the messages ``keep``; None when one is too short."""
-        flat, counts = self.fields[fieldname]
-        if keep is None and np.ndim(index) == 0 and len(counts):
-            # the usual case: every message has the same width -> a strided view, no index arrays
-            width = int(counts[0])
-            j = int(index)
-            if width > j and bool((counts == width).all()):
-                return flat if width == 1 else np.ascontiguousarray(flat[j::width])
-            if not (counts > j).all():
-                return None
-        starts = np.cumsum(counts, dtype=np.int64) - counts
-        if keep is not None:
-            counts, starts = counts[keep], starts[keep]
-        if len(counts) == 0 or not (counts > index).all():
-            return None
-        return flat[starts + index]
+MAX_SKIP = 255
+"""Most messages decoded alone before a layout is tried again (irregular topics)."""
 
 
 class _Sink:
@@ -202,10 +46,22 @@ class _Sink:
         self.count = 0
         self.error: str | None = None
         self._deserialize = ts.deserialize_ros1 if topic.kind == ROS1 else ts.deserialize_cdr
-        self._log_ns = _Numbers(np.int64)
-        self._arrays = {name: _Arrays() for name in self.arrays}
+        self._log_ns = Numbers(np.int64)
+        self._arrays = {name: Arrays() for name in self.arrays}
         self._last: tuple[cdrcols.Layout, np.ndarray, np.ndarray] | None = None
         self._window = 256
+        self._skip = 0
+        self._backoff = 1
+
+    def reserve(self, n: int) -> None:
+        """Expect about ``n`` messages (a hint from the file's summary; see :meth:`ilic_cli.io.roscolumns.Blocks.reserve`)."""
+        self._log_ns.reserve(n)
+        for column in self._arrays.values():
+            column.expected = n
+        self._reserve_extra(n)
+
+    def _reserve_extra(self, n: int) -> None:
+        pass
 
     def add(self, log_ns: int, data: bytes | memoryview) -> None:
         """Decode one message (``log_ns``, raw ``data``) into the columns."""
@@ -228,20 +84,37 @@ class _Sink:
         Runs of ROS 2 messages with one layout become columns at once; a
         message that starts no such run (another layout, encoding or type, a
         malformed message) is decoded alone by :meth:`add`, so a run that
-        changes layout midway is split where it changes.
+        changes layout midway is split where it changes. Runs shorter than
+        :data:`MIN_RUN` do not pay: their messages are decoded alone, and after
+        each such run more of the following messages are (1, 3, 7, ... up to
+        :data:`MAX_SKIP`) before a layout is tried again.
         """
         fast = self.topic.kind == ROS2 and self.topic.msgtype in cdrcols.FAST_TYPES
         i = 0
         while i < count and self.error is None:
             start = base + i * stride
             first = bytes(buf[start : start + size])
-            lay = self._layout(first) if fast else None
-            if lay is None:
-                self.add(int(log_ns[i]), first)
-                i += 1
+            left = count - i
+            lay = None
+            tried = False
+            if fast and self._skip:
+                self._skip -= 1
+            elif fast:
+                tried = True
+                lay = self._layout(first, walk=left > 1)
+            todo = min(left, self._window)
+            n = cdrcols.matching_rows(buf, start, stride, todo, lay) if lay is not None else 0
+            if n == 0 or (n < MIN_RUN and n < left):
+                # no layout, or a run too short to pay: its messages alone
+                for k in range(max(n, 1)):
+                    at = start + k * stride
+                    self.add(int(log_ns[i + k]), first if k == 0 else bytes(buf[at : at + size]))
+                i += max(n, 1)
+                if tried:
+                    self._skip = self._backoff - 1
+                    self._backoff = min(2 * self._backoff, MAX_SKIP + 1)
                 continue
-            todo = min(count - i, self._window)
-            n = cdrcols.matching_rows(buf, start, stride, todo, lay)
+            self._backoff = 1
             self._window = min(self._window * 2, 1 << 20) if n == todo else 256
             self._log_ns.block(np.asarray(log_ns[i : i + n], dtype=np.int64))
             self._columns(buf, start, stride, n, lay)
@@ -276,13 +149,19 @@ class _Sink:
     def _columns_added(self, m: int, stamp_ns: np.ndarray | None, names: tuple[str, ...] | None) -> None:
         pass
 
-    def _layout(self, data: bytes) -> cdrcols.Layout | None:
-        """Layout of ``data``: the last run's when the structural bytes are the same, else walked and checked."""
+    def _layout(self, data: bytes, walk: bool = True) -> cdrcols.Layout | None:
+        """Layout of ``data``: the last run's when the structural bytes are the same, else walked and checked.
+
+        ``walk=False`` (a lone message) only tries the last run's layout: a
+        new one would cost more than decoding the message by itself.
+        """
         last = self._last
         if last is not None and last[0].size == len(data):
             lay, fixed, structure = last
             if np.array_equal(np.frombuffer(data, dtype=np.uint8)[fixed], structure):
                 return lay
+        if not walk:
+            return None
         lay = cdrcols.layout(data, self.topic.msgtype)
         if lay is None or not self._agrees(lay, data):
             return None
@@ -328,7 +207,7 @@ class _Sink:
         for name, column in self._arrays.items():
             series.fields[name] = column.columns()
         self._extra(series)
-        _sort(series)
+        sort_series(series)
         return series
 
     def _extra(self, series: Series) -> None:
@@ -340,8 +219,8 @@ class _JointStateSink(_Sink):
 
     def __init__(self, topic: RawTopic) -> None:
         super().__init__(topic)
-        self._stamp = _Numbers(np.int64)
-        self._name_id = _Numbers(np.int32, small=True)
+        self._stamp = Numbers(np.int64)
+        self._name_id = Numbers(np.int32, small=True)
         self._names: dict[tuple[str, ...], int] = {}
 
     def _take(self, msg: Any) -> None:
@@ -362,6 +241,9 @@ class _JointStateSink(_Sink):
         super()._flush()
         self._stamp.flush()
         self._name_id.flush()
+
+    def _reserve_extra(self, n: int) -> None:
+        self._stamp.reserve(n)
 
     def _agrees_extra(self, lay: cdrcols.Layout, msg: Any, buf: np.ndarray) -> bool:
         stamp = msg.header.stamp
@@ -427,25 +309,6 @@ class _StringSink(_Sink):
 
 
 _SINKS: dict[str, type[_Sink]] = {JOINT_STATE: _JointStateSink, TRAJECTORY_POINT: _PointSink, STRING: _StringSink}
-
-
-def _sort(series: Series) -> None:
-    """Put the messages of ``series`` in log-time order (stable) when they are not."""
-    log_ns = series.log_ns
-    if len(log_ns) < 2 or bool((log_ns[1:] >= log_ns[:-1]).all()):
-        return
-    order = np.argsort(log_ns, kind="stable")
-    series.log_ns = log_ns[order]
-    if series.stamp_ns is not None:
-        series.stamp_ns = series.stamp_ns[order]
-    if series.name_id is not None:
-        series.name_id = series.name_id[order]
-    for name, (flat, counts) in series.fields.items():
-        starts = (np.cumsum(counts, dtype=np.int64) - counts)[order]
-        counts = counts[order]
-        total = int(counts.sum())
-        shift = np.repeat(starts - (np.cumsum(counts, dtype=np.int64) - counts), counts)
-        series.fields[name] = (flat[np.arange(total, dtype=np.int64) + shift], counts)
 
 
 class Collector:
