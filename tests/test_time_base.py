@@ -201,3 +201,25 @@ def test_motor_side_log_with_gear_ratio_and_torque_constant_gives_the_load_side_
     assert bad.status == 2 and "--torque-constant: needs --gear-ratio" in bad.stderr
     bad = run_cli("identify", str(path), "--gear-ratio", "-2")
     assert bad.status == 2 and "--gear-ratio: gear_ratio = -2 must be a positive number" in bad.stderr
+
+
+@pytest.mark.parametrize("target", ["out.mcap", "out.bag", "out_bag", "out.csv"])
+def test_convert_keeps_absolute_stamps(tmp_path: Path, target: str) -> None:
+    """A recording with epoch stamps converted to another container keeps them (it still lines up with the robot's other logs)."""
+    from ilic_cli.io import Selection
+    from tests.test_io_roundtrip import write_foreign_mcap
+
+    src = tmp_path / "robot.mcap"
+    write_foreign_mcap(src, {"/robot/joint_states": ["shoulder"]})
+    first = read_log(src)
+    assert first.meta["start_time_ns"] == 1_700_000_000_000_000_000
+    assert run_cli("convert", str(src), str(tmp_path / target)).status == 0
+    back = read_log(tmp_path / target, selection=Selection())
+    assert back.meta["start_time_ns"] == first.meta["start_time_ns"]
+    assert np.array_equal(back.t, first.t)
+    if target == "out.mcap":  # the container's own stamps are the absolute ones
+        from mcap.reader import make_reader
+
+        with open(tmp_path / target, "rb") as stream:
+            times = [m.log_time for _, _, m in make_reader(stream).iter_messages(topics=["/joint_states"])]
+        assert times[0] == 1_700_000_000_000_000_000 and times[-1] == 1_700_000_000_000_000_000 + round(first.t[-1] * 1e9)

@@ -176,7 +176,7 @@ def read_log(path: str | Path, fmt: str | None = None, selection: Selection | No
     try:
         # the keyword is passed only when it asks for the per-message path, so a
         # format module without it still reads (and refuses fast=False with TypeError)
-        log = _module(name).read(p, selection or Selection(), **({} if fast else {"fast": False}))
+        log = _module(name).read(p, selection or Selection(), fast=fast)
     finally:
         _PROGRESS.reset(token)
     if len(log) >= 100_000:

@@ -664,7 +664,7 @@ def write(log: RunLog, joint: str, path: Path) -> None:
         Destination file (replaced).
     """
     topics, _ = rosencode.encode(log, joint, rosschema.ROS1)  # checks the log; its message iterator is not used
-    ns = rosencode.stamps_ns(log.t)
+    ns = rosencode.log_stamps_ns(log)
     if int(ns[-1]) // 1_000_000_000 > 2**31 - 1:
         raise LogError(None, "time stamps too large for ROS 1 time (beyond 2038)")
     ts = rosschema.typestore(rosschema.ROS1)

@@ -50,24 +50,32 @@ def plan_topics(log: RunLog) -> list[TopicSpec]:
     return topics
 
 
-def stamps_ns(t: np.ndarray) -> np.ndarray:
-    """Return integer-nanosecond log times for sample times ``t`` (s).
+def stamps_ns(t: np.ndarray, start_ns: int = 0) -> np.ndarray:
+    """Return integer-nanosecond log times for sample times ``t`` (s) after ``start_ns``.
 
-    ``round(t * 1e9)``, shifted by whole seconds when ``t[0] < 0`` so that every
-    stamp is non-negative. Raises :class:`LogError` when two samples fall on the
-    same nanosecond.
+    ``start_ns + round(t * 1e9)``: a log read from a robot's recording keeps
+    its absolute stamps (``meta["start_time_ns"]``), so that a converted file
+    lines up with the robot's other recordings. Without a start, shifted by
+    whole seconds when ``t[0] < 0`` so that every stamp is non-negative.
+    Raises :class:`LogError` when two samples fall on the same nanosecond.
     """
     t = np.asarray(t, dtype=np.float64)
     if not np.isfinite(t).all():
         raise LogError(None, "time stamps must be finite (NaN or infinite time cannot be a ROS time stamp)")
-    shift = 0.0 if len(t) == 0 or t[0] >= 0 else float(math.ceil(-t[0]))
+    shift = 0.0 if len(t) == 0 or t[0] >= 0 or start_ns else float(math.ceil(-t[0]))
     ns = np.rint((t + shift) * 1e9)
-    if len(ns) and (ns[-1] >= 2**62 or not np.isfinite(ns).all()):
-        raise LogError(None, "time stamps too large for ROS time")
-    out = ns.astype(np.int64)
+    if len(ns) and (ns[-1] + start_ns >= 2**62 or ns[0] + start_ns < 0 or not np.isfinite(ns).all()):
+        raise LogError(None, "time stamps out of the range of ROS time")
+    out = ns.astype(np.int64) + np.int64(start_ns)
     if len(out) > 1 and (np.diff(out) <= 0).any():
         raise LogError(None, "time steps below 1 ns cannot be stored as ROS time stamps")
     return out
+
+
+def log_stamps_ns(log: RunLog) -> np.ndarray:
+    """:func:`stamps_ns` of ``log``'s samples, from its recorded start (``meta["start_time_ns"]``) when it has one."""
+    start = log.meta.get("start_time_ns")
+    return stamps_ns(log.t, int(start) if isinstance(start, (int, float)) and not isinstance(start, bool) and start >= 0 else 0)
 
 
 def metadata_text(log: RunLog, joint: str) -> str:
@@ -115,7 +123,7 @@ def encode(log: RunLog, joint: str, kind: str = ROS2) -> tuple[list[TopicSpec], 
     if TIME_NAME in extras:
         raise LogError(None, f"channel name '{TIME_NAME}' is reserved in ROS formats; rename the channel")
     topics = plan_topics(log)
-    ns = stamps_ns(log.t)
+    ns = log_stamps_ns(log)
     meta_text = metadata_text(log, joint)
     return topics, _messages(log, joint, kind, topics, ns, extras, meta_text)
 
@@ -221,7 +229,7 @@ def encode_columns(log: RunLog, joint: str) -> Columns | None:
 
     topics, messages = encode(log, joint, ROS2)
     first = {topic: data for topic, _, data in itertools.islice(messages, len(topics))}
-    ns = stamps_ns(log.t)
+    ns = log_stamps_ns(log)
     sec, nsec = np.divmod(ns, 1_000_000_000)
     since = ns - ns[0]
     dsec, dnsec = np.divmod(since, 1_000_000_000)

@@ -97,3 +97,30 @@ def test_parameter_error_wording() -> None:
     assert ParameterError("M", None, "given").message() == "M must be given"
     moved = ParameterError("Fc", -1.0, ">= 0").at("--param")
     assert moved.message() == "--param: Fc = -1 must be >= 0" and moved.parameter == "Fc"
+
+
+def test_defaults_are_the_papers_simulated_axis_and_records_are_frozen() -> None:
+    import dataclasses
+
+    assert P.DEFAULTS == {"M": 95.0, "Fv": 200.0, "Fc": 20.0, "offset": 0.0}  # paper section VI-E
+    assert P.joint_type("radian") == "revolute"
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        P.PARAMETERS["M"].unit = "g"  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: P.structure_names("flexible"), "structure = 'flexible' must be one of rigid, rigid-offset, asymmetric"),
+        (lambda: P.to_plant({"M": 1.0, "x": 2.0}), "x = 2 must be a parameter of the axis (M, Fv, Fc, offset, Fv_pos, Fc_pos, Fv_neg, Fc_neg)"),
+        (lambda: P.to_plant({"Fv": 1.0}), "M must be given (the model has no mass)"),
+        (lambda: P.to_plant({"M": 1.0, "Fv_pos": 1.0}),
+         "Fc_pos must be given with the other asymmetric friction parameters (Fv_pos, Fc_pos, Fv_neg, Fc_neg)"),
+        (lambda: P.from_plant({"M": 1.0, "Fv": 0.0, "Fc": 0.0, "offset": 0.0}, {"Fv_pos": 1.0, "Fc_pos": 1.0, "Fv_neg": 1.0, "Fc_neg": 1.0}, "rigid"),
+         "structure = 'rigid' must be 'asymmetric' for a plant with asymmetric friction"),
+    ],
+)
+def test_messages(call, message: str) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(ParameterError) as err:
+        call()
+    assert err.value.message() == message
