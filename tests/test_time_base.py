@@ -223,3 +223,26 @@ def test_convert_keeps_absolute_stamps(tmp_path: Path, target: str) -> None:
         with open(tmp_path / target, "rb") as stream:
             times = [m.log_time for _, _, m in make_reader(stream).iter_messages(topics=["/joint_states"])]
         assert times[0] == 1_700_000_000_000_000_000 and times[-1] == 1_700_000_000_000_000_000 + round(first.t[-1] * 1e9)
+
+
+def test_info_gives_an_overview_of_any_container(tmp_path: Path) -> None:
+    """Topics, types, counts, rates and joints, like ros2 bag info; with several joints, the overview and which to choose."""
+    import json
+
+    from tests.conftest import make_synthetic_log
+    from tests.test_io_roundtrip import write_foreign_mcap
+
+    robot = tmp_path / "robot.mcap"
+    write_foreign_mcap(robot, {"/robot/joint_states": ["shoulder", "elbow", "wrist"]})
+    res = run_cli("info", str(robot))
+    assert res.status == 0, res.stderr
+    assert "| /robot/joint_states | sensor_msgs/msg/JointState | 50 | 500 | shoulder, elbow, wrist |" in res.stdout
+    assert "Choose:" in res.stdout and "3 joints" in res.stdout
+    doc = json.loads(run_cli("info", str(robot), "--joint", "elbow", "--format", "json").stdout)
+    assert doc["joint"] == "elbow" and doc["topics"][0]["joints"] == ["shoulder", "elbow", "wrist"] and doc["quality"]
+    for name in ("own.mcap", "own.bag", "own_bag"):
+        path = write_log(make_synthetic_log(samples=300), tmp_path / name)
+        topics = {t["topic"]: t for t in json.loads(run_cli("info", str(path), "--format", "json").stdout)["topics"]}
+        assert topics["/joint_states"]["count"] == 300 and topics["/joint_states"]["joints"] == ["axis"], name
+        assert topics["/joint_states"]["rate_hz"] == pytest.approx(1000.0, rel=1e-6)
+        assert topics["/ilic/metadata"]["count"] == 1

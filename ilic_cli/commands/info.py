@@ -9,7 +9,9 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ilic_cli.commands.common import input_options, load
-from ilic_cli.io import detect_format
+from ilic_cli.errors import ChoiceError
+from ilic_cli.io import bag_folder, detect_format
+from ilic_cli.io.overview import overview
 
 if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
@@ -103,6 +105,9 @@ def render_markdown(summary: dict[str, Any]) -> str:
         lines.append(f"- scenario: {_mapping(summary['scenario'])}")
     if summary["true_parameters"] is not None:
         lines.append(f"- true parameters: {_mapping(summary['true_parameters'])}")
+    topics = _topics_markdown(summary.get("topics") or [])
+    if topics:
+        lines += ["", *topics]
     lines += ["", "## Channels", "", "| channel | unit | min | max |", "| --- | --- | --- | --- |"]
     for ch in summary["channels"]:
         lines.append(f"| {ch['name']} | {ch['unit']} | {_num(ch['min'])} | {_num(ch['max'])} |")
@@ -131,12 +136,42 @@ def command(log_path: Path, out_format: str, input_format: str | None, topic: st
     import json
 
     fmt = detect_format(log_path, input_format)
-    log = load(log_path, input_format, topic, ref_topic, joint, columns)
+    try:
+        log = load(log_path, input_format, topic, ref_topic, joint, columns)
+    except ChoiceError as exc:  # the container parsed; which of its topics or joints is for the user to say
+        topics = _overview(log_path, input_format, fmt)
+        summary = {"file": str(log_path), "format": fmt, "topics": [t.to_dict() for t in topics], "choose": exc.message()}
+        if out_format == "json":
+            click.echo(json.dumps(summary, indent=2, default=_json_default))
+        else:
+            click.echo("\n".join([f"# {log_path}", "", *_topics_markdown(summary["topics"]), "", f"Choose: {exc.message()}", ""]), nl=False)
+        return
     summary = summarize(log, log_path, fmt)
+    summary["topics"] = [t.to_dict() for t in _overview(log_path, input_format, fmt)]
     if out_format == "json":
         click.echo(json.dumps(summary, indent=2, default=_json_default))
     else:
         click.echo(render_markdown(summary), nl=False)
+
+
+def _overview(path: Path, input_format: str | None, fmt: str) -> list[Any]:
+    """The container's topics; none when its summary cannot be listed (the log itself was read: its report stands)."""
+    try:
+        return overview(bag_folder(Path(path), input_format), fmt)
+    except Exception:  # noqa: BLE001 - a damaged summary or index must not hide the report of a readable log
+        return []
+
+
+def _topics_markdown(topics: list[dict[str, Any]]) -> list[str]:
+    """The container's topics as a table (none for .mat and CSV)."""
+    if not topics:
+        return []
+    lines = ["## Topics", "", "| topic | type | messages | rate (Hz) | joints |", "| --- | --- | --- | --- | --- |"]
+    for t in topics:
+        joints = ", ".join(t["joints"]) if t["joints"] else ""
+        rate = f"{t['rate_hz']:.4g}" if t["rate_hz"] else ""
+        lines.append(f"| {t['topic']} | {t['type']} | {t['count']} | {rate} | {joints} |")
+    return lines
 
 
 def _json_default(obj: Any) -> Any:

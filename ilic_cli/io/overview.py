@@ -1,0 +1,103 @@
+"""What a container holds: its topics, message types, counts, rates and joints (``ilic info``'s overview).
+
+Like ``ros2 bag info`` or ``mcap info``: from the container's summary and
+indexes (``mcap`` and ``rosbags``), plus the first message of each
+``JointState`` topic for its joint names. Only called on a file that the
+reader has already parsed with every check (:func:`ilic_cli.io.read_log`,
+or the reader's refusal to choose a joint), so that nothing here meets an
+unchecked chunk.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ilic_cli.io.rosschema import JOINT_STATE, ROS1, ROS2, normalize_msgtype, typestore
+
+
+@dataclass(frozen=True)
+class TopicOverview:
+    """One topic of a container.
+
+    Attributes
+    ----------
+    topic, msgtype : str
+        Its name and message type (``sensor_msgs/msg/JointState``).
+    count : int
+        Messages on it.
+    rate_hz : float or None
+        Messages per second over the container's time span.
+    joints : tuple of str or None
+        The joint names of its first message (``JointState`` topics).
+    """
+
+    topic: str
+    msgtype: str
+    count: int
+    rate_hz: float | None
+    joints: tuple[str, ...] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"topic": self.topic, "type": self.msgtype, "count": self.count, "rate_hz": self.rate_hz,
+                "joints": None if self.joints is None else list(self.joints)}
+
+
+def _rate(count: int, start_ns: int, end_ns: int) -> float | None:
+    return (count - 1) / ((end_ns - start_ns) / 1e9) if count > 1 and end_ns > start_ns else None
+
+
+def _joints(data: bytes, msgtype: str, kind: str) -> tuple[str, ...] | None:
+    if msgtype != JOINT_STATE:
+        return None
+    ts = typestore(kind)
+    msg = ts.deserialize_ros1(data, msgtype) if kind == ROS1 else ts.deserialize_cdr(data, msgtype)
+    return tuple(str(n) for n in msg.name)
+
+
+def overview(path: Path, fmt: str) -> list[TopicOverview]:
+    """The topics of an MCAP file or a ROS 1 / ROS 2 bag (an empty list for ``.mat`` and CSV)."""
+    if fmt == "mcap":
+        return _mcap(path)
+    if fmt in ("rosbag1", "rosbag2"):
+        return _bag(path)
+    return []
+
+
+def _mcap(path: Path) -> list[TopicOverview]:
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as stream:
+        reader = make_reader(stream)
+        summary = reader.get_summary()
+        if summary is None or summary.statistics is None:
+            return []
+        stats = summary.statistics
+        out = []
+        for cid, channel in sorted(summary.channels.items()):
+            schema = summary.schemas.get(channel.schema_id)
+            msgtype = normalize_msgtype(schema.name) if schema is not None else "(no schema)"
+            count = int(stats.channel_message_counts.get(cid, 0))
+            joints = None
+            if msgtype == JOINT_STATE and count:
+                first = next(iter(reader.iter_messages(topics=[channel.topic])), None)
+                joints = None if first is None else _joints(bytes(first[2].data), msgtype, ROS2)
+            out.append(TopicOverview(channel.topic, msgtype, count, _rate(count, stats.message_start_time, stats.message_end_time), joints))
+    return out
+
+
+def _bag(path: Path) -> list[TopicOverview]:
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([path]) as reader:
+        kind = ROS1 if reader.is2 is False else ROS2
+        out = []
+        for conn in sorted(reader.connections, key=lambda c: (c.topic, c.id)):
+            msgtype = normalize_msgtype(conn.msgtype)
+            joints = None
+            if msgtype == JOINT_STATE and conn.msgcount:
+                first = next(iter(reader.messages(connections=[conn])), None)
+                joints = None if first is None else _joints(bytes(first[2]), msgtype, kind)
+            out.append(TopicOverview(conn.topic, msgtype, int(conn.msgcount), _rate(int(conn.msgcount), reader.start_time, reader.end_time), joints))
+    return out
