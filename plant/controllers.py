@@ -159,6 +159,28 @@ class PDSettings:
         return c
 
 
+@dataclass
+class OpenLoopSettings(PDSettings):
+    """No feedback: the drive applies ``gtau`` times the recorded command (the benchmark PD loop with zero gains).
+
+    The nonlinear system identification benchmark's EMPS task simulates this
+    way: the recorded ``vir`` in, the position out (:func:`plant.replay.simulate_open_loop`).
+    """
+
+    kp: float = 0.0
+    kv: float = 0.0
+
+    kind = "open-loop"
+
+    def validate(self) -> None:
+        _positive(self, ("gtau",))
+        if self.kp != 0.0 or self.kv != 0.0:
+            raise ParameterError("kp", self.kp, "0 (with kv = 0) in open loop")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": "open-loop", "gtau": self.gtau}
+
+
 def _positive(settings: object, names: tuple[str, ...]) -> None:
     """Each named setting must be a finite number > 0."""
     for name in names:

@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ilic_cli.effects import EffectParams, make_effects
 from ilic_cli.errors import ParameterError, SimulationError
-from ilic_cli.filtering import central_difference
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
 from plant.closed_loop import loop_log, simulate_loop
-from plant.controllers import CTCSettings, PDSettings
+from plant.controllers import CTCSettings, OpenLoopSettings, PDSettings
 from plant.dynamics import RigidParameters, plant_model
 from plant.trajectories import Trajectory
 
@@ -148,3 +149,69 @@ def _trajectory_from_meta(log: RunLog, fs: float) -> Any:
         return None
     return traj if np.allclose(q, log["q_ref"], rtol=0, atol=1e-12) else None
 
+
+
+BENCHMARK_INIT_SAMPLES = 20
+"""Samples at the start of the test log given to the model's state (the benchmark's state-initialisation window)."""
+
+
+@dataclass(frozen=True)
+class BenchmarkFigure:
+    """The nonlinear system identification benchmark's EMPS figure of a model on a test log.
+
+    Attributes
+    ----------
+    rmse_mm : float
+        RMSE of the open-loop simulated position against the measured one, after the window (mm).
+    fit_pct : float
+        ``100 (1 - RMSE / std(q))`` over the same samples.
+    samples, init_samples : int
+        Samples compared, and the state-initialisation window before them.
+    """
+
+    rmse_mm: float
+    fit_pct: float
+    samples: int
+    init_samples: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"rmse_mm": self.rmse_mm, "fit_pct": self.fit_pct, "samples": self.samples, "init_samples": self.init_samples,
+                "task": "EMPS: u = vir, y = qm, open-loop simulation after the state-initialisation window"}
+
+
+def simulate_open_loop(log: RunLog, params: RigidParameters | Mapping[str, float], effects: Mapping[str, EffectParams | Any] | None = None, *,
+                       init_samples: int = BENCHMARK_INIT_SAMPLES, substeps: int = 10) -> tuple[RunLog, BenchmarkFigure]:
+    """The benchmark's simulation of ``log``: its recorded drive command in, no feedback; and the figure.
+
+    The plant starts at the measured position and velocity (zero-phase
+    filtered, central difference) of sample ``init_samples`` and is driven by
+    ``drive_gain * vir`` from there; the simulated position is compared with
+    the measured one from that sample on.
+    """
+    if isinstance(params, RigidParameters):
+        eff = make_effects(effects)
+    else:
+        params, eff = plant_model(params, effects)
+    log.require("t", "q", "vir")
+    gain = log.meta.get("drive_gain")
+    if not gain:
+        raise SimulationError(log.meta.get("source"), "the log has no drive gain (N/V): the benchmark drives the model with drive_gain * vir")
+    n = len(log)
+    if not 2 <= init_samples < n - 2:
+        raise ParameterError("init_samples", init_samples, f"between 2 and {n - 3}")
+    T = log.dt_s
+    qf = butter_lowpass_zero_phase(np.asarray(log["q"], dtype=np.float64), 100.0, 1.0 / T)
+    v0 = float((qf[init_samples + 1] - qf[init_samples - 1]) / (2 * T))
+    q = np.asarray(log["q"][init_samples:], dtype=np.float64)
+    zero = np.zeros(len(q))
+    res = simulate_loop(q_r=q, qd_r=zero, qdd_r=zero, params=params, effects=eff, controller=OpenLoopSettings(gtau=float(gain)), fs_hz=1.0 / T,
+                        substeps=substeps, pulses=np.asarray(log["vir"][init_samples:], dtype=np.float64), tau_sensor="command",
+                        x0=(float(q[0]), v0))
+    res.t = np.asarray(log.t[init_samples:], dtype=np.float64).copy()
+    rmse = float(np.sqrt(np.mean((res.q_true - q) ** 2)))
+    figure = BenchmarkFigure(rmse_mm=1e3 * rmse, fit_pct=100.0 * (1.0 - rmse / float(np.std(q))), samples=len(q), init_samples=init_samples)
+    out = loop_log(res, q_ref=q, qd_ref=zero, qdd_ref=zero, controller=OpenLoopSettings(gtau=float(gain)), params=params, effects=eff, fs_hz=1.0 / T,
+                   substeps=substeps, seed=0, tau_sensor="command", pulses=np.asarray(log["vir"][init_samples:], dtype=np.float64),
+                   meta={"replay_of": log.meta.get("source"), "benchmark": figure.to_dict()})
+    out.channels["q"] = res.q_true  # the simulated output (no sensor effects in the benchmark's comparison)
+    return out, figure

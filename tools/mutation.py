@@ -27,7 +27,7 @@ Usage::
     python tools/mutation.py                     # every configured module
     python tools/mutation.py ilic_cli/lsq.py     # one module
     python tools/mutation.py --sample 0.3        # a deterministic 30 % sample per module
-    python tools/mutation.py --tests tests/test_identify_sim.py ilic_cli/idim_ls.py   # other tests
+    python tools/mutation.py --tests tests/identify/test_identify_sim.py ilic_cli/idim_ls.py   # other tests
     python tools/mutation.py --planted-only          # the hand-planted bugs only
 """
 

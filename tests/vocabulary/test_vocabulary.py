@@ -29,7 +29,7 @@ from plant.dynamics import SLOTS, RigidParameters, force_model, plant_model, pla
 from tests.clirun import run_cli
 from tests.conftest import make_synthetic_log
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 STRUCTURE_VALUES = {
     "rigid": {"M": 93.25, "Fv": 201.125, "Fc": 19.875},

@@ -18,7 +18,7 @@ from ilic_cli.io import write_log
 from plant.scenarios import Overrides, run_scenario
 from tests.clirun import run_cli
 
-TABLE = json.loads((Path(__file__).parents[1] / "fixtures" / "paper_table1.json").read_text())
+TABLE = json.loads((Path(__file__).parents[2] / "fixtures" / "paper_table1.json").read_text())
 TRUTH = TABLE["truth"]
 
 

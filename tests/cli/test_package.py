@@ -11,7 +11,7 @@ import pytest
 
 from tests.clirun import run_cli
 
-ROOT = Path(__file__).parents[1]
+ROOT = Path(__file__).parents[2]
 HEAVY = ("numpy", "pandas", "scipy", "matplotlib", "rosbags", "mcap", "numba")
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from plant.scenarios import Overrides, run_scenario
 
-FIXTURE = json.loads((Path(__file__).parents[1] / "fixtures" / "paper_table1.json").read_text())
+FIXTURE = json.loads((Path(__file__).parents[2] / "fixtures" / "paper_table1.json").read_text())
 NAMES = ("M", "Fv", "Fc")
 
 

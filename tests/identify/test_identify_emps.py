@@ -11,7 +11,7 @@ import pytest
 from tests.clirun import run_cli
 from tests.conftest import require_shared
 
-FIXTURE = json.loads((Path(__file__).parents[1] / "fixtures" / "emps_benchmark_tables.json").read_text())
+FIXTURE = json.loads((Path(__file__).parents[2] / "fixtures" / "emps_benchmark_tables.json").read_text())
 TABLES = FIXTURE["tables"]
 
 

@@ -207,7 +207,7 @@ def test_motor_side_log_with_gear_ratio_and_torque_constant_gives_the_load_side_
 def test_convert_keeps_absolute_stamps(tmp_path: Path, target: str) -> None:
     """A recording with epoch stamps converted to another container keeps them (it still lines up with the robot's other logs)."""
     from ilic_cli.io import Selection
-    from tests.test_io_roundtrip import write_foreign_mcap
+    from tests.io.test_io_roundtrip import write_foreign_mcap
 
     src = tmp_path / "robot.mcap"
     write_foreign_mcap(src, {"/robot/joint_states": ["shoulder"]})
@@ -230,7 +230,7 @@ def test_info_gives_an_overview_of_any_container(tmp_path: Path) -> None:
     import json
 
     from tests.conftest import make_synthetic_log
-    from tests.test_io_roundtrip import write_foreign_mcap
+    from tests.io.test_io_roundtrip import write_foreign_mcap
 
     robot = tmp_path / "robot.mcap"
     write_foreign_mcap(robot, {"/robot/joint_states": ["shoulder", "elbow", "wrist"]})

@@ -11,7 +11,7 @@ import pytest
 from tests.clirun import run_cli
 from tests.conftest import require_shared
 
-README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+README = (Path(__file__).resolve().parents[2] / "README.md").read_text()
 
 
 def _block(after: str, lang: str) -> str:

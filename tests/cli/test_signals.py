@@ -19,7 +19,7 @@ import pytest
 from ilic_cli.io import write_log
 from tests.conftest import make_synthetic_log
 
-ROOT = Path(__file__).parents[1]
+ROOT = Path(__file__).parents[2]
 SAMPLES = 200_000  # a .mat that takes several seconds to write as MCAP or a bag
 
 

@@ -17,7 +17,7 @@ from ilic_cli.io import read_log
 from plant.scenarios import Overrides, run_scenario
 from tests.clirun import run_cli
 from tests.conftest import require_shared
-from tests.test_plant_emps import _relative_errors
+from tests.plant.test_plant_emps import _relative_errors
 
 
 def printed(x: float, decimals: int) -> str:

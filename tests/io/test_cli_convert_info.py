@@ -162,7 +162,7 @@ def test_commands_do_not_import_heavy_libraries() -> None:
         "heavy = [m for m in ('numpy', 'pandas', 'scipy', 'rosbags', 'mcap') if m in sys.modules]\n"
         "print(','.join(heavy))\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=Path(__file__).parents[1])
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=Path(__file__).parents[2])
     assert out.stdout.strip() == ""
 
 

@@ -15,7 +15,7 @@ from tests.conftest import import_or_skip
 from tests.clirun import run_cli
 
 import_or_skip("plant.closed_loop")
-from tests.test_diagnose_effects import simulated_log  # noqa: E402
+from tests.diagnose.test_diagnose_effects import simulated_log  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 warnings and saturation masking in identification, hostile files, no code execution,
 progress bars only on a terminal.
 
-Per-format bad inputs for ``convert``/``info`` live in ``tests/test_io_errors.py``;
+Per-format bad inputs for ``convert``/``info`` live in ``tests/io/test_io_errors.py``;
 here the same builders are run through every other command that reads a log.
 """
 
@@ -24,10 +24,10 @@ from ilic_cli.io import WriteOptions, read_log, write_log
 from ilic_cli.runlog import RunLog
 from tests.clirun import run_cli
 from tests.conftest import make_synthetic_log
-from tests.test_identify_cli import TRUE, synthetic
-from tests.test_io_errors import CASES, assert_one_line_error
+from tests.identify.test_identify_cli import TRUE, synthetic
+from tests.io.test_io_errors import CASES, assert_one_line_error
 
-ROOT = Path(__file__).parents[1]
+ROOT = Path(__file__).parents[2]
 MODEL = {"ilic_model": 1, "model": "rigid-offset", "parameters": {"M": 95.0, "Fv": 200.0, "Fc": 20.0, "offset": 0.0}}
 
 
