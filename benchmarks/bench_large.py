@@ -27,7 +27,6 @@ import sys
 import time
 from pathlib import Path
 
-
 ROOT = Path(__file__).resolve().parents[1]
 CACHE = ROOT / "out" / "bench" / "hour_1khz.mcap"
 LIMIT_MB = 600.0
@@ -95,7 +94,11 @@ def main() -> None:
         wall, rss, status, last = run(args)
         rows.append((name, wall, rss, status))
         flag = "ok" if rss <= LIMIT_MB and wall <= LIMIT_S else f"OVER {LIMIT_S:.0f} s / {LIMIT_MB:.0f} MB"
-        print(f"ilic {name:<38} status {status}  wall {wall:7.1f} s  peak RSS {rss:7.0f} MB  [{flag}]  {samples / wall / 1e3:.0f} k samples/s" + (f"  ({last})" if status else ""), flush=True)
+        print(
+            f"ilic {name:<38} status {status}  wall {wall:7.1f} s  peak RSS {rss:7.0f} MB  [{flag}]  {samples / wall / 1e3:.0f} k samples/s"
+            + (f"  ({last})" if status else ""),
+            flush=True,
+        )
     worst = max(r[2] for r in rows)
     print(f"peak RSS over both commands: {worst:.0f} MB (goal <= {LIMIT_MB:.0f} MB, each <= {LIMIT_S:.0f} s)", flush=True)
     # after the subprocesses: a child's peak RSS counts the parent's pages

@@ -501,7 +501,10 @@ def _asym_estimate(fit: Fit) -> EstimateResult:
     if fit.has("offset"):
         est["Fc_pos"] = Estimate(*fit.combination({"Fc": 1.0, "offset": 1.0}), "N")
         est["Fc_neg"] = Estimate(*fit.combination({"Fc": 1.0, "offset": -1.0}), "N")
-        note = "Fc_pos/Fc_neg attribute the whole constant offset to Coulomb asymmetry; the two cannot be told apart (the model file keeps Fc symmetric plus the offset)"
+        note = (
+            "Fc_pos/Fc_neg attribute the whole constant offset to Coulomb asymmetry; the two cannot be told apart "
+            "(the model file keeps Fc symmetric plus the offset)"
+        )
     return est, {"Fv_pos": fv[0], "Fv_neg": fvn[0], "Fc_pos": fc[0], "Fc_neg": fc[0]}, note
 
 
@@ -521,7 +524,10 @@ def _stribeck_estimate(fit: Fit) -> EstimateResult:
 def _stribeck_sentence(p: Mapping[str, Estimate]) -> str:
     what = f"extra friction Fs = {p['Fs'].value:.3g} N below vs = {p['vs'].value * 1e3:.3g} mm/s"
     if p["Fs"].value < 0:
-        what += "; negative: friction is lower at low speed than the Coulomb-viscous line, the opposite of the Stribeck effect, so read it as a shape correction of the friction curve"
+        what += (
+            "; negative: friction is lower at low speed than the Coulomb-viscous line, the opposite of the Stribeck effect, "
+            "so read it as a shape correction of the friction curve"
+        )
     return what
 
 
@@ -532,8 +538,11 @@ def _ripple_estimate(fit: Fit) -> EstimateResult:
     J_A = np.array([a, b]) / A if A > 0 else np.zeros(2)
     J_ph = np.array([-b, a]) / (A * A) if A > 0 else np.zeros(2)
     C = fit.cov[np.ix_([ia, ib], [ia, ib])]
-    est = {"A": Estimate(A, float(math.sqrt(max(J_A @ C @ J_A, 0.0))), "N"), "L": Estimate(float(fit.value), fit.value_std, "m"),
-           "phase": Estimate(math.atan2(b, a), float(math.sqrt(max(J_ph @ C @ J_ph, 0.0))), "rad")}
+    est = {
+        "A": Estimate(A, float(math.sqrt(max(J_A @ C @ J_A, 0.0))), "N"),
+        "L": Estimate(float(fit.value), fit.value_std, "m"),
+        "phase": Estimate(math.atan2(b, a), float(math.sqrt(max(J_ph @ C @ J_ph, 0.0))), "rad"),
+    }
     return est, {"A": A, "L": float(fit.value), "phase": math.atan2(b, a)}, ""
 
 
@@ -547,8 +556,7 @@ def _delay_estimate(fit: Fit) -> EstimateResult:
     d = float(fit.value) + fit.hold_s
     note = ""
     if fit.hold_s:
-        note = (f"the logged force is the held command: {-fit.hold_s * 1e3:.3g} ms of the delay is the zero-order hold, "
-                f"the plant's delay is {d * 1e3:.3g} ms")
+        note = f"the logged force is the held command: {-fit.hold_s * 1e3:.3g} ms of the delay is the zero-order hold, the plant's delay is {d * 1e3:.3g} ms"
     if d < 0:
         note += ("; " if note else "") + "negative: the force acts after it is logged (drive lag)"
     return {"delay": Estimate(float(fit.value), fit.value_std, "s")}, {"delay": d}, note
@@ -566,9 +574,14 @@ def _flex_estimate(fit: Fit) -> EstimateResult:
     if fit.value_std is not None and ml[0] > 0:
         k_std = k * math.sqrt((2 * fit.value_std / f_res) ** 2 + (ml[1] / ml[0]) ** 2)
     c = 2.0 * zeta * math.sqrt(max(k * ml[0], 0.0))
-    est = {"f_res": Estimate(f_res, fit.value_std, "Hz"), "damping_ratio": Estimate(zeta, None, ""), "M_load": Estimate(*ml, "kg"),
-           "load_fraction": Estimate(frac, ml[1] / M if M > 0 else None, ""), "stiffness": Estimate(k, k_std, "N/m"),
-           "damping": Estimate(c, None, "N·s/m")}
+    est = {
+        "f_res": Estimate(f_res, fit.value_std, "Hz"),
+        "damping_ratio": Estimate(zeta, None, ""),
+        "M_load": Estimate(*ml, "kg"),
+        "load_fraction": Estimate(frac, ml[1] / M if M > 0 else None, ""),
+        "stiffness": Estimate(k, k_std, "N/m"),
+        "damping": Estimate(c, None, "N·s/m"),
+    }
     plant = {"stiffness": k, "damping": c, "load_fraction": frac} if 0 < frac < 1 else None
     return est, plant, "" if plant else "the load fraction is outside (0, 1): not a plant flexibility"
 
@@ -592,106 +605,134 @@ def _delay_check(v: Mapping[str, float]) -> None:
 MAX_DELAY_S = 1.0
 """Largest delay (s) either way."""
 
-ASYMMETRIC_FRICTION = register(Effect(
-    "asymmetric_friction", "asymmetric friction",
-    "Friction differs between the two directions of motion, e.g. from wear or fatigue of the screw on one side.",
-    params=(PlantParam("Fv_pos", "N·s/m", 166.7061, "viscous friction, positive velocity"),
+ASYMMETRIC_FRICTION = register(
+    Effect(
+        "asymmetric_friction",
+        "asymmetric friction",
+        "Friction differs between the two directions of motion, e.g. from wear or fatigue of the screw on one side.",
+        params=(
+            PlantParam("Fv_pos", "N·s/m", 166.7061, "viscous friction, positive velocity"),
             PlantParam("Fv_neg", "N·s/m", 240.4236, "viscous friction, negative velocity"),
             PlantParam("Fc_pos", "N", 20.1440, "Coulomb friction, positive velocity", low=0.0),
-            PlantParam("Fc_neg", "N", 20.6277, "Coulomb friction, negative velocity (a magnitude)", low=0.0)),
-    form="extra viscous coefficient for negative velocity: dFv * qd * (1 - sign(qd))/2 (Coulomb asymmetry is the constant offset)",
-    signature="residual proportional to velocity on one side of zero only; mean residual differs between positive and negative velocity bins",
-    signature_kinds=("velocity",),
-    columns=(_col("dFv_neg", "extra viscous friction at negative velocity", "N·s/m"),),
-    build=lambda kin, value, fs_hz: np.c_[kin.qd * (1.0 - kin.sgn) / 2.0],
-    estimate=_asym_estimate,
-    sentence=lambda p: f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward",
-))
+            PlantParam("Fc_neg", "N", 20.6277, "Coulomb friction, negative velocity (a magnitude)", low=0.0),
+        ),
+        form="extra viscous coefficient for negative velocity: dFv * qd * (1 - sign(qd))/2 (Coulomb asymmetry is the constant offset)",
+        signature="residual proportional to velocity on one side of zero only; mean residual differs between positive and negative velocity bins",
+        signature_kinds=("velocity",),
+        columns=(_col("dFv_neg", "extra viscous friction at negative velocity", "N·s/m"),),
+        build=lambda kin, value, fs_hz: np.c_[kin.qd * (1.0 - kin.sgn) / 2.0],
+        estimate=_asym_estimate,
+        sentence=lambda p: f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward",
+    )
+)
 
-STRIBECK = register(Effect(
-    "stribeck", "Stribeck friction",
-    "At low sliding speed the lubricant film breaks down and friction rises above its Coulomb level before it drops with speed.",
-    params=(PlantParam("Fs", "N", 5.0, "static friction in excess of Coulomb (negative: lower at low speed)"),
-            PlantParam("vs", "m/s", 0.01, "Stribeck velocity", low=0.0, low_open=True)),
-    force=lambda q, qd, prm: prm[0] * np.exp(-((qd / prm[1]) ** 2)) * np.sign(qd),
-    form="Fs * sign(qd) * exp(-(qd/vs)^2), vs searched",
-    signature="residual with the sign of the velocity, concentrated in the low-speed bins and at velocity reversals",
-    signature_kinds=("velocity", "reversal"),
-    columns=(_col("Fs", "static friction in excess of Coulomb", "N"),),
-    build=lambda kin, vs, fs_hz: np.c_[kin.sgn * np.exp(-((kin.qd / vs) ** 2))],
-    scan=Scan("vs", "m/s", _stribeck_grid),
-    estimate=_stribeck_estimate,
-    sentence=_stribeck_sentence,
-))
+STRIBECK = register(
+    Effect(
+        "stribeck",
+        "Stribeck friction",
+        "At low sliding speed the lubricant film breaks down and friction rises above its Coulomb level before it drops with speed.",
+        params=(
+            PlantParam("Fs", "N", 5.0, "static friction in excess of Coulomb (negative: lower at low speed)"),
+            PlantParam("vs", "m/s", 0.01, "Stribeck velocity", low=0.0, low_open=True),
+        ),
+        force=lambda q, qd, prm: prm[0] * np.exp(-((qd / prm[1]) ** 2)) * np.sign(qd),
+        form="Fs * sign(qd) * exp(-(qd/vs)^2), vs searched",
+        signature="residual with the sign of the velocity, concentrated in the low-speed bins and at velocity reversals",
+        signature_kinds=("velocity", "reversal"),
+        columns=(_col("Fs", "static friction in excess of Coulomb", "N"),),
+        build=lambda kin, vs, fs_hz: np.c_[kin.sgn * np.exp(-((kin.qd / vs) ** 2))],
+        scan=Scan("vs", "m/s", _stribeck_grid),
+        estimate=_stribeck_estimate,
+        sentence=_stribeck_sentence,
+    )
+)
 
-POSITION_RIPPLE = register(Effect(
-    "position_ripple", "position-dependent force ripple",
-    "Cogging of the motor and the screw pitch make the force needed to move vary periodically with position.",
-    params=(PlantParam("A", "N", 2.0, "amplitude"), PlantParam("L", "m", 0.01, "spatial period", low=0.0, low_open=True),
-            PlantParam("phase", "rad", 0.0, "phase")),
-    force=lambda q, qd, prm: prm[0] * np.sin(2.0 * np.pi * q / prm[1] + prm[2]),
-    form="A * sin(2 pi q / P) + B * cos(2 pi q / P), spatial period P searched",
-    signature="residual periodic in position: a peak in the residual against position, at frequency velocity/P in time",
-    signature_kinds=("position", "frequency"),
-    columns=(_col("ripple_sin", "ripple, sine component", "N"), _col("ripple_cos", "ripple, cosine component", "N")),
-    build=lambda kin, period, fs_hz: np.c_[np.sin(2.0 * np.pi * kin.q / period), np.cos(2.0 * np.pi * kin.q / period)],
-    scan=Scan("L", "m", _ripple_grid),
-    estimate=_ripple_estimate,
-    sentence=lambda p: f"amplitude {p['A'].value:.3g} N, spatial period {p['L'].value * 1e3:.4g} mm",
-))
+POSITION_RIPPLE = register(
+    Effect(
+        "position_ripple",
+        "position-dependent force ripple",
+        "Cogging of the motor and the screw pitch make the force needed to move vary periodically with position.",
+        params=(
+            PlantParam("A", "N", 2.0, "amplitude"),
+            PlantParam("L", "m", 0.01, "spatial period", low=0.0, low_open=True),
+            PlantParam("phase", "rad", 0.0, "phase"),
+        ),
+        force=lambda q, qd, prm: prm[0] * np.sin(2.0 * np.pi * q / prm[1] + prm[2]),
+        form="A * sin(2 pi q / P) + B * cos(2 pi q / P), spatial period P searched",
+        signature="residual periodic in position: a peak in the residual against position, at frequency velocity/P in time",
+        signature_kinds=("position", "frequency"),
+        columns=(_col("ripple_sin", "ripple, sine component", "N"), _col("ripple_cos", "ripple, cosine component", "N")),
+        build=lambda kin, period, fs_hz: np.c_[np.sin(2.0 * np.pi * kin.q / period), np.cos(2.0 * np.pi * kin.q / period)],
+        scan=Scan("L", "m", _ripple_grid),
+        estimate=_ripple_estimate,
+        sentence=lambda p: f"amplitude {p['A'].value:.3g} N, spatial period {p['L'].value * 1e3:.4g} mm",
+    )
+)
 
-SPRING = register(Effect(
-    "spring", "spring force",
-    "A cable chain or a gravity-like preload pulls the carriage towards one end with a force proportional to position.",
-    params=(PlantParam("k", "N/m", 100.0, "stiffness"), PlantParam("q0", "m", 0.1, "rest position")),
-    force=lambda q, qd, prm: prm[0] * (q - prm[1]),
-    form="k * q (its rest position is absorbed by the offset)",
-    signature="residual growing linearly with position, same sign in both directions of motion",
-    signature_kinds=("position",),
-    columns=(_col("k_spring", "stiffness", "N/m"),),
-    build=lambda kin, value, fs_hz: np.c_[kin.q],
-    estimate=_spring_estimate,
-    sentence=lambda p: f"stiffness {p['k'].value:.4g} N/m",
-))
+SPRING = register(
+    Effect(
+        "spring",
+        "spring force",
+        "A cable chain or a gravity-like preload pulls the carriage towards one end with a force proportional to position.",
+        params=(PlantParam("k", "N/m", 100.0, "stiffness"), PlantParam("q0", "m", 0.1, "rest position")),
+        force=lambda q, qd, prm: prm[0] * (q - prm[1]),
+        form="k * q (its rest position is absorbed by the offset)",
+        signature="residual growing linearly with position, same sign in both directions of motion",
+        signature_kinds=("position",),
+        columns=(_col("k_spring", "stiffness", "N/m"),),
+        build=lambda kin, value, fs_hz: np.c_[kin.q],
+        estimate=_spring_estimate,
+        sentence=lambda p: f"stiffness {p['k'].value:.4g} N/m",
+    )
+)
 
-PAYLOAD_CHANGE = register(Effect(
-    "payload_change", "payload change",
-    "A mass is added to (or removed from) the carriage during the run, changing the inertia from that time on.",
-    params=(PlantParam("dM", "kg", 10.0, "mass added"), PlantParam("t_change", "s", 60.0, "time of the change", low=0.0)),
-    form="dM * qdd * [t >= tc], change time tc searched",
-    signature="residual proportional to acceleration, after a given time only",
-    signature_kinds=("drift", "time"),
-    columns=(_col("dM", "mass added at the change time", "kg"),),
-    build=lambda kin, tc, fs_hz: np.c_[kin.qdd * (kin.t >= tc)],
-    scan=Scan("t_change", "s", _change_time_grid, log=False),
-    sentence=lambda p: f"{p['dM'].value:+.3g} kg from t = {p['t_change'].value:.3g} s",
-))
+PAYLOAD_CHANGE = register(
+    Effect(
+        "payload_change",
+        "payload change",
+        "A mass is added to (or removed from) the carriage during the run, changing the inertia from that time on.",
+        params=(PlantParam("dM", "kg", 10.0, "mass added"), PlantParam("t_change", "s", 60.0, "time of the change", low=0.0)),
+        form="dM * qdd * [t >= tc], change time tc searched",
+        signature="residual proportional to acceleration, after a given time only",
+        signature_kinds=("drift", "time"),
+        columns=(_col("dM", "mass added at the change time", "kg"),),
+        build=lambda kin, tc, fs_hz: np.c_[kin.qdd * (kin.t >= tc)],
+        scan=Scan("t_change", "s", _change_time_grid, log=False),
+        sentence=lambda p: f"{p['dM'].value:+.3g} kg from t = {p['t_change'].value:.3g} s",
+    )
+)
 
-OFFSET = register(Effect(
-    "offset", "force offset",
-    "The drive's amplifier or current sensor adds a constant force, or Coulomb friction is not the same in both directions.",
-    plant=False,
-    form="constant offset",
-    signature="constant mean residual in every bin",
-    signature_kinds=("velocity", "time"),
-    columns=(_col("offset", "constant force offset"),),
-    build=lambda kin, value, fs_hz: np.ones((len(kin.qd), 1)),
-    sentence=lambda p: f"{p['offset'].value:+.3g} N",
-))
+OFFSET = register(
+    Effect(
+        "offset",
+        "force offset",
+        "The drive's amplifier or current sensor adds a constant force, or Coulomb friction is not the same in both directions.",
+        plant=False,
+        form="constant offset",
+        signature="constant mean residual in every bin",
+        signature_kinds=("velocity", "time"),
+        columns=(_col("offset", "constant force offset"),),
+        build=lambda kin, value, fs_hz: np.ones((len(kin.qd), 1)),
+        sentence=lambda p: f"{p['offset'].value:+.3g} N",
+    )
+)
 
-DELAY = register(Effect(
-    "delay", "actuation delay",
-    "The logged force and the force acting on the axis are not simultaneous: the measurement lags (d > 0) or the drive lags the command (d < 0).",
-    params=(PlantParam("delay", "s", 0.002, "logged force = applied force this much earlier; negative: the drive lags the command"),),
-    check=_delay_check,
-    form="IDM(t) = tau_logged(t + d): the logged force is shifted by the delay d, searched",
-    signature="residual proportional to the rate of change of the force; cross-correlation of force and model peaks at a non-zero lag",
-    signature_kinds=("lag", "acceleration"),
-    scan=Scan("delay", "s", _delay_grid, log=False),
-    shift=True,
-    estimate=_delay_estimate,
-    sentence=lambda p: f"{p['delay'].value * 1e3:+.3g} ms",
-))
+DELAY = register(
+    Effect(
+        "delay",
+        "actuation delay",
+        "The logged force and the force acting on the axis are not simultaneous: the measurement lags (d > 0) or the drive lags the command (d < 0).",
+        params=(PlantParam("delay", "s", 0.002, "logged force = applied force this much earlier; negative: the drive lags the command"),),
+        check=_delay_check,
+        form="IDM(t) = tau_logged(t + d): the logged force is shifted by the delay d, searched",
+        signature="residual proportional to the rate of change of the force; cross-correlation of force and model peaks at a non-zero lag",
+        signature_kinds=("lag", "acceleration"),
+        scan=Scan("delay", "s", _delay_grid, log=False),
+        shift=True,
+        estimate=_delay_estimate,
+        sentence=lambda p: f"{p['delay'].value * 1e3:+.3g} ms",
+    )
+)
 
 
 def _flex_check(v: Mapping[str, float]) -> None:
@@ -699,36 +740,53 @@ def _flex_check(v: Mapping[str, float]) -> None:
         raise ParameterError("flexibility.load_fraction", v["load_fraction"], "in (0, 1)")
 
 
-FLEXIBILITY = register(Effect(
-    "flexibility", "transmission flexibility",
-    "The carriage is coupled to the motor through a compliant screw and belt, so part of the mass lags the measured motion near a resonance.",
-    params=(PlantParam("stiffness", "N/m", 2.0e6, "coupling stiffness", low=0.0, low_open=True),
+FLEXIBILITY = register(
+    Effect(
+        "flexibility",
+        "transmission flexibility",
+        "The carriage is coupled to the motor through a compliant screw and belt, so part of the mass lags the measured motion near a resonance.",
+        params=(
+            PlantParam("stiffness", "N/m", 2.0e6, "coupling stiffness", low=0.0, low_open=True),
             PlantParam("damping", "N·s/m", 500.0, "coupling damping", low=0.0),
-            PlantParam("load_fraction", "", 0.3, "share of M behind the coupling")),
-    check=_flex_check,
-    form="M_load * (H(s) - 1) qdd with H the load's spring-damper response: resonance frequency f_res searched, then its damping ratio",
-    signature="residual proportional to acceleration at high frequency: oscillations after acceleration steps and pulses; a spectral peak",
-    signature_kinds=("frequency", "acceleration"),
-    columns=(_col("M_load", "mass behind the flexibility", "kg"),),
-    build=_flex_build,
-    scan=Scan("f_res", "Hz", _resonance_grid, secondary=("damping_ratio", "", 0.005, 0.5, FLEX_DAMPING)),
-    impossible=lambda th, v: None if th[0] > 0 else f"negative mass behind the flexibility ({th[0]:.3g} kg)",
-    estimate=_flex_estimate,
-    scan_value=_flex_scan_value,
-    sentence=lambda p: f"resonance {p['f_res'].value:.3g} Hz, {p['M_load'].value:.3g} kg behind the spring",
-))
+            PlantParam("load_fraction", "", 0.3, "share of M behind the coupling"),
+        ),
+        check=_flex_check,
+        form="M_load * (H(s) - 1) qdd with H the load's spring-damper response: resonance frequency f_res searched, then its damping ratio",
+        signature="residual proportional to acceleration at high frequency: oscillations after acceleration steps and pulses; a spectral peak",
+        signature_kinds=("frequency", "acceleration"),
+        columns=(_col("M_load", "mass behind the flexibility", "kg"),),
+        build=_flex_build,
+        scan=Scan("f_res", "Hz", _resonance_grid, secondary=("damping_ratio", "", 0.005, 0.5, FLEX_DAMPING)),
+        impossible=lambda th, v: None if th[0] > 0 else f"negative mass behind the flexibility ({th[0]:.3g} kg)",
+        estimate=_flex_estimate,
+        scan_value=_flex_scan_value,
+        sentence=lambda p: f"resonance {p['f_res'].value:.3g} Hz, {p['M_load'].value:.3g} kg behind the spring",
+    )
+)
 
-SATURATION = register(Effect(
-    "saturation", "drive saturation", "The drive cannot apply more than its peak force: the applied force is clipped.",
-    params=(PlantParam("force_max", "N", 350.0, "largest force the drive applies", low=0.0, low_open=True),),
-))
+SATURATION = register(
+    Effect(
+        "saturation",
+        "drive saturation",
+        "The drive cannot apply more than its peak force: the applied force is clipped.",
+        params=(PlantParam("force_max", "N", 350.0, "largest force the drive applies", low=0.0, low_open=True),),
+    )
+)
 
-QUANTIZATION = register(Effect(
-    "quantization", "encoder quantization", "The encoder measures the position in whole counts (EMPS: about 2e-7 m per count).",
-    params=(PlantParam("resolution", "m", 2.0e-7, "one count", low=0.0, low_open=True),),
-))
+QUANTIZATION = register(
+    Effect(
+        "quantization",
+        "encoder quantization",
+        "The encoder measures the position in whole counts (EMPS: about 2e-7 m per count).",
+        params=(PlantParam("resolution", "m", 2.0e-7, "one count", low=0.0, low_open=True),),
+    )
+)
 
-NOISE = register(Effect(
-    "noise", "measurement noise", "Gaussian noise on the logged force and on the measured position (seeded, drawn up front).",
-    params=(PlantParam("tau_std", "N", 0.0, "force noise std", low=0.0), PlantParam("q_std", "m", 0.0, "position noise std", low=0.0)),
-))
+NOISE = register(
+    Effect(
+        "noise",
+        "measurement noise",
+        "Gaussian noise on the logged force and on the measured position (seeded, drawn up front).",
+        params=(PlantParam("tau_std", "N", 0.0, "force noise std", low=0.0), PlantParam("q_std", "m", 0.0, "position noise std", low=0.0)),
+    )
+)

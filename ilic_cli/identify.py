@@ -64,7 +64,9 @@ class IdentifyReport:
             "model": self.model,
             "joint": self.joint,
             "joint_type": self.joint_type,
-            "units": {n: parameters.unit(n, self.joint_type) or unit_of(n) for n in (self.ls.result.names if self.ls else self.ilic.names if self.ilic else ())},
+            "units": {
+                n: parameters.unit(n, self.joint_type) or unit_of(n) for n in (self.ls.result.names if self.ls else self.ilic.names if self.ilic else ())
+            },
             "effects": {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.effects.items()},
             "sample_rate_hz": self.fs_hz,
             "samples": self.samples,
@@ -82,12 +84,40 @@ class IdentifyReport:
         if self.ls is not None:
             r = self.ls.result
             for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True):
-                rows.append({"method": "IDIM-LS", "k": None, "t_start": None, "t_end": None, "parameter": n, "value": v, "std": s, "rel_std_pct": p, "essential": None, "relative_error_pct": r.relative_error_pct, "tracking_error_ratio": None})
+                rows.append(
+                    {
+                        "method": "IDIM-LS",
+                        "k": None,
+                        "t_start": None,
+                        "t_end": None,
+                        "parameter": n,
+                        "value": v,
+                        "std": s,
+                        "rel_std_pct": p,
+                        "essential": None,
+                        "relative_error_pct": r.relative_error_pct,
+                        "tracking_error_ratio": None,
+                    }
+                )
         if self.ilic is not None:
             for w in self.ilic.windows:
                 r = w.result
                 for n, v, s, p, e in zip(r.names, r.theta, r.std, r.rel_std_pct, w.essential, strict=True):
-                    rows.append({"method": "IDIM-ILIC", "k": w.k, "t_start": w.t_start, "t_end": w.t_end, "parameter": n, "value": v, "std": s, "rel_std_pct": p, "essential": bool(e), "relative_error_pct": r.relative_error_pct, "tracking_error_ratio": w.tracking_error_ratio})
+                    rows.append(
+                        {
+                            "method": "IDIM-ILIC",
+                            "k": w.k,
+                            "t_start": w.t_start,
+                            "t_end": w.t_end,
+                            "parameter": n,
+                            "value": v,
+                            "std": s,
+                            "rel_std_pct": p,
+                            "essential": bool(e),
+                            "relative_error_pct": r.relative_error_pct,
+                            "tracking_error_ratio": w.tracking_error_ratio,
+                        }
+                    )
         return pd.DataFrame(rows)
 
     def model_parameters(self) -> dict[str, float]:
@@ -174,8 +204,16 @@ def identify(
     model = with_effects(structure, effects, fs)
     if effects and method != "ls":
         raise ParameterError("method", method, "'ls' with effect columns (IDIM-ILIC windows identify the structure's own parameters)")
-    report = IdentifyReport(source=src, model=structure, fs_hz=fs, samples=len(log), warnings=list(prepared.warnings), effects=effects,
-                            joint=log.meta.get("joint"), joint_type=parameters.joint_type(log.units.get("q")))
+    report = IdentifyReport(
+        source=src,
+        model=structure,
+        fs_hz=fs,
+        samples=len(log),
+        warnings=list(prepared.warnings),
+        effects=effects,
+        joint=log.meta.get("joint"),
+        joint_type=parameters.joint_type(log.units.get("q")),
+    )
     if method in ("ls", "both"):
         try:
             report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid, segments=prepared.segments)
@@ -218,7 +256,10 @@ def identify(
                     if not ok:
                         not_essential.setdefault(name, []).append(w.k)
         for name, ks in not_essential.items():
-            report.warnings.append(f"IDIM-ILIC: {name} not essential (%σ > {ilic_settings.sigma_max_pct:g}) in {len(ks)} of {len(report.ilic.windows)} windows (k = {_ranges(ks)}); it would not be updated")
+            report.warnings.append(
+                f"IDIM-ILIC: {name} not essential (%σ > {ilic_settings.sigma_max_pct:g}) in {len(ks)} of {len(report.ilic.windows)} windows "
+                f"(k = {_ranges(ks)}); it would not be updated"
+            )
     if valid is not None:
         report.warnings.append(_masked_summary(report, valid, str(prepared.saturation_note())))
     for other in validate or []:
@@ -251,8 +292,10 @@ def ilic_unusable(log: RunLog, fs_hz: float, settings: ILICSettings) -> str | No
         return f"the log ({len(log) / fs_hz:.3g} s) is shorter than one window ({settings.window_s:g} s)"
     ratio = float(tracking_error_ratio(log["q_ref"], log["q"]))
     if not ratio <= TRACKING_LIMIT:
-        return (f"the reference does not track the measured joint (tracking error ratio {ratio:.3g}, above {TRACKING_LIMIT:g}): "
-                "check that the reference is this joint's")
+        return (
+            f"the reference does not track the measured joint (tracking error ratio {ratio:.3g}, above {TRACKING_LIMIT:g}): "
+            "check that the reference is this joint's"
+        )
     return None
 
 

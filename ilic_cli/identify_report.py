@@ -58,15 +58,26 @@ def to_markdown(report: IdentifyReport) -> str:
     if report.ls is not None:
         r = report.ls.result
         out += ["## IDIM-LS", ""]
-        out += _table(["parameter", "value", "std", "rel. std %"], [[_label(n, report.joint_type), fmt(v), fmt(s), fmt(p)] for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True)])
-        out += ["", f"Condition number {fmt(r.condition_number)}; error norm {fmt(r.error_norm)}; relative error {fmt(r.relative_error_pct)} %; error std {fmt(r.sigma_rho)}.", ""]
+        out += _table(
+            ["parameter", "value", "std", "rel. std %"],
+            [[_label(n, report.joint_type), fmt(v), fmt(s), fmt(p)] for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True)],
+        )
+        out += [
+            "",
+            f"Condition number {fmt(r.condition_number)}; error norm {fmt(r.error_norm)}; relative error {fmt(r.relative_error_pct)} %; "
+            f"error std {fmt(r.sigma_rho)}.",
+            "",
+        ]
     if report.ilic is not None:
         wins = report.ilic.windows
         shown = wins[:MAX_WINDOW_COLUMNS]
         s = report.ilic.settings
         out += ["## IDIM-ILIC per window" + (" next to IDIM-LS" if report.ls is not None else ""), ""]
         lag = f" delayed by {report.ilic.ref_lag} samples to line up with the measured motion" if report.ilic.ref_lag else ""
-        out.append(f"Windows of {s.window_s:g} s on the reference trajectory{lag}; force low-pass {s.cutoff_hz:g} Hz and decimated; %σ_max = {s.sigma_max_pct:g} (a † marks a parameter that is not essential and would not be updated).")
+        out.append(
+            f"Windows of {s.window_s:g} s on the reference trajectory{lag}; force low-pass {s.cutoff_hz:g} Hz and decimated; "
+            f"%σ_max = {s.sigma_max_pct:g} (a † marks a parameter that is not essential and would not be updated)."
+        )
         out.append("")
         header = ["parameter"]
         for w in shown:
@@ -103,7 +114,13 @@ def to_markdown(report: IdentifyReport) -> str:
         out.append("")
     if report.validation:
         out += ["## Cross-test validation", ""]
-        out += _table(["log", "estimates", "relative error %", "error norm", "error std", "condition number"], [[v.source, v.method, fmt(v.result.relative_error_pct), fmt(v.result.error_norm), fmt(v.result.sigma_rho), fmt(v.result.condition_number)] for v in report.validation])
+        out += _table(
+            ["log", "estimates", "relative error %", "error norm", "error std", "condition number"],
+            [
+                [v.source, v.method, fmt(v.result.relative_error_pct), fmt(v.result.error_norm), fmt(v.result.sigma_rho), fmt(v.result.condition_number)]
+                for v in report.validation
+            ],
+        )
         out.append("")
     if report.warnings:
         out += ["## Warnings", ""] + [f"- {w}" for w in report.warnings] + [""]

@@ -246,7 +246,7 @@ def estimate_window(
     k: int = 1,
 ) -> WindowEstimate:
     """Estimate one window (the online step of the closed loop); see :func:`estimate_windows`."""
-    stack = (lambda a: None if a is None else np.asarray(a, dtype=np.float64)[None])
+    stack = lambda a: None if a is None else np.asarray(a, dtype=np.float64)[None]
     return estimate_windows(model, stack(qd_ref), stack(qdd_ref), stack(tau), fs_hz, settings, q_ref=stack(q_ref), q=stack(q), t=stack(t), k0=k)[0]
 
 
@@ -312,7 +312,7 @@ def identify_ilic(
     m = K * n
     q_ref_actual = q_ref
     q_ref, qd_ref, qdd_ref = (delay_samples(np.asarray(a, dtype=np.float64), lag) for a in (q_ref, qd_ref, qdd_ref))
-    cut = (lambda a: None if a is None else np.asarray(a[:m], dtype=np.float64).reshape(K, n))
+    cut = lambda a: None if a is None else np.asarray(a[:m], dtype=np.float64).reshape(K, n)
     valid = usable_mask(valid, np.shape(t))
     mask = None if valid is None else valid[:m].reshape(K, n)
     windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut(q), t=cut(t), valid=mask)

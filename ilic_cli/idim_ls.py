@@ -209,7 +209,9 @@ def prepare(
         rows = valid_rows(valid[s], settings.decimation)
         Wy = Wy[rows]
         if len(Wy) <= Wy.shape[1]:
-            raise ValueError(f"only {len(Wy)} decimated rows are left once the invalid (saturated) samples are masked; too few for {Wy.shape[1] - 1} parameters")
+            raise ValueError(
+                f"only {len(Wy)} decimated rows are left once the invalid (saturated) samples are masked; too few for {Wy.shape[1] - 1} parameters"
+            )
     W, y = np.ascontiguousarray(Wy[:, :-1]), np.ascontiguousarray(Wy[:, -1])
     return IDIMData(kin=kin, tau=y_full, W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
 
@@ -219,8 +221,16 @@ def min_samples(settings: LSSettings) -> int:
     return settings.trim + 3 * settings.decimation * 9 + 1
 
 
-def _systems(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings,
-             valid: np.ndarray | None, segments: tuple[tuple[int, int], ...] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _systems(
+    t: np.ndarray,
+    q: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    model: Model,
+    settings: LSSettings,
+    valid: np.ndarray | None,
+    segments: tuple[tuple[int, int], ...] | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(W, y, t_dec)`` of the contiguous ``segments`` (default: the whole log), each filtered and decimated on its own, stacked.
 
     Segments shorter than :func:`min_samples` are left out; none left is an error.
@@ -238,8 +248,17 @@ def _systems(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model:
     return W, y, td
 
 
-def idim_ls(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings(), *,
-            valid: np.ndarray | None = None, segments: tuple[tuple[int, int], ...] | None = None) -> IDIMLSResult:
+def idim_ls(
+    t: np.ndarray,
+    q: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    model: Model,
+    settings: LSSettings = LSSettings(),
+    *,
+    valid: np.ndarray | None = None,
+    segments: tuple[tuple[int, int], ...] | None = None,
+) -> IDIMLSResult:
     """IDIM-LS estimate of ``model`` from measured position and force.
 
     ``valid`` (boolean, one per sample) masks samples such as a saturated
@@ -255,8 +274,18 @@ def idim_ls(t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: 
     return IDIMLSResult(model=model.name, result=result, settings=settings, t=t_dec, y=y, y_hat=W @ result.theta)
 
 
-def cross_validate(theta: np.ndarray, t: np.ndarray, q: np.ndarray, tau: np.ndarray, fs_hz: float, model: Model, settings: LSSettings = LSSettings(),
-                   *, valid: np.ndarray | None = None, segments: tuple[tuple[int, int], ...] | None = None) -> LSResult:
+def cross_validate(
+    theta: np.ndarray,
+    t: np.ndarray,
+    q: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    model: Model,
+    settings: LSSettings = LSSettings(),
+    *,
+    valid: np.ndarray | None = None,
+    segments: tuple[tuple[int, int], ...] | None = None,
+) -> LSResult:
     """Apply estimates ``theta`` to another log with the same processing (cross-test validation; ``valid``, ``segments`` as :func:`idim_ls`)."""
     t, q, tau = (np.asarray(a, dtype=np.float64) for a in (t, q, tau))
     W, y, _ = _systems(t, q, tau, fs_hz, model, settings, valid, segments)

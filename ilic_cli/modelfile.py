@@ -63,7 +63,9 @@ def load_model_file(path: str | Path) -> dict[str, Any]:
     return parse_model(doc, str(p))
 
 
-def model_document(model: str, parameters: dict[str, float], *, method: str, effects: dict[str, Any] | None = None, source: str | None = None) -> dict[str, Any]:
+def model_document(
+    model: str, parameters: dict[str, float], *, method: str, effects: dict[str, Any] | None = None, source: str | None = None
+) -> dict[str, Any]:
     """Build the JSON document of a model file."""
     return {
         "ilic_model": MODEL_FILE_VERSION,

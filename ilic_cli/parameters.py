@@ -44,16 +44,19 @@ class Parameter:
         return self.unit_revolute if joint == "revolute" else self.unit
 
 
-PARAMETERS: dict[str, Parameter] = {p.name: p for p in (
-    Parameter("M", "kg", "kg·m²", "mass (motor rotor, screw, nut and carriage)"),
-    Parameter("Fv", "N·s/m", "N·m·s/rad", "viscous friction"),
-    Parameter("Fc", "N", "N·m", "Coulomb friction"),
-    Parameter("offset", "N", "N·m", "force offset (amplifier offset, Coulomb asymmetry)"),
-    Parameter("Fv_pos", "N·s/m", "N·m·s/rad", "viscous friction, positive velocity"),
-    Parameter("Fc_pos", "N", "N·m", "Coulomb friction, positive velocity"),
-    Parameter("Fv_neg", "N·s/m", "N·m·s/rad", "viscous friction, negative velocity"),
-    Parameter("Fc_neg", "N", "N·m", "Coulomb friction, negative velocity (a magnitude)"),
-)}
+PARAMETERS: dict[str, Parameter] = {
+    p.name: p
+    for p in (
+        Parameter("M", "kg", "kg·m²", "mass (motor rotor, screw, nut and carriage)"),
+        Parameter("Fv", "N·s/m", "N·m·s/rad", "viscous friction"),
+        Parameter("Fc", "N", "N·m", "Coulomb friction"),
+        Parameter("offset", "N", "N·m", "force offset (amplifier offset, Coulomb asymmetry)"),
+        Parameter("Fv_pos", "N·s/m", "N·m·s/rad", "viscous friction, positive velocity"),
+        Parameter("Fc_pos", "N", "N·m", "Coulomb friction, positive velocity"),
+        Parameter("Fv_neg", "N·s/m", "N·m·s/rad", "viscous friction, negative velocity"),
+        Parameter("Fc_neg", "N", "N·m", "Coulomb friction, negative velocity (a magnitude)"),
+    )
+}
 """Every identifiable parameter of the rigid axis, by name."""
 
 RIGID = ("M", "Fv", "Fc", "offset")

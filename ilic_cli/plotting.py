@@ -79,7 +79,7 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         error = report.ls.y - report.ls.y_hat
         ax2.plot(t, error, lw=0.8, color="C3")
         edges = edge_rows(len(error))
-        scale_y(ax2, error[edges:len(error) - edges])
+        scale_y(ax2, error[edges : len(error) - edges])
         mark_edges(ax2, t, edges)
         ax2.set_ylabel("error (N)")
         ax2.set_xlabel("t (s)")

@@ -67,8 +67,11 @@ class PreparedLog:
         if len(self.segments) > 1:
             t = self.log.t
             longest = max(float(t[b] - t[b - 1]) for _, b in self.segments[:-1])
-            raise LogError(self.source, f"{len(self.segments) - 1} gap(s) in the time stamps (the longest {longest:.3g} s): {what} needs one "
-                           "contiguous recording; cut the log at the gaps (identify uses the contiguous parts by itself)")
+            raise LogError(
+                self.source,
+                f"{len(self.segments) - 1} gap(s) in the time stamps (the longest {longest:.3g} s): {what} needs one "
+                "contiguous recording; cut the log at the gaps (identify uses the contiguous parts by itself)",
+            )
 
     def saturation_note(self) -> str | None:
         """``saturated drive: X % of the samples masked``, or ``None`` without masking."""
@@ -111,14 +114,26 @@ def to_load_side(log: RunLog, gear_ratio: float, torque_constant: float | None =
     if load_joint not in ("prismatic", "revolute"):
         raise ParameterError("load_joint", load_joint, "prismatic or revolute")
     position, force = ("m", "N") if load_joint == "prismatic" else ("rad", "N·m")
-    scale = {"q": (1 / gear_ratio, position), "q_ref": (1 / gear_ratio, position), "qd": (1 / gear_ratio, f"{position}/s"),
-             "qd_ref": (1 / gear_ratio, f"{position}/s"), "qdd_ref": (1 / gear_ratio, f"{position}/s^2"),
-             "tau": ((torque_constant or 1.0) * gear_ratio, force)}
+    scale = {
+        "q": (1 / gear_ratio, position),
+        "q_ref": (1 / gear_ratio, position),
+        "qd": (1 / gear_ratio, f"{position}/s"),
+        "qd_ref": (1 / gear_ratio, f"{position}/s"),
+        "qdd_ref": (1 / gear_ratio, f"{position}/s^2"),
+        "tau": ((torque_constant or 1.0) * gear_ratio, force),
+    }
     channels, units = dict(log.channels), dict(log.units)
     for name, (factor, unit) in scale.items():
         if name in channels:
             channels[name] = channels[name] * factor
             units[name] = unit
-    meta = {**log.meta, "transmission": {"gear_ratio": gear_ratio, "torque_constant": torque_constant, "load_joint": load_joint,
-                                         "motor_units": {n: log.units.get(n, "") for n in scale if n in log.channels}}}
+    meta = {
+        **log.meta,
+        "transmission": {
+            "gear_ratio": gear_ratio,
+            "torque_constant": torque_constant,
+            "load_joint": load_joint,
+            "motor_units": {n: log.units.get(n, "") for n in scale if n in log.channels},
+        },
+    }
     return RunLog(channels, units, meta)

@@ -397,7 +397,12 @@ def assess(
     findings = report.findings
     if report.gaps:
         findings.append(
-            QualityFinding("gaps", "warning", f"{report.gaps} gap(s) longer than {GAP_FACTOR}x the nominal period; about {report.dropped_samples} sample(s) dropped (longest step {report.max_step_s:.6g} s)")
+            QualityFinding(
+                "gaps",
+                "warning",
+                f"{report.gaps} gap(s) longer than {GAP_FACTOR}x the nominal period; about {report.dropped_samples} sample(s) dropped "
+                f"(longest step {report.max_step_s:.6g} s)",
+            )
         )
     if report.jitter > IRREGULAR_JITTER:
         findings.append(QualityFinding("irregular", "warning", f"irregular sampling: step jitter {100 * report.jitter:.3g} % of the nominal period"))
@@ -417,7 +422,13 @@ def assess(
                 QualityFinding("frozen", "warning", f"position frozen while the reference moves: {len(report.frozen_runs)} run(s), longest {longest:.3g} s")
             )
     if len(t) < SHORT_SAMPLES or duration < SHORT_DURATION_S:
-        findings.append(QualityFinding("short", "warning", f"log too short for identification ({len(t)} samples, {duration:.3g} s; want >= {SHORT_SAMPLES} samples and >= {SHORT_DURATION_S:g} s)"))
+        findings.append(
+            QualityFinding(
+                "short",
+                "warning",
+                f"log too short for identification ({len(t)} samples, {duration:.3g} s; want >= {SHORT_SAMPLES} samples and >= {SHORT_DURATION_S:g} s)",
+            )
+        )
     return report
 
 

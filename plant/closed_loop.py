@@ -42,11 +42,25 @@ class LoopResult:
     windows: list[Any] = field(default_factory=list)
 
 
-def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, params: RigidParameters, effects: Effects,
-                  controller: CTCSettings | PDSettings, fs_hz: float = 1000.0, substeps: int = 10, seed: int = 0,
-                  qd_log: np.ndarray | None = None, qdd_log: np.ndarray | None = None, pulses: np.ndarray | None = None,
-                  tau_sensor: str = "centred", chi_schedule: np.ndarray | None = None, x0: tuple[float, float] | None = None,
-                  progress: Callable[[int, int], None] | None = None) -> LoopResult:
+def simulate_loop(
+    *,
+    q_r: np.ndarray,
+    qd_r: np.ndarray,
+    qdd_r: np.ndarray,
+    params: RigidParameters,
+    effects: Effects,
+    controller: CTCSettings | PDSettings,
+    fs_hz: float = 1000.0,
+    substeps: int = 10,
+    seed: int = 0,
+    qd_log: np.ndarray | None = None,
+    qdd_log: np.ndarray | None = None,
+    pulses: np.ndarray | None = None,
+    tau_sensor: str = "centred",
+    chi_schedule: np.ndarray | None = None,
+    x0: tuple[float, float] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> LoopResult:
     """Run the closed loop over ``len(q_r)`` control periods.
 
     Parameters
@@ -77,7 +91,11 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
         raise ParameterError("tau_sensor", tau_sensor, f"one of {', '.join(TAU_SENSORS)}")
     controller.validate()
     if isinstance(controller, PDSettings) and controller.pulse_input == "ramp" and drive_lag_s(effects) > 0:
-        raise ParameterError("delay.delay", effects["delay"]["delay"], ">= 0 with ramped pulses (pulse_input=\"ramp\", the published setup): a drive lag cannot be combined with them")
+        raise ParameterError(
+            "delay.delay",
+            effects["delay"]["delay"],
+            '>= 0 with ramped pulses (pulse_input="ramp", the published setup): a drive lag cannot be combined with them',
+        )
     T = 1.0 / fs_hz
     p = plant_vector(params, effects)
     run_periods = kernel_for(effects).run_periods
@@ -107,8 +125,7 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
 
     def run(a: int, b: int, chi_now: np.ndarray) -> None:
         chi8 = chi_vector(names, chi_now) if len(names) else np.zeros(8)
-        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd,
-                           out_qdd)
+        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd)
         if bad >= 0:
             raise SimulationError(None, f"the closed loop diverged at t = {bad * T:.6g} s (non-finite state); check the parameters and gains")
 
@@ -129,8 +146,18 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
             chi_hist[a:b] = chi
             if b - a == nwin:
                 tau_w = measured_force(out_u[:b], T, b, effects, tau_sensor, noise_tau[:b], start=a)
-                est = estimate_window(model, qd_log[a:b], qdd_log[a:b], tau_w, fs_hz, settings,  # type: ignore[arg-type]
-                                      q_ref=q_r[a:b], q=out_q[a:b], t=np.arange(a, b) * T, k=k)
+                est = estimate_window(
+                    model,
+                    qd_log[a:b],
+                    qdd_log[a:b],
+                    tau_w,
+                    fs_hz,
+                    settings,  # type: ignore[arg-type]
+                    q_ref=q_r[a:b],
+                    q=out_q[a:b],
+                    t=np.arange(a, b) * T,
+                    k=k,
+                )
                 windows.append(est)
                 chi = update_parameters(chi, est)
                 k += 1
@@ -151,10 +178,22 @@ def simulate_loop(*, q_r: np.ndarray, qd_r: np.ndarray, qdd_r: np.ndarray, param
     return LoopResult(t=t, q=out_q, q_true=out_qt, qd_true=out_qd, qdd_true=out_qdd, u=out_u, vir=out_vir, tau=tau, chi=chi_hist, names=names, windows=windows)
 
 
-
-def loop_log(res: LoopResult, *, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, controller: CTCSettings | PDSettings,
-             params: RigidParameters, effects: Effects, fs_hz: float, substeps: int, seed: int, tau_sensor: str,
-             pulses: np.ndarray | None = None, meta: dict[str, Any] | None = None) -> RunLog:
+def loop_log(
+    res: LoopResult,
+    *,
+    q_ref: np.ndarray,
+    qd_ref: np.ndarray,
+    qdd_ref: np.ndarray,
+    controller: CTCSettings | PDSettings,
+    params: RigidParameters,
+    effects: Effects,
+    fs_hz: float,
+    substeps: int,
+    seed: int,
+    tau_sensor: str,
+    pulses: np.ndarray | None = None,
+    meta: dict[str, Any] | None = None,
+) -> RunLog:
     """Build the run log of a closed-loop result.
 
     Channels: ``t, q`` (measured position: with the quantization and noise
@@ -166,8 +205,16 @@ def loop_log(res: LoopResult, *, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref:
     Metadata: true parameters, effects, controller, simulation settings and
     the IDIM-ILIC windows.
     """
-    chans: dict[str, np.ndarray] = {"t": res.t, "q": res.q, "q_ref": q_ref, "qd_ref": qd_ref, "qdd_ref": qdd_ref, "tau": res.tau,
-                                    "qd_plant": res.qd_true, "qdd_plant": res.qdd_true}
+    chans: dict[str, np.ndarray] = {
+        "t": res.t,
+        "q": res.q,
+        "q_ref": q_ref,
+        "qd_ref": qd_ref,
+        "qdd_ref": qdd_ref,
+        "tau": res.tau,
+        "qd_plant": res.qd_true,
+        "qdd_plant": res.qdd_true,
+    }
     units: dict[str, str] = {"qd_plant": "m/s", "qdd_plant": "m/s^2"}
     if isinstance(controller, PDSettings):
         chans["vir"] = res.vir
@@ -184,10 +231,18 @@ def loop_log(res: LoopResult, *, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref:
         "true_parameters": params.to_dict(),
         "effects": effects_to_dict(effects),
         "controller": controller.to_dict(),
-        "simulation": {"seed": int(seed), "substeps": int(substeps), "dt": 1.0 / fs_hz / substeps, "control_period": 1.0 / fs_hz,
-                       "integrator": "RK4, fixed step, control held per period, Karnopp stick/slip with zero-crossing location",
-                       "stick_velocity": STICK_VELOCITY, "tau_sensor": tau_sensor, "samples": len(res.t),
-                       "duration_s": len(res.t) / fs_hz, "plant": "plant (ilic)"},
+        "simulation": {
+            "seed": int(seed),
+            "substeps": int(substeps),
+            "dt": 1.0 / fs_hz / substeps,
+            "control_period": 1.0 / fs_hz,
+            "integrator": "RK4, fixed step, control held per period, Karnopp stick/slip with zero-crossing location",
+            "stick_velocity": STICK_VELOCITY,
+            "tau_sensor": tau_sensor,
+            "samples": len(res.t),
+            "duration_s": len(res.t) / fs_hz,
+            "plant": "plant (ilic)",
+        },
     }
     if isinstance(controller, PDSettings):
         m["drive_gain"] = controller.gtau
@@ -195,5 +250,3 @@ def loop_log(res: LoopResult, *, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref:
         m["ilic_windows"] = [w.to_dict() for w in res.windows]
     m.update(meta or {})
     return RunLog(chans, units, m)
-
-

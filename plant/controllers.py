@@ -196,4 +196,3 @@ def chi_vector(names: tuple[str, ...], values: np.ndarray | dict[str, float]) ->
     else:
         d = {n: float(v) for n, v in zip(names, values, strict=True)}
     return np.array([d.get(n, 0.0) for n in CHI_LAYOUT])
-

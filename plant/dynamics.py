@@ -90,8 +90,30 @@ def plant_model(values: Mapping[str, float], effects: Mapping[str, Any] | None =
 # ---------------------------------------------------------------------------
 # the flat parameter vector of the integrator
 # ---------------------------------------------------------------------------
-(P_M, P_FV_POS, P_FV_NEG, P_FC_POS, P_FC_NEG, P_OFFSET, P_FS, P_VS, P_RIP_A, P_RIP_L, P_RIP_PH,
- P_K, P_Q0, P_DM, P_TCH, P_FLEX_K, P_FLEX_C, P_FLEX_R, P_FMAX, P_VEPS, P_RES, P_LAG) = range(22)
+(
+    P_M,
+    P_FV_POS,
+    P_FV_NEG,
+    P_FC_POS,
+    P_FC_NEG,
+    P_OFFSET,
+    P_FS,
+    P_VS,
+    P_RIP_A,
+    P_RIP_L,
+    P_RIP_PH,
+    P_K,
+    P_Q0,
+    P_DM,
+    P_TCH,
+    P_FLEX_K,
+    P_FLEX_C,
+    P_FLEX_R,
+    P_FMAX,
+    P_VEPS,
+    P_RES,
+    P_LAG,
+) = range(22)
 N_PLANT = 22
 
 SLOTS: dict[str, dict[str, int]] = {
@@ -161,8 +183,9 @@ def plant_vector(params: RigidParameters, effects: Mapping[str, EffectParams]) -
 # ---------------------------------------------------------------------------
 # inverse dynamics
 # ---------------------------------------------------------------------------
-def force_model(params: RigidParameters | dict[str, float], effects: Effects | dict[str, Any] | None,
-                q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, t: np.ndarray) -> np.ndarray:
+def force_model(
+    params: RigidParameters | dict[str, float], effects: Effects | dict[str, Any] | None, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, t: np.ndarray
+) -> np.ndarray:
     """Inverse dynamics with effects, vectorised: the force that produces ``q, qd, qdd``.
 
     ``tau = M(t)*qdd + friction(qd) + offset + ripple(q) + spring(q)`` with

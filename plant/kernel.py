@@ -42,8 +42,31 @@ import numpy as np
 from numba import njit
 
 from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PULSE_RAMP, C_VMAX
-from plant.dynamics import (N_PLANT, P_DM, P_FC_NEG, P_FC_POS, P_FLEX_C, P_FLEX_K, P_FLEX_R, P_FMAX, P_FS, P_FV_NEG, P_FV_POS, P_K, P_LAG, P_M,
-                            P_OFFSET, P_Q0, P_RES, P_RIP_A, P_RIP_L, P_RIP_PH, P_TCH, P_VEPS, P_VS)
+from plant.dynamics import (
+    N_PLANT,
+    P_DM,
+    P_FC_NEG,
+    P_FC_POS,
+    P_FLEX_C,
+    P_FLEX_K,
+    P_FLEX_R,
+    P_FMAX,
+    P_FS,
+    P_FV_NEG,
+    P_FV_POS,
+    P_K,
+    P_LAG,
+    P_M,
+    P_OFFSET,
+    P_Q0,
+    P_RES,
+    P_RIP_A,
+    P_RIP_L,
+    P_RIP_PH,
+    P_TCH,
+    P_VEPS,
+    P_VS,
+)
 
 # A copy of this module compiled for effects without a compiled form
 # (plant.generic.kernel_for) finds their summed force in _GENERIC_FORCE.
@@ -104,8 +127,12 @@ def _rk4(p, s, u, x0, x1, x2, x3, h, mm, ml, flex):
     c0, c1, c2, c3 = _deriv(p, s, u, x0 + hh * b0, x1 + hh * b1, x2 + hh * b2, x3 + hh * b3, mm, ml, flex)
     d0, d1, d2, d3 = _deriv(p, s, u, x0 + h * c0, x1 + h * c1, x2 + h * c2, x3 + h * c3, mm, ml, flex)
     h6 = h / 6.0
-    return (x0 + h6 * (a0 + 2.0 * b0 + 2.0 * c0 + d0), x1 + h6 * (a1 + 2.0 * b1 + 2.0 * c1 + d1),
-            x2 + h6 * (a2 + 2.0 * b2 + 2.0 * c2 + d2), x3 + h6 * (a3 + 2.0 * b3 + 2.0 * c3 + d3))
+    return (
+        x0 + h6 * (a0 + 2.0 * b0 + 2.0 * c0 + d0),
+        x1 + h6 * (a1 + 2.0 * b1 + 2.0 * c1 + d1),
+        x2 + h6 * (a2 + 2.0 * b2 + 2.0 * c2 + d2),
+        x3 + h6 * (a3 + 2.0 * b3 + 2.0 * c3 + d3),
+    )
 
 
 @njit(cache=CACHE)
@@ -306,8 +333,7 @@ def _substeps(p, u, x0, x1, x2, x3, tk, h, nsub, flex):
 
 
 @njit(cache=CACHE)
-def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T,
-                out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd):
+def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd):
     """Advance the closed loop over periods ``k0 <= k < k1``.
 
     ``x`` (motor q, qd, load q, qd) and ``cs`` (previous measured q, previous
@@ -433,5 +459,3 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
             return k
     x[0], x[1], x[2], x[3] = x0, x1, x2, x3
     return -1
-
-

@@ -31,24 +31,39 @@ def records_controller(log: RunLog) -> bool:
 def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
     """The controller the log records (:func:`records_controller`); a log with none is refused."""
     if not records_controller(log):
-        raise SimulationError(log.meta.get("source"), "the log records no controller (its kind and gains): a replay needs the loop that ran; "
-                              "give the PD loop's gains and drive gain, or choose CTC")
+        raise SimulationError(
+            log.meta.get("source"),
+            "the log records no controller (its kind and gains): a replay needs the loop that ran; give the PD loop's gains and drive gain, or choose CTC",
+        )
     ctl = dict(log.meta.get("controller") or {})
     kind = str(ctl.get("kind", "")).lower()
     if kind == "pd" or (not kind and "vir" in log):
         gtau = log.meta.get("drive_gain", ctl.get("gtau"))
         try:
-            return PDSettings(kp=float(ctl.get("kp", log.meta.get("kp"))), kv=float(ctl.get("kv", log.meta.get("kv"))),
-                              gtau=float(gtau), vmax=float(ctl.get("vmax", 10.0)), pulse_input=str(ctl.get("pulse_input", "held")))
+            return PDSettings(
+                kp=float(ctl.get("kp", log.meta.get("kp"))),
+                kv=float(ctl.get("kv", log.meta.get("kv"))),
+                gtau=float(gtau),
+                vmax=float(ctl.get("vmax", 10.0)),
+                pulse_input=str(ctl.get("pulse_input", "held")),
+            )
         except (TypeError, ValueError):
             raise SimulationError(log.meta.get("source"), "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
     kw = {k: ctl[k] for k in CTC_REPLAY_KEYS if k in ctl}
     return CTCSettings(**kw, ilic=False)
 
 
-def simulate_replay(log: RunLog, params: RigidParameters | Mapping[str, float], effects: Mapping[str, EffectParams | Any] | None = None,
-                    controller: CTCSettings | PDSettings | None = None, *, substeps: int = 10, seed: int = 0,
-                    tau_sensor: str | None = None, clock_s: float | None = None) -> RunLog:
+def simulate_replay(
+    log: RunLog,
+    params: RigidParameters | Mapping[str, float],
+    effects: Mapping[str, EffectParams | Any] | None = None,
+    controller: CTCSettings | PDSettings | None = None,
+    *,
+    substeps: int = 10,
+    seed: int = 0,
+    tau_sensor: str | None = None,
+    clock_s: float | None = None,
+) -> RunLog:
     """Replay ``log``'s recorded reference (and pulses) through the plant; return the simulated log.
 
     Parameters
@@ -118,22 +133,55 @@ def simulate_replay(log: RunLog, params: RigidParameters | Mapping[str, float], 
         if all(f"{n}_hat" in log for n in names):
             sched = np.stack([log[f"{n}_hat"] for n in names], axis=1)
         else:
-            ctl = CTCSettings(**{**{k: getattr(ctl, k) for k in CTC_REPLAY_KEYS},
-                                 "ilic": False, "chi0": {n: getattr(params, n, 0.0) for n in names if n in RigidParameters.NAMES}})
+            ctl = CTCSettings(
+                **{
+                    **{k: getattr(ctl, k) for k in CTC_REPLAY_KEYS},
+                    "ilic": False,
+                    "chi0": {n: getattr(params, n, 0.0) for n in names if n in RigidParameters.NAMES},
+                }
+            )
     x0 = None
     if "q" in log and isinstance(ctl, PDSettings):
         # start where the recording starts: measured position, velocity of its first samples
         q_meas = log["q"]
         v0 = float((q_meas[min(2, len(q_meas) - 1)] - q_meas[0]) / (min(2, len(q_meas) - 1) * dt)) if len(q_meas) > 1 else 0.0
         x0 = (float(q_meas[0]), v0)
-    res = simulate_loop(q_r=q_ctl, qd_r=qd_ctl, qdd_r=qdd_ctl, qd_log=qd_ref, qdd_log=qdd_ref, params=params, effects=eff, controller=ctl, fs_hz=fs, substeps=substeps,
-                        seed=seed, pulses=pulses, tau_sensor=sensor, chi_schedule=sched, x0=x0)
+    res = simulate_loop(
+        q_r=q_ctl,
+        qd_r=qd_ctl,
+        qdd_r=qdd_ctl,
+        qd_log=qd_ref,
+        qdd_log=qdd_ref,
+        params=params,
+        effects=eff,
+        controller=ctl,
+        fs_hz=fs,
+        substeps=substeps,
+        seed=seed,
+        pulses=pulses,
+        tau_sensor=sensor,
+        chi_schedule=sched,
+        x0=x0,
+    )
     res.t = grid if resampled else np.asarray(log.t, dtype=np.float64).copy()
     meta: dict[str, Any] = {"replay_of": log.meta.get("source"), "scenario": {"name": "replay", "source": log.meta.get("source")}}
     if resampled:
         meta["replay_clock_s"] = clock_s
-    return loop_log(res, q_ref=q_ref, qd_ref=qd_ref, qdd_ref=qdd_ref, controller=ctl, params=params, effects=eff, fs_hz=fs,
-                    substeps=substeps, seed=seed, tau_sensor=sensor, pulses=pulses, meta=meta)
+    return loop_log(
+        res,
+        q_ref=q_ref,
+        qd_ref=qd_ref,
+        qdd_ref=qdd_ref,
+        controller=ctl,
+        params=params,
+        effects=eff,
+        fs_hz=fs,
+        substeps=substeps,
+        seed=seed,
+        tau_sensor=sensor,
+        pulses=pulses,
+        meta=meta,
+    )
 
 
 def _trajectory_from_meta(log: RunLog, fs: float) -> Any:
@@ -142,13 +190,17 @@ def _trajectory_from_meta(log: RunLog, fs: float) -> Any:
     if not isinstance(doc, dict) or "segments" not in doc:
         return None
     try:
-        traj = Trajectory(tuple((float(d), float(a)) for d, a in doc["segments"]), q0=float(doc["q0"]), v0=float(doc.get("v0", 0.0)),
-                          repeat=bool(doc.get("repeat", True)), t_offset=float(doc.get("t_offset", 0.0)))
+        traj = Trajectory(
+            tuple((float(d), float(a)) for d, a in doc["segments"]),
+            q0=float(doc["q0"]),
+            v0=float(doc.get("v0", 0.0)),
+            repeat=bool(doc.get("repeat", True)),
+            t_offset=float(doc.get("t_offset", 0.0)),
+        )
         q = traj.evaluate(np.asarray(log.t, dtype=np.float64))[0]
     except (KeyError, TypeError, ValueError, SimulationError):
         return None
     return traj if np.allclose(q, log["q_ref"], rtol=0, atol=1e-12) else None
-
 
 
 BENCHMARK_INIT_SAMPLES = 20
@@ -175,12 +227,23 @@ class BenchmarkFigure:
     init_samples: int
 
     def to_dict(self) -> dict[str, Any]:
-        return {"rmse_mm": self.rmse_mm, "fit_pct": self.fit_pct, "samples": self.samples, "init_samples": self.init_samples,
-                "task": "EMPS: u = vir, y = qm, open-loop simulation after the state-initialisation window"}
+        return {
+            "rmse_mm": self.rmse_mm,
+            "fit_pct": self.fit_pct,
+            "samples": self.samples,
+            "init_samples": self.init_samples,
+            "task": "EMPS: u = vir, y = qm, open-loop simulation after the state-initialisation window",
+        }
 
 
-def simulate_open_loop(log: RunLog, params: RigidParameters | Mapping[str, float], effects: Mapping[str, EffectParams | Any] | None = None, *,
-                       init_samples: int = BENCHMARK_INIT_SAMPLES, substeps: int = 10) -> tuple[RunLog, BenchmarkFigure]:
+def simulate_open_loop(
+    log: RunLog,
+    params: RigidParameters | Mapping[str, float],
+    effects: Mapping[str, EffectParams | Any] | None = None,
+    *,
+    init_samples: int = BENCHMARK_INIT_SAMPLES,
+    substeps: int = 10,
+) -> tuple[RunLog, BenchmarkFigure]:
     """The benchmark's simulation of ``log``: its recorded drive command in, no feedback; and the figure.
 
     The plant starts at the measured position and velocity (zero-phase
@@ -204,14 +267,36 @@ def simulate_open_loop(log: RunLog, params: RigidParameters | Mapping[str, float
     v0 = float((qf[init_samples + 1] - qf[init_samples - 1]) / (2 * T))
     q = np.asarray(log["q"][init_samples:], dtype=np.float64)
     zero = np.zeros(len(q))
-    res = simulate_loop(q_r=q, qd_r=zero, qdd_r=zero, params=params, effects=eff, controller=OpenLoopSettings(gtau=float(gain)), fs_hz=1.0 / T,
-                        substeps=substeps, pulses=np.asarray(log["vir"][init_samples:], dtype=np.float64), tau_sensor="command",
-                        x0=(float(q[0]), v0))
+    res = simulate_loop(
+        q_r=q,
+        qd_r=zero,
+        qdd_r=zero,
+        params=params,
+        effects=eff,
+        controller=OpenLoopSettings(gtau=float(gain)),
+        fs_hz=1.0 / T,
+        substeps=substeps,
+        pulses=np.asarray(log["vir"][init_samples:], dtype=np.float64),
+        tau_sensor="command",
+        x0=(float(q[0]), v0),
+    )
     res.t = np.asarray(log.t[init_samples:], dtype=np.float64).copy()
     rmse = float(np.sqrt(np.mean((res.q_true - q) ** 2)))
     figure = BenchmarkFigure(rmse_mm=1e3 * rmse, fit_pct=100.0 * (1.0 - rmse / float(np.std(q))), samples=len(q), init_samples=init_samples)
-    out = loop_log(res, q_ref=q, qd_ref=zero, qdd_ref=zero, controller=OpenLoopSettings(gtau=float(gain)), params=params, effects=eff, fs_hz=1.0 / T,
-                   substeps=substeps, seed=0, tau_sensor="command", pulses=np.asarray(log["vir"][init_samples:], dtype=np.float64),
-                   meta={"replay_of": log.meta.get("source"), "benchmark": figure.to_dict()})
+    out = loop_log(
+        res,
+        q_ref=q,
+        qd_ref=zero,
+        qdd_ref=zero,
+        controller=OpenLoopSettings(gtau=float(gain)),
+        params=params,
+        effects=eff,
+        fs_hz=1.0 / T,
+        substeps=substeps,
+        seed=0,
+        tau_sensor="command",
+        pulses=np.asarray(log["vir"][init_samples:], dtype=np.float64),
+        meta={"replay_of": log.meta.get("source"), "benchmark": figure.to_dict()},
+    )
     out.channels["q"] = res.q_true  # the simulated output (no sensor effects in the benchmark's comparison)
     return out, figure

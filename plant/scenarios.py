@@ -66,13 +66,36 @@ class Scenario:
 
 
 SCENARIOS: dict[str, Scenario] = {
-    "paper-sim": Scenario("paper-sim", "CTC + online IDIM-ILIC on the rigid axis, stationary parameters", "paper section VI-E, Table I",
-                          RigidParameters(95.0, 200.0, 20.0, 0.0), {}, "ctc", 124.0, "exciting_cycle"),
-    "paper-payload": Scenario("paper-payload", "as paper-sim with a 10 kg payload added at 60 s", "paper section VI-G",
-                              RigidParameters(95.0, 200.0, 20.0, 0.0), {"payload_change": {"dM": 10.0, "t_change": 60.0}}, "ctc", 124.0,
-                              "exciting_cycle"),
-    "emps-benchmark": Scenario("emps-benchmark", "benchmark PD loop with the published rigid estimates, replaying the recorded qg (and pulses)",
-                               "emps-benchmark.md, closed-loop simulation table", RigidParameters(**PUBLISHED_RIGID), {}, "pd", None, "log"),
+    "paper-sim": Scenario(
+        "paper-sim",
+        "CTC + online IDIM-ILIC on the rigid axis, stationary parameters",
+        "paper section VI-E, Table I",
+        RigidParameters(95.0, 200.0, 20.0, 0.0),
+        {},
+        "ctc",
+        124.0,
+        "exciting_cycle",
+    ),
+    "paper-payload": Scenario(
+        "paper-payload",
+        "as paper-sim with a 10 kg payload added at 60 s",
+        "paper section VI-G",
+        RigidParameters(95.0, 200.0, 20.0, 0.0),
+        {"payload_change": {"dM": 10.0, "t_change": 60.0}},
+        "ctc",
+        124.0,
+        "exciting_cycle",
+    ),
+    "emps-benchmark": Scenario(
+        "emps-benchmark",
+        "benchmark PD loop with the published rigid estimates, replaying the recorded qg (and pulses)",
+        "emps-benchmark.md, closed-loop simulation table",
+        RigidParameters(**PUBLISHED_RIGID),
+        {},
+        "pd",
+        None,
+        "log",
+    ),
 }
 
 
@@ -182,11 +205,36 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
     traj = exciting_cycle(seed=ov.trajectory_seed)
     _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, FS_HZ)  # = sample(), sample_centred()
     sensor = ov.tau_sensor or ("centred" if isinstance(ctl, CTCSettings) else "command")
-    res = simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, qd_log=qd_log, qdd_log=qdd_log, params=params, effects=effects, controller=ctl,
-                        fs_hz=FS_HZ, substeps=ov.substeps, seed=ov.seed, tau_sensor=sensor, progress=progress)
+    res = simulate_loop(
+        q_r=q_r,
+        qd_r=qd_r,
+        qdd_r=qdd_r,
+        qd_log=qd_log,
+        qdd_log=qdd_log,
+        params=params,
+        effects=effects,
+        controller=ctl,
+        fs_hz=FS_HZ,
+        substeps=ov.substeps,
+        seed=ov.seed,
+        tau_sensor=sensor,
+        progress=progress,
+    )
     scen_meta["trajectory"] = traj.to_dict()
-    return loop_log(res, q_ref=q_r, qd_ref=qd_log, qdd_ref=qdd_log, controller=ctl, params=params, effects=effects, fs_hz=FS_HZ,
-                    substeps=ov.substeps, seed=ov.seed, tau_sensor=sensor, meta={"scenario": scen_meta})
+    return loop_log(
+        res,
+        q_ref=q_r,
+        qd_ref=qd_log,
+        qdd_ref=qdd_log,
+        controller=ctl,
+        params=params,
+        effects=effects,
+        fs_hz=FS_HZ,
+        substeps=ov.substeps,
+        seed=ov.seed,
+        tau_sensor=sensor,
+        meta={"scenario": scen_meta},
+    )
 
 
 def _read_reference_log(path: str | Path | None) -> RunLog:
@@ -216,8 +264,14 @@ def describe() -> dict[str, Any]:
     out = {}
     for name, sc in SCENARIOS.items():
         _, params, effects, ctl = resolve(name, Overrides())
-        out[name] = {"description": sc.description, "source": sc.section, "parameters": params.to_dict(), "effects": effects_to_dict(effects),
-                     "controller": ctl.to_dict(), "duration_s": sc.duration_s}
+        out[name] = {
+            "description": sc.description,
+            "source": sc.section,
+            "parameters": params.to_dict(),
+            "effects": effects_to_dict(effects),
+            "controller": ctl.to_dict(),
+            "duration_s": sc.duration_s,
+        }
     return out
 
 

@@ -11,6 +11,7 @@ from numba import njit
 from ilic_cli.effects import EffectParams
 from plant.dynamics import measurement_lag_s
 
+
 def held_signal(u: np.ndarray, T: float, times: np.ndarray, width: float) -> np.ndarray:
     """Sample the zero-order-held force ``u`` (``u[k]`` on ``[kT, (k+1)T)``, 0 before 0, last value after).
 
@@ -94,5 +95,3 @@ def draw_noise(n: int, seed: int, effects: Mapping[str, EffectParams]) -> tuple[
         return n_tau * tau_std, np.zeros(n)
     n_q = rng.standard_normal(n)
     return n_tau * tau_std, n_q * q_std
-
-

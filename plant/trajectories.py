@@ -55,14 +55,14 @@ class Move:
 
 
 DEFAULT_MOVES: tuple[Move, ...] = (
-    Move(+0.210, 0.14, 0.50, 0.0),   # +0.1344 m
-    Move(-0.120, 0.08, 0.70, 0.0),   # -0.0936 m
-    Move(+0.150, 0.10, 0.45, 0.0),   # +0.0825 m
-    Move(-0.240, 0.16, 0.40, 0.0),   # -0.1344 m
-    Move(+0.090, 0.06, 0.70, 0.0),   # +0.0684 m
-    Move(-0.135, 0.09, 0.30, 0.0),   # -0.05265 m
-    Move(+0.180, 0.12, 0.49, 0.0),   # +0.1098 m
-    Move(-0.105, 0.07, 1.02, 0.0),   # -0.11445 m
+    Move(+0.210, 0.14, 0.50, 0.0),  # +0.1344 m
+    Move(-0.120, 0.08, 0.70, 0.0),  # -0.0936 m
+    Move(+0.150, 0.10, 0.45, 0.0),  # +0.0825 m
+    Move(-0.240, 0.16, 0.40, 0.0),  # -0.1344 m
+    Move(+0.090, 0.06, 0.70, 0.0),  # +0.0684 m
+    Move(-0.135, 0.09, 0.30, 0.0),  # -0.05265 m
+    Move(+0.180, 0.12, 0.49, 0.0),  # +0.1098 m
+    Move(-0.105, 0.07, 1.02, 0.0),  # -0.11445 m
 )
 """Default exciting cycle: eight back-to-back trapezoids alternating in direction,
 0.09-0.24 m/s, all ramps at 1.5 m/s^2 (so the acceleration is continuous through
@@ -121,8 +121,15 @@ class Trajectory:
         return float(sum(s[0] for s in self.segments))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"q0": self.q0, "v0": self.v0, "repeat": self.repeat, "t_offset": self.t_offset, "period_s": self.period,
-                "segments": [[float(d), float(a)] for d, a in self.segments], **self.description}
+        return {
+            "q0": self.q0,
+            "v0": self.v0,
+            "repeat": self.repeat,
+            "t_offset": self.t_offset,
+            "period_s": self.period,
+            "segments": [[float(d), float(a)] for d, a in self.segments],
+            **self.description,
+        }
 
     # evaluation ----------------------------------------------------------
     def evaluate(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -187,7 +194,7 @@ class Trajectory:
             m = k
             while m < n:
                 c = min(m, n - m)
-                full[m:m + c] = full[:c]
+                full[m : m + c] = full[:c]
                 m += c
             out.append(full)
         return tuple(out)
@@ -243,8 +250,9 @@ which the window-edge effects of the IDIM-ILIC filter would otherwise turn into 
 bias. The axis starts there on the reference (position and velocity)."""
 
 
-def exciting_cycle(moves: tuple[Move, ...] = DEFAULT_MOVES, *, q0: float = DEFAULT_Q0, seed: int | None = None,
-                   spread: float = 0.3, t_offset: float = DEFAULT_OFFSET) -> Trajectory:
+def exciting_cycle(
+    moves: tuple[Move, ...] = DEFAULT_MOVES, *, q0: float = DEFAULT_Q0, seed: int | None = None, spread: float = 0.3, t_offset: float = DEFAULT_OFFSET
+) -> Trajectory:
     """The repeating exciting cycle (paper section VI-D), started ``t_offset`` into it.
 
     ``seed``: scale each move's velocity by a factor drawn uniformly in
@@ -265,8 +273,9 @@ def exciting_cycle(moves: tuple[Move, ...] = DEFAULT_MOVES, *, q0: float = DEFAU
     return Trajectory(segs, q0=q0, repeat=True, t_offset=t_offset, description=desc)
 
 
-def with_constant_velocity(cycle: Trajectory, *, cycles_before: int, v: float, hold_s: float,
-                           window_s: float = T_CYCLE, t_ramp: float = 0.05, cycles_after: int = 2) -> Trajectory:
+def with_constant_velocity(
+    cycle: Trajectory, *, cycles_before: int, v: float, hold_s: float, window_s: float = T_CYCLE, t_ramp: float = 0.05, cycles_after: int = 2
+) -> Trajectory:
     """Exciting cycles, then a stretch at constant velocity ``v``, then exciting cycles again.
 
     Layout: a rest of ``window_s - t_ramp``, ``cycles_before`` cycles, a ramp to
@@ -277,8 +286,14 @@ def with_constant_velocity(cycle: Trajectory, *, cycles_before: int, v: float, h
     (loss of excitation, paper section V-E).
     """
     segs = list(cycle.segments)
-    out = ([(window_s - t_ramp, 0.0)] + segs * cycles_before + [(t_ramp, v / t_ramp), (hold_s, 0.0), (t_ramp, -v / t_ramp)]
-           + segs * cycles_after)
-    desc = {"kind": "constant_velocity_window", "cycles_before": cycles_before, "v": v, "hold_s": hold_s,
-            "t_ramp": t_ramp, "cycles_after": cycles_after, "cycle": cycle.to_dict()}
+    out = [(window_s - t_ramp, 0.0)] + segs * cycles_before + [(t_ramp, v / t_ramp), (hold_s, 0.0), (t_ramp, -v / t_ramp)] + segs * cycles_after
+    desc = {
+        "kind": "constant_velocity_window",
+        "cycles_before": cycles_before,
+        "v": v,
+        "hold_s": hold_s,
+        "t_ramp": t_ramp,
+        "cycles_after": cycles_after,
+        "cycle": cycle.to_dict(),
+    }
     return Trajectory(tuple(out), q0=cycle.q0, repeat=False, description=desc)

@@ -23,12 +23,18 @@ LOG_FORMATS = ["mat", "csv", "mcap", "rosbag1", "rosbag2"]
 
 def input_options(func: F) -> F:
     """Add ``--input-format``, ``--topic``, ``--ref-topic``, ``--joint`` and ``--columns``."""
-    func = click.option("--columns", default=None, metavar="t=NAME,q=NAME,...",
-                        help="CSV: which columns hold t, q, qd, tau and q_ref (default: these names or common ones such as time, position, effort).")(func)
+    func = click.option(
+        "--columns",
+        default=None,
+        metavar="t=NAME,q=NAME,...",
+        help="CSV: which columns hold t, q, qd, tau and q_ref (default: these names or common ones such as time, position, effort).",
+    )(func)
     func = click.option("--joint", default=None, help="Joint name to read (default: the only joint).")(func)
     func = click.option("--ref-topic", default=None, help="Topic with the reference (default: /joint_reference).")(func)
     func = click.option("--topic", default=None, help="Topic with the measured JointState (default: the only one, or /joint_states).")(func)
-    func = click.option("--input-format", "input_format", type=click.Choice(LOG_FORMATS), default=None, help="Format of the input log (default: from the path).")(func)
+    func = click.option(
+        "--input-format", "input_format", type=click.Choice(LOG_FORMATS), default=None, help="Format of the input log (default: from the path)."
+    )(func)
     return func
 
 
@@ -112,12 +118,33 @@ STRUCTURES = ["rigid", "rigid-offset", "asymmetric"]
 """Model structures (:data:`ilic_cli.parameters.STRUCTURES`), for the ``--structure`` choice."""
 
 OPTIONS: dict[str, str] = {
-    "scenario": "--scenario", "controller": "--controller", "omega": "--omega", "xi": "--xi", "alpha": "--alpha",
-    "window_s": "--window", "sigma_max_pct": "--sigma-max", "cutoff_hz": "--ilic-cutoff", "velocity": "--velocity",
-    "structure": "--structure", "kp": "--kp", "kv": "--kv", "gtau": "--drive-gain", "vmax": "--vmax", "duration": "--duration",
-    "substeps": "--substeps", "published_setup": "--published-setup", "tau_sensor": "--tau-sensor", "effect": "--effect",
-    "method": "--method", "clock_s": "--published-setup", "noise.tau_std": "--noise-tau", "noise.q_std": "--noise-q",
-    "quantization.resolution": "--resolution", "parameter": "--param", "gear_ratio": "--gear-ratio", "torque_constant": "--torque-constant",
+    "scenario": "--scenario",
+    "controller": "--controller",
+    "omega": "--omega",
+    "xi": "--xi",
+    "alpha": "--alpha",
+    "window_s": "--window",
+    "sigma_max_pct": "--sigma-max",
+    "cutoff_hz": "--ilic-cutoff",
+    "velocity": "--velocity",
+    "structure": "--structure",
+    "kp": "--kp",
+    "kv": "--kv",
+    "gtau": "--drive-gain",
+    "vmax": "--vmax",
+    "duration": "--duration",
+    "substeps": "--substeps",
+    "published_setup": "--published-setup",
+    "tau_sensor": "--tau-sensor",
+    "effect": "--effect",
+    "method": "--method",
+    "clock_s": "--published-setup",
+    "noise.tau_std": "--noise-tau",
+    "noise.q_std": "--noise-q",
+    "quantization.resolution": "--resolution",
+    "parameter": "--param",
+    "gear_ratio": "--gear-ratio",
+    "torque_constant": "--torque-constant",
     "load_joint": "--load-joint",
 }
 """Parameter of a :class:`~ilic_cli.errors.ParameterError` -> the option that sets it."""
@@ -173,11 +200,26 @@ def parse_effect_option(text: str) -> tuple[str, dict[str, float]]:
 
 def controller_options(func: F) -> F:
     """Add ``--controller``, ``--kp``, ``--kv`` and ``--drive-gain`` (the loop of a log that records none)."""
-    func = click.option("--drive-gain", "drive_gain", type=click.FloatRange(min=0, min_open=True), default=None, help="PD drive gain (N/V) of a log without a recorded controller.")(func)
-    func = click.option("--kv", type=click.FloatRange(min=0, min_open=True), default=None, help="PD velocity gain of a log without a recorded controller.")(func)
-    func = click.option("--kp", type=click.FloatRange(min=0, min_open=True), default=None, help="PD position gain (1/s) of a log without a recorded controller.")(func)
-    func = click.option("--controller", "controller", type=click.Choice(["pd", "ctc"]), default=None,
-                        help="The loop that ran, for a log that records none (pd needs --kp, --kv, --drive-gain; ctc: the paper's gains).")(func)
+    func = click.option(
+        "--drive-gain",
+        "drive_gain",
+        type=click.FloatRange(min=0, min_open=True),
+        default=None,
+        help="PD drive gain (N/V) of a log without a recorded controller.",
+    )(func)
+    func = click.option("--kv", type=click.FloatRange(min=0, min_open=True), default=None, help="PD velocity gain of a log without a recorded controller.")(
+        func
+    )
+    func = click.option(
+        "--kp", type=click.FloatRange(min=0, min_open=True), default=None, help="PD position gain (1/s) of a log without a recorded controller."
+    )(func)
+    func = click.option(
+        "--controller",
+        "controller",
+        type=click.Choice(["pd", "ctc"]),
+        default=None,
+        help="The loop that ran, for a log that records none (pd needs --kp, --kv, --drive-gain; ctc: the paper's gains).",
+    )(func)
     return func
 
 
@@ -196,8 +238,9 @@ def with_controller(log: RunLog, where: Path, controller: str | None, kp: float 
             raise IlicError("--controller", f"{where} records its controller; the options apply only to a log that records none")
         return log
     if controller is None:
-        raise IlicError(where, "the log records no controller (its kind and gains): give the loop that ran with --controller pd --kp --kv "
-                        "--drive-gain, or --controller ctc")
+        raise IlicError(
+            where, "the log records no controller (its kind and gains): give the loop that ran with --controller pd --kp --kv --drive-gain, or --controller ctc"
+        )
     meta = dict(log.meta)
     if controller == "pd":
         missing = [name for name, v in (("--kp", kp), ("--kv", kv), ("--drive-gain", drive_gain)) if v is None]

@@ -69,15 +69,33 @@ def resample(log: RunLog, rate_hz: float) -> RunLog:
 @click.command("convert", help="Convert a log between .mat, CSV, MCAP, ROS 1 .bag and ROS 2 bag folders.")
 @click.argument("source", metavar="IN", type=click.Path(path_type=Path))
 @click.argument("target", metavar="OUT", type=click.Path(path_type=Path))
-@click.option("--format", "out_format", type=click.Choice(LOG_FORMATS), default=None, help="Format of OUT (default: from its extension; no extension: ROS 2 bag folder).")
+@click.option(
+    "--format", "out_format", type=click.Choice(LOG_FORMATS), default=None, help="Format of OUT (default: from its extension; no extension: ROS 2 bag folder)."
+)
 @click.option("--storage", type=click.Choice(["sqlite3", "mcap"]), default="sqlite3", show_default=True, help="Storage plugin of a ROS 2 bag.")
-@click.option("--resample", "resample_hz", type=click.FloatRange(min=0, min_open=True), default=None, metavar="HZ",
-              help="Put the log on a uniform grid at HZ: restamped when the stamps only jitter at that rate, else interpolated linearly.")
+@click.option(
+    "--resample",
+    "resample_hz",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    metavar="HZ",
+    help="Put the log on a uniform grid at HZ: restamped when the stamps only jitter at that rate, else interpolated linearly.",
+)
 @input_options
-def command(source: Path, target: Path, out_format: str | None, storage: str, resample_hz: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
+def command(
+    source: Path,
+    target: Path,
+    out_format: str | None,
+    storage: str,
+    resample_hz: float | None,
+    input_format: str | None,
+    topic: str | None,
+    ref_topic: str | None,
+    joint: str | None,
+    columns: str | None,
+) -> None:
     """Read IN, optionally resample, write OUT atomically (never over IN)."""
     from ilic_cli.quality import assess_log  # deferred: numpy; `ilic convert --help` stays instant
-
 
     if same_path(source, target):
         raise LogError(target, "output would overwrite the input; choose another output path")
@@ -88,7 +106,10 @@ def command(source: Path, target: Path, out_format: str | None, storage: str, re
     else:
         report = assess_log(log)
         if report.irregular:
-            note(f"ilic: warning: {source}: irregular sampling kept ({report.gaps} gap(s), jitter {100 * report.jitter:.3g} %); use --resample HZ for a uniform grid")
+            note(
+                f"ilic: warning: {source}: irregular sampling kept ({report.gaps} gap(s), jitter {100 * report.jitter:.3g} %); "
+                "use --resample HZ for a uniform grid"
+            )
     options = WriteOptions(storage=storage, joint=joint or "axis")
     write_log(log, target, fmt, options, inputs=(source,))
     rate = log.meta.get("sample_rate_hz")

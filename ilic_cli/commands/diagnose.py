@@ -18,11 +18,42 @@ from ilic_cli.modelfile import load_model_file
 
 @click.command("diagnose")
 @click.argument("log", type=click.Path(path_type=Path))
-@click.option("--model", "model_path", type=click.Path(path_type=Path), default=None, help="Model file (PARAMS.json) to start from instead of identifying the rigid model.")
-@click.option("--structure", "structure", type=click.Choice(STRUCTURES), default="rigid-offset", show_default=True, help="Rigid model structure identified first (without --model).")
-@click.option("--against", "against", type=click.Path(path_type=Path), default=None, help="A simulated log to compare the recording with (instead of replaying it through the plant).")
-@click.option("--validate", "validate", type=click.Path(path_type=Path), default=None, help="Another recording: an effect is kept only if it does not raise the error there.")
-@click.option("--alpha", type=click.FloatRange(min=0, max=1, min_open=True, max_open=True), default=0.001, show_default=True, help="Level of each F-test (after Bonferroni).")
+@click.option(
+    "--model",
+    "model_path",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Model file (PARAMS.json) to start from instead of identifying the rigid model.",
+)
+@click.option(
+    "--structure",
+    "structure",
+    type=click.Choice(STRUCTURES),
+    default="rigid-offset",
+    show_default=True,
+    help="Rigid model structure identified first (without --model).",
+)
+@click.option(
+    "--against",
+    "against",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="A simulated log to compare the recording with (instead of replaying it through the plant).",
+)
+@click.option(
+    "--validate",
+    "validate",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Another recording: an effect is kept only if it does not raise the error there.",
+)
+@click.option(
+    "--alpha",
+    type=click.FloatRange(min=0, max=1, min_open=True, max_open=True),
+    default=0.001,
+    show_default=True,
+    help="Level of each F-test (after Bonferroni).",
+)
 @click.option("--folds", type=click.IntRange(min=2), default=5, show_default=True, help="Contiguous cross-validation blocks over time.")
 @click.option("--effects", "effects", default=None, help="Comma-separated catalogue ids to try [default: all].")
 @click.option("--no-simulation", "no_simulation", is_flag=True, help="Skip the replay through the plant.")
@@ -30,9 +61,28 @@ from ilic_cli.modelfile import load_model_file
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report.md, report.json, model.json and plots.")
 @controller_options
 @input_options
-def command(log: Path, model_path: Path | None, structure: str, against: Path | None, validate: Path | None, alpha: float, folds: int, effects: str | None, no_simulation: bool, out_format: str, out_dir: Path | None,
-            controller: str | None, kp: float | None, kv: float | None, drive_gain: float | None, input_format: str | None, topic: str | None, ref_topic: str | None,
-            joint: str | None, columns: str | None) -> None:
+def command(
+    log: Path,
+    model_path: Path | None,
+    structure: str,
+    against: Path | None,
+    validate: Path | None,
+    alpha: float,
+    folds: int,
+    effects: str | None,
+    no_simulation: bool,
+    out_format: str,
+    out_dir: Path | None,
+    controller: str | None,
+    kp: float | None,
+    kv: float | None,
+    drive_gain: float | None,
+    input_format: str | None,
+    topic: str | None,
+    ref_topic: str | None,
+    joint: str | None,
+    columns: str | None,
+) -> None:
     """Find and model the physics the rigid model leaves out of LOG.
 
     Identifies the rigid model (IDIM-LS), locates where the force residual is

@@ -15,37 +15,124 @@ from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io.atomic import atomic_write_text, same_path
 from ilic_cli.modelfile import load_model_file, model_document
-from ilic_cli.prepare import to_load_side
 from ilic_cli.parameters import DEFAULTS
 from ilic_cli.plotting import plot_identify
+from ilic_cli.prepare import to_load_side
 
 
 @click.command("identify")
 @click.argument("log", type=click.Path(path_type=Path))
 @click.option("--method", type=click.Choice(["ls", "ilic", "both"]), default="both", show_default=True, help="IDIM-LS, IDIM-ILIC per window, or both.")
-@click.option("--structure", "structure", type=click.Choice(STRUCTURES), default=None, help="Model structure (regressor columns) [default: the model file's, else rigid-offset].")
-@click.option("--model", "model", default=None, metavar="FILE", help="Model file (model.json): its structure and effects are identified again (--model STRUCTURE: deprecated spelling of --structure).")
-@click.option("--effect", "effects", multiple=True, metavar="ID[:k=v,...]", help="Identify this effect's regressor columns too (IDIM-LS; nonlinear parameters fixed at the given or default values); repeatable.")
-@click.option("--gear-ratio", "gear_ratio", type=float, default=None, help="Motor-side log: motor rad per unit of load motion (rad/m of a screw, rad/rad of a gearbox); parameters are the load's.")
-@click.option("--torque-constant", "torque_constant", type=float, default=None, help="Motor-side log whose tau is the motor current (A): torque constant (N·m/A); needs --gear-ratio.")
-@click.option("--load-joint", "load_joint", type=click.Choice(["prismatic", "revolute"]), default="prismatic", show_default=True, help="The load's joint, for --gear-ratio (its units).")
-@click.option("--validate", "validate", multiple=True, type=click.Path(path_type=Path), help="Apply the estimates to this log too (cross-test validation); repeatable.")
+@click.option(
+    "--structure",
+    "structure",
+    type=click.Choice(STRUCTURES),
+    default=None,
+    help="Model structure (regressor columns) [default: the model file's, else rigid-offset].",
+)
+@click.option(
+    "--model",
+    "model",
+    default=None,
+    metavar="FILE",
+    help="Model file (model.json): its structure and effects are identified again (--model STRUCTURE: deprecated spelling of --structure).",
+)
+@click.option(
+    "--effect",
+    "effects",
+    multiple=True,
+    metavar="ID[:k=v,...]",
+    help="Identify this effect's regressor columns too (IDIM-LS; nonlinear parameters fixed at the given or default values); repeatable.",
+)
+@click.option(
+    "--gear-ratio",
+    "gear_ratio",
+    type=float,
+    default=None,
+    help="Motor-side log: motor rad per unit of load motion (rad/m of a screw, rad/rad of a gearbox); parameters are the load's.",
+)
+@click.option(
+    "--torque-constant",
+    "torque_constant",
+    type=float,
+    default=None,
+    help="Motor-side log whose tau is the motor current (A): torque constant (N·m/A); needs --gear-ratio.",
+)
+@click.option(
+    "--load-joint",
+    "load_joint",
+    type=click.Choice(["prismatic", "revolute"]),
+    default="prismatic",
+    show_default=True,
+    help="The load's joint, for --gear-ratio (its units).",
+)
+@click.option(
+    "--validate", "validate", multiple=True, type=click.Path(path_type=Path), help="Apply the estimates to this log too (cross-test validation); repeatable."
+)
 @click.option("--window", "window_s", type=click.FloatRange(min=0, min_open=True), default=6.2, show_default=True, help="IDIM-ILIC window T_obs (s).")
-@click.option("--sigma-max", "sigma_max", type=click.FloatRange(min=0, min_open=True), default=15.0, show_default=True, help="%σ_max: parameters above it are not essential.")
-@click.option("--ilic-cutoff", type=click.FloatRange(min=0, min_open=True), default=5.0, show_default=True, help="IDIM-ILIC force/regressor low-pass cut-off (Hz).")
+@click.option(
+    "--sigma-max",
+    "sigma_max",
+    type=click.FloatRange(min=0, min_open=True),
+    default=15.0,
+    show_default=True,
+    help="%σ_max: parameters above it are not essential.",
+)
+@click.option(
+    "--ilic-cutoff", type=click.FloatRange(min=0, min_open=True), default=5.0, show_default=True, help="IDIM-ILIC force/regressor low-pass cut-off (Hz)."
+)
 @click.option("--ilic-decimation", type=click.IntRange(min=1), default=None, help="IDIM-ILIC decimation factor [default: from the cut-off, 0.8·fs/2/cut-off].")
-@click.option("--ref-lag", type=click.IntRange(min=0), default=None, help="IDIM-ILIC: delay the reference by this many samples to line it up with the measured motion [default: estimated from the positions; 0 for a loop that tracks well].")
+@click.option(
+    "--ref-lag",
+    type=click.IntRange(min=0),
+    default=None,
+    help="IDIM-ILIC: delay the reference by this many samples to line it up with the measured motion "
+    "[default: estimated from the positions; 0 for a loop that tracks well].",
+)
 @click.option("--cutoff", type=click.FloatRange(min=0, min_open=True), default=100.0, show_default=True, help="IDIM-LS position low-pass cut-off (Hz).")
 @click.option("--order", type=click.IntRange(min=1, max=12), default=4, show_default=True, help="IDIM-LS Butterworth order.")
 @click.option("--decimation", type=click.IntRange(min=1), default=10, show_default=True, help="IDIM-LS parallel decimation factor.")
 @click.option("--trim", type=click.IntRange(min=0), default=49, show_default=True, help="IDIM-LS samples dropped at the start.")
-@click.option("--filtering", type=click.Choice(["matlab", "scipy"]), default="matlab", show_default=True, help="MATLAB-compatible filtering (reproduces published digits) or SciPy second-order sections.")
+@click.option(
+    "--filtering",
+    type=click.Choice(["matlab", "scipy"]),
+    default="matlab",
+    show_default=True,
+    help="MATLAB-compatible filtering (reproduces published digits) or SciPy second-order sections.",
+)
 @click.option("--format", "out_format", type=click.Choice(["md", "csv", "json"]), default="md", show_default=True, help="What to print on stdout.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
 @click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
 @input_options
-def command(log: Path, method: str, structure: str | None, model: str | None, effects: tuple[str, ...], gear_ratio: float | None,
-            torque_constant: float | None, load_joint: str, validate: tuple[Path, ...], window_s: float, sigma_max: float, ilic_cutoff: float, ilic_decimation: int | None, ref_lag: int | None, cutoff: float, order: int, decimation: int, trim: int, filtering: str, out_format: str, out_dir: Path | None, plot_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
+def command(
+    log: Path,
+    method: str,
+    structure: str | None,
+    model: str | None,
+    effects: tuple[str, ...],
+    gear_ratio: float | None,
+    torque_constant: float | None,
+    load_joint: str,
+    validate: tuple[Path, ...],
+    window_s: float,
+    sigma_max: float,
+    ilic_cutoff: float,
+    ilic_decimation: int | None,
+    ref_lag: int | None,
+    cutoff: float,
+    order: int,
+    decimation: int,
+    trim: int,
+    filtering: str,
+    out_format: str,
+    out_dir: Path | None,
+    plot_format: str,
+    input_format: str | None,
+    topic: str | None,
+    ref_topic: str | None,
+    joint: str | None,
+    columns: str | None,
+) -> None:
     """Identify the axis's parameters from LOG by IDIM-LS and IDIM-ILIC.
 
     IDIM-LS (paper section III) filters and differentiates the measured
@@ -122,7 +209,6 @@ def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[P
     atomic_write_text(out_dir / "model.json", render.to_json(doc), inputs=inputs)
     written = [out_dir / n for n in ("report.md", "report.csv", "report.json", "model.json")]
     if plot_format != "none":
-
         written += plot_identify(result, run, out_dir, plot_format)
     note(f"ilic: wrote {', '.join(str(p) for p in written)}")
 

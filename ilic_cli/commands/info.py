@@ -44,8 +44,7 @@ def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
     if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not rate > 0:
         rate = nominal_rate_hz(log.t)
     channels = [
-        {"name": name, "unit": log.units.get(name, ""), "min": float(values.min()), "max": float(values.max())}
-        for name, values in log.channels.items()
+        {"name": name, "unit": log.units.get(name, ""), "min": float(values.min()), "max": float(values.max())} for name, values in log.channels.items()
     ]
     shown = {"sample_rate_hz", "drive_gain", "controller", "scenario", "true_parameters", "joint", "source"}
     return {
@@ -131,7 +130,9 @@ def render_markdown(summary: dict[str, Any]) -> str:
 @click.argument("log_path", metavar="LOG", type=click.Path(path_type=Path))
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="Markdown text or JSON (JSON only on stdout).")
 @input_options
-def command(log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
+def command(
+    log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None
+) -> None:
     """Print the summary of LOG on stdout."""
     import json
 

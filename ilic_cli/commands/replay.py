@@ -18,17 +18,43 @@ from plant.replay import simulate_open_loop, simulate_replay
 
 @click.command("replay")
 @click.argument("log", type=click.Path(path_type=Path))
-@click.option("--model", "model_file", type=click.Path(path_type=Path), required=True, help="Model parameter file (ilic identify --out DIR/model.json, or {\"M\": ..., ...}).")
+@click.option(
+    "--model",
+    "model_file",
+    type=click.Path(path_type=Path),
+    required=True,
+    help='Model parameter file (ilic identify --out DIR/model.json, or {"M": ..., ...}).',
+)
 @click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True, help="Simulated log to write.")
 @click.option("--format", "out_format", type=click.Choice(LOG_FORMATS), default=None, help="Output format [default: from the extension].")
 @click.option("--substeps", type=int, default=10, show_default=True, help="Integration steps per control period.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the noise effects, if any.")
-@click.option("--open-loop", "open_loop", is_flag=True,
-              help="The benchmark's simulation instead: the recorded drive command (vir) into the plant without feedback; prints its RMSE (mm) and fit (%).")
+@click.option(
+    "--open-loop",
+    "open_loop",
+    is_flag=True,
+    help="The benchmark's simulation instead: the recorded drive command (vir) into the plant without feedback; prints its RMSE (mm) and fit (%).",
+)
 @controller_options
 @input_options
-def command(log: Path, model_file: Path, output: Path, out_format: str | None, substeps: int, seed: int, open_loop: bool, controller: str | None, kp: float | None,
-            kv: float | None, drive_gain: float | None, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None) -> None:
+def command(
+    log: Path,
+    model_file: Path,
+    output: Path,
+    out_format: str | None,
+    substeps: int,
+    seed: int,
+    open_loop: bool,
+    controller: str | None,
+    kp: float | None,
+    kv: float | None,
+    drive_gain: float | None,
+    input_format: str | None,
+    topic: str | None,
+    ref_topic: str | None,
+    joint: str | None,
+    columns: str | None,
+) -> None:
     """Replay LOG's reference (and pulses) through the plant under LOG's controller.
 
     The controller is the log's: the PD loop with its kp, kv and drive gain
@@ -56,8 +82,7 @@ def command(log: Path, model_file: Path, output: Path, out_format: str | None, s
         sim, figure = simulate_open_loop(run, params, effects, substeps=substeps)
         sim.meta["model_file"] = str(model_file)
         write_log(sim, output, out_format, inputs=(log,))
-        note(f"ilic: open loop (vir in, q out, after {figure.init_samples} samples): RMSE {figure.rmse_mm:.4g} mm, fit {figure.fit_pct:.4g} %; "
-             f"wrote {output}")
+        note(f"ilic: open loop (vir in, q out, after {figure.init_samples} samples): RMSE {figure.rmse_mm:.4g} mm, fit {figure.fit_pct:.4g} %; wrote {output}")
         return
     run = with_controller(load(log, input_format, topic, ref_topic, joint, columns), log, controller, kp, kv, drive_gain)
     prepared = prepare_log(run)

@@ -24,15 +24,34 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 @click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True, help="Output log (.mcap, .mat, .csv, .bag or a ROS 2 bag folder).")
 @click.option("--format", "out_format", type=click.Choice(LOG_FORMATS), default=None, help="Output format [default: from the extension; MCAP for .mcap].")
 @click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="Plant parameter (M, Fv, Fc, offset); repeatable.")
-@click.option("--effect", "effects", multiple=True, metavar="ID[:k=v,...]", help="Add an effect (asymmetric_friction, stribeck, position_ripple, spring, payload_change, delay, flexibility, saturation, quantization, noise, or any other defined in ilic_cli.effects); repeatable.")
+@click.option(
+    "--effect",
+    "effects",
+    multiple=True,
+    metavar="ID[:k=v,...]",
+    help="Add an effect (asymmetric_friction, stribeck, position_ripple, spring, payload_change, delay, flexibility, saturation, "
+    "quantization, noise, or any other defined in ilic_cli.effects); repeatable.",
+)
 @click.option("--controller", type=click.Choice(["ctc", "pd"]), default=None, help="Controller [default: the scenario's].")
 @click.option("--omega", type=float, default=None, help="CTC bandwidth (rad/s) [default: 2*pi*20].")
 @click.option("--xi", type=float, default=None, help="CTC damping [default: sqrt(2)/2].")
 @click.option("--alpha", type=float, default=None, help="CTC Coulomb smoothing (2/pi)atan(alpha*qd) [default: 1000].")
 @click.option("--structure", "structure", type=click.Choice(STRUCTURES), default=None, help="CTC/IDIM-ILIC model structure [default: rigid].")
-@click.option("--model", "model", default=None, metavar="FILE", help="Model file (model.json): the plant's parameters and effects (--param and --effect apply on top; --model STRUCTURE: deprecated spelling of --structure).")
-@click.option("--velocity", "velocity", type=click.Choice(["backward", "exact"]), default=None,
-              help="CTC velocity: backward difference (eq. 25) or the plant's exact velocity, to study the eq. 27 bias [default: backward].")
+@click.option(
+    "--model",
+    "model",
+    default=None,
+    metavar="FILE",
+    help="Model file (model.json): the plant's parameters and effects (--param and --effect apply on top; "
+    "--model STRUCTURE: deprecated spelling of --structure).",
+)
+@click.option(
+    "--velocity",
+    "velocity",
+    type=click.Choice(["backward", "exact"]),
+    default=None,
+    help="CTC velocity: backward difference (eq. 25) or the plant's exact velocity, to study the eq. 27 bias [default: backward].",
+)
 @click.option("--chi0", "chi0", multiple=True, metavar="NAME=VALUE", help="Initial CTC parameter (eq. 28; default M=100, others 0); repeatable.")
 @click.option("--window", "window_s", type=float, default=None, help="IDIM-ILIC window T_obs (s) [default: 6.2].")
 @click.option("--sigma-max", "sigma_max", type=float, default=None, help="%sigma_max of essential parameters [default: 15].")
@@ -44,16 +63,56 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 @click.option("--noise-tau", type=float, default=None, help="Std of the force measurement noise (N) (effect 'noise').")
 @click.option("--noise-q", type=float, default=None, help="Std of the position measurement noise (m) (effect 'noise').")
 @click.option("--resolution", type=float, default=None, help="Encoder resolution (m) (effect 'quantization').")
-@click.option("--tau-sensor", type=click.Choice(["centred", "command"]), default=None, help="Logged force: centred mean over the sample interval (CTC default) or the held command (PD default).")
+@click.option(
+    "--tau-sensor",
+    type=click.Choice(["centred", "command"]),
+    default=None,
+    help="Logged force: centred mean over the sample interval (CTC default) or the held command (PD default).",
+)
 @click.option("--trajectory-seed", type=int, default=None, help="Vary the cycle's amplitudes with this seed.")
-@click.option("--published-setup", is_flag=True,
-              help="emps-benchmark: replay as the published simulation did (controller clock t(10)-t(9) of the file, pulses interpolated in continuous time).")
-@click.option("--log", "log_path", type=click.Path(path_type=Path), default=None, help="Recorded log replayed by emps-benchmark [default: ../shared/emps/DATA_EMPS.mat from the repository root].")
-def command(scenario: str, duration: float | None, seed: int, output: Path, out_format: str | None, params: tuple[str, ...], effects: tuple[str, ...],
-            controller: str | None, omega: float | None, xi: float | None, alpha: float | None, structure: str | None, model: str | None, velocity: str | None, chi0: tuple[str, ...],
-            window_s: float | None, sigma_max: float | None, no_ilic: bool, kp: float | None, kv: float | None, gtau: float | None, substeps: int,
-            noise_tau: float | None, noise_q: float | None, resolution: float | None, tau_sensor: str | None, trajectory_seed: int | None,
-            log_path: Path | None, published_setup: bool) -> None:
+@click.option(
+    "--published-setup",
+    is_flag=True,
+    help="emps-benchmark: replay as the published simulation did (controller clock t(10)-t(9) of the file, pulses interpolated in continuous time).",
+)
+@click.option(
+    "--log",
+    "log_path",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Recorded log replayed by emps-benchmark [default: ../shared/emps/DATA_EMPS.mat from the repository root].",
+)
+def command(
+    scenario: str,
+    duration: float | None,
+    seed: int,
+    output: Path,
+    out_format: str | None,
+    params: tuple[str, ...],
+    effects: tuple[str, ...],
+    controller: str | None,
+    omega: float | None,
+    xi: float | None,
+    alpha: float | None,
+    structure: str | None,
+    model: str | None,
+    velocity: str | None,
+    chi0: tuple[str, ...],
+    window_s: float | None,
+    sigma_max: float | None,
+    no_ilic: bool,
+    kp: float | None,
+    kv: float | None,
+    gtau: float | None,
+    substeps: int,
+    noise_tau: float | None,
+    noise_q: float | None,
+    resolution: float | None,
+    tau_sensor: str | None,
+    trajectory_seed: int | None,
+    log_path: Path | None,
+    published_setup: bool,
+) -> None:
     """Simulate the axis in closed loop and write the log.
 
     Scenarios: paper-sim (paper VI-E: M=95, Fv=200, Fc=20, CTC with online
@@ -70,27 +129,88 @@ def command(scenario: str, duration: float | None, seed: int, output: Path, out_
     """
 
     try:
-        _simulate(scenario, duration, seed, output, out_format, params, effects, controller, omega, xi, alpha, structure, model, velocity, chi0,
-                  window_s, sigma_max, no_ilic, kp, kv, gtau, substeps, noise_tau, noise_q, resolution, tau_sensor, trajectory_seed, log_path,
-                  published_setup)
+        _simulate(
+            scenario,
+            duration,
+            seed,
+            output,
+            out_format,
+            params,
+            effects,
+            controller,
+            omega,
+            xi,
+            alpha,
+            structure,
+            model,
+            velocity,
+            chi0,
+            window_s,
+            sigma_max,
+            no_ilic,
+            kp,
+            kv,
+            gtau,
+            substeps,
+            noise_tau,
+            noise_q,
+            resolution,
+            tau_sensor,
+            trajectory_seed,
+            log_path,
+            published_setup,
+        )
     except ParameterError as exc:
         raise exc.at(exc.where or option_for(exc.parameter)) from None
 
 
-def _simulate(scenario: str, duration: float | None, seed: int, output: Path, out_format: str | None, params: tuple[str, ...], effects: tuple[str, ...],
-              controller: str | None, omega: float | None, xi: float | None, alpha: float | None, structure: str | None, model: str | None,
-              velocity: str | None, chi0: tuple[str, ...], window_s: float | None, sigma_max: float | None, no_ilic: bool, kp: float | None,
-              kv: float | None, gtau: float | None, substeps: int, noise_tau: float | None, noise_q: float | None, resolution: float | None,
-              tau_sensor: str | None, trajectory_seed: int | None, log_path: Path | None, published_setup: bool) -> None:
+def _simulate(
+    scenario: str,
+    duration: float | None,
+    seed: int,
+    output: Path,
+    out_format: str | None,
+    params: tuple[str, ...],
+    effects: tuple[str, ...],
+    controller: str | None,
+    omega: float | None,
+    xi: float | None,
+    alpha: float | None,
+    structure: str | None,
+    model: str | None,
+    velocity: str | None,
+    chi0: tuple[str, ...],
+    window_s: float | None,
+    sigma_max: float | None,
+    no_ilic: bool,
+    kp: float | None,
+    kv: float | None,
+    gtau: float | None,
+    substeps: int,
+    noise_tau: float | None,
+    noise_q: float | None,
+    resolution: float | None,
+    tau_sensor: str | None,
+    trajectory_seed: int | None,
+    log_path: Path | None,
+    published_setup: bool,
+) -> None:
 
     get_scenario(scenario)
     structure, model_path = structure_or_model_file(model, structure)
-    ov = Overrides(duration_s=duration, substeps=substeps, seed=seed, tau_sensor=tau_sensor, log_path=log_path, trajectory_seed=trajectory_seed,
-                   controller=controller, published_setup=published_setup)
+    ov = Overrides(
+        duration_s=duration,
+        substeps=substeps,
+        seed=seed,
+        tau_sensor=tau_sensor,
+        log_path=log_path,
+        trajectory_seed=trajectory_seed,
+        controller=controller,
+        published_setup=published_setup,
+    )
     if model_path is not None:
         doc = load_model_file(model_path)
         try:
-
             rigid, plant_effects = plant_model(doc["parameters"], doc["effects"])
         except ParameterError as exc:
             raise exc.at(model_path) from None
@@ -110,8 +230,15 @@ def _simulate(scenario: str, duration: float | None, seed: int, output: Path, ou
         ov.effects["noise"] = {**ov.effects.get("noise", {}), **noise}
     if resolution is not None:
         ov.effects["quantization"] = {"resolution": resolution}
-    for key, value in (("omega", omega), ("xi", xi), ("alpha", alpha), ("window_s", window_s), ("sigma_max_pct", sigma_max), ("model", structure),
-                       ("velocity", velocity)):
+    for key, value in (
+        ("omega", omega),
+        ("xi", xi),
+        ("alpha", alpha),
+        ("window_s", window_s),
+        ("sigma_max_pct", sigma_max),
+        ("model", structure),
+        ("velocity", velocity),
+    ):
         if value is not None:
             ov.ctc[key] = value
     if no_ilic:
@@ -121,7 +248,6 @@ def _simulate(scenario: str, duration: float | None, seed: int, output: Path, ou
             ov.pd[key] = value
     check(scenario, ov)
     if get_scenario(scenario).reference == "log":  # refuse before simulating, not after
-
         if same_path(log_path or DEFAULT_EMPS_LOG, output):
             raise SimulationError(output, "output would overwrite the replayed log; choose another output path")
     note(f"ilic: simulating {scenario} ...")

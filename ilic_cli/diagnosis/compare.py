@@ -80,9 +80,19 @@ def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float
     }
 
 
-def compare_simulation(log: RunLog, data: IDIMData, rows: np.ndarray, before_params: dict[str, float], before_effects: dict[str, Any],
-                       after_params: dict[str, float], after_effects: dict[str, Any] | None, *, against: RunLog | None, ls: LSSettings,
-                       alpha: float) -> SimulationComparison:
+def compare_simulation(
+    log: RunLog,
+    data: IDIMData,
+    rows: np.ndarray,
+    before_params: dict[str, float],
+    before_effects: dict[str, Any],
+    after_params: dict[str, float],
+    after_effects: dict[str, Any] | None,
+    *,
+    against: RunLog | None,
+    ls: LSSettings,
+    alpha: float,
+) -> SimulationComparison:
     """Before (the rigid model, or ``against``) and after (the augmented model) replays against the recording."""
     note = ""
     if against is not None:
@@ -108,8 +118,16 @@ def compare_simulation(log: RunLog, data: IDIMData, rows: np.ndarray, before_par
     e_full[:m] = (tau_s[s] - tau_r[s])[:m]
     e_dec = data.decimate(e_full)[rows]
     dec = data.decimate
-    located = locate(e_dec, t=data.t_dec[rows], q=dec(data.kin.q)[rows], qd=dec(data.kin.qd)[rows], qdd=dec(data.kin.qdd)[rows],
-                     W=data.W[rows], fs_hz=log.fs_hz / ls.decimation, alpha=alpha)
+    located = locate(
+        e_dec,
+        t=data.t_dec[rows],
+        q=dec(data.kin.q)[rows],
+        qd=dec(data.kin.qd)[rows],
+        qdd=dec(data.kin.qdd)[rows],
+        W=data.W[rows],
+        fs_hz=log.fs_hz / ls.decimation,
+        alpha=alpha,
+    )
     signals = {"t": log.t[:n], "tau": tau_r, "tau_before": tau_s}
     if sim1 is not None:
         signals["tau_after"] = np.asarray(sim1["tau"][:n])

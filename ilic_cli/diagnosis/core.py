@@ -130,7 +130,9 @@ class Diagnosis:
 # ---------------------------------------------------------------------------
 # parameters in the plant's vocabulary
 # ---------------------------------------------------------------------------
-def effect_fit(step: Step, names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray, value_std: float | None, hold_s: float = 0.0) -> tuple[dict[str, Estimate], dict[str, float] | None, str]:
+def effect_fit(
+    step: Step, names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray, value_std: float | None, hold_s: float = 0.0
+) -> tuple[dict[str, Estimate], dict[str, float] | None, str]:
     """Reported estimates, plant parameters and a note of one accepted effect (:meth:`ilic_cli.effects.Effect.fit_to_plant`).
 
     ``hold_s``: half a sample period when the logged force is the held drive
@@ -279,7 +281,18 @@ def diagnose(
         before_params = dict(model_doc["parameters"]) if model_doc else {n: float(v) for n, v in zip(names0, res0.theta, strict=True) if n in PARAMETERS}
         before_effects = dict(model_doc.get("effects", {})) if model_doc else {}
         try:
-            diag.simulation = compare_simulation(log, data, rows, before_params, before_effects, doc["parameters"], doc["effects"] if findings else None, against=against, ls=settings.ls, alpha=alpha)
+            diag.simulation = compare_simulation(
+                log,
+                data,
+                rows,
+                before_params,
+                before_effects,
+                doc["parameters"],
+                doc["effects"] if findings else None,
+                against=against,
+                ls=settings.ls,
+                alpha=alpha,
+            )
         except ParameterError as exc:
             warnings.append(f"no simulation comparison: the fitted model is not a valid plant ({exc.problem})")
         if diag.simulation is not None:
@@ -297,8 +310,9 @@ def _with_std(res: LSResult, cov: np.ndarray) -> LSResult:
     return replace(res, std=std, rel_std_pct=rel)
 
 
-def model_parameters(steps: list[Step], names: tuple[str, ...], values: np.ndarray, cov: np.ndarray,
-                     hold_s: float = 0.0) -> tuple[dict[str, float], dict[str, Any]]:
+def model_parameters(
+    steps: list[Step], names: tuple[str, ...], values: np.ndarray, cov: np.ndarray, hold_s: float = 0.0
+) -> tuple[dict[str, float], dict[str, Any]]:
     """Rigid parameters (every rigid column of the fit, whatever the structure) and plant effects, for the model file.
 
     ``hold_s``: see :func:`effect_fit`.

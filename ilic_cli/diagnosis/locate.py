@@ -119,7 +119,9 @@ def acceleration_phases(e: np.ndarray, qd: np.ndarray, qdd: np.ndarray, alpha: f
     phase = np.where(np.abs(qdd) < 0.1 * top, 0.0, np.where(qd * qdd > 0, 1.0, -1.0))
     regions = _bins("acceleration", e, phase, [(-1.0, -0.5), (-0.5, 0.5), (0.5, 1.0)], "", alpha, rho)
     names = {-1.0: "decelerating", 0.0: "constant velocity", 1.0: "accelerating"}
-    return [Region(r.kind, names[round((r.bounds[0] + r.bounds[1]) / 2)], r.bounds, r.rows, r.mean, r.se, r.statistic, r.p_value, r.significant) for r in regions]
+    return [
+        Region(r.kind, names[round((r.bounds[0] + r.bounds[1]) / 2)], r.bounds, r.rows, r.mean, r.se, r.statistic, r.p_value, r.significant) for r in regions
+    ]
 
 
 def reversal_windows(e: np.ndarray, t: np.ndarray, qd: np.ndarray, half_width_s: float = 0.1, alpha: float = 0.001, rho: float | None = None) -> list[Region]:
@@ -131,7 +133,20 @@ def reversal_windows(e: np.ndarray, t: np.ndarray, qd: np.ndarray, half_width_s:
         near |= np.abs(t - tz) <= half_width_s
     ev = e * np.sign(qd)
     regs = _bins("reversal", ev, near.astype(float), [(0.0, 0.5), (0.5, 1.0)], "", alpha, rho)
-    return [Region(r.kind, ("near velocity reversals" if r.bounds[0] > 0 else "away from reversals") + " (residual x sign(qd))", r.bounds, r.rows, r.mean, r.se, r.statistic, r.p_value, r.significant) for r in regs]
+    return [
+        Region(
+            r.kind,
+            ("near velocity reversals" if r.bounds[0] > 0 else "away from reversals") + " (residual x sign(qd))",
+            r.bounds,
+            r.rows,
+            r.mean,
+            r.se,
+            r.statistic,
+            r.p_value,
+            r.significant,
+        )
+        for r in regs
+    ]
 
 
 def time_segments(e: np.ndarray, t: np.ndarray, W: np.ndarray, n: int = 8, alpha: float = 0.001) -> list[Region]:
@@ -152,7 +167,19 @@ def time_segments(e: np.ndarray, t: np.ndarray, W: np.ndarray, n: int = 8, alpha
         neff = effective_size(int(m.sum()), rho)
         F = (ss / k) / sd2 * (neff / m.sum()) if sd2 > 0 else 0.0
         p = min(1.0, float(stats.f.sf(F, k, max(neff - k, 1))) * n)
-        out.append(Region("drift", f"parameters drift in t in [{a:.4g}, {b:.4g}] s", (float(a), float(b)), int(m.sum()), float(np.sqrt(ss / m.sum())), float("nan"), float(F), p, p < alpha))
+        out.append(
+            Region(
+                "drift",
+                f"parameters drift in t in [{a:.4g}, {b:.4g}] s",
+                (float(a), float(b)),
+                int(m.sum()),
+                float(np.sqrt(ss / m.sum())),
+                float("nan"),
+                float(F),
+                p,
+                p < alpha,
+            )
+        )
     return out
 
 
@@ -175,7 +202,19 @@ def spectrum_peaks(e: np.ndarray, fs_hz: float, alpha: float = 0.001, max_peaks:
     for i in peak_idx[np.argsort(pv[peak_idx])][:max_peaks]:
         p = min(1.0, float(pv[i]))
         df = f[1] - f[0]
-        out.append(Region("frequency", f"spectral peak at {f[i]:.3g} Hz", (float(f[i] - df / 2), float(f[i] + df / 2)), int(len(e)), float("nan"), float("nan"), float(ratio[i]), p, p < alpha))
+        out.append(
+            Region(
+                "frequency",
+                f"spectral peak at {f[i]:.3g} Hz",
+                (float(f[i] - df / 2), float(f[i] + df / 2)),
+                int(len(e)),
+                float("nan"),
+                float("nan"),
+                float(ratio[i]),
+                p,
+                p < alpha,
+            )
+        )
     return out
 
 
@@ -191,7 +230,7 @@ def force_lag(y: np.ndarray, y_hat: np.ndarray, fs_hz: float, max_lag_s: float =
     L = int(round(max_lag_s * fs_hz))
     lags = np.arange(-L, L + 1)
     n = len(a)
-    c = np.array([float(a[max(k, 0): n + min(k, 0)] @ b[max(-k, 0): n - max(k, 0)]) for k in lags])
+    c = np.array([float(a[max(k, 0) : n + min(k, 0)] @ b[max(-k, 0) : n - max(k, 0)]) for k in lags])
     c /= float(np.linalg.norm(a) * np.linalg.norm(b)) or 1.0
     i = int(np.argmax(c))
     shift = 0.0
@@ -204,7 +243,17 @@ def force_lag(y: np.ndarray, y_hat: np.ndarray, fs_hz: float, max_lag_s: float =
     z = (np.arctanh(min(c[i], 0.999999)) - np.arctanh(min(c[L], 0.999999))) * np.sqrt(max(neff - 3, 1))
     p = float(stats.norm.sf(z)) * len(lags)
     p = min(1.0, p)
-    return Region("lag", f"force {'lags' if lag > 0 else 'leads'} the model by {abs(lag) * 1e3:.3g} ms", (lag, lag), n, float("nan"), float("nan"), float(c[i]), p, bool(p < 0.001 and lags[i] != 0))
+    return Region(
+        "lag",
+        f"force {'lags' if lag > 0 else 'leads'} the model by {abs(lag) * 1e3:.3g} ms",
+        (lag, lag),
+        n,
+        float("nan"),
+        float("nan"),
+        float(c[i]),
+        p,
+        bool(p < 0.001 and lags[i] != 0),
+    )
 
 
 def locate(e: np.ndarray, *, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, W: np.ndarray, fs_hz: float, alpha: float = 0.001) -> list[Region]:

@@ -55,8 +55,9 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
         if g.kind == "frequency":
             centre = 0.5 * (g.bounds[0] + g.bounds[1])
             ax.axvline(centre, color="tab:red", alpha=0.4)
-            ax.annotate(f"{centre:.3g} Hz", (centre, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12), textcoords="offset points",
-                        color="tab:red", fontsize=8)
+            ax.annotate(
+                f"{centre:.3g} Hz", (centre, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12), textcoords="offset points", color="tab:red", fontsize=8
+            )
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("residual PSD (N^2/Hz)")
     ax.legend()
@@ -84,7 +85,7 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
         axes[1].plot(t, diffs[1], lw=0.5, label="augmented")
         axes[1].set_ylabel("IDIM residual (N)")
     edges = edge_rows(len(t))
-    scale_y(axes[1], np.concatenate([d[edges:len(d) - edges] for d in diffs]))
+    scale_y(axes[1], np.concatenate([d[edges : len(d) - edges] for d in diffs]))
     mark_edges(axes[1], t, edges)
     axes[1].legend(loc="upper right")
     axes[1].set_xlabel("time (s)")

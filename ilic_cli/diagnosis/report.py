@@ -69,12 +69,13 @@ def to_markdown(diag: Diagnosis) -> str:
             where = ""
             if f.located:
                 r = f.located[0]
-                where = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
+                where = (
+                    f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
+                )
             lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
         lines += [
             "",
-            f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} "
-            f"(held out: {_pct(ho['before'])} -> {_pct(ho['after'])}).",
+            f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} (held out: {_pct(ho['before'])} -> {_pct(ho['after'])}).",
         ]
         v = fit.get("validation_relative_error_pct") or {}
         if v.get("before") is not None:
@@ -83,8 +84,11 @@ def to_markdown(diag: Diagnosis) -> str:
     sim = diag.simulation
     if sim is not None and sim.before:
         after = f" -> {_pct(sim.after['force'])}" if sim.after else ""
-        lines += [f"Simulation against recording ({sim.source}): force error {_pct(sim.before['force'])}{after}, "
-                  f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}.", ""]
+        lines += [
+            f"Simulation against recording ({sim.source}): force error {_pct(sim.before['force'])}{after}, "
+            f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}.",
+            "",
+        ]
     lines += [
         f"{diag.rows_used} of {diag.rows_total} decimated rows used (standstill and the filter's edge left out).",
         "",

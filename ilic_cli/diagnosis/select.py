@@ -60,7 +60,14 @@ class SelectSettings:
     effects: tuple[str, ...] = field(default_factory=catalogue_ids)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"alpha": self.alpha, "alpha_heldout": self.alpha_heldout, "folds": self.folds, "guard_rows": self.guard, "max_effects": self.max_effects, "effects": list(self.effects)}
+        return {
+            "alpha": self.alpha,
+            "alpha_heldout": self.alpha_heldout,
+            "folds": self.folds,
+            "guard_rows": self.guard,
+            "max_effects": self.max_effects,
+            "effects": list(self.effects),
+        }
 
 
 @dataclass(frozen=True)
@@ -171,8 +178,12 @@ class Evaluation:
             **self.test.to_dict(),
             "relative_error_pct": self.relative_error_pct,
             "heldout_relative_error_pct": {"before": self.heldout_before_pct, "after": self.heldout_after_pct},
-            "heldout_test": None if self.heldout_p_value is None else {"test": "Diebold-Mariano, one-sided, Newey-West variance", "p_value": self.heldout_p_value},
-            "validation_relative_error_pct": None if self.validation_before_pct is None else {"before": self.validation_before_pct, "after": self.validation_after_pct},
+            "heldout_test": None
+            if self.heldout_p_value is None
+            else {"test": "Diebold-Mariano, one-sided, Newey-West variance", "p_value": self.heldout_p_value},
+            "validation_relative_error_pct": None
+            if self.validation_before_pct is None
+            else {"before": self.validation_before_pct, "after": self.validation_after_pct},
             "accepted": self.accepted,
             "reason": self.reason,
         }
@@ -365,7 +376,7 @@ def forward_select(
             test = nested_f_test(W, y, W1, y1, q, trials)
             theta1, _ = lstsq(W1, y1)
             rel = relative_error_pct(y1, W1 @ theta1)
-            why = eff.impossible(theta1[W.shape[1]:], value) if eff.impossible is not None else None
+            why = eff.impossible(theta1[W.shape[1] :], value) if eff.impossible is not None else None
             evals.append((Evaluation(eff.id, value, vstd, test, rel, reason=why or ""), eff, W1, y1))
         # the candidate explaining most of the mismatch first; significance and held-out error gate it
         evals.sort(key=lambda e: e[0].relative_error_pct)
@@ -393,7 +404,16 @@ def forward_select(
                 ok, reason = False, "raises the error on the validation log"
             else:
                 ok, reason = True, "significant, and lowers the held-out error"
-            ev = _replace(ev, heldout_before_pct=before, heldout_after_pct=after, heldout_p_value=p_cv, validation_before_pct=vb, validation_after_pct=va, accepted=ok, reason=reason)
+            ev = _replace(
+                ev,
+                heldout_before_pct=before,
+                heldout_after_pct=after,
+                heldout_p_value=p_cv,
+                validation_before_pct=vb,
+                validation_after_pct=va,
+                accepted=ok,
+                reason=reason,
+            )
             tried.append(ev)
             if ok:
                 chosen = (ev, eff, W1, y1)

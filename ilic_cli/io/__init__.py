@@ -154,7 +154,15 @@ def current_progress(path: Path) -> Iterator[Callable[[int, int], None] | None]:
         display.close()
 
 
-def read_log(path: str | Path, fmt: str | None = None, selection: Selection | None = None, *, validate: bool = True, progress: ProgressFactory | None = None, fast: bool = True) -> RunLog:
+def read_log(
+    path: str | Path,
+    fmt: str | None = None,
+    selection: Selection | None = None,
+    *,
+    validate: bool = True,
+    progress: ProgressFactory | None = None,
+    fast: bool = True,
+) -> RunLog:
     """Read a log file into a :class:`~ilic_cli.runlog.RunLog`.
 
     Raises :class:`LogError` (one line, naming the file) for a missing, empty,

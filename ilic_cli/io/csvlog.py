@@ -87,8 +87,23 @@ DELIMITERS = (",", ";", "\t")
 """Field delimiters a CSV may use; the header row's most frequent one is taken."""
 
 ALIASES: dict[str, tuple[str, ...]] = {
-    "t": ("t", "time", "timestamp", "stamp", "t_s", "time_s", "t_ms", "time_ms", "t_us", "time_us", "t_ns", "time_ns", "timestamp_ns", "timestamp_us",
-          "timestamp_ms"),
+    "t": (
+        "t",
+        "time",
+        "timestamp",
+        "stamp",
+        "t_s",
+        "time_s",
+        "t_ms",
+        "time_ms",
+        "t_us",
+        "time_us",
+        "t_ns",
+        "time_ns",
+        "timestamp_ns",
+        "timestamp_us",
+        "timestamp_ms",
+    ),
     "q": ("q", "position", "pos", "q_meas", "position_measured", "actual_position"),
     "qd": ("qd", "velocity", "vel", "velocity_measured", "actual_velocity"),
     "tau": ("tau", "effort", "torque", "force", "current", "effort_measured", "actual_effort"),
@@ -100,6 +115,7 @@ ALIASES: dict[str, tuple[str, ...]] = {
 def _delimiter(header: str) -> str:
     """The header row's most frequent delimiter (``,`` when it has none)."""
     return max(DELIMITERS, key=lambda d: (header.count(d), d == ","))
+
 
 _BLOCK = 1 << 24
 
@@ -143,7 +159,6 @@ def _read_fast(path: Path, columns: dict[str, str]) -> RunLog | None:
     """
     import pandas as pd
 
-
     with open(path, "rb") as stream:
         top = _top_lines(stream)
         if top is None:
@@ -175,8 +190,9 @@ def _read_fast(path: Path, columns: dict[str, str]) -> RunLog | None:
                 return None
         stream.seek(data_at)
         try:
-            frame = pd.read_csv(stream, header=None, sep=sep, dtype=np.float64, engine="c", na_filter=False, keep_default_na=False,
-                                skip_blank_lines=True, quoting=3)
+            frame = pd.read_csv(
+                stream, header=None, sep=sep, dtype=np.float64, engine="c", na_filter=False, keep_default_na=False, skip_blank_lines=True, quoting=3
+            )
         except MemoryError:
             raise LogError(path, "CSV content needs more memory than available") from None
         except Exception:  # noqa: BLE001 - any parser complaint: the row-by-row reader words it
@@ -307,7 +323,7 @@ def _unit_in_name(name: str) -> str | None:
 
 
 def _check_unit(name: str, unit: str) -> None:
-    if any(ch in unit for ch in ",=\n\r") or any(ch in name for ch in ",=\n\r\""):
+    if any(ch in unit for ch in ",=\n\r") or any(ch in name for ch in ',=\n\r"'):
         raise LogError(None, f"channel '{name}' with unit '{unit}' cannot be written to CSV (',', '=' or line breaks)")
 
 

@@ -336,7 +336,9 @@ def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> 
                 except LogError:
                     raise
                 except Exception as exc:  # noqa: BLE001 - zstd/lz4 errors on damaged data
-                    raise LogError(path, f"not a readable MCAP file: a {record.compression} chunk cannot be decompressed (file is corrupt: {_describe(exc)})") from None
+                    raise LogError(
+                        path, f"not a readable MCAP file: a {record.compression} chunk cannot be decompressed (file is corrupt: {_describe(exc)})"
+                    ) from None
                 plain = Chunk(
                     compression="",
                     data=data,

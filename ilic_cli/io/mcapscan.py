@@ -48,7 +48,14 @@ Declare = Callable[[Any, Any], Any]
 """``declare(channel, schema)`` -> sink or None, called for each new channel record."""
 
 
-def scan(path: Path, declare: Declare, decompress: Callable[[Any, int], bytes], limit: int, progress: Callable[[int, int], None] | None, counts: dict[int, int] | None = None) -> None:
+def scan(
+    path: Path,
+    declare: Declare,
+    decompress: Callable[[Any, int], bytes],
+    limit: int,
+    progress: Callable[[int, int], None] | None,
+    counts: dict[int, int] | None = None,
+) -> None:
     """Walk every record of the MCAP file at ``path``.
 
     Parameters
@@ -210,7 +217,11 @@ class _State:
             heads.append((at - pos, opcode, length, channel))
             at += 9 + length
         period = at - pos
-        if not heads or end - at < MESSAGE_HEAD or (int(buf[at]), int(buf[at + 1 : at + 9].view("<u8")[0]), int(buf[at + 9 : at + 11].view("<u2")[0])) != (OP_MESSAGE, heads[0][2], heads[0][3]):
+        if (
+            not heads
+            or end - at < MESSAGE_HEAD
+            or (int(buf[at]), int(buf[at + 1 : at + 9].view("<u8")[0]), int(buf[at + 9 : at + 11].view("<u2")[0])) != (OP_MESSAGE, heads[0][2], heads[0][3])
+        ):
             return 0
         groups = (end - pos) // period
         if groups < MIN_RUN:

@@ -40,8 +40,13 @@ class TopicOverview:
     joints: tuple[str, ...] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"topic": self.topic, "type": self.msgtype, "count": self.count, "rate_hz": self.rate_hz,
-                "joints": None if self.joints is None else list(self.joints)}
+        return {
+            "topic": self.topic,
+            "type": self.msgtype,
+            "count": self.count,
+            "rate_hz": self.rate_hz,
+            "joints": None if self.joints is None else list(self.joints),
+        }
 
 
 def _rate(count: int, start_ns: int, end_ns: int) -> float | None:

@@ -538,7 +538,10 @@ def _connection_record(cid: int, topic: str, msgtype: str, ts: Any) -> bytes:
 
     msgdef, md5 = ts.generate_msgdef(msgtype)
     first = _header(OP_CONNECTION, [(b"conn", _U32.pack(cid)), (b"topic", topic.encode())])
-    second = _header(None, [(b"topic", topic.encode()), (b"type", denormalize_msgtype(msgtype).encode()), (b"md5sum", md5.encode()), (b"message_definition", msgdef.encode())])
+    second = _header(
+        None,
+        [(b"topic", topic.encode()), (b"type", denormalize_msgtype(msgtype).encode()), (b"md5sum", md5.encode()), (b"message_definition", msgdef.encode())],
+    )
     return first + second
 
 
@@ -736,7 +739,18 @@ def write(log: RunLog, joint: str, path: Path) -> None:
         index_pos = out.tell()
         out.write(conn_records)
         for pos, start, end, counts in chunks:
-            out.write(_header(OP_CHUNK_INFO, [(b"ver", _U32.pack(1)), (b"chunk_pos", struct.pack("<Q", pos)), (b"start_time", _time(start)), (b"end_time", _time(end)), (b"count", _U32.pack(len(counts)))]))
+            out.write(
+                _header(
+                    OP_CHUNK_INFO,
+                    [
+                        (b"ver", _U32.pack(1)),
+                        (b"chunk_pos", struct.pack("<Q", pos)),
+                        (b"start_time", _time(start)),
+                        (b"end_time", _time(end)),
+                        (b"count", _U32.pack(len(counts))),
+                    ],
+                )
+            )
             out.write(_U32.pack(len(counts) * 8))
             out.write(b"".join(_U32.pack(c) + _U32.pack(m) for c, m in counts))
         out.seek(13)
@@ -750,7 +764,9 @@ def _first_seen(values: np.ndarray) -> list[int]:
 
 
 def _bag_header(index_pos: int, conn_count: int, chunk_count: int) -> bytes:
-    head = _header(OP_BAGHEADER, [(b"index_pos", struct.pack("<Q", index_pos)), (b"conn_count", _U32.pack(conn_count)), (b"chunk_count", _U32.pack(chunk_count))])
+    head = _header(
+        OP_BAGHEADER, [(b"index_pos", struct.pack("<Q", index_pos)), (b"conn_count", _U32.pack(conn_count)), (b"chunk_count", _U32.pack(chunk_count))]
+    )
     pad = 4096 - 4 - len(head)
     return head + _U32.pack(pad) + b" " * pad
 

@@ -167,7 +167,12 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
     for conn in wanted:
         for stored in storage.connections:
             # rosbags' rule for matching a bag's topic with the storage's
-            if stored.topic == conn.topic and stored.msgtype == conn.msgtype and stored.ext == conn.ext and (not stored.digest or not conn.digest or stored.digest == conn.digest):
+            if (
+                stored.topic == conn.topic
+                and stored.msgtype == conn.msgtype
+                and stored.ext == conn.ext
+                and (not stored.digest or not conn.digest or stored.digest == conn.digest)
+            ):
                 by_id[int(stored.id)] = sinks[conn.id]
                 sinks[conn.id].reserve(int(getattr(stored, "msgcount", 0) or 0))
     total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections) or 1
@@ -280,4 +285,3 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
         return rosdecode.decode_guarded(source, selection, path, "ROS 2 bag")
     finally:
         container.close_quietly(reader)
-

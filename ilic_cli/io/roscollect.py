@@ -126,8 +126,9 @@ class _Sink:
         """The array fields this sink keeps."""
         return tuple(self._arrays)
 
-    def add_columns(self, log_ns: np.ndarray, arrays: Mapping[str, np.ndarray], stamp_ns: np.ndarray | None = None,
-                    names: tuple[str, ...] | None = None) -> None:
+    def add_columns(
+        self, log_ns: np.ndarray, arrays: Mapping[str, np.ndarray], stamp_ns: np.ndarray | None = None, names: tuple[str, ...] | None = None
+    ) -> None:
         """Append ``len(log_ns)`` messages another reader decoded as columns (a vectorised run).
 
         ``arrays[field]`` is a (messages, width) float64 block for each of

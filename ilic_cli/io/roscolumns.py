@@ -208,7 +208,6 @@ class Series:
         return flat[starts + index]
 
 
-
 def sort_series(series: Series) -> None:
     """Put the messages of ``series`` in log-time order (stable) when they are not."""
     log_ns = series.log_ns

@@ -128,7 +128,9 @@ def encode(log: RunLog, joint: str, kind: str = ROS2) -> tuple[list[TopicSpec], 
     return topics, _messages(log, joint, kind, topics, ns, extras, meta_text)
 
 
-def _messages(log: RunLog, joint: str, kind: str, topics: list[TopicSpec], ns: np.ndarray, extras: list[str], meta_text: str) -> Iterator[tuple[str, int, bytes]]:
+def _messages(
+    log: RunLog, joint: str, kind: str, topics: list[TopicSpec], ns: np.ndarray, extras: list[str], meta_text: str
+) -> Iterator[tuple[str, int, bytes]]:
     ts = typestore(kind)
     js_cls = ts.types[JOINT_STATE]
     header_cls = ts.types["std_msgs/msg/Header"]
@@ -138,12 +140,14 @@ def _messages(log: RunLog, joint: str, kind: str, topics: list[TopicSpec], ns: n
     string_cls = ts.types[STRING]
 
     if kind == ROS1:
+
         def ser(msg: Any, typ: str) -> bytes:
             return bytes(ts.serialize_ros1(msg, typ))
 
         def header(i: int, sec: int, nsec: int) -> Any:
             return header_cls(seq=i, stamp=time_cls(sec=sec, nanosec=nsec), frame_id="")
     else:
+
         def ser(msg: Any, typ: str) -> bytes:
             return bytes(ts.serialize_cdr(msg, typ, little_endian=True))
 

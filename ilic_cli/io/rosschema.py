@@ -53,7 +53,7 @@ ROS1 = "ros1"
 
 
 # -- type stores -------------------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def typestore(kind: str) -> Any:
     """Return the ``rosbags`` type store: ROS 2 Humble (``"ros2"``) or ROS 1 Noetic (``"ros1"``)."""
     from rosbags.typesys import Stores, get_typestore

@@ -16,7 +16,11 @@ HEAVY = ("numpy", "pandas", "scipy", "matplotlib", "rosbags", "mcap", "numba")
 
 
 def test_help_imports_no_heavy_library() -> None:
-    code = "import sys; from ilic_cli.cli import cli; " "import click.testing as t; t.CliRunner().invoke(cli, ['--help']); " f"print([m for m in {HEAVY!r} if m in sys.modules])"
+    code = (
+        "import sys; from ilic_cli.cli import cli; "
+        "import click.testing as t; t.CliRunner().invoke(cli, ['--help']); "
+        f"print([m for m in {HEAVY!r} if m in sys.modules])"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     assert out.stdout.strip() == "[]"
 

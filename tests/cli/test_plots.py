@@ -11,7 +11,6 @@ import pytest
 matplotlib.use("Agg")
 from matplotlib.figure import Figure  # noqa: E402
 
-from ilic_cli.io import write_log  # noqa: E402
 from tests.clirun import run_cli  # noqa: E402
 
 UNIT = re.compile(r"\((?:[^()]|\([^()]*\))+\)\s*$")

@@ -49,7 +49,18 @@ READERS: dict[str, Callable[[Path, Path], list[str]]] = {
     "replay": lambda log, d: ["replay", str(log), "--model", str(_model_file(d)), "-o", str(d / "replayed.mcap")],
     "diagnose": lambda log, d: ["diagnose", str(log), "--no-simulation"],
 }
-BAD_INPUTS = ["missing file", "empty file", "truncated mcap", "not an mcap", "truncated bag", "rosbag2 without metadata", "NaN sample", "text in numeric column", "mat 2-D qm", "not a mat file"]
+BAD_INPUTS = [
+    "missing file",
+    "empty file",
+    "truncated mcap",
+    "not an mcap",
+    "truncated bag",
+    "rosbag2 without metadata",
+    "NaN sample",
+    "text in numeric column",
+    "mat 2-D qm",
+    "not a mat file",
+]
 
 
 @pytest.mark.parametrize("case", BAD_INPUTS)
@@ -106,7 +117,10 @@ INTERNAL: dict[str, tuple[Callable[[Path, Path], list[str]], str]] = {
     "info": (lambda log, d: ["info", str(log)], "ilic_cli.quality.assess_log"),  # imported by the command at call time
     "convert": (lambda log, d: ["convert", str(log), str(d / "out.mcap")], "ilic_cli.commands.convert.write_log"),
     "identify": (lambda log, d: ["identify", str(log)], "ilic_cli.commands.identify.identify"),
-    "simulate": (lambda log, d: ["simulate", "--scenario", "paper-sim", "--duration", "1", "-o", str(d / "sim.mcap")], "ilic_cli.commands.simulate.run_scenario"),
+    "simulate": (
+        lambda log, d: ["simulate", "--scenario", "paper-sim", "--duration", "1", "-o", str(d / "sim.mcap")],
+        "ilic_cli.commands.simulate.run_scenario",
+    ),
     "replay": (lambda log, d: ["replay", str(log), "--model", str(_model_file(d)), "-o", str(d / "replay.mcap")], "ilic_cli.commands.common.read_log"),
     "diagnose": (lambda log, d: ["diagnose", str(log)], "ilic_cli.commands.common.read_log"),
 }
@@ -407,7 +421,10 @@ def test_mcap_channel_with_unknown_encoding_is_named(tmp_path: Path) -> None:
 
 def test_no_reader_executes_file_content() -> None:
     """No pickle, eval, exec or unsafe YAML anywhere in the package; .mat via loadmat only."""
-    forbidden = re.compile(r"\b(pickle|cPickle|marshal|shelve|eval|exec|(?<!re\.)compile|__import__|yaml\.load|yaml\.unsafe_load|yaml\.full_load|get_types_from_msg|get_types_from_idl)\s*\(|import pickle|numpy\.load|np\.load\(")
+    forbidden = re.compile(
+        r"\b(pickle|cPickle|marshal|shelve|eval|exec|(?<!re\.)compile|__import__|yaml\.load|yaml\.unsafe_load|yaml\.full_load|"
+        r"get_types_from_msg|get_types_from_idl)\s*\(|import pickle|numpy\.load|np\.load\("
+    )
     hits = []
     for path in sorted((ROOT / "ilic_cli").rglob("*.py")):
         for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):

@@ -11,8 +11,8 @@ import pytest
 from ilic_cli.io import write_log
 from ilic_cli.modelfile import load_model_file
 from ilic_cli.runlog import RunLog
-from tests.conftest import import_or_skip
 from tests.clirun import run_cli
+from tests.conftest import import_or_skip
 
 import_or_skip("plant.closed_loop")
 from tests.diagnose.test_diagnose_effects import simulated_log  # noqa: E402
@@ -64,12 +64,15 @@ def test_against_a_simulated_log(ripple_log: Path, tmp_path: Path) -> None:
     assert doc["fit"]["simulation_force_relative_error_pct"]["before"] > 0
 
 
-@pytest.mark.parametrize("args, text", [
-    (("missing.mat",), "no such file"),
-    (("LOG", "--model", "missing.json"), "no such file"),
-    (("LOG", "--effects", "gremlins"), "unknown effect"),
-    (("LOG", "--out", "FILE"), "--out must be a folder"),
-])
+@pytest.mark.parametrize(
+    "args, text",
+    [
+        (("missing.mat",), "no such file"),
+        (("LOG", "--model", "missing.json"), "no such file"),
+        (("LOG", "--effects", "gremlins"), "unknown effect"),
+        (("LOG", "--out", "FILE"), "--out must be a folder"),
+    ],
+)
 def test_bad_input_one_line_exit_2(ripple_log: Path, tmp_path: Path, args: tuple[str, ...], text: str) -> None:
     afile = tmp_path / "afile"
     afile.write_text("x")

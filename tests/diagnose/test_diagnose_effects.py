@@ -31,7 +31,16 @@ NOISE_N = 2.0
 SLOW = tuple(m for v in (0.012, 0.025, 0.05) for m in (Move(v, 0.05, 0.6, 0.1), Move(-v, 0.05, 0.6, 0.1)))
 
 
-def simulated_log(effects: dict, *, seed: int, traj_seed: int | None, moves: tuple = DEFAULT_MOVES, duration_s: float = 24.8, warmup_s: float = 0.5, params: RigidParameters = TRUE) -> tuple[RunLog, dict]:
+def simulated_log(
+    effects: dict,
+    *,
+    seed: int,
+    traj_seed: int | None,
+    moves: tuple = DEFAULT_MOVES,
+    duration_s: float = 24.8,
+    warmup_s: float = 0.5,
+    params: RigidParameters = TRUE,
+) -> tuple[RunLog, dict]:
     """A closed-loop PD run of the plant with ``effects``; returns the log and concealment figures.
 
     The log starts ``warmup_s`` into the run, like a recording of a running
@@ -61,8 +70,13 @@ def simulated_log(effects: dict, *, seed: int, traj_seed: int | None, moves: tup
 
 CASES = [
     # id, effects, seeds, trajectory, expected parameters (plant names)
-    ("asymmetric_friction", {"asymmetric_friction": {"Fv_pos": 203.5, "Fv_neg": 218.5, "Fc_pos": 20.39, "Fc_neg": 20.39}}, (2, 3), DEFAULT_MOVES,
-     {"Fv_pos": 203.5, "Fv_neg": 218.5}),
+    (
+        "asymmetric_friction",
+        {"asymmetric_friction": {"Fv_pos": 203.5, "Fv_neg": 218.5, "Fc_pos": 20.39, "Fc_neg": 20.39}},
+        (2, 3),
+        DEFAULT_MOVES,
+        {"Fv_pos": 203.5, "Fv_neg": 218.5},
+    ),
     ("stribeck", {"stribeck": {"Fs": 3.0, "vs": 0.025}}, (4, None), DEFAULT_MOVES + SLOW, {"Fs": 3.0, "vs": 0.025}),
     ("position_ripple", {"position_ripple": {"A": 1.2, "L": 0.015, "phase": 0.5}}, (5, 11), DEFAULT_MOVES, {"A": 1.2, "L": 0.015}),
     ("spring", {"spring": {"k": 12.0, "q0": 0.1}}, (6, 13), DEFAULT_MOVES, {"k": 12.0}),
@@ -71,13 +85,17 @@ CASES = [
     # a drive lag (negative delay) and friction lower at low speed (negative Fs): found on DATA_EMPS.mat, replayable
     ("delay", {"delay": {"delay": -0.0005}}, (8, 19), DEFAULT_MOVES, {"delay": -0.0005}),
     ("stribeck", {"stribeck": {"Fs": -3.0, "vs": 0.025}}, (4, None), DEFAULT_MOVES + SLOW, {"Fs": -3.0, "vs": 0.025}),
-    ("flexibility", {"flexibility": {"stiffness": 2.0e5, "damping": 75.0, "load_fraction": 0.06}}, (9, 23), DEFAULT_MOVES,
-     {"f_res": float(np.sqrt(2.0e5 / (0.06 * 95.1)) / (2 * np.pi)), "load_fraction": 0.06}),
+    (
+        "flexibility",
+        {"flexibility": {"stiffness": 2.0e5, "damping": 75.0, "load_fraction": 0.06}},
+        (9, 23),
+        DEFAULT_MOVES,
+        {"f_res": float(np.sqrt(2.0e5 / (0.06 * 95.1)) / (2 * np.pi)), "load_fraction": 0.06},
+    ),
 ]
 
 
-@pytest.mark.parametrize("effect_id, effects, seeds, moves, expected", CASES,
-                         ids=[c[0] + ("-negative" if min(c[4].values()) < 0 else "") for c in CASES])
+@pytest.mark.parametrize("effect_id, effects, seeds, moves, expected", CASES, ids=[c[0] + ("-negative" if min(c[4].values()) < 0 else "") for c in CASES])
 def test_concealed_effect_is_named_and_recovered(effect_id: str, effects: dict, seeds: tuple, moves: tuple, expected: dict) -> None:
     log, fig = simulated_log(effects, seed=seeds[0], traj_seed=seeds[1], moves=moves)
     # concealed: excellent tracking, a plausible rigid fit, an effect of the order of the noise

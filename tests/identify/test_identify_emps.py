@@ -49,7 +49,14 @@ def test_rigid_offset_table_every_digit(emps: Path) -> None:
 def test_rigid_offset_markdown_prints_published_numbers(emps: Path) -> None:
     res = run_cli("identify", str(emps / "DATA_EMPS.mat"), "--method", "ls")
     assert res.status == 0, res.stderr
-    for text in ("| M (kg) | 95.1089 | 0.1085 | 0.1141 |", "| Fv (N·s/m) | 203.5034 | 1.1460 | 0.5631 |", "| Fc (N) | 20.3935 | 0.1012 | 0.4964 |", "| offset (N) | -3.1648 | 0.0444 | 1.4021 |", "Condition number 25.9883", "relative error 4.0834 %"):
+    for text in (
+        "| M (kg) | 95.1089 | 0.1085 | 0.1141 |",
+        "| Fv (N·s/m) | 203.5034 | 1.1460 | 0.5631 |",
+        "| Fc (N) | 20.3935 | 0.1012 | 0.4964 |",
+        "| offset (N) | -3.1648 | 0.0444 | 1.4021 |",
+        "Condition number 25.9883",
+        "relative error 4.0834 %",
+    ):
         assert text in res.stdout
 
 

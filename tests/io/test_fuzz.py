@@ -32,7 +32,7 @@ from tests.clirun import run_cli
 from tests.conftest import make_synthetic_log
 
 N = 200
-EXAMPLES = int(__import__('os').environ.get('ILIC_FUZZ_EXAMPLES', '500'))
+EXAMPLES = int(__import__("os").environ.get("ILIC_FUZZ_EXAMPLES", "500"))
 
 # format id -> (file or folder name, write options, output name for convert)
 FORMATS: dict[str, tuple[str, WriteOptions, str]] = {
@@ -51,7 +51,7 @@ def _base_log() -> RunLog:
     return make_synthetic_log(samples=N)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _original(fmt: str) -> tuple[Path, dict[str, bytes]]:
     """Write the valid log once; return its path and the bytes of each file (name -> bytes)."""
     name, options, _ = FORMATS[fmt]
@@ -76,7 +76,9 @@ def _materialise(fmt: str, folder: Path, files: dict[str, bytes]) -> Path:
 
 # -- mutations -----------------------------------------------------------------------
 truncations = st.tuples(st.just("truncate"), st.integers(min_value=0, max_value=2**31))
-flips = st.tuples(st.just("flip"), st.lists(st.tuples(st.integers(min_value=0, max_value=2**31), st.integers(min_value=1, max_value=255)), min_size=1, max_size=8))
+flips = st.tuples(
+    st.just("flip"), st.lists(st.tuples(st.integers(min_value=0, max_value=2**31), st.integers(min_value=1, max_value=255)), min_size=1, max_size=8)
+)
 shuffles = st.tuples(st.just("shuffle"), st.lists(st.integers(min_value=0, max_value=N - 1), min_size=2, max_size=6))
 nans = st.tuples(st.just("nan"), st.tuples(st.integers(min_value=0, max_value=8), st.integers(min_value=0, max_value=N - 1)))
 MUTATIONS = st.one_of(truncations, flips, shuffles, nans)

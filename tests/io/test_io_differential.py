@@ -17,9 +17,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ilic_cli.errors import ChoiceError, LogError
-from ilic_cli.io import Selection, WriteOptions, read_log, write_log
-from ilic_cli.io import rosschema
+from ilic_cli.errors import ChoiceError
+from ilic_cli.io import Selection, WriteOptions, read_log, rosschema, write_log
 from ilic_cli.runlog import RunLog
 from tests.conftest import make_synthetic_log
 
@@ -146,7 +145,13 @@ def _dict_messages(log: RunLog, joint: str) -> list[tuple[str, int, dict[str, An
                 },
             )
         )
-        out.append(("/ilic/extras", stamp, {"header": head, "name": ["t_s", *extras], "position": [log.t[i], *(ch[e][i] for e in extras)], "velocity": [], "effort": []}))
+        out.append(
+            (
+                "/ilic/extras",
+                stamp,
+                {"header": head, "name": ["t_s", *extras], "position": [log.t[i], *(ch[e][i] for e in extras)], "velocity": [], "effort": []},
+            )
+        )
     return out
 
 

@@ -189,11 +189,27 @@ def _state(ts: Any, i: int, ns: int, names: list[str], frame: str = "base", velo
 def _point(ts: Any, i: int, width: int) -> bytes:
     duration = ts.types["builtin_interfaces/msg/Duration"]
     values = np.array([0.5 * k - i * 0.01 for k in range(width)])
-    msg = ts.types[JTP](positions=values, velocities=values * 3.0, accelerations=np.array([], dtype=np.float64), effort=np.array([], dtype=np.float64), time_from_start=duration(sec=i // 100, nanosec=(i % 100) * 10**7))
+    msg = ts.types[JTP](
+        positions=values,
+        velocities=values * 3.0,
+        accelerations=np.array([], dtype=np.float64),
+        effort=np.array([], dtype=np.float64),
+        time_from_start=duration(sec=i // 100, nanosec=(i % 100) * 10**7),
+    )
     return bytes(ts.serialize_ros1(msg, JTP))
 
 
-def write_foreign_bag(path: Path, samples: int, *, names: Callable[[int], list[str]], frame: Callable[[int], str] = lambda i: "base", chunk_threshold: int = 16 * 1024, compression: str | None = None, chatter: bool = False, reference: bool = True) -> None:
+def write_foreign_bag(
+    path: Path,
+    samples: int,
+    *,
+    names: Callable[[int], list[str]],
+    frame: Callable[[int], str] = lambda i: "base",
+    chunk_threshold: int = 16 * 1024,
+    compression: str | None = None,
+    chatter: bool = False,
+    reference: bool = True,
+) -> None:
     """A bag as a ROS 1 robot records it, through the rosbags Writer."""
     from rosbags.rosbag1 import Writer
 
@@ -222,7 +238,11 @@ FOREIGN_CASES: dict[str, dict[str, Any]] = {
     "frame_id changes, lz4": {"names": lambda i: ["a", "elbow"], "frame": lambda i: "base" if i % 400 < 200 else "odom_frame", "compression": "lz4"},
     "other topic between, bz2": {"names": lambda i: ["a", "elbow"], "chatter": True, "compression": "bz2", "chunk_threshold": 50_000},
     "one big chunk, no reference": {"names": lambda i: ["elbow"], "chunk_threshold": 1 << 30, "reference": False},
-    "frame_id changes every 50, one chunk": {"names": lambda i: ["a", "elbow"], "frame": lambda i: "base" if (i // 50) % 2 else "odom", "chunk_threshold": 1 << 30},
+    "frame_id changes every 50, one chunk": {
+        "names": lambda i: ["a", "elbow"],
+        "frame": lambda i: "base" if (i // 50) % 2 else "odom",
+        "chunk_threshold": 1 << 30,
+    },
 }
 
 
@@ -332,10 +352,10 @@ def test_pandas_written_csv_reads_the_same_both_ways(tmp_path: Path, case: str) 
 @pytest.mark.parametrize(
     "text",
     [
-        "\ufeff# units: t=s\n\n# meta: {\"a\": 1}\nt,q,tau\n0,1,2\n\n1,3,4\n",  # BOM, blank lines
+        '\ufeff# units: t=s\n\n# meta: {"a": 1}\nt,q,tau\n0,1,2\n\n1,3,4\n',  # BOM, blank lines
         "t, q ,tau\n0,1,2\r\n1,3,4\r\n\r\n",  # spaces in the header, CRLF, trailing blank line
         "t,q,tau\n0, 1,2\n1,3,4\n",  # a space in a number: row by row
-        "t,q,tau\n0,\"1\",2\n1,3,4\n",  # quotes: row by row
+        't,q,tau\n0,"1",2\n1,3,4\n',  # quotes: row by row
         "t,q,tau\n0,nan,2\n1,inf,4\n",  # words: row by row
         "t,q,tau\n0,1_0,2\n1,3,4\n",  # underscores (float() takes them)
         "t,q,tau\n0,TRUE,2\n1,3,4\n",  # pandas would read a boolean word as 1.0

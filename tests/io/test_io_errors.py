@@ -299,7 +299,10 @@ def test_missing_output_folder(tmp_path: Path) -> None:
     assert_one_line_error(result.stderr, "x.mcap", ("does not exist",))
 
 
-@pytest.mark.parametrize(("name", "options"), [("f.mcap", None), ("f.bag", None), ("f.mat", None), ("f.csv", None), ("f_bag", WriteOptions(storage="sqlite3")), ("m_bag", WriteOptions(storage="mcap"))])
+@pytest.mark.parametrize(
+    ("name", "options"),
+    [("f.mcap", None), ("f.bag", None), ("f.mat", None), ("f.csv", None), ("f_bag", WriteOptions(storage="sqlite3")), ("m_bag", WriteOptions(storage="mcap"))],
+)
 def test_mutated_files_never_escape_as_other_exceptions(tmp_path: Path, name: str, options: WriteOptions | None) -> None:
     """Truncations, bit flips and random bytes: either a valid log or a LogError, never a crash."""
     path = write_log(make_synthetic_log(samples=30), tmp_path / name, options=options)

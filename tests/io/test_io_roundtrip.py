@@ -10,8 +10,7 @@ import pytest
 import scipy.io
 
 from ilic_cli.errors import ChoiceError, LogError
-from ilic_cli.io import Selection, WriteOptions, read_log, write_log
-from ilic_cli.io import rosschema
+from ilic_cli.io import Selection, WriteOptions, read_log, rosschema, write_log
 from ilic_cli.runlog import RunLog
 from tests.clirun import run_cli
 
@@ -304,13 +303,21 @@ def test_ros1_encoded_mcap_with_reference_at_half_rate(tmp_path: Path) -> None:
         writer = Writer(stream)
         writer.start("ros1", "other-tool")
         s1 = writer.register_schema("sensor_msgs/JointState", "ros1msg", rosschema.message_definition("sensor_msgs/msg/JointState", "ros1")[0].encode())
-        s2 = writer.register_schema("trajectory_msgs/JointTrajectoryPoint", "ros1msg", rosschema.message_definition("trajectory_msgs/msg/JointTrajectoryPoint", "ros1")[0].encode())
+        s2 = writer.register_schema(
+            "trajectory_msgs/JointTrajectoryPoint", "ros1msg", rosschema.message_definition("trajectory_msgs/msg/JointTrajectoryPoint", "ros1")[0].encode()
+        )
         c1 = writer.register_channel("/arm/states", "ros1", s1)
         c2 = writer.register_channel("/joint_reference", "ros1", s2)
         empty = np.array([], dtype=np.float64)
         for i in range(100):
             ns = 10**9 + i * 10**7
-            msg = js(header=header(seq=i, stamp=stamp(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""), name=["a"], position=np.array([i * 1.0]), velocity=empty, effort=np.array([2.0]))
+            msg = js(
+                header=header(seq=i, stamp=stamp(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
+                name=["a"],
+                position=np.array([i * 1.0]),
+                velocity=empty,
+                effort=np.array([2.0]),
+            )
             writer.add_message(c1, ns, bytes(ts.serialize_ros1(msg, "sensor_msgs/msg/JointState")), ns)
             if i % 2 == 0:
                 ref = point(positions=np.array([i + 0.5]), velocities=empty, accelerations=empty, effort=empty, time_from_start=duration(sec=0, nanosec=0))

@@ -14,8 +14,8 @@ import pytest
 
 from ilic_cli.identify import identify
 from ilic_cli.idim_ls import LSSettings, idim_ls, prepare
-from ilic_cli.lsq import solve
 from ilic_cli.io import read_log, write_log
+from ilic_cli.lsq import solve
 from ilic_cli.quality import nominal_rate_hz, segments
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
@@ -93,8 +93,22 @@ def test_a_log_without_its_controller_is_refused_or_given_one(emps: RunLog, tmp_
         assert res.status == 2 and "the log records no controller" in res.stderr and "--controller pd --kp --kv --drive-gain" in res.stderr, res.stderr
     res = run_cli("replay", str(path), "--model", str(model), "-o", str(tmp_path / "r.mcap"), "--controller", "pd", "--kp", "160.18")
     assert res.status == 2 and "pd needs --kv, --drive-gain" in res.stderr
-    res = run_cli("replay", str(path), "--model", str(model), "-o", str(tmp_path / "r.mcap"), "--controller", "pd", "--kp", "160.18", "--kv", "243.45",
-                  "--drive-gain", "35.15065188")
+    res = run_cli(
+        "replay",
+        str(path),
+        "--model",
+        str(model),
+        "-o",
+        str(tmp_path / "r.mcap"),
+        "--controller",
+        "pd",
+        "--kp",
+        "160.18",
+        "--kv",
+        "243.45",
+        "--drive-gain",
+        "35.15065188",
+    )
     assert res.status == 0, res.stderr
     assert read_log(tmp_path / "r.mcap").meta["controller"]["kind"] == "pd"
     # a log that records its controller keeps it
@@ -162,7 +176,9 @@ def test_csv_layouts_written_by_pandas(emps: RunLog, tmp_path: Path, layout: str
     path = tmp_path / f"{layout}.csv"
     args: list[str] = []
     if layout == "ros-names":
-        pd.DataFrame({"time": emps.t, "position": base["q"], "velocity": np.gradient(base["q"], 1e-3), "effort": base["tau"], "reference": base["q_ref"]}).to_csv(path, index=False)
+        pd.DataFrame(
+            {"time": emps.t, "position": base["q"], "velocity": np.gradient(base["q"], 1e-3), "effort": base["tau"], "reference": base["q_ref"]}
+        ).to_csv(path, index=False)
     elif layout == "index-semicolon":
         pd.DataFrame({"t": emps.t, "q": base["q"], "tau": base["tau"], "q_ref": base["q_ref"]}).to_csv(path, sep=";")
     elif layout == "tab-ns":
@@ -183,8 +199,11 @@ def test_motor_side_log_with_gear_ratio_and_torque_constant_gives_the_load_side_
     import json
 
     ratio, kt = 2 * np.pi / 0.01, 0.25
-    motor = RunLog({"t": emps.t, "q": emps["q"] * ratio, "tau": emps["tau"] / (ratio * kt), "q_ref": emps["q_ref"] * ratio},
-                   {"q": "rad", "tau": "A", "q_ref": "rad"}, {"sample_rate_hz": 1000.0, "joint": "motor_1"})
+    motor = RunLog(
+        {"t": emps.t, "q": emps["q"] * ratio, "tau": emps["tau"] / (ratio * kt), "q_ref": emps["q_ref"] * ratio},
+        {"q": "rad", "tau": "A", "q_ref": "rad"},
+        {"sample_rate_hz": 1000.0, "joint": "motor_1"},
+    )
     path = write_log(motor, tmp_path / "motor.csv")
     plain = json.loads(run_cli("identify", str(path), "--method", "ls", "--format", "json").stdout)
     assert plain["joint_type"] == "revolute" and plain["units"]["M"] == "kg·m²"  # as logged: a revolute joint in rad

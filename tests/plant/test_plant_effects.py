@@ -9,9 +9,9 @@ from ilic_cli.commands.common import parse_effect_option
 from ilic_cli.effects import EFFECTS, make_effects, plant_ids
 from ilic_cli.errors import IlicError, ParameterError
 from plant.closed_loop import simulate_loop
-from plant.kernel import run_periods
 from plant.controllers import CTCSettings, chi_vector
 from plant.dynamics import RigidParameters, drive_lag_s, force_model, measurement_lag_s, plant_vector
+from plant.kernel import run_periods
 from plant.trajectories import exciting_cycle
 
 P = RigidParameters(95.0, 200.0, 20.0, -3.0)
@@ -48,8 +48,11 @@ def test_every_effect_off_by_default() -> None:
         ("position_ripple", {"A": 2.0, "L": 0.01, "phase": 0.3}, lambda q, qd, qdd, t: 2.0 * np.sin(2 * np.pi * q / 0.01 + 0.3)),
         ("stribeck", {"Fs": 5.0, "vs": 0.02}, lambda q, qd, qdd, t: 5.0 * np.exp(-((qd / 0.02) ** 2)) * np.sign(qd)),
         ("payload_change", {"dM": 10.0, "t_change": 1.5}, lambda q, qd, qdd, t: np.where(t >= 1.5, 10.0 * qdd, 0.0)),
-        ("asymmetric_friction", {"Fv_pos": 170.0, "Fv_neg": 240.0, "Fc_pos": 19.0, "Fc_neg": 21.0},
-         lambda q, qd, qdd, t: np.where(qd > 0, 170 * qd + 19, np.where(qd < 0, 240 * qd - 21, 0.0)) - (200 * qd + 20 * np.sign(qd))),
+        (
+            "asymmetric_friction",
+            {"Fv_pos": 170.0, "Fv_neg": 240.0, "Fc_pos": 19.0, "Fc_neg": 21.0},
+            lambda q, qd, qdd, t: np.where(qd > 0, 170 * qd + 19, np.where(qd < 0, 240 * qd - 21, 0.0)) - (200 * qd + 20 * np.sign(qd)),
+        ),
     ],
 )
 def test_effect_adds_documented_force(motion: tuple[np.ndarray, ...], eid: str, params: dict, extra) -> None:  # type: ignore[no-untyped-def]
@@ -108,7 +111,7 @@ def test_payload_raises_force_after_change_only() -> None:
     i = 1000
     np.testing.assert_array_equal(a["tau"][:i], b["tau"][:i])
     # in the next stretch the controller (fixed M_hat) lets the heavier axis lag: the force differs
-    assert np.abs(a["tau"][i + 1:] - b["tau"][i + 1:]).max() > 1.0
+    assert np.abs(a["tau"][i + 1 :] - b["tau"][i + 1 :]).max() > 1.0
 
 
 def test_saturation_quantization_noise() -> None:

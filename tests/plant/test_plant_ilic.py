@@ -33,8 +33,7 @@ def test_loss_of_excitation_keeps_parameters_and_stays_stable() -> None:
     n = int(round(6.2 * 5 * 1000))
     _, q_r, qd_r, qdd_r = traj.sample(n, 1000.0)
     _, _, qd_c, qdd_c = traj.sample_centred(n, 1000.0)
-    res = simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, qd_log=qd_c, qdd_log=qdd_c, params=RigidParameters(95, 200, 20), effects={},
-                        controller=CTCSettings())
+    res = simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, qd_log=qd_c, qdd_log=qdd_c, params=RigidParameters(95, 200, 20), effects={}, controller=CTCSettings())
     wins = res.windows
     # window 4 = [18.6, 24.8) s: constant velocity only
     lost = wins[3]
@@ -49,5 +48,5 @@ def test_loss_of_excitation_keeps_parameters_and_stays_stable() -> None:
     np.testing.assert_array_equal(after[~lost.essential], before[~lost.essential])
     # stable: tracking error stays as small as in the exciting windows
     e = np.abs(q_r - res.q)
-    assert e[a:].max() < 5 * e[int(6.2 * 1000):a].max()
+    assert e[a:].max() < 5 * e[int(6.2 * 1000) : a].max()
     assert e.max() < 1e-3

@@ -14,8 +14,23 @@ from tests.clirun import run_cli
 
 def test_simulate_writes_readable_log_with_metadata(tmp_path: Path) -> None:
     out = tmp_path / "sim.mcap"
-    res = run_cli("simulate", "--scenario", "paper-sim", "--duration", "13", "--seed", "3", "-o", str(out), "--param", "M=90",
-                  "--effect", "stribeck:Fs=2,vs=0.02", "--noise-tau", "0.1")
+    res = run_cli(
+        "simulate",
+        "--scenario",
+        "paper-sim",
+        "--duration",
+        "13",
+        "--seed",
+        "3",
+        "-o",
+        str(out),
+        "--param",
+        "M=90",
+        "--effect",
+        "stribeck:Fs=2,vs=0.02",
+        "--noise-tau",
+        "0.1",
+    )
     assert res.status == 0, res.stderr
     assert res.stdout == ""
     log = read_log(out)

@@ -28,7 +28,8 @@ F3 = 800.0
 """Cubic friction of the concealed effect (N/(m/s)^3): about 3 N rms, 11 N at the top speed of paper-sim."""
 
 TOY = Effect(
-    "cubic_friction", "cubic viscous friction",
+    "cubic_friction",
+    "cubic viscous friction",
     "Shear of a thick lubricant film adds friction growing with the cube of the sliding speed.",
     params=(PlantParam("F3", "N/(m/s)^3", 0.0, "cubic viscous coefficient"),),
     force=lambda q, qd, prm: prm[0] * qd**3,
@@ -51,8 +52,9 @@ def toy() -> Iterator[Effect]:
 def concealed(toy: Effect, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A paper-sim log (CTC, online IDIM-ILIC, 0.5 N force noise) with the toy effect in the plant."""
     path = tmp_path_factory.mktemp("toy") / "toy.mcap"
-    res = run_cli("simulate", "--scenario", "paper-sim", "--duration", "25", "--seed", "4", "--noise-tau", "0.5",
-                  "--effect", f"cubic_friction:F3={F3}", "-o", str(path))
+    res = run_cli(
+        "simulate", "--scenario", "paper-sim", "--duration", "25", "--seed", "4", "--noise-tau", "0.5", "--effect", f"cubic_friction:F3={F3}", "-o", str(path)
+    )
     assert res.status == 0, res.stderr
     return path
 

@@ -79,7 +79,7 @@ def test_model_file_round_trip_every_structure_and_effect(tmp_path: Path, struct
     names = list(report["ls"]["parameters"])
     assert names[: len(parameters.STRUCTURES[structure])] == list(parameters.STRUCTURES[structure])
     if with_columns:
-        assert list(report["effects"]) == [eid] and names[len(parameters.STRUCTURES[structure]):] == list(EFFECTS[eid].column_names)  # type: ignore[index]
+        assert list(report["effects"]) == [eid] and names[len(parameters.STRUCTURES[structure]) :] == list(EFFECTS[eid].column_names)  # type: ignore[index]
     elif eid is not None:
         assert report["effects"] == {} and f"not identified as regressor columns: {eid}" in res.stderr
 
@@ -135,8 +135,7 @@ def test_compiled_force_agrees_with_the_definition(eid: str) -> None:
     np.testing.assert_allclose(acc, expected, rtol=1e-12, atol=1e-12)
 
 
-LIBRARY = [p for p in sorted((ROOT / "ilic_cli").rglob("*.py")) + sorted((ROOT / "plant").rglob("*.py"))
-           if "commands" not in p.parts and p.name != "cli.py"]
+LIBRARY = [p for p in sorted((ROOT / "ilic_cli").rglob("*.py")) + sorted((ROOT / "plant").rglob("*.py")) if "commands" not in p.parts and p.name != "cli.py"]
 
 
 def _raised_strings(tree: ast.AST) -> list[str]:
