@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from ilic_cli.errors import ChoiceError, IlicError
+from ilic_cli.errors import ChoiceError, IlicError, ParameterError
 from ilic_cli.io import Selection, read_log
 from ilic_cli.parameters import PARAMETERS
 
@@ -148,6 +149,27 @@ OPTIONS: dict[str, str] = {
     "load_joint": "--load-joint",
 }
 """Parameter of a :class:`~ilic_cli.errors.ParameterError` -> the option that sets it."""
+
+
+@contextlib.contextmanager
+def options_named() -> Iterator[None]:
+    """Turn a domain :class:`~ilic_cli.errors.ParameterError` into the option that set the value (:func:`option_for`)."""
+    try:
+        yield
+    except ParameterError as exc:
+        raise exc.at(exc.where or option_for(exc.parameter)) from None
+
+
+def plant_of_model_file(path: Path) -> tuple[Any, dict[str, Any]]:
+    """The plant (rigid parameters, effects) a model file describes; its errors name the file."""
+    from ilic_cli.modelfile import load_model_file  # deferred: the plant pulls in numba
+    from plant.dynamics import plant_model
+
+    doc = load_model_file(path)
+    try:
+        return plant_model(doc["parameters"], doc["effects"])
+    except ParameterError as exc:
+        raise exc.at(path) from None
 
 
 def option_for(parameter: str) -> str | None:

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ilic_cli import identify_report as render
-from ilic_cli.commands.common import STRUCTURES, input_options, load, note, option_for, parse_effect_option, structure_or_model_file
+from ilic_cli.commands.common import STRUCTURES, input_options, load, note, options_named, parse_effect_option, structure_or_model_file
 from ilic_cli.effects import get
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.identify import identify
@@ -180,16 +180,12 @@ def command(
     if torque_constant is not None and gear_ratio is None:
         raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
     if gear_ratio is not None:
-        try:
+        with options_named():
             run, others = to_load_side(run, gear_ratio, torque_constant, load_joint), [to_load_side(o, gear_ratio, torque_constant, load_joint) for o in others]
-        except ParameterError as exc:
-            raise exc.at(option_for(exc.parameter)) from None
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
     ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
-    try:
+    with options_named():
         result = identify(run, method=method, structure=structure, effects=chosen, ls_settings=ls_settings, ilic_settings=ilic_settings, validate=others)
-    except ParameterError as exc:
-        raise exc.at(option_for(exc.parameter)) from None
     for w in result.warnings:
         note(f"ilic: warning: {w}")
     text = {"md": render.to_markdown, "csv": render.to_csv, "json": lambda r: render.to_json(r.to_dict())}[out_format](result)

@@ -6,13 +6,11 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import LOG_FORMATS, controller_options, input_options, load, note, with_controller
-from ilic_cli.errors import IlicError, ParameterError
+from ilic_cli.commands.common import LOG_FORMATS, controller_options, input_options, load, note, plant_of_model_file, with_controller
+from ilic_cli.errors import IlicError
 from ilic_cli.io import write_log
 from ilic_cli.io.atomic import same_path
-from ilic_cli.modelfile import load_model_file
 from ilic_cli.prepare import prepare_log
-from plant.dynamics import plant_model
 from plant.replay import simulate_open_loop, simulate_replay
 
 
@@ -71,11 +69,7 @@ def command(
         raise IlicError("--substeps", f"must be >= 1 (got {substeps})")
     if same_path(log, output):  # refuse before any work (and before any warning)
         raise IlicError(output, "output would overwrite the input; choose another output path")
-    doc = load_model_file(model_file)
-    try:
-        params, effects = plant_model(doc["parameters"], doc["effects"])
-    except ParameterError as exc:
-        raise exc.at(model_file) from None
+    params, effects = plant_of_model_file(model_file)
     if open_loop:
         run = load(log, input_format, topic, ref_topic, joint, columns)
         prepare_log(run).require_contiguous("an open-loop simulation")

@@ -6,12 +6,20 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import LOG_FORMATS, STRUCTURES, note, option_for, parse_assignment, parse_effect_option, progress_enabled, structure_or_model_file
-from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.commands.common import (
+    LOG_FORMATS,
+    STRUCTURES,
+    note,
+    options_named,
+    plant_of_model_file,
+    parse_assignment,
+    parse_effect_option,
+    progress_enabled,
+    structure_or_model_file,
+)
+from ilic_cli.errors import SimulationError
 from ilic_cli.io import write_log
 from ilic_cli.io.atomic import same_path
-from ilic_cli.modelfile import load_model_file
-from plant.dynamics import plant_model
 from plant.scenarios import DEFAULT_EMPS_LOG, Overrides, check, get_scenario, run_scenario
 
 SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
@@ -128,136 +136,65 @@ def command(
       ilic simulate --scenario emps-benchmark -o emps_sim.mat
     """
 
-    try:
-        _simulate(
-            scenario,
-            duration,
-            seed,
-            output,
-            out_format,
-            params,
-            effects,
-            controller,
-            omega,
-            xi,
-            alpha,
-            structure,
-            model,
-            velocity,
-            chi0,
-            window_s,
-            sigma_max,
-            no_ilic,
-            kp,
-            kv,
-            gtau,
-            substeps,
-            noise_tau,
-            noise_q,
-            resolution,
-            tau_sensor,
-            trajectory_seed,
-            log_path,
-            published_setup,
+    with options_named():
+        get_scenario(scenario)
+        structure, model_path = structure_or_model_file(model, structure)
+        ov = Overrides(
+            duration_s=duration,
+            substeps=substeps,
+            seed=seed,
+            tau_sensor=tau_sensor,
+            log_path=log_path,
+            trajectory_seed=trajectory_seed,
+            controller=controller,
+            published_setup=published_setup,
         )
-    except ParameterError as exc:
-        raise exc.at(exc.where or option_for(exc.parameter)) from None
-
-
-def _simulate(
-    scenario: str,
-    duration: float | None,
-    seed: int,
-    output: Path,
-    out_format: str | None,
-    params: tuple[str, ...],
-    effects: tuple[str, ...],
-    controller: str | None,
-    omega: float | None,
-    xi: float | None,
-    alpha: float | None,
-    structure: str | None,
-    model: str | None,
-    velocity: str | None,
-    chi0: tuple[str, ...],
-    window_s: float | None,
-    sigma_max: float | None,
-    no_ilic: bool,
-    kp: float | None,
-    kv: float | None,
-    gtau: float | None,
-    substeps: int,
-    noise_tau: float | None,
-    noise_q: float | None,
-    resolution: float | None,
-    tau_sensor: str | None,
-    trajectory_seed: int | None,
-    log_path: Path | None,
-    published_setup: bool,
-) -> None:
-
-    get_scenario(scenario)
-    structure, model_path = structure_or_model_file(model, structure)
-    ov = Overrides(
-        duration_s=duration,
-        substeps=substeps,
-        seed=seed,
-        tau_sensor=tau_sensor,
-        log_path=log_path,
-        trajectory_seed=trajectory_seed,
-        controller=controller,
-        published_setup=published_setup,
-    )
-    if model_path is not None:
-        doc = load_model_file(model_path)
-        try:
-            rigid, plant_effects = plant_model(doc["parameters"], doc["effects"])
-        except ParameterError as exc:
-            raise exc.at(model_path) from None
-        ov.params.update(rigid.to_dict())
-        ov.effects.update({eid: e.to_dict() for eid, e in plant_effects.items()})
-    for text in params:
-        k, v = parse_assignment(text, "--param")
-        ov.params[k] = v
-    for text in chi0:
-        k, v = parse_assignment(text, "--chi0")
-        ov.chi0[k] = v
-    for text in effects:
-        eid, values = parse_effect_option(text)
-        ov.effects[eid] = {**ov.effects.get(eid, {}), **values}
-    noise = {k: v for k, v in (("tau_std", noise_tau), ("q_std", noise_q)) if v is not None}
-    if noise:
-        ov.effects["noise"] = {**ov.effects.get("noise", {}), **noise}
-    if resolution is not None:
-        ov.effects["quantization"] = {"resolution": resolution}
-    for key, value in (
-        ("omega", omega),
-        ("xi", xi),
-        ("alpha", alpha),
-        ("window_s", window_s),
-        ("sigma_max_pct", sigma_max),
-        ("model", structure),
-        ("velocity", velocity),
-    ):
-        if value is not None:
-            ov.ctc[key] = value
-    if no_ilic:
-        ov.ctc["ilic"] = False
-    for key, value in (("kp", kp), ("kv", kv), ("gtau", gtau)):
-        if value is not None:
-            ov.pd[key] = value
-    check(scenario, ov)
-    if get_scenario(scenario).reference == "log":  # refuse before simulating, not after
-        if same_path(log_path or DEFAULT_EMPS_LOG, output):
-            raise SimulationError(output, "output would overwrite the replayed log; choose another output path")
-    note(f"ilic: simulating {scenario} ...")
-    log = run_scenario(scenario, ov, progress=_progress() if progress_enabled() else None)
-    for w in log.meta.get("ilic_windows", []):
-        est = ", ".join(f"{n}={p['value']:.6g}" + ("" if w["essential"][n] else "*") for n, p in w["parameters"].items() if p["value"] is not None)
-        note(f"  window {w['k']} [{w['t_start']:.1f}, {w['t_end']:.1f}] s: {est}")
-    reference = (log.meta.get("scenario") or {}).get("log")
-    write_log(log, output, out_format, inputs=(reference,) if reference else ())
-    note(f"ilic: wrote {output} ({len(log)} samples, {log.duration_s:.3f} s)")
+        if model_path is not None:
+            rigid, plant_effects = plant_of_model_file(model_path)
+            ov.params.update(rigid.to_dict())
+            ov.effects.update({eid: e.to_dict() for eid, e in plant_effects.items()})
+        for text in params:
+            k, v = parse_assignment(text, "--param")
+            ov.params[k] = v
+        for text in chi0:
+            k, v = parse_assignment(text, "--chi0")
+            ov.chi0[k] = v
+        for text in effects:
+            eid, values = parse_effect_option(text)
+            ov.effects[eid] = {**ov.effects.get(eid, {}), **values}
+        noise = {k: v for k, v in (("tau_std", noise_tau), ("q_std", noise_q)) if v is not None}
+        if noise:
+            ov.effects["noise"] = {**ov.effects.get("noise", {}), **noise}
+        if resolution is not None:
+            ov.effects["quantization"] = {"resolution": resolution}
+        for key, value in (
+            ("omega", omega),
+            ("xi", xi),
+            ("alpha", alpha),
+            ("window_s", window_s),
+            ("sigma_max_pct", sigma_max),
+            ("model", structure),
+            ("velocity", velocity),
+        ):
+            if value is not None:
+                ov.ctc[key] = value
+        if no_ilic:
+            ov.ctc["ilic"] = False
+        for key, value in (("kp", kp), ("kv", kv), ("gtau", gtau)):
+            if value is not None:
+                ov.pd[key] = value
+        check(scenario, ov)
+        if get_scenario(scenario).reference == "log":  # refuse before simulating, not after
+            if same_path(log_path or DEFAULT_EMPS_LOG, output):
+                raise SimulationError(output, "output would overwrite the replayed log; choose another output path")
+        note(f"ilic: simulating {scenario} ...")
+        log = run_scenario(scenario, ov, progress=_progress() if progress_enabled() else None)
+        for w in log.meta.get("ilic_windows", []):
+            est = ", ".join(f"{n}={p['value']:.6g}" + ("" if w["essential"][n] else "*") for n, p in w["parameters"].items() if p["value"] is not None)
+            note(f"  window {w['k']} [{w['t_start']:.1f}, {w['t_end']:.1f}] s: {est}")
+        reference = (log.meta.get("scenario") or {}).get("log")
+        write_log(log, output, out_format, inputs=(reference,) if reference else ())
+        note(f"ilic: wrote {output} ({len(log)} samples, {log.duration_s:.3f} s)")
 
 
 def _progress():  # type: ignore[no-untyped-def]
