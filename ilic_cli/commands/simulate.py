@@ -11,9 +11,9 @@ from ilic_cli.commands.common import (
     STRUCTURES,
     note,
     options_named,
-    plant_of_model_file,
     parse_assignment,
     parse_effect_option,
+    plant_of_model_file,
     progress_enabled,
     structure_or_model_file,
 )

@@ -14,8 +14,19 @@ from ilic_cli.regressor import Kinematics
 
 
 def test_registry_order_and_kinds() -> None:
-    assert list(EFFECTS) == ["asymmetric_friction", "stribeck", "position_ripple", "spring", "payload_change", "offset", "delay", "flexibility",
-                             "saturation", "quantization", "noise"]
+    assert list(EFFECTS) == [
+        "asymmetric_friction",
+        "stribeck",
+        "position_ripple",
+        "spring",
+        "payload_change",
+        "offset",
+        "delay",
+        "flexibility",
+        "saturation",
+        "quantization",
+        "noise",
+    ]
     assert fx.catalogue_ids() == ("asymmetric_friction", "stribeck", "position_ripple", "spring", "payload_change", "offset", "delay", "flexibility")
     assert "offset" not in fx.plant_ids() and "noise" in fx.plant_ids()
     assert [e for e in EFFECTS if EFFECTS[e].shift] == ["delay"]

@@ -16,7 +16,11 @@ def test_model_document_round_trip(tmp_path: Path) -> None:
     p = tmp_path / "model.json"
     p.write_text(json.dumps(doc))
     parsed = load_model_file(p)
-    assert parsed == {"model": "rigid-offset", "parameters": {"M": 95.1, "Fv": 203.5, "Fc": 20.4, "offset": -3.2}, "effects": {"spring": {"k": 50.0, "q0": 0.1}}}
+    assert parsed == {
+        "model": "rigid-offset",
+        "parameters": {"M": 95.1, "Fv": 203.5, "Fc": 20.4, "offset": -3.2},
+        "effects": {"spring": {"k": 50.0, "q0": 0.1}},
+    }
 
 
 def test_identify_json_output_uses_idim_ls_section() -> None:

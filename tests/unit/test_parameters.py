@@ -19,7 +19,11 @@ def test_every_parameter_has_prismatic_and_revolute_units() -> None:
 
 
 def test_structures_and_their_lookup() -> None:
-    assert P.STRUCTURES == {"rigid": ("M", "Fv", "Fc"), "rigid-offset": ("M", "Fv", "Fc", "offset"), "asymmetric": ("M", "Fv_pos", "Fc_pos", "Fv_neg", "Fc_neg")}
+    assert P.STRUCTURES == {
+        "rigid": ("M", "Fv", "Fc"),
+        "rigid-offset": ("M", "Fv", "Fc", "offset"),
+        "asymmetric": ("M", "Fv_pos", "Fc_pos", "Fv_neg", "Fc_neg"),
+    }
     assert P.structure_names("asymmetric") == ("M", "Fv_pos", "Fc_pos", "Fv_neg", "Fc_neg")
     assert P.structure_of(("M", "Fv", "Fc")) == "rigid"
     assert P.structure_of(["offset", "Fc", "M", "Fv", "k_spring"]) == "rigid-offset"
@@ -86,7 +90,12 @@ def test_from_plant_inverts_to_plant_for_every_structure() -> None:
         assert P.from_plant(*P.to_plant(values), structure) == values
     # a symmetric plant seen as the asymmetric structure
     assert P.from_plant({"M": 95.0, "Fv": 200.0, "Fc": 20.0, "offset": 0.0}, None, "asymmetric") == {
-        "M": 95.0, "Fv_pos": 200.0, "Fc_pos": 20.0, "Fv_neg": 200.0, "Fc_neg": 20.0}
+        "M": 95.0,
+        "Fv_pos": 200.0,
+        "Fc_pos": 20.0,
+        "Fv_neg": 200.0,
+        "Fc_neg": 20.0,
+    }
     with pytest.raises(ParameterError, match="'asymmetric' for a plant with asymmetric friction"):
         P.from_plant({"M": 95.0, "Fv": 0.0, "Fc": 0.0, "offset": 0.0}, {"Fv_pos": 1.0, "Fc_pos": 1.0, "Fv_neg": 2.0, "Fc_neg": 2.0}, "rigid")
 
@@ -114,10 +123,11 @@ def test_defaults_are_the_papers_simulated_axis_and_records_are_frozen() -> None
         (lambda: P.structure_names("flexible"), "structure = 'flexible' must be one of rigid, rigid-offset, asymmetric"),
         (lambda: P.to_plant({"M": 1.0, "x": 2.0}), "x = 2 must be a parameter of the axis (M, Fv, Fc, offset, Fv_pos, Fc_pos, Fv_neg, Fc_neg)"),
         (lambda: P.to_plant({"Fv": 1.0}), "M must be given (the model has no mass)"),
-        (lambda: P.to_plant({"M": 1.0, "Fv_pos": 1.0}),
-         "Fc_pos must be given with the other asymmetric friction parameters (Fv_pos, Fc_pos, Fv_neg, Fc_neg)"),
-        (lambda: P.from_plant({"M": 1.0, "Fv": 0.0, "Fc": 0.0, "offset": 0.0}, {"Fv_pos": 1.0, "Fc_pos": 1.0, "Fv_neg": 1.0, "Fc_neg": 1.0}, "rigid"),
-         "structure = 'rigid' must be 'asymmetric' for a plant with asymmetric friction"),
+        (lambda: P.to_plant({"M": 1.0, "Fv_pos": 1.0}), "Fc_pos must be given with the other asymmetric friction parameters (Fv_pos, Fc_pos, Fv_neg, Fc_neg)"),
+        (
+            lambda: P.from_plant({"M": 1.0, "Fv": 0.0, "Fc": 0.0, "offset": 0.0}, {"Fv_pos": 1.0, "Fc_pos": 1.0, "Fv_neg": 1.0, "Fc_neg": 1.0}, "rigid"),
+            "structure = 'rigid' must be 'asymmetric' for a plant with asymmetric friction",
+        ),
     ],
 )
 def test_messages(call, message: str) -> None:  # type: ignore[no-untyped-def]
