@@ -310,6 +310,38 @@ class Searcher:
         return pack(best), std
 
 
+EDGE_STEPS = 0.5
+"""A nonlinear estimate within this many grid steps of either end of its grid is on the edge of the search."""
+
+SECONDARY_EDGE = 0.02
+"""A secondary parameter within this share (on a log scale) of either bound is on the edge (e.g. damping 0.4998 of 0.5)."""
+
+
+def at_edge(effect: Effect, grid: np.ndarray, value: Any) -> str | None:
+    """Why ``value`` lies on the edge of ``effect``'s search (the grid's ends, the secondary parameter's bounds), else ``None``.
+
+    The optimum of a search is only an estimate when the search brackets it:
+    on an edge, the data would have gone on beyond the range searched.
+    """
+    assert effect.scan is not None
+    scan = effect.scan
+    first = float(value[0]) if isinstance(value, tuple) else float(value)
+    if len(grid) >= 2:
+        f = np.log if scan.log and grid[0] > 0 else (lambda x: x)  # noqa: E731
+        lo_step, hi_step = f(grid[1]) - f(grid[0]), f(grid[-1]) - f(grid[-2])
+        if f(first) <= f(grid[0]) + EDGE_STEPS * lo_step:
+            return f"{scan.name} = {first:.4g} {scan.unit} at the lower end of the range searched ({grid[0]:.4g} to {grid[-1]:.4g})".replace("  ", " ")
+        if f(first) >= f(grid[-1]) - EDGE_STEPS * hi_step:
+            return f"{scan.name} = {first:.4g} {scan.unit} at the upper end of the range searched ({grid[0]:.4g} to {grid[-1]:.4g})".replace("  ", " ")
+    if scan.secondary is not None and isinstance(value, tuple):
+        name, _, low, high, _ = scan.secondary
+        span = np.log(high) - np.log(low)
+        second = float(value[1])
+        if np.log(second) <= np.log(low) + SECONDARY_EDGE * span or np.log(second) >= np.log(high) - SECONDARY_EDGE * span:
+            return f"{name} = {second:.4g} at a bound of the range searched ({low:g} to {high:g})"
+    return None
+
+
 def _minimise(f: Any, lo: float, hi: float, use_log: bool) -> float:
     """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``)."""
     from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import
@@ -377,14 +409,19 @@ def forward_select(
             theta1, _ = lstsq(W1, y1)
             rel = relative_error_pct(y1, W1 @ theta1)
             why = eff.impossible(theta1[W.shape[1] :], value) if eff.impossible is not None else None
+            if why:
+                why = f"physically impossible: {why}"
+            elif eff.nonlinear:
+                edge = at_edge(eff, searcher.grid(eff)[0], value)
+                why = f"at the edge of its search range: {edge}" if edge else None
             evals.append((Evaluation(eff.id, value, vstd, test, rel, reason=why or ""), eff, W1, y1))
         # the candidate explaining most of the mismatch first; significance and held-out error gate it
         evals.sort(key=lambda e: e[0].relative_error_pct)
         tried: list[Evaluation] = []
         chosen = None
         for ev, eff, W1, y1 in evals:
-            if ev.reason:
-                tried.append(_replace(ev, reason=f"physically impossible: {ev.reason}"))
+            if ev.reason:  # impossible physics, or an estimate on the edge of its search range: never a finding
+                tried.append(ev)
                 continue
             if chosen is not None or ev.test.p_adjusted >= settings.alpha:
                 reason = "not significant" if ev.test.p_adjusted >= settings.alpha else "another effect was accepted first"
