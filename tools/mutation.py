@@ -1,7 +1,9 @@
 """Mutation testing of the numerics (``make mutation``).
 
 The mutants are mutmut's (2.x mutation operators: numbers, operators,
-comparisons, keywords, strings, arguments, assignments, lambdas); the tests
+comparisons, keywords, strings, arguments, assignments, lambdas), less those
+that only change a type annotation or a docstring (equivalent: neither runs
+in these modules, which all use ``from __future__ import annotations``); the tests
 are run here, not by ``mutmut run``, for two reasons:
 
 - speed: ``mutmut run`` starts a fresh interpreter per mutant, which pays
@@ -136,11 +138,39 @@ def mutants(path: str) -> tuple[str, list[tuple[int, str]]]:
     ctx = Context(source=source, filename=path, mutation_id=ALL)
     ids = list(dict.fromkeys(_list(ctx)))
     out = []
+    plain = _behaviour(source)
     for mid in ids:
         mutated, n = mutate(Context(source=source, filename=path, mutation_id=mid))
-        if n:
+        if n and _behaviour(mutated) != plain:  # a mutant of a type annotation or a docstring only is equivalent: left out
             out.append((mid.line_number + 1, mutated))
     return source, out
+
+
+def _behaviour(source: str) -> str:
+    """The module's AST without its type annotations and docstrings (neither runs: ``from __future__ import annotations``)."""
+    import ast
+
+    try:
+        tree = ast.parse(source)
+    except SyntaxError as exc:  # a mutant that does not parse is kept (the tests' import kills it)
+        return f"syntax error: {exc}"
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            node.returns = None
+        if isinstance(node, ast.arg):
+            node.annotation = None
+        if isinstance(node, ast.AnnAssign):
+            node.annotation = ast.Constant(None)
+        body = getattr(node, "body", None)
+        if (
+            isinstance(body, list)
+            and body
+            and isinstance(body[0], ast.Expr)
+            and isinstance(body[0].value, ast.Constant)
+            and isinstance(body[0].value.value, str)
+        ):
+            body[0] = ast.Pass()
+    return ast.dump(tree)
 
 
 def _list(ctx):  # noqa: ANN001, ANN202
@@ -251,7 +281,9 @@ def run_planted(planted: list[dict], paths: list[str] | None) -> ModuleScore:
             continue
         source = (ROOT / bug["path"]).read_text()
         if source.count(bug["old"]) != 1:
-            raise SystemExit(f"mutation: planted bug '{bug['why']}' no longer applies to {bug['path']} (its original text is gone); update [tool.ilic-mutation.planted]")
+            raise SystemExit(
+                f"mutation: planted bug '{bug['why']}' no longer applies to {bug['path']} (its original text is gone); update [tool.ilic-mutation.planted]"
+            )
         outcome = run_child(bug["tests"], 60.0, (module_name(bug["path"]), bug["path"], source.replace(bug["old"], bug["new"])))
         score.total += 1
         if outcome == "failed":

@@ -184,3 +184,123 @@ def test_value_from_plant_of_the_scanned_effects() -> None:
     assert EFFECTS["position_ripple"].value_from_plant({"A": 1.0, "L": 0.004, "phase": 0.0}, 95.0) == 0.004
     assert EFFECTS["delay"].value_from_plant({"delay": -0.001}, 95.0) == -0.001
     assert EFFECTS["spring"].value_from_plant({"k": 1.0, "q0": 0.0}, 95.0) is None
+
+
+def test_definitions_match_the_reviewed_catalogue() -> None:
+    """Every built-in definition as reviewed (fixtures/effects.json): words, units, ranges, defaults, search settings."""
+    import json
+    from pathlib import Path
+
+    doc = json.loads((Path(__file__).resolve().parents[2] / "fixtures" / "effects.json").read_text())["effects"]
+    builtin = {eid: e for eid, e in EFFECTS.items() if eid in doc}
+    assert list(builtin) == list(doc)
+    for eid, e in builtin.items():
+        want = doc[eid]
+        assert (e.title, e.explanation, e.form, e.signature, list(e.signature_kinds)) == (
+            want["title"],
+            want["explanation"],
+            want["form"],
+            want["signature"],
+            want["signature_kinds"],
+        ), eid
+        got_params = {
+            p.name: {
+                "unit": p.unit,
+                "default": p.default,
+                "meaning": p.meaning,
+                "low": None if p.low == -math.inf else p.low,
+                "high": None if p.high == math.inf else p.high,
+                "low_open": p.low_open,
+            }
+            for p in e.params
+        }
+        assert got_params == want["parameters"], eid
+        assert [{"name": c.name, "unit": c.unit, "description": c.description} for c in e.columns] == want["columns"], eid
+        scan = (
+            None
+            if e.scan is None
+            else {"name": e.scan.name, "unit": e.scan.unit, "log": e.scan.log, "secondary": list(e.scan.secondary) if e.scan.secondary else None}
+        )
+        assert scan == want["scan"] and e.shift == want["shift"] and e.plant == want["plant"], eid
+        d = e.to_dict()
+        assert d["id"] == eid and d["title"] == e.title and d["parameters"] == want["columns"]
+        assert d["nonlinear"] == (None if e.scan is None else {"name": e.scan.name, "unit": e.scan.unit})
+
+
+def test_grids_follow_the_data() -> None:
+    """Search grids from the data's own ranges, as documented."""
+    n = 2001
+    t = np.arange(n) / 1000.0
+    qd = 0.2 * np.sin(2 * np.pi * t)
+    q = 0.1 + 0.2 / (2 * np.pi) * (1 - np.cos(2 * np.pi * t))
+    kin = Kinematics(qd=qd, qdd=np.gradient(qd, t), q=q, t=t)
+    vmax = float(np.percentile(np.abs(qd), 99.5))
+    np.testing.assert_allclose(EFFECTS["stribeck"].scan.grid(kin, 1000.0), np.geomspace(0.01 * vmax, 0.4 * vmax, 32), rtol=1e-15)
+    change = EFFECTS["payload_change"].scan.grid(kin, 1000.0)
+    assert len(change) == 200 and change[0] == pytest.approx(0.05 * 2.0) and change[-1] == pytest.approx(2.0 - 0.05 * 2.0)
+    delay = EFFECTS["delay"].scan.grid(kin, 1000.0)
+    assert delay[0] == -0.025 and delay[-1] == pytest.approx(0.025) and np.allclose(np.diff(delay), 0.0005)
+    resonance = EFFECTS["flexibility"].scan.grid(kin, 1000.0)
+    assert len(resonance) == 40 and resonance[0] == 2.0 and resonance[-1] == pytest.approx(40.0)
+    ripple = EFFECTS["position_ripple"].scan.grid(kin, 1000.0)
+    stroke = float(np.ptp(q))
+    moving = np.abs(qd) > 0.05 * vmax
+    assert ripple[0] == pytest.approx(max(float(np.median(np.abs(qd[moving]))) / 40.0, stroke / 2000.0))
+    assert ripple[-2] < stroke / 2 <= ripple[-1]
+    # the phase over the stroke moves by a tenth of a cycle per step
+    np.testing.assert_allclose(stroke / ripple[:-1] - stroke / ripple[1:], 0.1, rtol=1e-9)
+    still = Kinematics(qd=np.zeros(10), qdd=np.zeros(10), q=np.zeros(10), t=np.arange(10.0))
+    np.testing.assert_allclose(EFFECTS["stribeck"].scan.grid(still, 1000.0), np.geomspace(0.01, 0.4, 32))  # no motion: a unit speed
+    assert EFFECTS["position_ripple"].scan.grid(Kinematics(qd=np.ones(10), qdd=np.zeros(10), q=None), 10.0)[0] > 0
+
+
+def test_record_defaults() -> None:
+    p = fx.PlantParam("x", "u", 1.0)
+    assert (p.meaning, p.low, p.high, p.low_open) == ("", -math.inf, math.inf, False)
+    p.check("e", -1e300)
+    p.check("e", 1e300)
+    fx.PlantParam("x", "u", 1.0, low=0.0).check("e", 0.0)
+    with pytest.raises(ParameterError, match=r"<= 2"):
+        fx.PlantParam("x", "u", 1.0, high=2.0).check("e", 2.5)
+    fx.PlantParam("x", "u", 1.0, high=2.0).check("e", 2.0)
+    assert fx.Scan("s", "u", lambda k, f: np.ones(1)).log is True and fx.Scan("s", "u", lambda k, f: np.ones(1)).secondary is None
+    fit = Fit(("a",), np.array([1.0]), np.eye(1))
+    assert (fit.value, fit.value_std, fit.hold_s) == (None, None, 0.0) and fit.get("b") == 0.0
+    assert Estimate(1.0, None).to_dict() == {"value": 1.0, "std": None, "unit": ""}
+    assert Estimate(math.inf, 2.0, "N").to_dict() == {"value": None, "std": 2.0, "unit": "N"}
+    assert fx.EffectColumn("c", "N").description == ""
+    e = fx.Effect("x", "t", "e.")
+    assert (e.params, e.force, e.plant, e.check, e.form, e.signature, e.signature_kinds, e.columns, e.build, e.scan, e.shift) == (
+        (),
+        None,
+        True,
+        None,
+        "",
+        "",
+        (),
+        (),
+        None,
+        None,
+        False,
+    )
+    assert e.matrix(Kinematics(qd=np.zeros(3), qdd=np.zeros(3))).shape == (3, 0) and not e.identifiable and not e.nonlinear
+    assert e.describe({"a": Estimate(1.5, None)}) == "t (a = 1.5)"
+    assert fx.EffectParams(EFFECTS["spring"]).params == {}
+    import dataclasses
+
+    for record in (p, fit, Estimate(1.0, None), fx.EffectColumn("c", "N"), e, EFFECTS["stribeck"].scan):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            record.unit = "x"  # type: ignore[misc,union-attr]
+
+
+def test_flexibility_columns_use_the_sample_rate() -> None:
+    t = np.arange(400) / 1000.0
+    qdd = np.sin(2 * np.pi * 5 * t)
+    kin = Kinematics(qd=np.zeros(400), qdd=qdd, q=np.zeros(400), t=t)
+    flex = EFFECTS["flexibility"]
+    at_1k = flex.matrix(kin, (20.0, 0.1), 1000.0)
+    np.testing.assert_array_equal(flex.matrix(kin, (20.0, 0.1)), at_1k)  # 1 kHz by default
+    assert not np.allclose(flex.matrix(kin, (20.0, 0.1), 500.0), at_1k)
+    np.testing.assert_allclose(flex.matrix(kin, 20.0, 1000.0), flex.matrix(kin, (20.0, fx.FLEX_DAMPING), 1000.0))
+    # a slow motion moves the load with the motor: the column (load minus motor acceleration) is small
+    assert np.abs(at_1k[200:]).max() < 0.2 * np.abs(qdd).max()
