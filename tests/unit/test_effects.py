@@ -304,3 +304,76 @@ def test_flexibility_columns_use_the_sample_rate() -> None:
     np.testing.assert_allclose(flex.matrix(kin, 20.0, 1000.0), flex.matrix(kin, (20.0, fx.FLEX_DAMPING), 1000.0))
     # a slow motion moves the load with the motor: the column (load minus motor acceleration) is small
     assert np.abs(at_1k[200:]).max() < 0.2 * np.abs(qdd).max()
+
+
+def test_flexible_acceleration_is_the_loads_response() -> None:
+    """Steady state of a sinusoid: the load's acceleration is H(j w) times the motor's, H = (2 z w0 s + w0^2)/(s^2 + 2 z w0 s + w0^2)."""
+    fs, f0, zeta, f = 1000.0, 30.0, 0.1, 20.0
+    t = np.arange(20000) / fs
+    x = np.sin(2 * np.pi * f * t)
+    y = fx.flexible_acceleration(x, f0, fs, zeta)
+    s, w0 = 2j * np.pi * f, 2 * np.pi * f0
+    H = (2 * zeta * w0 * s + w0**2) / (s**2 + 2 * zeta * w0 * s + w0**2)
+    tail = slice(10000, None)
+    z = np.exp(1j * 2 * np.pi * f * t[tail])
+    fitted = np.linalg.lstsq(np.c_[z.real, z.imag], y[tail], rcond=None)[0]  # y = Re(c z): c = a - j b
+    assert abs(complex(fitted[0], -fitted[1]) / (-1j) - H) < 5e-3 * abs(H)  # sin = Re(-j z); the bilinear transform warps a little near f0
+    assert fx.flexible_acceleration(np.full(50, 2.0), f0, fs, zeta) == pytest.approx(np.full(50, 2.0))  # starts in the steady state
+
+
+def test_estimate_keys_units_and_boundaries() -> None:
+    est, _, _ = EFFECTS["asymmetric_friction"].fit_to_plant(_fit({"Fv": 200.0, "Fc": 20.0, "offset": 1.0, "dFv_neg": 5.0}))
+    assert {k: v.unit for k, v in est.items()} == {"Fv_pos": "N·s/m", "Fv_neg": "N·s/m", "Fc_pos": "N", "Fc_neg": "N"}
+    _, plant, _ = EFFECTS["asymmetric_friction"].fit_to_plant(_fit({"Fv": 200.0, "dFv_neg": 5.0}))
+    assert plant == {"Fv_pos": 200.0, "Fv_neg": 205.0, "Fc_pos": 0.0, "Fc_neg": 0.0}  # no Coulomb column: none
+    est, plant, note = EFFECTS["stribeck"].fit_to_plant(_fit({"Fc": 20.0, "Fs": -20.0}, value=0.02, value_std=0.001))
+    assert plant == {"Fs": -20.0, "vs": 0.02} and "static friction level Fc + Fs is 0 N" in note  # the level may reach 0
+    assert {k: (v.unit, v.std) for k, v in est.items()} == {"Fs": ("N", 0.0), "vs": ("m/s", 0.001)}
+    _, plant, note = EFFECTS["stribeck"].fit_to_plant(_fit({"Fc": 20.0, "Fs": 0.0}, value=0.02))
+    assert plant == {"Fs": 0.0, "vs": 0.02} and note == ""
+    _, _, note = EFFECTS["stribeck"].fit_to_plant(_fit({"Fc": 0.5, "Fs": -0.75}, value=0.02))
+    assert note == "Fs = -0.75 N would put the static friction level Fc + Fs below 0: not in the model file"
+    words = EFFECTS["stribeck"].describe({"Fs": Estimate(-2.0, None), "vs": Estimate(0.005, None)})
+    assert words.startswith("Stribeck friction (extra friction Fs = -2 N below vs = 5 mm/s; negative: friction is lower at low speed")
+    assert EFFECTS["spring"].describe({"k": Estimate(12.0, None)}) == "spring force (stiffness 12 N/m)"
+    assert fx.Effect("x", "thing", "e.").describe({"a": Estimate(1.0, None), "b": Estimate(2.0, None)}) == "thing (a = 1, b = 2)"
+    est, plant, _ = EFFECTS["position_ripple"].fit_to_plant(_fit({"ripple_sin": 0.0, "ripple_cos": 0.0}, value=0.01, std=1.0))
+    assert plant["A"] == 0.0 and est["A"].std == 0.0 and est["phase"].std == 0.0 and {k: v.unit for k, v in est.items()} == {"A": "N", "L": "m", "phase": "rad"}
+    est, _, _ = EFFECTS["flexibility"].fit_to_plant(_fit({"M": 100.0, "M_load": 20.0}, value=(10.0, 0.1), value_std=0.5, std=2.0))
+    k = (2 * math.pi * 10.0) ** 2 * 20.0
+    assert est["stiffness"].std == pytest.approx(k * math.sqrt((2 * 0.5 / 10.0) ** 2 + (2.0 / 20.0) ** 2))
+    assert est["load_fraction"].value == 0.2 and est["load_fraction"].std == pytest.approx(0.02)
+
+
+def test_words_of_the_errors() -> None:
+    with pytest.raises(ValueError, match=r"^effect 'spring' is already defined$"):
+        fx.register(EFFECTS["spring"])
+    bad = fx.Effect("twin", "t", "e.", columns=(fx.EffectColumn("a", ""), fx.EffectColumn("a", "")))
+    with pytest.raises(ValueError, match=r"^effect 'twin': column names repeat$"):
+        fx.register(bad)
+    with pytest.raises(ParameterError) as err:
+        fx.get("warp")
+    assert err.value.rule == f"one of {', '.join(fx.plant_ids())}"
+    with pytest.raises(ParameterError) as err:
+        fx.make_effects({"offset": {}})
+    assert (err.value.parameter, err.value.rule) == ("effect", f"a plant effect ({', '.join(fx.plant_ids())})")
+    with pytest.raises(ParameterError) as err:
+        fx.make_effects({"spring": 3})
+    assert (err.value.parameter, err.value.rule) == ("spring", "an object of parameter -> value")
+    with pytest.raises(ParameterError) as err:
+        fx.Effect("bare", "t", "e.").values({"a": 1})
+    assert err.value.rule == "a parameter of 'bare' (none)"
+    with pytest.raises(ParameterError) as err:
+        fx.PlantParam("x", "u", 1.0, high=2.0).check("e", 3.0)
+    assert err.value.rule == "<= 2"
+
+
+def test_grids_without_positions_or_times() -> None:
+    qd = 0.2 * np.sin(np.linspace(0, 6 * np.pi, 3000))
+    with_q = Kinematics(qd=qd, qdd=np.zeros(3000), q=np.cumsum(qd) / 1000.0, t=np.arange(3000) / 1000.0)
+    without = Kinematics(qd=qd, qdd=np.zeros(3000))
+    np.testing.assert_array_equal(EFFECTS["position_ripple"].scan.grid(without, 1000.0), EFFECTS["position_ripple"].scan.grid(with_q, 1000.0))
+    np.testing.assert_array_equal(EFFECTS["payload_change"].scan.grid(without, 1000.0), EFFECTS["payload_change"].scan.grid(with_q, 1000.0))
+    np.testing.assert_allclose(EFFECTS["payload_change"].scan.grid(without, 500.0)[[0, -1]], [0.05 * 5.998, 0.95 * 5.998])
+    tiny = Kinematics(qd=np.full(10, 1e-3), qdd=np.zeros(10), q=np.linspace(0, 1e-4, 10))
+    assert len(EFFECTS["position_ripple"].scan.grid(tiny, 1000.0)) >= 1
