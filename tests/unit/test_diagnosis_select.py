@@ -11,7 +11,7 @@ import pytest
 
 from ilic_cli.diagnosis.select import SelectSettings, Searcher, forward_select, moving_rows, system, validation_error
 from ilic_cli.effects import EFFECTS, catalogue_ids
-from ilic_cli.idim_ls import prepare
+from ilic_cli.idim_ls import LSSettings, prepare
 from ilic_cli.lsq import lstsq
 from ilic_cli.regressor import Kinematics, get_model
 from tests.unit.synth import FS, motion, rigid_force
@@ -285,3 +285,181 @@ def test_refine_a_secondary_parameter_after_the_first() -> None:
     (v, z), std = s.refine(effect, W0, y, 4.0)
     assert v == pytest.approx(4.3, rel=1e-3) and z == pytest.approx(0.2, rel=1e-3)
     assert std == pytest.approx(math.sqrt(4.0 / 47 / 6.0), rel=1e-3)
+
+
+def test_records_and_their_defaults() -> None:
+    import dataclasses
+
+    from ilic_cli.diagnosis.select import Evaluation, SelectionResult, Step
+    from ilic_cli.diagnosis.stats import nested_f_test
+
+    eff = EFFECTS["spring"]
+    step = Step(eff)
+    assert step.value is None
+    t = np.linspace(0, 1, 40)
+    test = nested_f_test(np.c_[np.ones(40)], t, np.c_[np.ones(40), t], t, q=1, max_order=0)
+    ev = Evaluation("spring", None, None, test)
+    assert math.isnan(ev.relative_error_pct)
+    assert (ev.heldout_before_pct, ev.heldout_after_pct, ev.heldout_p_value, ev.validation_before_pct, ev.validation_after_pct) == (None,) * 5
+    assert ev.accepted is False and ev.reason == ""
+    d = ev.to_dict()
+    assert d["heldout_test"] is None and d["validation_relative_error_pct"] is None and d["nonlinear_value"] is None
+    done = dataclasses.replace(ev, heldout_p_value=0.5)
+    assert done.to_dict()["heldout_test"] == {"test": "Diebold-Mariano, one-sided, Newey-West variance", "p_value": 0.5}
+    assert dataclasses.replace(ev, value=(20.0, 0.05)).to_dict()["nonlinear_value"] == [20.0, 0.05]
+    assert SelectionResult().rows is None and SelectionResult().steps == []
+    for obj, attr in ((step, "value"), (ev, "accepted")):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, attr, 1)
+
+
+def test_two_concealed_effects_one_step_at_a_time() -> None:
+    """Asymmetry and a spring both concealed: max_effects bounds the steps; the second step sees the first's columns."""
+    t, q, qd, qdd = motion(20_000)
+    rng = np.random.default_rng(11)
+    tau = rigid_force(qd, qdd) + 15.0 * qd * (qd < 0) + 150.0 * q + rng.normal(0.0, 2.0, len(t))
+    data = prepare(t, q, tau, FS, BASE)
+    s = SelectSettings(effects=("asymmetric_friction", "spring"), max_effects=1)
+    one = forward_select(data, BASE, FS, s)
+    assert len(one.accepted) == 1 and len(one.tried) == 1
+    first = one.accepted[0].effect
+    others = [ev for ev in one.tried[0] if ev.effect != first]
+    assert others and all(ev.reason == "another effect was accepted first" and not ev.accepted for ev in others)
+    two = forward_select(data, BASE, FS, SelectSettings(effects=("asymmetric_friction", "spring"), max_effects=2))
+    assert sorted(e.effect for e in two.accepted) == ["asymmetric_friction", "spring"]
+    W, y, names = system(data, BASE, two.steps)
+    theta = dict(zip(names, lstsq(W, y)[0], strict=True))
+    assert theta["k_spring"] == pytest.approx(150.0, rel=0.05) and theta["dFv_neg"] == pytest.approx(15.0, rel=0.1)
+    for ev in two.accepted:
+        assert ev.test.df1 == 1  # one linear column each, no secondary parameter
+
+
+def test_the_figures_of_an_evaluation() -> None:
+    """Relative error of the candidate fit and held-out errors, recomputed from their definitions."""
+    from ilic_cli.diagnosis.stats import heldout_errors
+
+    data = concealed_asymmetry()
+    res = forward_select(data, BASE, FS, SelectSettings(effects=("asymmetric_friction",), max_effects=1))
+    ev = res.accepted[0]
+    W1, y, _ = system(data, BASE, res.steps)
+    _, rss1 = lstsq(W1, y)
+    assert ev.relative_error_pct == pytest.approx(100 * math.sqrt(rss1 / (y @ y)), rel=1e-9)
+    W0, y0, _ = system(data, BASE, [])
+    e = heldout_errors(W0, y0, blocked_folds_default(len(y0)))
+    assert ev.heldout_before_pct == pytest.approx(100 * math.sqrt((e @ e) / (y0 @ y0)), rel=1e-9)
+    assert ev.heldout_after_pct < ev.heldout_before_pct
+    assert ev.test.df1 == 1
+
+
+def blocked_folds_default(n: int):  # noqa: ANN201
+    """The selection's default folds (5 blocks, 10 guard rows)."""
+    from ilic_cli.diagnosis.stats import blocked_folds
+
+    return blocked_folds(n, 5, 10)
+
+
+def test_an_effect_that_raises_the_validation_error_is_refused() -> None:
+    data = concealed_asymmetry(seed=12)
+    symmetric = concealed_asymmetry(dfv_neg=0.0, seed=13)  # the other log has no asymmetry
+    res = forward_select(data, BASE, FS, SelectSettings(effects=("asymmetric_friction",), max_effects=1), validation=symmetric)
+    ev = res.tried[0][0]
+    assert ev.test.p_adjusted < 0.001 and ev.heldout_after_pct < ev.heldout_before_pct
+    assert ev.validation_after_pct > ev.validation_before_pct
+    assert not ev.accepted and ev.reason == "raises the error on the validation log" and res.accepted == []
+
+
+def test_not_lowering_the_heldout_error_is_the_reason_given() -> None:
+    data = concealed_asymmetry(dfv_neg=0.0, seed=1)
+    res = forward_select(data, BASE, FS, SelectSettings(effects=("spring",), max_effects=1))
+    ev = res.tried[0][0]
+    assert ev.test.p_adjusted < 0.001  # significant in-sample (see test_no_concealed_effect_no_acceptance) ...
+    assert ev.reason == "does not lower the held-out error significantly" and not ev.accepted  # ... but not held out
+
+
+def test_a_zero_delay_step_leaves_the_force_alone() -> None:
+    from ilic_cli.diagnosis.select import Step, moving_rows
+
+    data = concealed_asymmetry(n=6000)
+    W, y, names = system(data, BASE, [Step(EFFECTS["delay"], 0.0)])
+    rows = moving_rows(data)
+    np.testing.assert_allclose(y, data.y[rows], rtol=1e-12)
+    np.testing.assert_array_equal(W, data.W[rows])
+
+
+def test_moving_rows_match_a_direct_loop() -> None:
+    """Brute force of the rule in moving_rows' docstring: a row is used when, within the support of the decimation
+    filter (3 decimation periods either side), the speed reaches 1 % of the top speed (99.5th percentile), and it is
+    at least ``trim`` samples from either end of the trimmed record."""
+    from ilic_cli.diagnosis.select import moving_rows
+
+    t, q, qd, qdd = motion(10_000)
+    q[4000:6000] = q[4000]
+    qd_ = np.gradient(q, 1 / FS)
+    data = prepare(t, q, rigid_force(qd_, np.gradient(qd_, 1 / FS)), FS, BASE, LSSettings(trim=50))
+    v = np.abs(data.kin.qd)
+    n, r, edge = len(v), 10, 50
+    top = np.percentile(v, 99.5)
+    want = []
+    for i in range(n - 1, -1, -r):
+        peak = max(v[j] for j in range(max(0, i - 3 * r), min(n, i + 3 * r + 1)))
+        want.append(peak >= 0.01 * top and edge <= i < n - edge)
+    np.testing.assert_array_equal(moving_rows(data), want[::-1])
+
+
+class QuarticSearcher(QuadraticSearcher):
+    """``c0 + C (v - v0)^2 + D (v - v0)^4``: the finite-difference curvature is ``2C + 2D h^2``."""
+
+    D = 0.0
+
+    def rss(self, effect, W0, y, value, rows=slice(None)) -> float:  # noqa: ANN001
+        v = value[0] if isinstance(value, tuple) else value
+        return self.c0 + self.C * (v - self.v0) ** 2 + self.D * (v - self.v0) ** 4
+
+
+@pytest.mark.parametrize("v0", [4.3, 9.7])
+def test_refine_curvature_step_is_small(v0: float) -> None:
+    """The curvature is taken a thousandth of the value away: a quartic term barely shows."""
+    data = concealed_asymmetry(n=4000)
+    n = 50
+    W0 = np.ones((n, 1))
+    y = 5.0 + np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
+    effect = SimpleNamespace(id="q4", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False))
+    s = QuarticSearcher(data, np.linspace(-5.0, 15.0, 21), v0=v0, c0=2.0, curvature=3.0)
+    s.D = 50.0
+    value, std = s.refine(effect, W0, y, round(v0))
+    assert value == pytest.approx(v0, abs=2e-3)
+    assert std == pytest.approx(math.sqrt(2.0 * 2.0 / (n - 3) / (2 * 3.0)), rel=1e-3)
+
+
+def test_refine_std_inflation_for_correlated_residuals_and_flat_profiles() -> None:
+    from ilic_cli.diagnosis.stats import lag1_autocorrelation
+
+    data = concealed_asymmetry(n=4000)
+    n = 60
+    W0 = np.ones((n, 1))
+    e = np.where((np.arange(n) // 6) % 2 == 0, 1.0, -1.0)  # blocks of 6: lag-1 autocorrelation 2/3
+    y = 5.0 + e
+    rho = lag1_autocorrelation(e)
+    assert rho > 0.5
+    effect = SimpleNamespace(id="q", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False))
+    s = QuadraticSearcher(data, np.linspace(1.0, 11.0, 11), v0=4.3, c0=2.0, curvature=0.3, rows=n)
+    _, std = s.refine(effect, W0, y, 4.0)
+    inflation = (1 + rho) / (1 - rho)
+    assert std == pytest.approx(math.sqrt(2.0 * 2.0 / (n - 3) * inflation / (2 * 0.3)), rel=1e-4)
+    flat = QuadraticSearcher(data, np.linspace(1.0, 11.0, 11), v0=4.3, c0=2.0, curvature=0.0, rows=n)
+    assert flat.refine(effect, W0, y, 4.0)[1] is None  # no curvature: no std
+    tiny = QuadraticSearcher(data, np.linspace(1.0, 11.0, 11), v0=4.3, c0=2.0, curvature=3.0, rows=4)
+    _, std4 = tiny.refine(effect, W0[:4], y[:4], 4.0)  # 4 rows, k = 3: one degree of freedom
+    assert std4 == pytest.approx(math.sqrt(2.0 * 2.0 / 1 / (2 * 3.0)), rel=1e-4)
+
+
+def test_concealed_position_ripple_has_its_period() -> None:
+    """A 1.5 N ripple of period 10 mm: the screened grid is built from the decimated positions."""
+    t, q, qd, qdd = motion(20_000)
+    rng = np.random.default_rng(14)
+    tau = rigid_force(qd, qdd) + 1.5 * np.sin(2 * np.pi * q / 0.01) + rng.normal(0.0, 2.0, len(t))
+    data = prepare(t, q, tau, FS, BASE)
+    res = forward_select(data, BASE, FS, SelectSettings(effects=("position_ripple",), max_effects=1))
+    assert [e.effect for e in res.accepted] == ["position_ripple"]
+    assert res.accepted[0].value == pytest.approx(0.01, rel=0.01)
+    assert res.accepted[0].test.df1 == 2  # sine and cosine

@@ -153,6 +153,8 @@ def test_evaluate_fixed_parameters() -> None:
     assert r.condition_number == pytest.approx(math.sqrt(lmax / lmin))
     assert r.rows == 4 and r.rank == 2 and r.names == NAMES
     assert evaluate(np.c_[X, X], Y_LINE, np.array([0.5, 0.5]), NAMES).rank == 1
+    one = evaluate(W_LINE, Y_LINE, np.array([0.0, 1.0]), NAMES)  # residuals [0, 0, -1, 0]: sample std 0.5
+    assert one.rel_std_pct[1] == pytest.approx(100 * 0.5 * math.sqrt(0.2))
     W3 = np.random.default_rng(4).standard_normal((20, 3))
     assert evaluate(W3, W3 @ [1.0, 2.0, 3.0] + 1.0, np.ones(3), ("a", "b", "c")).condition_number == pytest.approx(np.linalg.cond(W3))
 
