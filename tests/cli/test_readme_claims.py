@@ -74,7 +74,7 @@ def test_paper_payload_followed_within_one_window() -> None:
     first_after = wins[holding["k"]]  # the next window, the first wholly after the change
     assert first_after["t_start"] >= t_change
     assert printed(first_after["parameters"]["M"]["value"] - m_before, 2) == "10.04"
-    for w in wins[holding["k"]:]:
+    for w in wins[holding["k"] :]:
         assert abs(w["parameters"]["M"]["value"] - m_before - 10.0) < 0.05
 
 

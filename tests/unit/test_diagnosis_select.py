@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ilic_cli.diagnosis.select import SelectSettings, Searcher, forward_select, moving_rows, system, validation_error
+from ilic_cli.diagnosis.select import Searcher, SelectSettings, forward_select, moving_rows, system, validation_error
 from ilic_cli.effects import EFFECTS, catalogue_ids
 from ilic_cli.idim_ls import LSSettings, prepare
 from ilic_cli.lsq import lstsq

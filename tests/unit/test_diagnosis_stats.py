@@ -8,8 +8,19 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ilic_cli.diagnosis.stats import (ar_fit, batched_rss, blocked_folds, diebold_mariano, effective_size, gls_covariance, heldout_errors, lag1_autocorrelation,
-                                      nested_f_test, shifted_rss, whiten)
+from ilic_cli.diagnosis.stats import (
+    ar_fit,
+    batched_rss,
+    blocked_folds,
+    diebold_mariano,
+    effective_size,
+    gls_covariance,
+    heldout_errors,
+    lag1_autocorrelation,
+    nested_f_test,
+    shifted_rss,
+    whiten,
+)
 from ilic_cli.lsq import lstsq, relative_error_pct
 
 X = np.array([0.0, 1.0, 2.0, 3.0])
@@ -243,10 +254,27 @@ def test_f_test_edge_cases() -> None:
     exact = nested_f_test(eye[:, :2], y3, eye[:, :3], y3, q=1, max_order=0)  # the larger model fits exactly
     assert math.isinf(exact.F) and exact.p_value == 0.0 and exact.delta_bic == float("-inf")
     d = res.to_dict()
-    assert set(d) == {"test", "F", "df1", "df2", "p_value", "bonferroni_trials", "p_adjusted", "whitening_ar_order", "residual_lag1_autocorrelation", "delta_bic"}
+    assert set(d) == {
+        "test",
+        "F",
+        "df1",
+        "df2",
+        "p_value",
+        "bonferroni_trials",
+        "p_adjusted",
+        "whitening_ar_order",
+        "residual_lag1_autocorrelation",
+        "delta_bic",
+    }
     assert d["test"] == "nested-model F-test on AR-prewhitened decimated IDIM data, Bonferroni-corrected"
     assert (d["df1"], d["df2"], d["p_value"], d["whitening_ar_order"], d["residual_lag1_autocorrelation"], d["delta_bic"]) == (
-        1, 1, res.p_value, 0, res.rho, res.delta_bic)
+        1,
+        1,
+        res.p_value,
+        0,
+        res.rho,
+        res.delta_bic,
+    )
     import dataclasses
 
     with pytest.raises(dataclasses.FrozenInstanceError):

@@ -16,8 +16,15 @@ import pytest
 from scipy import signal
 
 from ilic_cli import filtering
-from ilic_cli.filtering import (butter_lowpass_zero_phase, central_difference, decimate_matlab, decimation_factor, filtfilt_matlab, kept_indices,
-                                lowpass_decimate)
+from ilic_cli.filtering import (
+    butter_lowpass_zero_phase,
+    central_difference,
+    decimate_matlab,
+    decimation_factor,
+    filtfilt_matlab,
+    kept_indices,
+    lowpass_decimate,
+)
 
 
 @pytest.mark.parametrize("r", [1, 2, 3, 7, 10, 80])

@@ -14,8 +14,20 @@ import math
 import numpy as np
 import pytest
 
-from ilic_cli.idim_ilic import (ILICResult, ILICSettings, WindowEstimate, delay_samples, essential_mask, estimate_window, estimate_windows, identify_ilic, reference_derivatives,
-                                reference_lag, tracking_error_ratio, update_parameters)
+from ilic_cli.idim_ilic import (
+    ILICResult,
+    ILICSettings,
+    WindowEstimate,
+    delay_samples,
+    essential_mask,
+    estimate_window,
+    estimate_windows,
+    identify_ilic,
+    reference_derivatives,
+    reference_lag,
+    tracking_error_ratio,
+    update_parameters,
+)
 from ilic_cli.lsq import solve
 from ilic_cli.regressor import get_model
 from tests.unit.synth import FS, motion, rigid_force
@@ -245,8 +257,17 @@ def test_window_and_result_records() -> None:
     import dataclasses
 
     t, q, qd, qdd, tau = windows(2)
-    res = identify_ilic(t.ravel(), q.ravel(), tau.ravel(), FS, get_model("rigid"), ILICSettings(window_s=2.0, ref_lag=0), qd_ref=qd.ravel(), qdd_ref=qdd.ravel(),
-                        q=q.ravel() + 1e-4)
+    res = identify_ilic(
+        t.ravel(),
+        q.ravel(),
+        tau.ravel(),
+        FS,
+        get_model("rigid"),
+        ILICSettings(window_s=2.0, ref_lag=0),
+        qd_ref=qd.ravel(),
+        qdd_ref=qdd.ravel(),
+        q=q.ravel() + 1e-4,
+    )
     w = res.windows[1]
     d = w.to_dict()
     assert set(d) == {"k", "t_start", "t_end", "parameters", "essential", "relative_error_pct", "condition_number", "tracking_error_ratio", "note"}
@@ -258,8 +279,25 @@ def test_window_and_result_records() -> None:
     assert set(top) == {"method", "model", "window_s", "cutoff_hz", "sigma_max_pct", "ref_lag_samples", "windows", "dropped_tail_s"}
     assert (top["model"], top["cutoff_hz"], top["sigma_max_pct"], top["dropped_tail_s"], top["ref_lag_samples"]) == ("rigid", 5.0, 15.0, 0.0, 0)
     frame = res.to_frame()
-    assert list(frame.columns) == ["k", "t_start", "t_end", "M", "M_std", "M_rel_std_pct", "M_essential", "Fv", "Fv_std", "Fv_rel_std_pct", "Fv_essential",
-                                   "Fc", "Fc_std", "Fc_rel_std_pct", "Fc_essential", "relative_error_pct", "tracking_error_ratio"]
+    assert list(frame.columns) == [
+        "k",
+        "t_start",
+        "t_end",
+        "M",
+        "M_std",
+        "M_rel_std_pct",
+        "M_essential",
+        "Fv",
+        "Fv_std",
+        "Fv_rel_std_pct",
+        "Fv_essential",
+        "Fc",
+        "Fc_std",
+        "Fc_rel_std_pct",
+        "Fc_essential",
+        "relative_error_pct",
+        "tracking_error_ratio",
+    ]
     row = frame.iloc[1]
     assert (row["t_start"], row["t_end"]) == (2.0, 3.999)
     assert row["Fv_std"] == w.result.std[1] and row["Fv_rel_std_pct"] == w.result.rel_std_pct[1]
