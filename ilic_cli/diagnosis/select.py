@@ -398,13 +398,14 @@ def forward_select(
             if eff.nonlinear:
                 value = searcher.scan(eff, W, y)
                 value, vstd = searcher.refine(eff, W, y, value)
+            # Bonferroni over the candidates and, for a searched parameter, its grid points (a shift's too)
+            trials = trials_base * (len(searcher.grid(eff)[0]) if eff.nonlinear else 1)
             if eff.shift:
-                W1, y1, q, trials = W, searcher.exact(eff, value), 1, trials_base
+                W1, y1, q = W, searcher.exact(eff, value), 1
             else:
                 W1 = np.hstack([W, searcher.exact(eff, value) if eff.nonlinear else searcher.exact_linear(eff)])
                 # a secondary nonlinear parameter is one more degree of freedom
                 y1, q = y, len(eff.columns) + (1 if eff.scan is not None and eff.scan.secondary else 0)
-                trials = trials_base * (len(searcher.grid(eff)[0]) if eff.nonlinear else 1)
             test = nested_f_test(W, y, W1, y1, q, trials)
             theta1, _ = lstsq(W1, y1)
             rel = relative_error_pct(y1, W1 @ theta1)

@@ -221,8 +221,7 @@ def test_concealed_delay_is_found_with_its_sign() -> None:
     ev = res.accepted[0]
     assert ev.value == pytest.approx(0.004, abs=2e-4)
     assert ev.value_std is not None and 0 < ev.value_std < 5e-4
-    # not asserted: the delay's F-test counts candidates only (trials 2), not its 101 grid points, unlike the
-    # README's "Bonferroni over candidates and grid points" (reported in issue 14's closing note)
+    assert ev.test.trials == 2 * 101  # Bonferroni over the candidates and the delay's grid points, as for any searched parameter
     W, y, names = system(data, BASE, res.steps)
     assert names == BASE.names  # a shift adds no column
     theta = lstsq(W, y)[0]
