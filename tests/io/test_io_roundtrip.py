@@ -227,8 +227,10 @@ def test_foreign_mcap_with_several_topics_needs_topic(tmp_path: Path) -> None:
     with pytest.raises(ChoiceError, match="several sensor_msgs/msg/JointState topics") as info:
         read_log(path)
     assert info.value.choice == "topic"
-    refused = run_cli("info", str(path))
+    refused = run_cli("convert", str(path), str(tmp_path / "out.csv"))
     assert refused.status == 2 and "choose one with --topic" in refused.stderr
+    overview = run_cli("info", str(path))  # info lists the topics and says what to choose
+    assert overview.status == 0 and "| /left/joint_states |" in overview.stdout and "choose one with --topic" in overview.stdout
     log = read_log(path, selection=Selection(topic="/right/joint_states"))
     assert log.meta["joint"] == "b" and len(log) == 50
 
