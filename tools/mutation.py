@@ -88,6 +88,16 @@ class ModuleScore:
     survivors: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
+    def record(self, outcome: str, survivor: str) -> None:
+        """Count one mutant's ``outcome`` ("failed", "timeout" or "passed"); ``survivor`` describes it if it passed."""
+        self.total += 1
+        if outcome == "failed":
+            self.killed += 1
+        elif outcome == "timeout":
+            self.timeouts += 1
+        else:
+            self.survivors.append(survivor)
+
     @property
     def score_pct(self) -> float:
         return 100.0 * (self.killed + self.timeouts) / self.total if self.total else float("nan")
@@ -247,13 +257,7 @@ def run_module(path: str, tests: list[str], sample: float, seed: int, out_dir: P
     name = module_name(path)
     for line, mutated in muts:
         outcome = run_child(tests, timeout_s, (name, path, mutated))
-        score.total += 1
-        if outcome == "failed":
-            score.killed += 1
-        elif outcome == "timeout":
-            score.timeouts += 1
-        else:
-            score.survivors.append(f"line {line}\n{diff(path, original, mutated)}")
+        score.record(outcome, f"line {line}\n{diff(path, original, mutated)}" if outcome == "passed" else "")
         if verbose:
             print(f"  {path}:{line} {outcome}", flush=True)
     score.seconds = time.perf_counter() - start
@@ -279,19 +283,14 @@ def run_planted(planted: list[dict], paths: list[str] | None) -> ModuleScore:
     for bug in planted:
         if paths is not None and bug["path"] not in paths:
             continue
-        source = (ROOT / bug["path"]).read_text()
+        module = ROOT / bug["path"]
+        source = module.read_text() if module.is_file() else ""
         if source.count(bug["old"]) != 1:
             raise SystemExit(
                 f"mutation: planted bug '{bug['why']}' no longer applies to {bug['path']} (its original text is gone); update [tool.ilic-mutation.planted]"
             )
         outcome = run_child(bug["tests"], 60.0, (module_name(bug["path"]), bug["path"], source.replace(bug["old"], bug["new"])))
-        score.total += 1
-        if outcome == "failed":
-            score.killed += 1
-        elif outcome == "timeout":
-            score.timeouts += 1
-        else:
-            score.survivors.append(f"{bug['path']}: {bug['why']}")
+        score.record(outcome, f"{bug['path']}: {bug['why']}")
         print(f"  planted: {bug['why']}: {'killed' if outcome != 'passed' else 'SURVIVED'}", flush=True)
     score.seconds = time.perf_counter() - start
     return score
