@@ -36,7 +36,7 @@ from ilic_cli import parameters
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import bilinear_lfilter
 from ilic_cli.lsq import finite_or_none
-from ilic_cli.regressor import Column, Kinematics
+from ilic_cli.regressor import Column, Kinematics, negative_side
 
 
 # ---------------------------------------------------------------------------
@@ -620,7 +620,7 @@ ASYMMETRIC_FRICTION = register(
         signature="residual proportional to velocity on one side of zero only; mean residual differs between positive and negative velocity bins",
         signature_kinds=("velocity",),
         columns=(_col("dFv_neg", "extra viscous friction at negative velocity", "N·s/m"),),
-        build=lambda kin, value, fs_hz: np.c_[kin.qd * (1.0 - kin.sgn) / 2.0],
+        build=lambda kin, value, fs_hz: np.c_[kin.qd * negative_side(kin)],
         estimate=_asym_estimate,
         sentence=lambda p: f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward",
     )

@@ -90,11 +90,13 @@ class Model:
         return Model(name or self.name, self.columns + tuple(columns))
 
 
-def _positive(kin: Kinematics) -> np.ndarray:
+def positive_side(kin: Kinematics) -> np.ndarray:
+    """1 where the velocity is positive, 0 where negative (1/2 at rest): the benchmark's asymmetric model."""
     return (1.0 + kin.sgn) / 2.0
 
 
-def _negative(kin: Kinematics) -> np.ndarray:
+def negative_side(kin: Kinematics) -> np.ndarray:
+    """1 where the velocity is negative, 0 where positive (1/2 at rest)."""
     return (1.0 - kin.sgn) / 2.0
 
 
@@ -103,10 +105,10 @@ _BUILDS: dict[str, Callable[[Kinematics], np.ndarray]] = {
     "Fv": lambda k: k.qd,
     "Fc": lambda k: k.sgn,
     "offset": lambda k: np.ones_like(k.qd),
-    "Fv_pos": lambda k: k.qd * _positive(k),
-    "Fc_pos": lambda k: k.sgn * _positive(k),
-    "Fv_neg": lambda k: k.qd * _negative(k),
-    "Fc_neg": lambda k: k.sgn * _negative(k),
+    "Fv_pos": lambda k: k.qd * positive_side(k),
+    "Fc_pos": lambda k: k.sgn * positive_side(k),
+    "Fv_neg": lambda k: k.qd * negative_side(k),
+    "Fc_neg": lambda k: k.sgn * negative_side(k),
 }
 """Column of each rigid parameter (paper eq. 30; benchmark asymmetric model)."""
 
