@@ -23,7 +23,18 @@ from ilic_cli.errors import LogError
 from ilic_cli.io import cdrcols
 from ilic_cli.io.container import short_text
 from ilic_cli.io.roscolumns import Arrays, Numbers, Series, sort_series
-from ilic_cli.io.rosschema import JOINT_STATE, ROS1, ROS2, STRING, TRAJECTORY_POINT, RawTopic, typestore
+from ilic_cli.io.rosschema import (
+    CONTROLLER_LAYOUTS,
+    CONTROLLER_STATE,
+    JOINT_STATE,
+    ROS1,
+    ROS2,
+    STRING,
+    TRAJECTORY_POINT,
+    RawTopic,
+    controller_typestore,
+    typestore,
+)
 
 BLOCK = 8192
 """Messages buffered as Python values before they are packed into NumPy blocks."""
@@ -274,6 +285,72 @@ class _JointStateSink(_Sink):
         series.names = [tuple(str(x) for x in key) for key in self._names]
 
 
+class _ControllerStateSink(_JointStateSink):
+    """ros2_control's controller state: its joint names, and the reference, feedback and output points as columns.
+
+    Decoded per message (no column fast path). A ROS 2 topic takes the first
+    layout of :data:`~ilic_cli.io.rosschema.CONTROLLER_LAYOUTS` that decodes
+    its first message exactly and keeps it; ``desired``/``actual`` are read
+    as ``reference``/``feedback`` (the older fields, or the newer ones left
+    empty).
+    """
+
+    arrays = (
+        "reference.positions",
+        "reference.velocities",
+        "reference.accelerations",
+        "feedback.positions",
+        "feedback.velocities",
+        "feedback.effort",
+        "output.effort",
+    )
+
+    def __init__(self, topic: RawTopic) -> None:
+        super().__init__(topic)
+        if topic.kind == ROS2:
+            self._layouts = [controller_typestore(name).deserialize_cdr for name in CONTROLLER_LAYOUTS]
+            self._deserialize = self._any_layout
+
+    def _any_layout(self, data: bytes | memoryview, msgtype: str) -> Any:
+        failure: Exception | None = None
+        for deserialize in self._layouts:
+            try:
+                msg = deserialize(data, msgtype)
+            except Exception as exc:  # noqa: BLE001 - not this layout
+                failure = failure or exc
+                continue
+            self._layouts = [deserialize]  # one layout per topic
+            return msg
+        assert failure is not None
+        raise failure
+
+    @staticmethod
+    def _point(msg: Any, new: str, old: str) -> Any:
+        point = getattr(msg, new, None)
+        if point is None or (len(point.positions) == 0 and hasattr(msg, old)):
+            point = getattr(msg, old)
+        return point
+
+    def _take(self, msg: Any) -> None:
+        key = tuple(msg.joint_names)
+        nid = self._names.get(key)
+        if nid is None:
+            nid = self._names[key] = len(self._names)
+        stamp = msg.header.stamp
+        self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
+        self._name_id.items.append(nid)
+        reference, feedback = self._point(msg, "reference", "desired"), self._point(msg, "feedback", "actual")
+        output = getattr(msg, "output", None)
+        arrays = self._arrays
+        arrays["reference.positions"].append(reference.positions)
+        arrays["reference.velocities"].append(reference.velocities)
+        arrays["reference.accelerations"].append(reference.accelerations)
+        arrays["feedback.positions"].append(feedback.positions)
+        arrays["feedback.velocities"].append(feedback.velocities)
+        arrays["feedback.effort"].append(feedback.effort)
+        arrays["output.effort"].append(output.effort if output is not None else ())
+
+
 class _PointSink(_Sink):
     arrays = ("positions", "velocities", "accelerations")
 
@@ -309,7 +386,7 @@ class _StringSink(_Sink):
         series.text = self._text
 
 
-_SINKS: dict[str, type[_Sink]] = {JOINT_STATE: _JointStateSink, TRAJECTORY_POINT: _PointSink, STRING: _StringSink}
+_SINKS: dict[str, type[_Sink]] = {JOINT_STATE: _JointStateSink, TRAJECTORY_POINT: _PointSink, STRING: _StringSink, CONTROLLER_STATE: _ControllerStateSink}
 
 
 class Collector:
