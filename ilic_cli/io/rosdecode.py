@@ -396,6 +396,8 @@ def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunL
             raise LogError(path, f"{effort[0]} has fewer than 2 '{effort[1]}' values for joint '{joint}'")
         channels["tau"] = on_samples
         meta["tau_source"] = f"{effort[0]}:{effort[1]}"
+    if "tau" not in channels:
+        raise ChoiceError(path, f"topic {topic} has no effort for joint '{joint}' and no controller state gives one; choose the effort's topic", "effort")
     rate = nominal_rate_hz(t)
     if rate:
         meta["sample_rate_hz"] = rate
