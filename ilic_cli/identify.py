@@ -199,6 +199,7 @@ def identify(
         Logs to apply the estimates to (same processing).
     """
     prepared = prepare_log(log)
+    log = prepared.log  # an irregularly sampled log is on a uniform grid now
     src, fs, valid = prepared.source, prepared.fs_hz, prepared.valid
     effects = dict(effects or {})
     model = with_effects(structure, effects, fs)

@@ -172,6 +172,7 @@ OPTIONS: dict[str, str] = {
     "gear_ratio": "--gear-ratio",
     "torque_constant": "--torque-constant",
     "load_joint": "--load-joint",
+    "rate_hz": "--resample",
 }
 """Parameter of a :class:`~ilic_cli.errors.ParameterError` -> the option that sets it."""
 
