@@ -365,3 +365,14 @@ def test_plots_of_a_robot_log_carry_units(corpus: dict[str, Path], tmp_path: Pat
     res = run_cli("identify", str(corpus["ros2-humble-mcap-storage"]), "--joint", "axis", "--method", "ls", "--out", str(tmp_path / "plots"))
     assert res.status == 0, res.stderr
     _labels_have_units(saved)
+
+
+def test_the_reference_is_the_joints_whatever_the_order(corpus: dict[str, Path], emps: RunLog) -> None:
+    """3. The reference is matched to the measured joint by name (IDIM-LS alone would not notice a wrong one)."""
+    from ilic_cli.io import Selection
+
+    want = emps.slice(0, SHORT)
+    for name in ("reference-joint-order", "ros1-controller", "ros2-humble-mcap-storage"):
+        log = read_log(corpus[name], selection=Selection(joint="axis"))
+        assert log.meta["topic"] == "/joint_states" and log.meta["ref_topic"] == "/jtc/controller_state"
+        assert np.array_equal(log["q_ref"], want["q_ref"]) and np.array_equal(log["q"], want["q"]), name
