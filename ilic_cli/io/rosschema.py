@@ -57,45 +57,46 @@ ROS2 = "ros2"
 ROS1 = "ros1"
 
 
-_POINT = "trajectory_msgs/JointTrajectoryPoint"
-_MULTI = "trajectory_msgs/MultiDOFJointTrajectoryPoint"
-
-
-def _controller_text(header: str, points: tuple[str, ...], multi: tuple[str, ...] = ()) -> str:
-    lines = [f"{header} header", "string[] joint_names", *(f"{_POINT} {p}" for p in points)]
-    if multi:
-        lines += ["string[] multi_dof_joint_names", *(f"{_MULTI} multi_dof_{p}" for p in multi)]
-    return "\n".join(lines) + "\n"
-
-
-CONTROLLER_LAYOUTS: dict[str, str] = {
-    # control_msgs <= 4.0 (Foxy, Galactic, early Humble) and ROS 1 (Noetic)
-    "desired/actual": _controller_text("std_msgs/Header", ("desired", "actual", "error")),
+CONTROLLER_LAYOUTS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    # control_msgs <= 4.0 (Foxy, Galactic, early Humble), as ROS 1's (Noetic)
+    "desired/actual": (("desired", "actual", "error"), ()),
     # control_msgs 4.x (Humble): the new fields, then the deprecated ones kept
-    "reference/feedback+desired/actual": _controller_text(
-        "std_msgs/Header",
+    "reference/feedback+desired/actual": (
         ("reference", "feedback", "error", "output", "desired", "actual"),
         ("reference", "feedback", "error", "output", "desired", "actual"),
     ),
     # control_msgs >= 5 (Jazzy and later)
-    "reference/feedback": _controller_text("std_msgs/Header", ("reference", "feedback", "error", "output"), ("reference", "feedback", "error", "output")),
+    "reference/feedback": (("reference", "feedback", "error", "output"), ("reference", "feedback", "error", "output")),
 }
-"""ROS 2 layouts of :data:`CONTROLLER_STATE` (name -> ``.msg`` text), tried in this order; CDR carries no field names, so a
-message is decoded with the first layout whose size matches it exactly."""
+"""ROS 2 layouts of :data:`CONTROLLER_STATE`: name -> (its ``trajectory_msgs/JointTrajectoryPoint`` fields, after ``header`` and
+``joint_names``; its ``multi_dof_*`` ``MultiDOFJointTrajectoryPoint`` fields, after ``multi_dof_joint_names``). CDR carries no
+field names, so a message is decoded with the first layout whose size matches it exactly. ROS 1's is ``desired/actual`` (MD5
+``10817c60c2486ef6b33e97dcd87f4474``)."""
 
-CONTROLLER_ROS1 = _controller_text("Header", ("desired", "actual", "error"))
-"""ROS 1's :data:`CONTROLLER_STATE` (Noetic's ``control_msgs``; MD5 ``10817c60c2486ef6b33e97dcd87f4474``)."""
+
+def _controller_fields(layout: str, kind: str) -> dict[str, Any]:
+    """:data:`CONTROLLER_STATE` in ``layout`` as a ``rosbags`` type definition, built field by field (no definition text is parsed)."""
+    from rosbags.interfaces import Nodetype
+
+    points, multi = CONTROLLER_LAYOUTS[layout]
+    names = (Nodetype.SEQUENCE, ((Nodetype.BASE, ("string", 0)), 0))
+    fields: list[tuple[str, Any]] = [("header", (Nodetype.NAME, "std_msgs/msg/Header")), ("joint_names", names)]
+    fields += [(p, (Nodetype.NAME, "trajectory_msgs/msg/JointTrajectoryPoint")) for p in points]
+    if multi and kind == ROS2:
+        fields.append(("multi_dof_joint_names", names))
+        fields += [(f"multi_dof_{p}", (Nodetype.NAME, "trajectory_msgs/msg/MultiDOFJointTrajectoryPoint")) for p in multi]
+    return {CONTROLLER_STATE: ([], fields)}
 
 
 # -- type stores -------------------------------------------------------------
 @functools.cache
 def typestore(kind: str) -> Any:
-    """Return the ``rosbags`` type store: ROS 2 Humble (``"ros2"``) or ROS 1 Noetic (``"ros1"``, with :data:`CONTROLLER_ROS1`)."""
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    """Return the ``rosbags`` type store: ROS 2 Humble (``"ros2"``) or ROS 1 Noetic (``"ros1"``, with ROS 1's :data:`CONTROLLER_STATE`)."""
+    from rosbags.typesys import Stores, get_typestore
 
     if kind == ROS1:
         ts = get_typestore(Stores.ROS1_NOETIC)
-        ts.register(get_types_from_msg(CONTROLLER_ROS1, CONTROLLER_STATE))
+        ts.register(_controller_fields("desired/actual", ROS1))
         return ts
     return get_typestore(Stores.ROS2_HUMBLE)
 
@@ -103,10 +104,10 @@ def typestore(kind: str) -> Any:
 @functools.cache
 def controller_typestore(layout: str) -> Any:
     """Return a ROS 2 Humble type store with :data:`CONTROLLER_STATE` in ``layout`` (a key of :data:`CONTROLLER_LAYOUTS`)."""
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
-    ts.register(get_types_from_msg(CONTROLLER_LAYOUTS[layout], CONTROLLER_STATE))
+    ts.register(_controller_fields(layout, ROS2))
     return ts
 
 
