@@ -177,14 +177,19 @@ def nominal_rate_hz(t: np.ndarray) -> float | None:
         The nominal rate, or None with fewer than two samples or a non-positive
         median step.
     """
-    t = np.asarray(t, dtype=np.float64).reshape(-1)
-    if len(t) < 2:
+    found = _steps_between_gaps(t)
+    return None if found is None else _round_rate(float(np.mean(found[0][found[1]])))
+
+
+def _steps_between_gaps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The steps of ``t`` and which are not gaps (at most :data:`GAP_FACTOR` median steps); None without a positive median step."""
+    steps = np.diff(np.asarray(t, dtype=np.float64).reshape(-1))
+    if len(steps) == 0:
         return None
-    steps = np.diff(t)
     median = float(np.median(steps))
     if not (median > 0 and math.isfinite(median)):
         return None
-    return _round_rate(float(np.mean(steps[steps <= GAP_FACTOR * median])))
+    return steps, steps <= GAP_FACTOR * median
 
 
 def _round_rate(step: float) -> float:
@@ -249,13 +254,10 @@ def sampling_kind(t: np.ndarray) -> str:
         of the steps (keep the samples); ``"irregular"`` otherwise
         (interpolate them, :func:`irregular_grid`).
     """
-    steps = np.diff(np.asarray(t, dtype=np.float64).reshape(-1))
-    if len(steps) < 2:
+    found = _steps_between_gaps(t)
+    if found is None or len(found[0]) < 2:
         return "fixed-rate"
-    median = float(np.median(steps))
-    if not (median > 0 and math.isfinite(median)):
-        return "fixed-rate"
-    inside = steps <= GAP_FACTOR * median
+    steps, inside = found
     mean = float(np.mean(steps[inside]))
     if np.mean(~inside) > FREQUENT_GAPS or bool((np.abs(steps[inside] / mean - 1.0) > STAMP_JITTER).any()):
         return "irregular"

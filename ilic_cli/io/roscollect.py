@@ -235,15 +235,19 @@ class _JointStateSink(_Sink):
         self._name_id = Numbers(np.int32, small=True)
         self._names: dict[tuple[str, ...], int] = {}
 
-    def _take(self, msg: Any) -> None:
-        key = tuple(msg.name)
+    def _take_header(self, msg: Any, names: Any) -> None:
+        """Keep the message's ``header.stamp`` and the id of its joint ``names``."""
+        key = tuple(names)
         nid = self._names.get(key)
         if nid is None:
             nid = self._names[key] = len(self._names)
         stamp = msg.header.stamp
-        position, velocity, effort = msg.position, msg.velocity, msg.effort
         self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
         self._name_id.items.append(nid)
+
+    def _take(self, msg: Any) -> None:
+        self._take_header(msg, msg.name)
+        position, velocity, effort = msg.position, msg.velocity, msg.effort
         arrays = self._arrays
         arrays["position"].append(position)
         arrays["velocity"].append(velocity)
@@ -332,13 +336,7 @@ class _ControllerStateSink(_JointStateSink):
         return point
 
     def _take(self, msg: Any) -> None:
-        key = tuple(msg.joint_names)
-        nid = self._names.get(key)
-        if nid is None:
-            nid = self._names[key] = len(self._names)
-        stamp = msg.header.stamp
-        self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
-        self._name_id.items.append(nid)
+        self._take_header(msg, msg.joint_names)
         reference, feedback = self._point(msg, "reference", "desired"), self._point(msg, "feedback", "actual")
         output = getattr(msg, "output", None)
         arrays = self._arrays
