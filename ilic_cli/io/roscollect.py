@@ -30,6 +30,7 @@ from ilic_cli.io.rosschema import (
     ROS1,
     ROS2,
     STRING,
+    TRAJECTORY,
     TRAJECTORY_POINT,
     RawTopic,
     controller_typestore,
@@ -237,12 +238,15 @@ class _JointStateSink(_Sink):
 
     def _take_header(self, msg: Any, names: Any) -> None:
         """Keep the message's ``header.stamp`` and the id of its joint ``names``."""
+        stamp = msg.header.stamp
+        self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
+        self._take_names(names)
+
+    def _take_names(self, names: Any) -> None:
         key = tuple(names)
         nid = self._names.get(key)
         if nid is None:
             nid = self._names[key] = len(self._names)
-        stamp = msg.header.stamp
-        self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
         self._name_id.items.append(nid)
 
     def _take(self, msg: Any) -> None:
@@ -349,6 +353,47 @@ class _ControllerStateSink(_JointStateSink):
         arrays["output.effort"].append(output.effort if output is not None else ())
 
 
+class _TrajectorySink(_JointStateSink):
+    """A ``JointTrajectory``'s points, one row each: stamp = ``header.stamp`` (else log time) + ``time_from_start``."""
+
+    arrays = ("positions", "velocities", "accelerations")
+
+    def __init__(self, topic: RawTopic) -> None:
+        super().__init__(topic)
+        self._message = Numbers(np.int64)
+
+    def add(self, log_ns: int, data: bytes | memoryview) -> None:
+        """Decode one message into a row per point."""
+        if self.error is not None:
+            return
+        try:
+            msg = self._deserialize(data, self.topic.msgtype)
+            stamp = msg.header.stamp
+            start = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec) or log_ns
+            for point in msg.points:
+                since = point.time_from_start
+                self._stamp.items.append(start + int(since.sec) * 1_000_000_000 + int(since.nanosec))
+                self._take_names(msg.joint_names)
+                for name in self.arrays:
+                    self._arrays[name].append(getattr(point, name))
+                self._message.items.append(self.count)
+                self._log_ns.items.append(log_ns)
+        except Exception as exc:  # noqa: BLE001 - any decoding failure is bad input
+            self.error = f"message {self.count} on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {short_text(exc)})"
+            return
+        self.count += 1
+        if len(self._log_ns.items) >= BLOCK:
+            self._flush()
+
+    def _flush(self) -> None:
+        super()._flush()
+        self._message.flush()
+
+    def _extra(self, series: Series) -> None:
+        super()._extra(series)
+        series.message_id = self._message.array()
+
+
 class _PointSink(_Sink):
     arrays = ("positions", "velocities", "accelerations")
 
@@ -384,7 +429,13 @@ class _StringSink(_Sink):
         series.text = self._text
 
 
-_SINKS: dict[str, type[_Sink]] = {JOINT_STATE: _JointStateSink, TRAJECTORY_POINT: _PointSink, STRING: _StringSink, CONTROLLER_STATE: _ControllerStateSink}
+_SINKS: dict[str, type[_Sink]] = {
+    JOINT_STATE: _JointStateSink,
+    TRAJECTORY_POINT: _PointSink,
+    STRING: _StringSink,
+    CONTROLLER_STATE: _ControllerStateSink,
+    TRAJECTORY: _TrajectorySink,
+}
 
 
 class Collector:

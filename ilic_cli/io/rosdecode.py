@@ -41,6 +41,7 @@ from ilic_cli.io.rosschema import (
     TOPIC_METADATA,
     TOPIC_REFERENCE,
     TOPIC_STATES,
+    TRAJECTORY,
     TRAJECTORY_POINT,
 )
 
@@ -227,7 +228,7 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
         no_position = _first(pos_counts <= jj)
         if no_position is not None:
             raise LogError(path, f"message {no_position} on {topic}: no {what} for joint '{joint}'")
-        out = {"joint": joint, "log_ns": series.log_ns, "stamp_ns": series.stamp_ns}
+        out = {"joint": joint, "log_ns": series.log_ns, "stamp_ns": series.stamp_ns, "message_id": series.message_id}
         for key, fieldname in fields.items():
             out[key] = series.values_at(fieldname, jj)
         return out
@@ -253,11 +254,15 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
     }
     for key, fieldname in fields.items():
         out[key] = series.values_at(fieldname, jk, mask)
+    if series.message_id is not None:
+        out["message_id"] = series.message_id if all_kept else series.message_id[keep]
     return out
 
 
 def _reference_series(source: Collected, topic: str, joint_index: int | None, path: Path, joint: str | None = None) -> dict[str, Any]:
     info = source.topics[topic]
+    if info.msgtype == TRAJECTORY:
+        return _trajectory_reference(source, topic, joint, path)
     if info.msgtype in (JOINT_STATE, CONTROLLER_STATE):
         # by name: a message without the joint is skipped, a topic without it refused
         if info.msgtype == JOINT_STATE:
@@ -268,7 +273,7 @@ def _reference_series(source: Collected, topic: str, joint_index: int | None, pa
         ref.setdefault("accelerations", None)
         return ref
     if info.msgtype != TRAJECTORY_POINT:
-        raise LogError(path, f"reference topic {topic} has type {info.msgtype}; expected {TRAJECTORY_POINT}, {JOINT_STATE} or {CONTROLLER_STATE}")
+        raise LogError(path, f"reference topic {topic} has type {info.msgtype}; expected {TRAJECTORY_POINT}, {TRAJECTORY}, {JOINT_STATE} or {CONTROLLER_STATE}")
     series = source.series(topic)
     width = series.fields["positions"][1]
     if len(width) and bool((width == 1).all()):
@@ -286,6 +291,29 @@ def _reference_series(source: Collected, topic: str, joint_index: int | None, pa
     out: dict[str, Any] = {"log_ns": series.log_ns}
     for fieldname in ("positions", "velocities", "accelerations"):
         out[fieldname] = series.values_at(fieldname, j)
+    return out
+
+
+def _trajectory_reference(source: Collected, topic: str, joint: str | None, path: Path) -> dict[str, Any]:
+    """The joint's reference from ``JointTrajectory`` messages, by name: their points at ``header.stamp + time_from_start``.
+
+    As a trajectory controller does, a message replaces what earlier ones
+    planned from its first point on. The result's ``point_ns`` are the points'
+    times, on which the reference is interpolated at the measured stamps.
+    """
+    fields = {"positions": "positions", "velocities": "velocities", "accelerations": "accelerations"}
+    ref = _joint_state_series(source, topic, joint, path, strict=False, fields=fields)
+    at, message = ref["stamp_ns"], ref["message_id"]
+    starts = np.full(int(message.max()) + 2, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(starts, message, at)
+    later = np.minimum.accumulate(starts[::-1])[::-1]  # the earliest start of this message or any later one
+    keep = at < later[message + 1]
+    order = np.argsort(at[keep], kind="stable")
+    out: dict[str, Any] = {"point_ns": at[keep][order], "log_ns": ref["log_ns"][keep][order]}
+    for key in fields:
+        out[key] = None if ref[key] is None else ref[key][keep][order]
+    if len(out["point_ns"]) and bool((np.diff(out["point_ns"]) == 0).any()):
+        raise LogError(path, f"{topic} plans two points at the same time for joint '{ref['joint']}'")
     return out
 
 
@@ -380,7 +408,12 @@ def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunL
         ref = _reference_series(source, ref_name, joint_index, path, joint=joint)
         for channel, fieldname in REFERENCE_FIELDS.items():
             values = ref[fieldname]
-            on_samples = None if values is None else _on_samples(values, ref["log_ns"], log_ns)
+            if values is None:
+                continue
+            if "point_ns" in ref:  # a planned trajectory: interpolated in time at the measured stamps
+                on_samples = np.interp(stamps.astype(np.float64), ref["point_ns"].astype(np.float64), values) if len(values) else None
+            else:
+                on_samples = _on_samples(values, ref["log_ns"], log_ns)
             if on_samples is not None:
                 channels[channel] = on_samples
         meta["ref_topic"] = ref_name

@@ -40,8 +40,9 @@ JOINT_STATE = "sensor_msgs/msg/JointState"
 TRAJECTORY_POINT = "trajectory_msgs/msg/JointTrajectoryPoint"
 STRING = "std_msgs/msg/String"
 CONTROLLER_STATE = "control_msgs/msg/JointTrajectoryControllerState"
+TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 
-READ_TYPES = frozenset({JOINT_STATE, TRAJECTORY_POINT, STRING, CONTROLLER_STATE})
+READ_TYPES = frozenset({JOINT_STATE, TRAJECTORY_POINT, STRING, CONTROLLER_STATE, TRAJECTORY})
 """Message types the readers decode; containers may skip messages of other types."""
 
 TIME_NAME = "t_s"

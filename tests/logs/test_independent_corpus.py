@@ -376,3 +376,35 @@ def test_the_reference_is_the_joints_whatever_the_order(corpus: dict[str, Path],
         log = read_log(corpus[name], selection=Selection(joint="axis"))
         assert log.meta["topic"] == "/joint_states" and log.meta["ref_topic"] == "/jtc/controller_state"
         assert np.array_equal(log["q_ref"], want["q_ref"]) and np.array_equal(log["q"], want["q"]), name
+
+
+@pytest.mark.parametrize("storage", ["ros1", "sqlite3"])
+def test_a_planned_trajectory_is_the_reference_by_name_and_time(emps: RunLog, tmp_path: Path, storage: str) -> None:
+    """2. ``trajectory_msgs/JointTrajectory`` (joints in another order): each point at header.stamp + time_from_start;
+    a later message replaces the plan from its first point on, as a trajectory controller does."""
+    from ilic_cli.io import Selection
+
+    want = emps.slice(0, SHORT)
+    rec = recording(want)
+    half = SHORT // 2
+
+    def plan(first: int, q_ref: np.ndarray) -> tuple[str, int, str, dict[str, Any]]:
+        start = int(rec.stamp_ns[first])
+        points = [
+            {**_point([0.0, float(q)]), "time_from_start": {"sec": int(ns - start) // 10**9, "nanosec": int(ns - start) % 10**9}}
+            for ns, q in zip(rec.stamp_ns[first:], q_ref[first:], strict=True)
+        ]
+        header = {"stamp": {"sec": start // 10**9, "nanosec": start % 10**9}, "frame_id": ""}
+        return ("/arm/joint_trajectory", start - 1, rosschema.TRAJECTORY, {"header": header, "joint_names": ["wrist", "axis"], "points": points})
+
+    replanned = rec.q_ref + 0.01  # the second plan, from the middle on
+    messages = [m for m in _messages(rec, "ros1" if storage == "ros1" else "reference/feedback", JOINTS, ()) if m[1] < rec.stamp_ns[half]]
+    messages += [plan(0, rec.q_ref), plan(half, replanned)]
+    messages += [m for m in _messages(rec, "ros1" if storage == "ros1" else "reference/feedback", JOINTS, ()) if m[1] >= rec.stamp_ns[half]]
+    messages.sort(key=lambda m: m[1])
+    path = write_rosbags(tmp_path / ("log.bag" if storage == "ros1" else "bag"), messages, "ros1" if storage == "ros1" else "reference/feedback", storage)
+    log = read_log(path, selection=Selection(joint="axis", ref_topic="/arm/joint_trajectory"))
+    assert np.array_equal(log["q_ref"][:half], want["q_ref"][:half]) and np.array_equal(log["q_ref"][half:], replanned[half:])
+    assert np.array_equal(log["q"], want["q"])
+    res = run_cli("identify", str(path), "--joint", "elbow", "--ref-topic", "/arm/joint_trajectory", "--method", "ls")
+    assert res.status == 2 and "has no joint 'elbow'" in res.stderr
