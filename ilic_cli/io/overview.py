@@ -2,7 +2,7 @@
 
 Like ``ros2 bag info`` or ``mcap info``: from the container's summary and
 indexes (``mcap`` and ``rosbags``), plus the first message of each
-``JointState`` and controller-state topic for its joint names. Only called on a file that the
+``JointState``, controller-state and ``JointTrajectory`` topic for its joint names. Only called on a file that the
 reader has already parsed with every check (:func:`ilic_cli.io.read_log`,
 or the reader's refusal to choose a joint), so that nothing here meets an
 unchecked chunk.
@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ilic_cli.io.rosschema import CONTROLLER_LAYOUTS, CONTROLLER_STATE, JOINT_STATE, ROS1, ROS2, controller_typestore, normalize_msgtype, typestore
+from ilic_cli.io.rosschema import CONTROLLER_LAYOUTS, CONTROLLER_STATE, JOINT_STATE, ROS1, ROS2, TRAJECTORY, controller_typestore, normalize_msgtype, typestore
 
-NAMED = (JOINT_STATE, CONTROLLER_STATE)
+NAMED = (JOINT_STATE, CONTROLLER_STATE, TRAJECTORY)
 """Message types whose joint names the overview lists."""
 
 
@@ -33,7 +33,7 @@ class TopicOverview:
     rate_hz : float or None
         Messages per second over the container's time span.
     joints : tuple of str or None
-        The joint names of its first message (``JointState`` and controller-state topics).
+        The joint names of its first message (``JointState``, controller-state and ``JointTrajectory`` topics).
     """
 
     topic: str
@@ -61,7 +61,7 @@ def _joints(data: bytes, msgtype: str, kind: str) -> tuple[str, ...] | None:
         return None
     if kind == ROS1:
         msg = typestore(kind).deserialize_ros1(data, msgtype)
-    elif msgtype == JOINT_STATE:
+    elif msgtype != CONTROLLER_STATE:
         msg = typestore(kind).deserialize_cdr(data, msgtype)
     else:
         for layout in CONTROLLER_LAYOUTS:

@@ -317,6 +317,10 @@ def test_a_log_without_its_controller_is_refused(corpus: dict[str, Path]) -> Non
     """4. diagnose and replay do not substitute a controller the log does not record."""
     res = run_cli("diagnose", str(corpus["ros2-jazzy-mcap-ros2"]), "--joint", "axis")
     assert res.status == 2 and "the log records no controller" in res.stderr and res.stderr.count("\n") == 1, res.stderr
+    model = corpus["ros2-jazzy-mcap-ros2"].parent / "model.json"
+    model.write_text('{"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935}')
+    res = run_cli("replay", str(corpus["ros2-jazzy-mcap-ros2"]), "--joint", "axis", "--model", str(model), "-o", str(model.with_suffix(".mcap")))
+    assert res.status == 2 and "the log records no controller" in res.stderr and res.stderr.count("\n") == 1, res.stderr
 
 
 def test_info_lists_the_topics_and_joints(corpus: dict[str, Path]) -> None:
@@ -325,6 +329,7 @@ def test_info_lists_the_topics_and_joints(corpus: dict[str, Path]) -> None:
         res = run_cli("info", str(corpus[name]), "--joint", "axis", "--format", "json")
         assert res.status == 0, res.stderr
         topics = {t["topic"]: t for t in json.loads(res.stdout)["topics"]}
+        assert topics["/jtc/controller_state"]["type"] == rosschema.CONTROLLER_STATE and topics["/joint_states"]["joints"] == ["axis", "wrist"]
         assert topics["/jtc/controller_state"]["type"] == rosschema.CONTROLLER_STATE and topics["/jtc/controller_state"]["joints"] == ["wrist", "axis"]
         assert topics["/joint_states"]["count"] == topics["/jtc/controller_state"]["count"] == SHORT
         assert topics["/joint_states"]["rate_hz"] == pytest.approx(1000.0, rel=1e-4)
@@ -406,5 +411,8 @@ def test_a_planned_trajectory_is_the_reference_by_name_and_time(emps: RunLog, tm
     log = read_log(path, selection=Selection(joint="axis", ref_topic="/arm/joint_trajectory"))
     assert np.array_equal(log["q_ref"][:half], want["q_ref"][:half]) and np.array_equal(log["q_ref"][half:], replanned[half:])
     assert np.array_equal(log["q"], want["q"])
+    info = run_cli("info", str(path), "--joint", "axis", "--ref-topic", "/arm/joint_trajectory", "--format", "json")
+    topics = {t["topic"]: t for t in json.loads(info.stdout)["topics"]}
+    assert topics["/arm/joint_trajectory"]["joints"] == ["wrist", "axis"] and topics["/arm/joint_trajectory"]["count"] == 2
     res = run_cli("identify", str(path), "--joint", "elbow", "--ref-topic", "/arm/joint_trajectory", "--method", "ls")
     assert res.status == 2 and "has no joint 'elbow'" in res.stderr
