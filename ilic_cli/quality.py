@@ -473,8 +473,19 @@ def assess(
                 f"(longest step {report.max_step_s:.6g} s)",
             )
         )
-    if report.jitter > IRREGULAR_JITTER:
-        findings.append(QualityFinding("irregular", "warning", f"irregular sampling: step jitter {100 * report.jitter:.3g} % of the nominal period"))
+    if sampling_kind(t) == "irregular":
+        findings.append(
+            QualityFinding(
+                "irregular",
+                "warning",
+                f"irregular sampling (step jitter {100 * report.jitter:.3g} % of the mean period, not a fixed-rate loop): identification "
+                "interpolates it linearly onto a uniform grid",
+            )
+        )
+    elif report.jitter > IRREGULAR_JITTER:
+        findings.append(
+            QualityFinding("jitter", "info", f"stamp jitter {100 * report.jitter:.3g} % of the period: a fixed-rate loop, samples kept at the mean rate")
+        )
     elif report.median_step_s is not None:
         findings.append(QualityFinding("jitter", "info", f"step jitter {100 * report.jitter:.3g} % of the nominal period"))
     if vir is not None and len(vir):

@@ -416,3 +416,13 @@ def test_a_planned_trajectory_is_the_reference_by_name_and_time(emps: RunLog, tm
     assert topics["/arm/joint_trajectory"]["joints"] == ["wrist", "axis"] and topics["/arm/joint_trajectory"]["count"] == 2
     res = run_cli("identify", str(path), "--joint", "elbow", "--ref-topic", "/arm/joint_trajectory", "--method", "ls")
     assert res.status == 2 and "has no joint 'elbow'" in res.stderr
+
+
+def test_info_tells_stamp_jitter_from_irregular_sampling(corpus: dict[str, Path], emps: RunLog, tmp_path: Path) -> None:
+    """3. (time base) info states which rule applies: jitter kept as a fixed-rate loop, irregular sampling interpolated."""
+    doc = json.loads(run_cli("info", str(corpus["jitter"]), "--joint", "axis", "--format", "json").stdout)
+    codes = {f["code"]: f for f in doc["quality"]["findings"]}
+    assert "irregular" not in codes and "a fixed-rate loop, samples kept" in codes["jitter"]["message"] and doc["quality"]["ok"]
+    doc = json.loads(run_cli("info", str(_csv(lose=0.05)(emps.slice(0, SHORT), tmp_path)), "--format", "json").stdout)
+    codes = {f["code"]: f for f in doc["quality"]["findings"]}
+    assert codes["irregular"]["severity"] == "warning" and "interpolates it linearly onto a uniform grid" in codes["irregular"]["message"]
