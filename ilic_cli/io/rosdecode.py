@@ -118,6 +118,8 @@ def _decode_ilic(source: Collected, selection: Selection, path: Path) -> RunLog:
         raise LogError(path, f"{TOPIC_METADATA} has no joint name")
     if selection.joint is not None and selection.joint != joint:
         raise LogError(path, f"no joint '{selection.joint}' (joints: {joint})")
+    if selection.effort:
+        raise LogError(path, f"an ilic log's effort is its {TOPIC_STATES} effort; another effort topic cannot be chosen")
     units = parse_units(payload.get("units", {}), path)
     meta = payload.get("meta", {})
     if not isinstance(meta, dict):

@@ -426,3 +426,13 @@ def test_info_tells_stamp_jitter_from_irregular_sampling(corpus: dict[str, Path]
     doc = json.loads(run_cli("info", str(_csv(lose=0.05)(emps.slice(0, SHORT), tmp_path)), "--format", "json").stdout)
     codes = {f["code"]: f for f in doc["quality"]["findings"]}
     assert codes["irregular"]["severity"] == "warning" and "interpolates it linearly onto a uniform grid" in codes["irregular"]["message"]
+
+
+def test_an_effort_topic_is_never_ignored(tmp_path: Path) -> None:
+    """--effort on a log whose effort cannot be chosen (ilic's own) or with a field the type lacks: refused, not ignored."""
+    from ilic_cli.io import write_log
+    from tests.conftest import make_synthetic_log
+
+    own = write_log(make_synthetic_log(samples=300), tmp_path / "own.mcap")
+    res = run_cli("identify", str(own), "--method", "ls", "--effort", "/joint_states:output.effort")
+    assert res.status == 2 and "another effort topic cannot be chosen" in res.stderr and res.stderr.count("\n") == 1
