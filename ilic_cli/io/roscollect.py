@@ -438,6 +438,10 @@ _SINKS: dict[str, type[_Sink]] = {
 }
 
 
+PER_MESSAGE = frozenset({CONTROLLER_STATE, TRAJECTORY})
+"""Types decoded one message at a time only (no column layout): a columnar reader leaves them to a per-message pass."""
+
+
 class Collector:
     """Streams a container's messages into per-topic columns in one pass.
 
@@ -454,13 +458,19 @@ class Collector:
         self.topics: dict[str, RawTopic] = {}
         self._sinks: dict[str, _Sink | None] = {}
 
-    def declare(self, topic: RawTopic) -> _Sink | None:
-        """Register ``topic``; return the sink for its messages, or None when they are not read."""
+    def declare(self, topic: RawTopic, decode: bool = True) -> _Sink | None:
+        """Register ``topic``; return the sink for its messages, or None when they are not read.
+
+        ``decode=False`` registers the topic without a sink: another pass
+        decodes it (:meth:`Collected.adopt`).
+        """
         known = self.topics.get(topic.name)
         if known is not None and known != topic:
             raise LogError(self.path, f"topic {topic.name} appears with two message types")
         self.topics[topic.name] = topic
-        if topic.name not in self._sinks:
+        if not decode:
+            self._sinks.setdefault(topic.name, None)
+        elif topic.name not in self._sinks:
             sink_type = _SINKS.get(topic.msgtype)
             self._sinks[topic.name] = sink_type(topic) if sink_type is not None and topic.kind in (ROS1, ROS2) else None
         return self._sinks[topic.name]
@@ -480,6 +490,11 @@ class Collected:
         self.topics = topics
         self._sinks = sinks
         self._series: dict[str, Series] = {}
+
+    def adopt(self, other: Collected) -> None:
+        """Take the decoded topics of ``other`` (a second pass over the same file) that have none here."""
+        for name, sink in other._sinks.items():
+            self._sinks.setdefault(name, sink)
 
     def series(self, name: str) -> Series:
         """The columns of topic ``name``; raises the topic's first decoding error."""

@@ -436,3 +436,16 @@ def test_an_effort_topic_is_never_ignored(tmp_path: Path) -> None:
     own = write_log(make_synthetic_log(samples=300), tmp_path / "own.mcap")
     res = run_cli("identify", str(own), "--method", "ls", "--effort", "/joint_states:output.effort")
     assert res.status == 2 and "another effort topic cannot be chosen" in res.stderr and res.stderr.count("\n") == 1
+
+
+def test_a_ros1_bag_with_a_controller_state_keeps_the_columnar_reader(corpus: dict[str, Path]) -> None:
+    """The columnar ROS 1 reader takes the JointState topics; the controller state gets a per-message pass of its own."""
+    from ilic_cli.io import Selection, ros1fast, rosbag1
+
+    path = corpus["ros1-controller"]
+    ros1fast.collect(path, 2**30, rosbag1._declare_columns)  # no Fallback
+    for selection in (Selection(joint="axis"), Selection(joint="axis", topic="/jtc/controller_state", effort="/joint_states")):
+        fast, slow = rosbag1.read(path, selection, fast=True), rosbag1.read(path, selection, fast=False)
+        assert fast.channels.keys() == slow.channels.keys() and "q_ref" in fast
+        for name in fast.channels:
+            assert np.array_equal(fast[name], slow[name]), name
