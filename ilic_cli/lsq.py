@@ -202,3 +202,46 @@ def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, 
         rows=len(y),
         rank=int((s > rank_tolerance(s[0], *W.shape)).sum()),
     )
+
+
+def solve_iv(Z: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:
+    """Instrumental-variable estimate ``theta = (Z' W)^-1 Z' y`` with its covariance.
+
+    The covariance is ``sigma^2 (Z' W)^-1 Z' Z (W' Z)^-1`` (Janot, Vandanjon,
+    Gautier, IEEE TCST 22(1), 2014), ``sigma`` from the residual ``y - W
+    theta`` by the convention of :func:`solve_batch`. With ``Z = W`` this is
+    :func:`solve`'s estimate and eq. (9). A singular ``Z' W`` (instruments
+    uncorrelated with a column) gives an infinite standard deviation and
+    rank below ``b``.
+    """
+    Z, W, y = (np.asarray(a, dtype=np.float64) for a in (Z, W, y))
+    r, b = W.shape
+    A = Z.T @ W
+    s = np.linalg.svd(A, compute_uv=False)
+    rank = int((s > rank_tolerance(s[0], b, b)).sum()) if len(s) else 0
+    if rank < b:
+        theta = pinv(A) @ (Z.T @ y)
+        std = np.full(b, np.inf)
+    else:
+        theta = np.linalg.solve(A, Z.T @ y)
+    e = y - W @ theta
+    err_norm = float(np.linalg.norm(e))
+    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else err_norm / np.sqrt(max(r - b, 1))
+    if rank == b:
+        A_inv = np.linalg.inv(A)
+        cov = sig**2 * (A_inv @ (Z.T @ Z) @ A_inv.T)
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
+    return LSResult(
+        names=tuple(names),
+        theta=theta,
+        std=std,
+        rel_std_pct=rel,
+        sigma_rho=sig,
+        error_norm=err_norm,
+        relative_error_pct=relative_error_pct(y, W @ theta),
+        condition_number=float(s[0] / s[-1]) if rank == b else float("inf"),
+        rows=r,
+        rank=rank,
+    )
