@@ -7,6 +7,7 @@ Takes a :class:`~ilic_cli.runlog.RunLog`, returns an :class:`IdentifyReport`
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -214,7 +215,7 @@ def identify(
     ls_settings: LSSettings = LSSettings(),
     ilic_settings: ILICSettings = ILICSettings(),
     validate: list[RunLog] | None = None,
-    closed_loop_settings: ClosedLoopSettings | None = None,
+    closed_loop_settings: Mapping[str, ClosedLoopSettings] | None = None,
 ) -> IdentifyReport:
     """Run IDIM-LS and/or IDIM-ILIC on ``log`` and validate on other logs.
 
@@ -234,8 +235,8 @@ def identify(
         linear effect (:mod:`ilic_cli.effects`).
     validate : list of RunLog
         Logs to apply the estimates to (same processing).
-    closed_loop_settings : ClosedLoopSettings, optional
-        Iteration of DIDIM / IDIM-IV (default: each method's own,
+    closed_loop_settings : dict, optional
+        ``didim``/``iv`` -> iteration settings (default: each method's own,
         :data:`ilic_cli.closed_loop_id.DEFAULT_SETTINGS`).
     """
     prepared = prepare_log(log)
@@ -270,7 +271,7 @@ def identify(
     for m in closed:
         assert report.ls is not None
         result = closed_loop_identify(
-            m, log, model, report.ls.result.theta, effects=effects, ls_settings=ls_settings, settings=closed_loop_settings, prepared=prepared
+            m, log, model, report.ls.result.theta, effects=effects, ls_settings=ls_settings, settings=(closed_loop_settings or {}).get(m), prepared=prepared
         )
         setattr(report, m, result)
         if not result.converged:
