@@ -30,14 +30,14 @@ Pure numerics on a :class:`~ilic_cli.runlog.RunLog` in memory: no file I/O.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ilic_cli.effects import EFFECTS, Fit
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
-from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
+from ilic_cli.idim_ls import LSSettings, prepare
 from ilic_cli.lsq import LSResult, finite_or_none, solve, solve_iv
 from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import PreparedLog, prepare_log
@@ -288,41 +288,45 @@ def closed_loop_identify(
     measured = prepare(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid)
     y = measured.y
 
-    def replayed(theta: np.ndarray, k: int) -> RunLog:
+    y_norm = float(np.linalg.norm(y))
+
+    def replay_at(theta: np.ndarray, k: int) -> tuple[RunLog, np.ndarray, np.ndarray]:
+        """The replay with ``theta``, its regressor ``W_s`` and its force, filtered and decimated as ``y``."""
         try:
-            return simulate(*plant_of(names, theta, effects))
+            sim = simulate(*plant_of(names, theta, effects))
         except IlicError as exc:
             raise IdentificationError(src, f"{name} iteration {k}: the estimate cannot be simulated: {exc.problem}") from None
+        data = prepare(t, sim["q"], tau, fs, model, ls_settings, valid=prepared.valid)
+        return sim, data.W, data.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls_settings.trim :])
 
-    def simulated_regressor(theta: np.ndarray, k: int) -> IDIMData:
-        return prepare(t, replayed(theta, k)["q"], tau, fs, model, ls_settings, valid=prepared.valid)
-
-    def step(Ws: np.ndarray) -> LSResult:
-        if method == "didim":
-            return solve(Ws, y, names, sigma=ls_settings.sigma)
-        return solve_iv(Ws, measured.W, y, names, sigma=ls_settings.sigma)
+    def residual(theta: np.ndarray, tau_s: np.ndarray) -> float:
+        """``eps``: DIDIM's output error ``||y - tau_s(theta)||``; IDIM-IV's ``||y - W theta||``."""
+        return float(np.linalg.norm(y - tau_s if method == "didim" else y - measured.W @ theta))
 
     theta = np.asarray(theta0, dtype=np.float64)
     if theta.shape != (len(names),) or not np.all(np.isfinite(theta)):
         raise IdentificationError(src, f"{name} needs a finite start for {len(names)} parameters (the IDIM-LS estimate)")
-    data0 = simulated_regressor(theta, 0)
-    W0 = data0.W if method == "didim" else measured.W
-    eps = float(np.linalg.norm(y - W0 @ theta))
-    history = [Iteration(0, theta, eps, 100.0 * eps / float(np.linalg.norm(y)))]
-    Ws = data0.W
+    sim, Ws, tau_s = replay_at(theta, 0)
+    eps = residual(theta, tau_s)
+    history = [Iteration(0, theta, eps, 100.0 * eps / y_norm)]
     converged, reason = False, f"iteration limit ({settings.max_iterations}) reached"
     res: LSResult | None = None
     tol = settings.tolerance_pct
     for k in range(1, settings.max_iterations + 1):
-        if k > 1:
-            Ws = simulated_regressor(theta, k).W
-        res = step(Ws)
+        if method == "didim":
+            # Gauss-Newton on the output error with the Jacobian d tau_s / d theta ~= W_s:
+            # theta_k = theta_{k-1} + W_s^+ (y - tau_s), i.e. the LS of y - tau_s + W_s theta_{k-1} on W_s
+            res = solve(Ws, y - tau_s + Ws @ theta, names, sigma=ls_settings.sigma)
+        else:
+            res = solve_iv(Ws, measured.W, y, names, sigma=ls_settings.sigma)
         new = res.theta
         with np.errstate(divide="ignore", invalid="ignore"):
             dtheta = float(100.0 * np.max(np.abs(new - theta) / np.abs(theta)))
-        deps = 100.0 * abs(res.error_norm - eps) / eps if eps > 0 else 0.0
-        history.append(Iteration(k, new, res.error_norm, res.relative_error_pct, dtheta, deps))
-        theta, eps = new, res.error_norm
+        sim, Ws, tau_s = replay_at(new, k)
+        new_eps = residual(new, tau_s)
+        deps = 100.0 * abs(new_eps - eps) / eps if eps > 0 else 0.0
+        history.append(Iteration(k, new, new_eps, 100.0 * new_eps / y_norm, dtheta, deps))
+        theta, eps = new, new_eps
         if deps < tol:
             converged, reason = True, f"the residual norm moved by {deps:.3g} % (< {tol:g} %) at iteration {k}"
             break
@@ -330,11 +334,10 @@ def closed_loop_identify(
             converged, reason = True, f"the largest relative parameter change was {dtheta:.3g} % (< {tol:g} %) at iteration {k}"
             break
     assert res is not None  # max_iterations >= 1
-    sim = replayed(theta, len(history))
+    if method == "didim":  # the criterion DIDIM minimises, at the final estimate
+        res = replace(res, error_norm=eps, relative_error_pct=100.0 * eps / y_norm)
     from ilic_cli.diagnosis.compare import relative_errors  # deferred: with the replay
 
-    errors = relative_errors(log, sim, ls_settings)
-    W_final = Ws if method == "didim" else measured.W
     return ClosedLoopResult(
         method=name,
         model=model.name,
@@ -344,8 +347,8 @@ def closed_loop_identify(
         iterations=tuple(history),
         converged=converged,
         stop_reason=reason,
-        closed_loop_error_pct=errors,
+        closed_loop_error_pct=relative_errors(log, sim, ls_settings),
         t=measured.t_dec,
         y=y,
-        y_hat=W_final @ theta,
+        y_hat=tau_s if method == "didim" else measured.W @ theta,
     )
