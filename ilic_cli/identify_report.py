@@ -143,8 +143,9 @@ def _closed_loop_markdown(report: IdentifyReport) -> list[str]:
     out += _table(header, rows)
     out += [
         "",
-        "DIDIM's relative error is on the regressor of the simulated closed loop, IDIM-IV's and IDIM-LS's on the measured one. "
-        "The replay of the log with each estimate (same reference, same controller) against the recording:",
+        "DIDIM's relative error is its criterion, the force of the simulated closed loop against the measured one (filtered and decimated "
+        "as IDIM-LS); IDIM-IV's and IDIM-LS's are the inverse model's on the measured regressor. "
+        "The replay of the log with each estimate (same reference, same controller) against the recording, at the full rate:",
         "",
     ]
     out += _table(
