@@ -99,35 +99,17 @@ class IdentifyReport:
         }
 
     def to_frame(self) -> Any:
-        """Tidy table: one row per method, window and parameter."""
+        """Tidy table: one row per method, window and parameter (``k``: the window, or DIDIM / IDIM-IV's iterations)."""
         import pandas as pd
 
         rows: list[dict[str, Any]] = []
-        if self.ls is not None:
-            r = self.ls.result
+        whole = ([("IDIM-LS", None, self.ls.result)] if self.ls is not None else []) + [(c.method, c.n_iterations, c.result) for c in self.closed_loop()]
+        for method, k, r in whole:  # one estimate on the whole log (k: a closed-loop method's iterations)
             for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True):
                 rows.append(
                     {
-                        "method": "IDIM-LS",
-                        "k": None,
-                        "t_start": None,
-                        "t_end": None,
-                        "parameter": n,
-                        "value": v,
-                        "std": s,
-                        "rel_std_pct": p,
-                        "essential": None,
-                        "relative_error_pct": r.relative_error_pct,
-                        "tracking_error_ratio": None,
-                    }
-                )
-        for cl in self.closed_loop():
-            r = cl.result
-            for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True):
-                rows.append(
-                    {
-                        "method": cl.method,
-                        "k": cl.n_iterations,
+                        "method": method,
+                        "k": k,
                         "t_start": None,
                         "t_end": None,
                         "parameter": n,
