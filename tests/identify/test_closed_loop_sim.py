@@ -162,3 +162,14 @@ def test_didim_with_effect_columns_simulates_the_effect() -> None:
         assert rigid[n] == pytest.approx(PUBLISHED_RIGID[n], rel=0.01), n
     plant = report.model_effects()["position_ripple"]
     assert plant["A"] == pytest.approx(ripple["A"], rel=0.03) and plant["phase"] == pytest.approx(ripple["phase"], abs=0.05)
+
+
+def test_out_folder_has_the_convergence_plot_and_the_asked_estimate(pd_path: Path, tmp_path: Path) -> None:
+    res = run_cli("identify", str(pd_path), "--method", "iv", "--out", str(tmp_path / "r"), "--plots", "svg")
+    assert res.status == 0, res.stderr
+    assert (tmp_path / "r" / "convergence.svg").stat().st_size > 0 and (tmp_path / "r" / "force.svg").is_file()
+    model = json.loads((tmp_path / "r" / "model.json").read_text())
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert model["method"] == "IDIM-IV"
+    assert model["parameters"] == {n: v["value"] for n, v in report["iv"]["parameters"].items()}
+    assert "## Closed-loop estimates beside IDIM-LS" in (tmp_path / "r" / "report.md").read_text()
