@@ -173,6 +173,8 @@ OPTIONS: dict[str, str] = {
     "torque_constant": "--torque-constant",
     "load_joint": "--load-joint",
     "rate_hz": "--resample",
+    "max_iterations": "--max-iterations",
+    "tolerance_pct": "--tolerance",
 }
 """Parameter of a :class:`~ilic_cli.errors.ParameterError` -> the option that sets it."""
 
