@@ -222,6 +222,7 @@ def identify(
         :data:`ilic_cli.closed_loop_id.DEFAULT_SETTINGS`).
     """
     prepared = prepare_log(log)
+    log = prepared.log  # an irregularly sampled log is on a uniform grid now
     src, fs, valid = prepared.source, prepared.fs_hz, prepared.valid
     effects = dict(effects or {})
     model = with_effects(structure, effects, fs)

@@ -13,6 +13,11 @@ each. The rules:
   (IDIM-LS stacks their rows, IDIM-ILIC drops the windows a gap cuts);
   ``diagnose`` and ``replay`` refuse such a log (a closed-loop replay cannot
   span a gap);
+* **irregular sampling** (:func:`ilic_cli.quality.sampling_kind`): stamps
+  that only jitter around a fixed rate are kept as they are; a log sampled
+  irregularly is interpolated linearly onto a uniform grid at its mean rate,
+  within each part between gaps (:func:`to_uniform_grid`), and a warning
+  says so and states the rule (:data:`ilic_cli.quality.SAMPLING_RULE`);
 * **saturation**: samples on the plateau of a saturated drive are masked.
 """
 
@@ -23,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ilic_cli.errors import LogError, ParameterError
-from ilic_cli.quality import assess_log, saturation_mask, segments
+from ilic_cli.quality import SAMPLING_RULE, assess_log, irregular_grid, nominal_rate_hz, sampling_kind, saturation_mask, segments
 from ilic_cli.runlog import RunLog
 
 
@@ -80,14 +85,77 @@ class PreparedLog:
         return f"saturated drive: {100.0 * (1.0 - float(np.mean(self.valid))):.3g} % of the samples masked"
 
 
+def to_uniform_grid(log: RunLog, rate_hz: float, parts: tuple[tuple[int, int], ...], rule: str) -> RunLog:
+    """``log`` interpolated linearly onto a uniform grid at ``rate_hz``, each of ``parts`` on its own (never across a gap).
+
+    Part ``(a, b)`` gives the samples ``t[a] + k / rate_hz`` up to ``t[b - 1]``;
+    every channel is interpolated linearly (discrete channels such as
+    ``pulses`` too). ``sample_rate_hz`` becomes ``rate_hz`` and ``resampled``
+    records the original sample count and ``rule``.
+    """
+    t = log.t
+    grids = []
+    for a, b in parts:
+        count = int(np.floor(float(t[b - 1] - t[a]) * rate_hz * (1 + 1e-12))) + 1
+        if count > 100_000_000:
+            raise ParameterError("rate_hz", rate_hz, f"at most 1e8 samples over {float(t[b - 1] - t[a]):.6g} s")
+        grid = t[a] + np.arange(count, dtype=np.float64) / rate_hz
+        grid[-1] = min(grid[-1], t[b - 1])
+        grids.append(grid)
+    channels: dict[str, np.ndarray] = {}
+    for name, values in log.channels.items():
+        pieces = [grid if name == "t" else np.interp(grid, t[a:b], values[a:b]) for grid, (a, b) in zip(grids, parts, strict=True)]
+        channels[name] = np.concatenate(pieces)
+    meta = {**log.meta, "sample_rate_hz": float(rate_hz), "resampled": {"method": "linear", "rule": rule, "from_samples": len(log), "rate_hz": float(rate_hz)}}
+    return RunLog(channels, dict(log.units), meta)
+
+
+def resample(log: RunLog, rate_hz: float) -> RunLog:
+    """Return ``log`` on a uniform grid at ``rate_hz`` (``ilic convert --resample``).
+
+    A fixed-rate loop whose stamps only jitter (:func:`ilic_cli.quality.sampling_kind`)
+    at ``rate_hz`` keeps its samples and is restamped on the uniform grid:
+    interpolating between jittered stamps would distort samples taken on
+    time. Any other log is interpolated linearly (:func:`to_uniform_grid`)
+    within each part between gaps.
+    """
+    if not (rate_hz > 0 and np.isfinite(rate_hz)):
+        raise ParameterError("rate_hz", rate_hz, "a positive number (Hz)")
+    t = log.t
+    nominal = nominal_rate_hz(t)
+    kind = sampling_kind(t)
+    if nominal and kind == "fixed-rate" and abs(nominal - rate_hz) <= 5e-4 * rate_hz and len(segments(t, nominal)) == 1:
+        meta = dict(log.meta)
+        meta["sample_rate_hz"] = float(rate_hz)
+        meta["resampled"] = {"method": "restamped (stamp jitter of a fixed-rate loop)", "from_samples": len(log), "rate_hz": float(rate_hz)}
+        grid = t[0] + np.arange(len(t), dtype=np.float64) / rate_hz
+        return RunLog({**log.channels, "t": grid}, dict(log.units), meta)
+    parts = irregular_grid(t)[1] if kind == "irregular" else segments(t, nominal or rate_hz)
+    out = to_uniform_grid(log, rate_hz, parts, "requested rate")
+    if len(out) < 2:
+        raise ParameterError("rate_hz", rate_hz, f"a rate that leaves two samples in {float(t[-1] - t[0]):.6g} s")
+    return out
+
+
 def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
     """Assess ``log`` once: rate, quality warnings (``prefix: ...``) and the usable samples.
 
     A saturated drive command is never used silently: the samples on its
-    plateau are masked, and the note says so.
+    plateau are masked, and the note says so. An irregularly sampled log is
+    interpolated onto a uniform grid first (:func:`to_uniform_grid`, the
+    module's rules), and a warning says so.
     """
+    notes: tuple[str, ...] = ()
+    if len(log) > 2 and "resampled" not in log.meta and sampling_kind(log.t) == "irregular":
+        rate, parts = irregular_grid(log.t)
+        before = len(log)
+        log = to_uniform_grid(log, rate, parts, "irregular sampling")
+        notes = (
+            f"{prefix}: irregular sampling: {before} samples interpolated linearly onto a uniform {rate:g} Hz grid ({len(log)} samples, "
+            f"{len(parts)} part(s)); rule: {SAMPLING_RULE}",
+        )
     quality = assess_log(log)
-    warnings = tuple(f"{prefix}: {message}" for message in quality.warnings())
+    warnings = notes + tuple(f"{prefix}: {message}" for message in quality.warnings())
     valid = None
     if quality.saturation_limit is not None and "vir" in log.channels:
         saturated = saturation_mask(log["vir"], quality.saturation_limit)

@@ -36,7 +36,16 @@ GAP_FACTOR = 1.5
 """A step longer than this many nominal periods is a gap."""
 
 IRREGULAR_JITTER = 0.01
-"""Relative step jitter above which sampling is called irregular."""
+"""Relative step jitter above which the quality report calls the steps irregular (a warning; see :func:`sampling_kind` for the rule that acts)."""
+
+STAMP_JITTER = 0.5
+"""A fixed-rate loop's stamps: every step between gaps within this share of a period of the mean step (:func:`sampling_kind`)."""
+
+FREQUENT_GAPS = 0.01
+"""Gaps on more than this share of the steps are the sampling pattern, not dropped messages (:func:`sampling_kind`)."""
+
+IRREGULAR_GAP_FACTOR = 5.0
+"""In an irregularly sampled log, a step longer than this many mean steps is a gap (:func:`irregular_grid`)."""
 
 SATURATION_MIN_SHARE = 0.005
 """Least share of samples on the plateau for the drive command to count as saturated."""
@@ -168,14 +177,23 @@ def nominal_rate_hz(t: np.ndarray) -> float | None:
         The nominal rate, or None with fewer than two samples or a non-positive
         median step.
     """
-    t = np.asarray(t, dtype=np.float64).reshape(-1)
-    if len(t) < 2:
+    found = _steps_between_gaps(t)
+    return None if found is None else _round_rate(float(np.mean(found[0][found[1]])))
+
+
+def _steps_between_gaps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The steps of ``t`` and which are not gaps (at most :data:`GAP_FACTOR` median steps); None without a positive median step."""
+    steps = np.diff(np.asarray(t, dtype=np.float64).reshape(-1))
+    if len(steps) == 0:
         return None
-    steps = np.diff(t)
     median = float(np.median(steps))
     if not (median > 0 and math.isfinite(median)):
         return None
-    step = float(np.mean(steps[steps <= GAP_FACTOR * median]))
+    return steps, steps <= GAP_FACTOR * median
+
+
+def _round_rate(step: float) -> float:
+    """The nominal rate of a mean ``step``: see :func:`nominal_rate_hz`."""
     rate = 1.0 / step
     candidates = [float(round(rate)), 1.0 / float(f"{step:.3g}")]
     for cand in candidates:
@@ -209,6 +227,57 @@ def time_unit(t: np.ndarray, declared: str | None = None) -> tuple[str, str]:
         return "s", "default (no positive step)"
     best = min(("s", "ms", "us", "ns"), key=lambda u: abs(math.log10(1.0 / (step * TIME_UNITS[u])) - 3.0))
     return best, "the sample rate closest to 1 kHz in decades"
+
+
+SAMPLING_RULE = (
+    "stamps whose steps between gaps all lie within half a period of the mean step, with gaps on at most 1 % of the steps, are a fixed-rate "
+    "loop with stamp jitter: the samples are kept and the rate is the mean step's; any other log is irregularly sampled: it is interpolated "
+    "linearly onto a uniform grid at its mean rate, within each part between gaps longer than 5 mean steps"
+)
+"""The rule of :func:`sampling_kind` and :func:`irregular_grid`, in words (reports and README)."""
+
+
+def sampling_kind(t: np.ndarray) -> str:
+    """Tell stamp jitter of a fixed-rate loop from truly irregular sampling (:data:`SAMPLING_RULE`).
+
+    Parameters
+    ----------
+    t : ndarray
+        Increasing time stamps (s).
+
+    Returns
+    -------
+    str
+        ``"fixed-rate"``: every step between gaps (steps above
+        :data:`GAP_FACTOR` median steps) is within :data:`STAMP_JITTER`
+        periods of the mean step and gaps are at most :data:`FREQUENT_GAPS`
+        of the steps (keep the samples); ``"irregular"`` otherwise
+        (interpolate them, :func:`irregular_grid`).
+    """
+    found = _steps_between_gaps(t)
+    if found is None or len(found[0]) < 2:
+        return "fixed-rate"
+    steps, inside = found
+    mean = float(np.mean(steps[inside]))
+    if np.mean(~inside) > FREQUENT_GAPS or bool((np.abs(steps[inside] / mean - 1.0) > STAMP_JITTER).any()):
+        return "irregular"
+    return "fixed-rate"
+
+
+def irregular_grid(t: np.ndarray) -> tuple[float, tuple[tuple[int, int], ...]]:
+    """The uniform grid for an irregularly sampled log: ``(rate_hz, parts)``.
+
+    ``rate_hz`` is the inverse of the mean step, steps longer than
+    :data:`IRREGULAR_GAP_FACTOR` mean steps (gaps) left out, rounded as by
+    :func:`nominal_rate_hz`; ``parts`` are the ``(start, stop)`` index ranges
+    between those gaps.
+    """
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    steps = np.diff(t)
+    gap = steps > IRREGULAR_GAP_FACTOR * float(np.mean(steps))
+    rate = _round_rate(float(np.mean(steps[~gap])))
+    cuts = [0, *(np.flatnonzero(gap) + 1).tolist(), len(t)]
+    return rate, tuple((a, b) for a, b in zip(cuts[:-1], cuts[1:]) if b > a)
 
 
 def gap_starts(t: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -404,8 +473,19 @@ def assess(
                 f"(longest step {report.max_step_s:.6g} s)",
             )
         )
-    if report.jitter > IRREGULAR_JITTER:
-        findings.append(QualityFinding("irregular", "warning", f"irregular sampling: step jitter {100 * report.jitter:.3g} % of the nominal period"))
+    if sampling_kind(t) == "irregular":
+        findings.append(
+            QualityFinding(
+                "irregular",
+                "warning",
+                f"irregular sampling (step jitter {100 * report.jitter:.3g} % of the mean period, not a fixed-rate loop): identification "
+                "interpolates it linearly onto a uniform grid",
+            )
+        )
+    elif report.jitter > IRREGULAR_JITTER:
+        findings.append(
+            QualityFinding("jitter", "info", f"stamp jitter {100 * report.jitter:.3g} % of the period: a fixed-rate loop, samples kept at the mean rate")
+        )
     elif report.median_step_s is not None:
         findings.append(QualityFinding("jitter", "info", f"step jitter {100 * report.jitter:.3g} % of the nominal period"))
     if vir is not None and len(vir):

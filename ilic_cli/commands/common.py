@@ -22,8 +22,23 @@ F = TypeVar("F", bound=Callable[..., Any])
 LOG_FORMATS = ["mat", "csv", "mcap", "rosbag1", "rosbag2"]
 
 
+def _keep_effort(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    # --effort reaches load() through the click context, so that the commands' signatures stay as they are
+    ctx.meta["ilic_effort"] = value
+    return value
+
+
 def input_options(func: F) -> F:
-    """Add ``--input-format``, ``--topic``, ``--ref-topic``, ``--joint`` and ``--columns``."""
+    """Add ``--input-format``, ``--topic``, ``--ref-topic``, ``--joint``, ``--effort`` and ``--columns``."""
+    func = click.option(
+        "--effort",
+        default=None,
+        metavar="TOPIC[:FIELD]",
+        expose_value=False,
+        callback=_keep_effort,
+        help="ROS: topic (and field) with the effort: a JointState's effort, or a controller state's feedback.effort or output.effort "
+        "(default: the measured topic's effort, else the controller state's output.effort).",
+    )(func)
     func = click.option(
         "--columns",
         default=None,
@@ -31,16 +46,24 @@ def input_options(func: F) -> F:
         help="CSV: which columns hold t, q, qd, tau and q_ref (default: these names or common ones such as time, position, effort).",
     )(func)
     func = click.option("--joint", default=None, help="Joint name to read (default: the only joint).")(func)
-    func = click.option("--ref-topic", default=None, help="Topic with the reference (default: /joint_reference).")(func)
-    func = click.option("--topic", default=None, help="Topic with the measured JointState (default: the only one, or /joint_states).")(func)
+    func = click.option(
+        "--ref-topic",
+        default=None,
+        help="Reference topic: JointTrajectoryPoint, JointState or ros2_control controller state (default: /joint_reference, else a controller state).",
+    )(func)
+    func = click.option(
+        "--topic",
+        default=None,
+        help="Topic with the measured JointState or ros2_control controller state (default: the only JointState topic, or /joint_states).",
+    )(func)
     func = click.option(
         "--input-format", "input_format", type=click.Choice(LOG_FORMATS), default=None, help="Format of the input log (default: from the path)."
     )(func)
     return func
 
 
-def selection(topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None = None) -> Selection:
-    """Build the reader's :class:`~ilic_cli.io.Selection` from the shared options (``--columns t=time,q=pos``)."""
+def selection(topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None = None, effort: str | None = None) -> Selection:
+    """Build the reader's :class:`~ilic_cli.io.Selection` from the shared options (``--columns t=time,q=pos``, ``--effort``)."""
     mapping: dict[str, str] = {}
     for item in (columns or "").split(","):
         if not item.strip():
@@ -49,7 +72,7 @@ def selection(topic: str | None, ref_topic: str | None, joint: str | None, colum
         if not eq or not channel.strip() or not name.strip():
             raise IlicError("--columns", f"'{item.strip()}': expected CHANNEL=COLUMN (e.g. t=time,q=position,tau=effort)")
         mapping[channel.strip()] = name.strip()
-    return Selection(topic=topic, ref_topic=ref_topic, joint=joint, columns=tuple(mapping.items()))
+    return Selection(topic=topic, ref_topic=ref_topic, joint=joint, columns=tuple(mapping.items()), effort=effort)
 
 
 PROGRESS_MIN_BYTES = 20 * 2**20
@@ -60,8 +83,10 @@ def load(path: str | Path, input_format: str | None, topic: str | None, ref_topi
     """Read a log with the shared input options (with a progress bar for large files on a terminal)."""
 
     progress = ReadProgress if progress_enabled() and _size(Path(path)) >= PROGRESS_MIN_BYTES else None
+    ctx = click.get_current_context(silent=True)
+    effort = ctx.meta.get("ilic_effort") if ctx is not None else None
     try:
-        return read_log(path, input_format, selection(topic, ref_topic, joint, columns), progress=progress)
+        return read_log(path, input_format, selection(topic, ref_topic, joint, columns, effort), progress=progress)
     except ChoiceError as exc:
         raise ChoiceError(exc.where, f"{exc.problem} with --{exc.choice}", exc.choice) from None
 
@@ -147,6 +172,7 @@ OPTIONS: dict[str, str] = {
     "gear_ratio": "--gear-ratio",
     "torque_constant": "--torque-constant",
     "load_joint": "--load-joint",
+    "rate_hz": "--resample",
     "max_iterations": "--max-iterations",
     "tolerance_pct": "--tolerance",
 }

@@ -83,6 +83,7 @@ def command(
     run = with_controller(load(log, input_format, topic, ref_topic, joint, columns), log, controller, kp, kv, drive_gain)
     prepared = prepare_log(run)
     prepared.require_contiguous("a replay")
+    run = prepared.log  # an irregularly sampled log is on a uniform grid now
     for w in prepared.warnings:
         note(f"ilic: warning: {w}")
     sim = simulate_replay(run, params, effects, substeps=substeps, seed=seed)

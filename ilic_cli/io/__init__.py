@@ -39,22 +39,29 @@ class Selection:
     Attributes
     ----------
     topic : str or None
-        Topic with the measured ``sensor_msgs/JointState``; ``None``: the only one
-        (or ``/joint_states``).
+        Topic with the measured ``sensor_msgs/JointState`` or ros2_control
+        controller state; ``None``: the only JointState topic (or
+        ``/joint_states``), else the only controller state.
     ref_topic : str or None
-        Topic with the reference; ``None``: ``/joint_reference`` when present.
+        Topic with the reference; ``None``: ``/joint_reference`` when present,
+        else the controller state (see :mod:`ilic_cli.io.rosdecode`).
     joint : str or None
         Joint name; ``None``: the only joint.
     columns : tuple of (str, str)
         CSV: ``(channel, column name)`` pairs naming the columns that hold
         ``t``, ``q``, ``qd``, ``tau``, ``q_ref`` (others: by their usual names,
         :data:`ilic_cli.io.csvlog.ALIASES`).
+    effort : str or None
+        ROS: ``TOPIC`` or ``TOPIC:FIELD`` giving ``tau`` (``effort`` of a
+        JointState; ``feedback.effort`` or ``output.effort`` of a controller
+        state); ``None``: the measured topic's effort.
     """
 
     topic: str | None = None
     ref_topic: str | None = None
     joint: str | None = None
     columns: tuple[tuple[str, str], ...] = ()
+    effort: str | None = None
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 Like ``ros2 bag info`` or ``mcap info``: from the container's summary and
 indexes (``mcap`` and ``rosbags``), plus the first message of each
-``JointState`` topic for its joint names. Only called on a file that the
+``JointState``, controller-state and ``JointTrajectory`` topic for its joint names. Only called on a file that the
 reader has already parsed with every check (:func:`ilic_cli.io.read_log`,
 or the reader's refusal to choose a joint), so that nothing here meets an
 unchecked chunk.
@@ -14,7 +14,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ilic_cli.io.rosschema import JOINT_STATE, ROS1, ROS2, normalize_msgtype, typestore
+from ilic_cli.io.rosschema import CONTROLLER_LAYOUTS, CONTROLLER_STATE, JOINT_STATE, ROS1, ROS2, TRAJECTORY, controller_typestore, normalize_msgtype, typestore
+
+NAMED = (JOINT_STATE, CONTROLLER_STATE, TRAJECTORY)
+"""Message types whose joint names the overview lists."""
 
 
 @dataclass(frozen=True)
@@ -30,7 +33,7 @@ class TopicOverview:
     rate_hz : float or None
         Messages per second over the container's time span.
     joints : tuple of str or None
-        The joint names of its first message (``JointState`` topics).
+        The joint names of its first message (``JointState``, controller-state and ``JointTrajectory`` topics).
     """
 
     topic: str
@@ -54,11 +57,22 @@ def _rate(count: int, start_ns: int, end_ns: int) -> float | None:
 
 
 def _joints(data: bytes, msgtype: str, kind: str) -> tuple[str, ...] | None:
-    if msgtype != JOINT_STATE:
+    if msgtype not in NAMED:
         return None
-    ts = typestore(kind)
-    msg = ts.deserialize_ros1(data, msgtype) if kind == ROS1 else ts.deserialize_cdr(data, msgtype)
-    return tuple(str(n) for n in msg.name)
+    if kind == ROS1:
+        msg = typestore(kind).deserialize_ros1(data, msgtype)
+    elif msgtype != CONTROLLER_STATE:
+        msg = typestore(kind).deserialize_cdr(data, msgtype)
+    else:
+        for layout in CONTROLLER_LAYOUTS:
+            try:
+                msg = controller_typestore(layout).deserialize_cdr(data, msgtype)
+                break
+            except Exception:  # noqa: BLE001, S112 - not this layout
+                continue
+        else:
+            return None
+    return tuple(str(n) for n in (msg.name if msgtype == JOINT_STATE else msg.joint_names))
 
 
 def overview(path: Path, fmt: str) -> list[TopicOverview]:
@@ -85,7 +99,7 @@ def _mcap(path: Path) -> list[TopicOverview]:
             msgtype = normalize_msgtype(schema.name) if schema is not None else "(no schema)"
             count = int(stats.channel_message_counts.get(cid, 0))
             joints = None
-            if msgtype == JOINT_STATE and count:
+            if msgtype in NAMED and count:
                 first = next(iter(reader.iter_messages(topics=[channel.topic])), None)
                 joints = None if first is None else _joints(bytes(first[2].data), msgtype, ROS2)
             out.append(TopicOverview(channel.topic, msgtype, count, _rate(count, stats.message_start_time, stats.message_end_time), joints))
@@ -101,7 +115,7 @@ def _bag(path: Path) -> list[TopicOverview]:
         for conn in sorted(reader.connections, key=lambda c: (c.topic, c.id)):
             msgtype = normalize_msgtype(conn.msgtype)
             joints = None
-            if msgtype == JOINT_STATE and conn.msgcount:
+            if msgtype in NAMED and conn.msgcount:
                 first = next(iter(reader.messages(connections=[conn])), None)
                 joints = None if first is None else _joints(bytes(first[2]), msgtype, kind)
             out.append(TopicOverview(conn.topic, msgtype, int(conn.msgcount), _rate(int(conn.msgcount), reader.start_time, reader.end_time), joints))

@@ -79,17 +79,18 @@ def _bounded(decompress: Any, limit: int, path: Path) -> Any:
     return run
 
 
-def _declare(collector: roscollect.Collector, connections: list[Any]) -> dict[int, Any]:
+def _declare(collector: roscollect.Collector, connections: list[Any], later: frozenset[str] = frozenset()) -> dict[int, Any]:
     """Register ``rosbags`` connections with ``collector``; return connection id -> sink of those to read.
 
     A connection whose MD5 sum differs from the built-in definition gets a
-    sink that holds the error (raised when its topic is used).
+    sink that holds the error (raised when its topic is used). Topics of the
+    types in ``later`` are registered without a sink (a second pass reads them).
     """
     ts = rosschema.typestore(rosschema.ROS1)
     sinks: dict[int, Any] = {}
     for conn in connections:
         topic = rosschema.RawTopic(conn.topic, rosschema.normalize_msgtype(conn.msgtype), rosschema.ROS1)
-        sink = collector.declare(topic)
+        sink = collector.declare(topic, decode=topic.msgtype not in later)
         if sink is None:
             continue
         _, md5 = ts.generate_msgdef(topic.msgtype)
@@ -99,13 +100,35 @@ def _declare(collector: roscollect.Collector, connections: list[Any]) -> dict[in
     return sinks
 
 
-def _collect(reader: Any, path: Path) -> roscollect.Collected:
-    """Stream the messages of every readable connection into a :class:`roscollect.Collector`."""
+def _collect(reader: Any, path: Path, topics: frozenset[str] | None = None) -> roscollect.Collected:
+    """Stream the messages of every readable connection (or those of ``topics``) into a :class:`roscollect.Collector`."""
     collector = roscollect.Collector(path)
-    sinks = _declare(collector, reader.connections)
-    wanted = [conn for conn in reader.connections if conn.id in sinks]
+    connections = [conn for conn in reader.connections if topics is None or conn.topic in topics]
+    sinks = _declare(collector, connections)
+    wanted = [conn for conn in connections if conn.id in sinks]
     container.feed_sinks(reader, wanted, sinks, path)
     return collector.finish()
+
+
+def _declare_columns(collector: roscollect.Collector, connections: list[Any]) -> dict[int, Any]:
+    """:func:`_declare` for the columnar reader: the types it cannot take as columns are left to :func:`_collect`."""
+    return _declare(collector, connections, roscollect.PER_MESSAGE)
+
+
+def _open(path: Path, limit: int) -> Any:
+    """A ``rosbags`` reader of ``path`` whose chunks decompress to at most ``limit`` bytes."""
+    from rosbags.rosbag1 import Reader
+
+    try:
+        reader = Reader(path)
+        reader.open()
+    except LogError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds (incl. AssertionError) on bad files
+        raise LogError(path, f"not a readable ROS 1 bag ({_describe(exc)})") from None
+    for pos, chunk in list(reader.chunks.items()):
+        reader.chunks[pos] = chunk._replace(decompressor=_bounded(chunk.decompressor, limit, path))
+    return reader
 
 
 def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
@@ -126,14 +149,12 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     -------
     RunLog
     """
-    from rosbags.rosbag1 import Reader
-
     limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(path.stat().st_size, 1))
     if fast:
         from ilic_cli.io import ros1fast
 
         try:
-            source = ros1fast.collect(path, limit, _declare)
+            source = ros1fast.collect(path, limit, _declare_columns)
         except LogError:
             raise
         except MemoryError:
@@ -141,17 +162,17 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
         except Exception:  # noqa: BLE001 - Fallback, or anything unexpected on a damaged file: per message
             source = None
         if source is not None:
+            later = frozenset(name for name, topic in source.topics.items() if topic.msgtype in roscollect.PER_MESSAGE)
+            if later:  # controller states, trajectories: a second pass, per message, over their connections only
+                reader = _open(path, limit)
+                try:
+                    with container.guarded(path, "ROS 1 bag"):
+                        source.adopt(_collect(reader, path, later))
+                finally:
+                    container.close_quietly(reader)
             return rosdecode.decode_guarded(source, selection, path, "ROS 1 bag")
+    reader = _open(path, limit)
     try:
-        reader = Reader(path)
-        reader.open()
-    except LogError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - rosbags raises many kinds (incl. AssertionError) on bad files
-        raise LogError(path, f"not a readable ROS 1 bag ({_describe(exc)})") from None
-    try:
-        for pos, chunk in list(reader.chunks.items()):
-            reader.chunks[pos] = chunk._replace(decompressor=_bounded(chunk.decompressor, limit, path))
         with container.guarded(path, "ROS 1 bag"):
             source = _collect(reader, path)
         return rosdecode.decode_guarded(source, selection, path, "ROS 1 bag")

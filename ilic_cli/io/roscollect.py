@@ -23,7 +23,19 @@ from ilic_cli.errors import LogError
 from ilic_cli.io import cdrcols
 from ilic_cli.io.container import short_text
 from ilic_cli.io.roscolumns import Arrays, Numbers, Series, sort_series
-from ilic_cli.io.rosschema import JOINT_STATE, ROS1, ROS2, STRING, TRAJECTORY_POINT, RawTopic, typestore
+from ilic_cli.io.rosschema import (
+    CONTROLLER_LAYOUTS,
+    CONTROLLER_STATE,
+    JOINT_STATE,
+    ROS1,
+    ROS2,
+    STRING,
+    TRAJECTORY,
+    TRAJECTORY_POINT,
+    RawTopic,
+    controller_typestore,
+    typestore,
+)
 
 BLOCK = 8192
 """Messages buffered as Python values before they are packed into NumPy blocks."""
@@ -224,15 +236,22 @@ class _JointStateSink(_Sink):
         self._name_id = Numbers(np.int32, small=True)
         self._names: dict[tuple[str, ...], int] = {}
 
-    def _take(self, msg: Any) -> None:
-        key = tuple(msg.name)
+    def _take_header(self, msg: Any, names: Any) -> None:
+        """Keep the message's ``header.stamp`` and the id of its joint ``names``."""
+        stamp = msg.header.stamp
+        self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
+        self._take_names(names)
+
+    def _take_names(self, names: Any) -> None:
+        key = tuple(names)
         nid = self._names.get(key)
         if nid is None:
             nid = self._names[key] = len(self._names)
-        stamp = msg.header.stamp
-        position, velocity, effort = msg.position, msg.velocity, msg.effort
-        self._stamp.items.append(int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec))
         self._name_id.items.append(nid)
+
+    def _take(self, msg: Any) -> None:
+        self._take_header(msg, msg.name)
+        position, velocity, effort = msg.position, msg.velocity, msg.effort
         arrays = self._arrays
         arrays["position"].append(position)
         arrays["velocity"].append(velocity)
@@ -274,6 +293,107 @@ class _JointStateSink(_Sink):
         series.names = [tuple(str(x) for x in key) for key in self._names]
 
 
+class _ControllerStateSink(_JointStateSink):
+    """ros2_control's controller state: its joint names, and the reference, feedback and output points as columns.
+
+    Decoded per message (no column fast path). A ROS 2 topic takes the first
+    layout of :data:`~ilic_cli.io.rosschema.CONTROLLER_LAYOUTS` that decodes
+    its first message exactly and keeps it; ``desired``/``actual`` are read
+    as ``reference``/``feedback`` (the older fields, or the newer ones left
+    empty).
+    """
+
+    arrays = (
+        "reference.positions",
+        "reference.velocities",
+        "reference.accelerations",
+        "feedback.positions",
+        "feedback.velocities",
+        "feedback.effort",
+        "output.effort",
+    )
+
+    def __init__(self, topic: RawTopic) -> None:
+        super().__init__(topic)
+        if topic.kind == ROS2:
+            self._layouts = [controller_typestore(name).deserialize_cdr for name in CONTROLLER_LAYOUTS]
+            self._deserialize = self._any_layout
+
+    def _any_layout(self, data: bytes | memoryview, msgtype: str) -> Any:
+        failure: Exception | None = None
+        for deserialize in self._layouts:
+            try:
+                msg = deserialize(data, msgtype)
+            except Exception as exc:  # noqa: BLE001 - not this layout
+                failure = failure or exc
+                continue
+            self._layouts = [deserialize]  # one layout per topic
+            return msg
+        assert failure is not None
+        raise failure
+
+    @staticmethod
+    def _point(msg: Any, new: str, old: str) -> Any:
+        point = getattr(msg, new, None)
+        if point is None or (len(point.positions) == 0 and hasattr(msg, old)):
+            point = getattr(msg, old)
+        return point
+
+    def _take(self, msg: Any) -> None:
+        self._take_header(msg, msg.joint_names)
+        reference, feedback = self._point(msg, "reference", "desired"), self._point(msg, "feedback", "actual")
+        output = getattr(msg, "output", None)
+        arrays = self._arrays
+        arrays["reference.positions"].append(reference.positions)
+        arrays["reference.velocities"].append(reference.velocities)
+        arrays["reference.accelerations"].append(reference.accelerations)
+        arrays["feedback.positions"].append(feedback.positions)
+        arrays["feedback.velocities"].append(feedback.velocities)
+        arrays["feedback.effort"].append(feedback.effort)
+        arrays["output.effort"].append(output.effort if output is not None else ())
+
+
+class _TrajectorySink(_JointStateSink):
+    """A ``JointTrajectory``'s points, one row each: stamp = ``header.stamp`` (else log time) + ``time_from_start``."""
+
+    arrays = ("positions", "velocities", "accelerations")
+
+    def __init__(self, topic: RawTopic) -> None:
+        super().__init__(topic)
+        self._message = Numbers(np.int64)
+
+    def add(self, log_ns: int, data: bytes | memoryview) -> None:
+        """Decode one message into a row per point."""
+        if self.error is not None:
+            return
+        try:
+            msg = self._deserialize(data, self.topic.msgtype)
+            stamp = msg.header.stamp
+            start = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec) or log_ns
+            for point in msg.points:
+                since = point.time_from_start
+                self._stamp.items.append(start + int(since.sec) * 1_000_000_000 + int(since.nanosec))
+                self._take_names(msg.joint_names)
+                for name in self.arrays:
+                    self._arrays[name].append(getattr(point, name))
+                self._message.items.append(self.count)
+                self._log_ns.items.append(log_ns)
+        except Exception as exc:  # noqa: BLE001 - any decoding failure is bad input
+            self.error = f"message {self.count} on {self.topic.name} cannot be decoded as {self.topic.msgtype} ({type(exc).__name__}: {short_text(exc)})"
+            return
+        self.count += 1
+        if len(self._log_ns.items) >= BLOCK:
+            self._flush()
+
+    def _flush(self) -> None:
+        super()._flush()
+        self._message.flush()
+
+    def _extra(self, series: Series) -> None:
+        super()._extra(series)
+        series.message_id = self._message.array()
+
+
 class _PointSink(_Sink):
     arrays = ("positions", "velocities", "accelerations")
 
@@ -309,7 +429,17 @@ class _StringSink(_Sink):
         series.text = self._text
 
 
-_SINKS: dict[str, type[_Sink]] = {JOINT_STATE: _JointStateSink, TRAJECTORY_POINT: _PointSink, STRING: _StringSink}
+_SINKS: dict[str, type[_Sink]] = {
+    JOINT_STATE: _JointStateSink,
+    TRAJECTORY_POINT: _PointSink,
+    STRING: _StringSink,
+    CONTROLLER_STATE: _ControllerStateSink,
+    TRAJECTORY: _TrajectorySink,
+}
+
+
+PER_MESSAGE = frozenset({CONTROLLER_STATE, TRAJECTORY})
+"""Types decoded one message at a time only (no column layout): a columnar reader leaves them to a per-message pass."""
 
 
 class Collector:
@@ -328,13 +458,19 @@ class Collector:
         self.topics: dict[str, RawTopic] = {}
         self._sinks: dict[str, _Sink | None] = {}
 
-    def declare(self, topic: RawTopic) -> _Sink | None:
-        """Register ``topic``; return the sink for its messages, or None when they are not read."""
+    def declare(self, topic: RawTopic, decode: bool = True) -> _Sink | None:
+        """Register ``topic``; return the sink for its messages, or None when they are not read.
+
+        ``decode=False`` registers the topic without a sink: another pass
+        decodes it (:meth:`Collected.adopt`).
+        """
         known = self.topics.get(topic.name)
         if known is not None and known != topic:
             raise LogError(self.path, f"topic {topic.name} appears with two message types")
         self.topics[topic.name] = topic
-        if topic.name not in self._sinks:
+        if not decode:
+            self._sinks.setdefault(topic.name, None)
+        elif topic.name not in self._sinks:
             sink_type = _SINKS.get(topic.msgtype)
             self._sinks[topic.name] = sink_type(topic) if sink_type is not None and topic.kind in (ROS1, ROS2) else None
         return self._sinks[topic.name]
@@ -354,6 +490,11 @@ class Collected:
         self.topics = topics
         self._sinks = sinks
         self._series: dict[str, Series] = {}
+
+    def adopt(self, other: Collected) -> None:
+        """Take the decoded topics of ``other`` (a second pass over the same file) that have none here."""
+        for name, sink in other._sinks.items():
+            self._sinks.setdefault(name, sink)
 
     def series(self, name: str) -> Series:
         """The columns of topic ``name``; raises the topic's first decoding error."""

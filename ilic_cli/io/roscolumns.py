@@ -176,6 +176,9 @@ class Series:
         Array field -> ``(flat values, count per message)``.
     text : str or None
         Data of the first message (String).
+    message_id : ndarray of int64 or None
+        For topics with several rows per message (the points of a
+        ``JointTrajectory``): the message each row comes from, in arrival order.
     """
 
     topic: RawTopic
@@ -185,6 +188,7 @@ class Series:
     names: list[tuple[str, ...]] = field(default_factory=list)
     fields: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     text: str | None = None
+    message_id: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.log_ns)
@@ -219,6 +223,8 @@ def sort_series(series: Series) -> None:
         series.stamp_ns = series.stamp_ns[order]
     if series.name_id is not None:
         series.name_id = series.name_id[order]
+    if series.message_id is not None:
+        series.message_id = series.message_id[order]
     for name, (flat, counts) in series.fields.items():
         starts = (np.cumsum(counts, dtype=np.int64) - counts)[order]
         counts = counts[order]

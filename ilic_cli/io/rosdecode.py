@@ -1,12 +1,20 @@
 """Collected ROS columns -> RunLog.
 
-A file with ``/ilic/metadata`` is read back exactly. Any other file is
-read from its ``sensor_msgs/JointState`` topic (``Selection.topic``, or the only
-one, or ``/joint_states``) for one joint (``Selection.joint`` or the only one):
-``q`` from ``position``, ``qd`` from ``velocity``, ``tau`` from ``effort``, ``t``
-from ``header.stamp`` (log time when every stamp is zero) relative to the first
-sample; the reference from ``Selection.ref_topic`` or ``/joint_reference``
-(``JointTrajectoryPoint`` or ``JointState``).
+A file with ``/ilic/metadata`` is read back exactly. Any other file is read
+from its measured topic (``Selection.topic``; else the only
+``sensor_msgs/JointState`` topic, or ``/joint_states``; else the only
+ros2_control ``control_msgs/JointTrajectoryControllerState`` topic) for one
+joint (``Selection.joint`` or the only one), picked by name in each message:
+``q``/``qd``/``tau`` from ``position``/``velocity``/``effort`` (JointState) or
+``feedback``/``actual`` (controller state), ``t`` from ``header.stamp`` (log
+time when every stamp is zero) relative to the first sample. The reference
+comes from ``Selection.ref_topic``, else ``/joint_reference``, else the
+controller state topic: ``q_ref``/``qd_ref``/``qdd_ref`` from
+``JointTrajectoryPoint``, ``JointState`` or the controller state's
+``reference``/``desired``, matched to the joint by name where the message
+carries names. ``tau`` can come from another topic and field
+(``Selection.effort``); a controller state's ``output.effort`` (the
+commanded effort) is used when the measured topic has no effort.
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ from ilic_cli.io.container import guarded
 from ilic_cli.io.roscollect import Collected
 from ilic_cli.io.rosjson import parse_json_object, parse_units
 from ilic_cli.io.rosschema import (
+    CONTROLLER_STATE,
     FORMAT_TAG,
     FORMAT_VERSION,
     JOINT_STATE,
@@ -32,12 +41,22 @@ from ilic_cli.io.rosschema import (
     TOPIC_METADATA,
     TOPIC_REFERENCE,
     TOPIC_STATES,
+    TRAJECTORY,
     TRAJECTORY_POINT,
 )
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection
     from ilic_cli.runlog import RunLog
+
+MEASURED_FIELDS: dict[str, dict[str, str]] = {
+    JOINT_STATE: {"position": "position", "velocity": "velocity", "effort": "effort"},
+    CONTROLLER_STATE: {"position": "feedback.positions", "velocity": "feedback.velocities", "effort": "feedback.effort"},
+}
+"""Measured topic type -> sample -> field of its columns (:mod:`ilic_cli.io.roscollect`)."""
+
+EFFORT_FIELDS: dict[str, tuple[str, ...]] = {JOINT_STATE: ("effort",), CONTROLLER_STATE: ("feedback.effort", "output.effort")}
+"""Fields that can give ``tau``, per message type (the first is the default)."""
 
 
 def decode(source: Collected, selection: Selection, path: Path) -> RunLog:
@@ -99,6 +118,8 @@ def _decode_ilic(source: Collected, selection: Selection, path: Path) -> RunLog:
         raise LogError(path, f"{TOPIC_METADATA} has no joint name")
     if selection.joint is not None and selection.joint != joint:
         raise LogError(path, f"no joint '{selection.joint}' (joints: {joint})")
+    if selection.effort:
+        raise LogError(path, f"an ilic log's effort is its {TOPIC_STATES} effort; another effort topic cannot be chosen")
     units = parse_units(payload.get("units", {}), path)
     meta = payload.get("meta", {})
     if not isinstance(meta, dict):
@@ -168,13 +189,18 @@ def _extras_series(source: Collected, path: Path) -> dict[str, np.ndarray]:
     return {name: matrix[:, j].copy() for j, name in enumerate(names)}
 
 
-def _joint_state_series(source: Collected, topic: str, joint: str | None, path: Path, *, strict: bool) -> dict[str, Any]:
-    """Collect one joint's samples from a JointState topic.
+def _joint_state_series(source: Collected, topic: str, joint: str | None, path: Path, *, strict: bool, fields: dict[str, str] | None = None) -> dict[str, Any]:
+    """Collect one joint's samples from a topic whose messages name their joints (JointState, controller state).
 
     With ``strict`` every message must carry the joint; otherwise messages
     without it are skipped. ``joint=None`` picks the only joint, or raises
-    listing the joints.
+    listing the joints. ``fields`` maps each key of the result to a column
+    of the topic (default: :data:`MEASURED_FIELDS` of its type); the first
+    one must be present for the joint in every message kept.
     """
+    fields = fields or MEASURED_FIELDS[source.topics[topic].msgtype]
+    first_key = next(iter(fields))
+    what = first_key.removesuffix("s")
     series = source.series(topic)
     if len(series) == 0:
         raise LogError(path, f"topic {topic} has no messages")
@@ -197,16 +223,16 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
         joint = joints[0] if joints else ""
     # per name list: index of the joint, -1 when named without it, -2 when unnamed
     table = np.array([names.index(joint) if joint in names else (-1 if names else -2) for names in series.names], dtype=np.int64)
-    pos_counts = series.fields["position"][1]
+    pos_counts = series.fields[fields[first_key]][1]
     if len(table) == 1 and table[0] >= 0:
         # one name list for every message, with the joint: no per-message index arrays
         jj = int(table[0])
         no_position = _first(pos_counts <= jj)
         if no_position is not None:
-            raise LogError(path, f"message {no_position} on {topic}: no position for joint '{joint}'")
-        out = {"joint": joint, "log_ns": series.log_ns, "stamp_ns": series.stamp_ns}
-        for fieldname in ("position", "velocity", "effort"):
-            out[fieldname] = series.values_at(fieldname, jj)
+            raise LogError(path, f"message {no_position} on {topic}: no {what} for joint '{joint}'")
+        out = {"joint": joint, "log_ns": series.log_ns, "stamp_ns": series.stamp_ns, "message_id": series.message_id}
+        for key, fieldname in fields.items():
+            out[key] = series.values_at(fieldname, jj)
         return out
     j = table[series.name_id]
     j = np.where((j == -2) & (joint == "") & (pos_counts == 1), 0, j)
@@ -216,7 +242,7 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
     if missing_joint is not None and (no_position is None or missing_joint < no_position):
         raise LogError(path, f"message {missing_joint} on {topic} has no joint '{joint}'")
     if no_position is not None:
-        raise LogError(path, f"message {no_position} on {topic}: no position for joint '{joint}'")
+        raise LogError(path, f"message {no_position} on {topic}: no {what} for joint '{joint}'")
     if not keep.any():
         available = sorted({name for names in series.names for name in names})
         raise LogError(path, f"topic {topic} has no joint '{joint}' (joints: {', '.join(available) or 'none'})")
@@ -228,23 +254,28 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
         "log_ns": series.log_ns if all_kept else series.log_ns[keep],
         "stamp_ns": series.stamp_ns if all_kept else series.stamp_ns[keep],
     }
-    for fieldname in ("position", "velocity", "effort"):
-        out[fieldname] = series.values_at(fieldname, jk, mask)
+    for key, fieldname in fields.items():
+        out[key] = series.values_at(fieldname, jk, mask)
+    if series.message_id is not None:
+        out["message_id"] = series.message_id if all_kept else series.message_id[keep]
     return out
 
 
 def _reference_series(source: Collected, topic: str, joint_index: int | None, path: Path, joint: str | None = None) -> dict[str, Any]:
     info = source.topics[topic]
-    if info.msgtype == JOINT_STATE:
-        states = _joint_state_series(source, topic, joint, path, strict=False)
-        return {
-            "log_ns": states["log_ns"],
-            "positions": states["position"],
-            "velocities": states["velocity"],
-            "accelerations": None,
-        }
+    if info.msgtype == TRAJECTORY:
+        return _trajectory_reference(source, topic, joint, path)
+    if info.msgtype in (JOINT_STATE, CONTROLLER_STATE):
+        # by name: a message without the joint is skipped, a topic without it refused
+        if info.msgtype == JOINT_STATE:
+            fields = {"positions": "position", "velocities": "velocity"}
+        else:
+            fields = {"positions": "reference.positions", "velocities": "reference.velocities", "accelerations": "reference.accelerations"}
+        ref = _joint_state_series(source, topic, joint, path, strict=False, fields=fields)
+        ref.setdefault("accelerations", None)
+        return ref
     if info.msgtype != TRAJECTORY_POINT:
-        raise LogError(path, f"reference topic {topic} has type {info.msgtype}; expected {TRAJECTORY_POINT} or {JOINT_STATE}")
+        raise LogError(path, f"reference topic {topic} has type {info.msgtype}; expected {TRAJECTORY_POINT}, {TRAJECTORY}, {JOINT_STATE} or {CONTROLLER_STATE}")
     series = source.series(topic)
     width = series.fields["positions"][1]
     if len(width) and bool((width == 1).all()):
@@ -265,23 +296,88 @@ def _reference_series(source: Collected, topic: str, joint_index: int | None, pa
     return out
 
 
+def _trajectory_reference(source: Collected, topic: str, joint: str | None, path: Path) -> dict[str, Any]:
+    """The joint's reference from ``JointTrajectory`` messages, by name: their points at ``header.stamp + time_from_start``.
+
+    As a trajectory controller does, a message replaces what earlier ones
+    planned from its first point on. The result's ``point_ns`` are the points'
+    times, on which the reference is interpolated at the measured stamps.
+    """
+    fields = {"positions": "positions", "velocities": "velocities", "accelerations": "accelerations"}
+    ref = _joint_state_series(source, topic, joint, path, strict=False, fields=fields)
+    at, message = ref["stamp_ns"], ref["message_id"]
+    starts = np.full(int(message.max()) + 2, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(starts, message, at)
+    later = np.minimum.accumulate(starts[::-1])[::-1]  # the earliest start of this message or any later one
+    keep = at < later[message + 1]
+    order = np.argsort(at[keep], kind="stable")
+    out: dict[str, Any] = {"point_ns": at[keep][order], "log_ns": ref["log_ns"][keep][order]}
+    for key in fields:
+        out[key] = None if ref[key] is None else ref[key][keep][order]
+    if len(out["point_ns"]) and bool((np.diff(out["point_ns"]) == 0).any()):
+        raise LogError(path, f"{topic} plans two points at the same time for joint '{ref['joint']}'")
+    return out
+
+
 def _choose_state_topic(source: Collected, selection: Selection, path: Path) -> str:
     topics = source.topics
+    readable = tuple(MEASURED_FIELDS)
     if selection.topic is not None:
         if selection.topic not in topics:
             raise LogError(path, f"no topic {selection.topic} (topics: {', '.join(sorted(topics)) or 'none'})")
-        if topics[selection.topic].msgtype != JOINT_STATE:
-            raise LogError(path, f"topic {selection.topic} has type {topics[selection.topic].msgtype}, not {JOINT_STATE}")
+        if topics[selection.topic].msgtype not in readable:
+            raise LogError(path, f"topic {selection.topic} has type {topics[selection.topic].msgtype}, not {' or '.join(readable)}")
         return selection.topic
-    candidates = sorted(name for name, info in topics.items() if info.msgtype == JOINT_STATE and name != TOPIC_EXTRAS)
-    if len(candidates) == 1:
-        return candidates[0]
-    if TOPIC_STATES in candidates:
-        return TOPIC_STATES
-    if not candidates:
-        listed = ", ".join(f"{n} ({i.msgtype})" for n, i in sorted(topics.items())) or "none"
-        raise LogError(path, f"no {JOINT_STATE} topic (topics: {listed})")
-    raise ChoiceError(path, f"several {JOINT_STATE} topics ({', '.join(candidates)}); choose one", "topic")
+    for msgtype in readable:  # JointState first, then a controller state
+        candidates = sorted(name for name, info in topics.items() if info.msgtype == msgtype and name != TOPIC_EXTRAS)
+        if len(candidates) == 1:
+            return candidates[0]
+        if TOPIC_STATES in candidates:
+            return TOPIC_STATES
+        if candidates:
+            raise ChoiceError(path, f"several {msgtype} topics ({', '.join(candidates)}); choose one", "topic")
+    listed = ", ".join(f"{n} ({i.msgtype})" for n, i in sorted(topics.items())) or "none"
+    raise LogError(path, f"no {JOINT_STATE} or {CONTROLLER_STATE} topic (topics: {listed})")
+
+
+def _choose_ref_topic(source: Collected, selection: Selection, topic: str) -> str | None:
+    """The reference topic: the chosen one, ``/joint_reference``, the measured controller state, or the only controller state."""
+    topics = source.topics
+    if selection.ref_topic is not None:
+        return selection.ref_topic
+    if TOPIC_REFERENCE in topics:
+        return TOPIC_REFERENCE
+    if topics[topic].msgtype == CONTROLLER_STATE:
+        return topic
+    controllers = [name for name, info in topics.items() if info.msgtype == CONTROLLER_STATE]
+    return controllers[0] if len(controllers) == 1 else None
+
+
+def _on_samples(values: np.ndarray, log_ns: np.ndarray, at_ns: np.ndarray) -> np.ndarray | None:
+    """``values`` logged at ``log_ns`` on the samples logged at ``at_ns`` (sorted): one to one when they are as many, else linear in log time."""
+    order = np.argsort(log_ns, kind="stable")
+    if len(values) == len(at_ns):
+        return values[order]
+    if len(values) < 2:
+        return None
+    return np.interp(at_ns.astype(np.float64), log_ns[order].astype(np.float64), values[order])
+
+
+def _effort(source: Collected, selection: Selection, path: Path) -> tuple[str, str] | None:
+    """``(topic, field)`` that gives ``tau``: ``Selection.effort`` (``TOPIC`` or ``TOPIC:FIELD``), else None (the measured topic's effort)."""
+    if not selection.effort:
+        return None
+    name, _, fieldname = selection.effort.partition(":")
+    info = source.topics.get(name)
+    if info is None:
+        raise LogError(path, f"no effort topic {name} (topics: {', '.join(sorted(source.topics))})")
+    choices = EFFORT_FIELDS.get(info.msgtype)
+    if choices is None:
+        raise LogError(path, f"effort topic {name} has type {info.msgtype}; expected {JOINT_STATE} or {CONTROLLER_STATE}")
+    fieldname = fieldname or choices[0]
+    if fieldname not in choices:
+        raise LogError(path, f"{info.msgtype} has no effort field '{fieldname}' (fields: {', '.join(choices)})")
+    return name, fieldname
 
 
 def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunLog:
@@ -304,25 +400,39 @@ def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunL
     for channel, fieldname in STATE_FIELDS.items():
         if states[fieldname] is not None:
             channels[channel] = states[fieldname][order]
-    ref_name = selection.ref_topic or (TOPIC_REFERENCE if TOPIC_REFERENCE in source.topics else None)
+    log_ns = states["log_ns"][order]
+    meta: dict[str, Any] = {"joint": joint, "topic": topic, "start_time_ns": start, "time_source": time_source}
+    ref_name = _choose_ref_topic(source, selection, topic)
     if ref_name is not None:
         if ref_name not in source.topics:
             raise LogError(path, f"no topic {ref_name} (topics: {', '.join(sorted(source.topics))})")
         joint_index = _joint_index(source, topic, joint)
         ref = _reference_series(source, ref_name, joint_index, path, joint=joint)
-        log_ns = states["log_ns"][order]
         for channel, fieldname in REFERENCE_FIELDS.items():
             values = ref[fieldname]
             if values is None:
                 continue
-            if len(values) == len(log_ns):
-                channels[channel] = values[np.argsort(ref["log_ns"], kind="stable")]
-            elif len(values) >= 2:
-                ref_order = np.argsort(ref["log_ns"], kind="stable")
-                channels[channel] = np.interp(log_ns.astype(np.float64), ref["log_ns"][ref_order].astype(np.float64), values[ref_order])
-    meta: dict[str, Any] = {"joint": joint, "topic": topic, "start_time_ns": start, "time_source": time_source}
-    if ref_name is not None:
+            if "point_ns" in ref:  # a planned trajectory: interpolated in time at the measured stamps
+                on_samples = np.interp(stamps.astype(np.float64), ref["point_ns"].astype(np.float64), values) if len(values) else None
+            else:
+                on_samples = _on_samples(values, ref["log_ns"], log_ns)
+            if on_samples is not None:
+                channels[channel] = on_samples
         meta["ref_topic"] = ref_name
+    effort = _effort(source, selection, path)
+    if effort is None and "tau" not in channels and ref_name is not None and source.topics[ref_name].msgtype == CONTROLLER_STATE:
+        effort = (ref_name, "output.effort")  # no measured effort: the controller's commanded one, when it has one
+        if source.series(ref_name).fields["output.effort"][1].max(initial=0) == 0:
+            effort = None
+    if effort is not None:
+        got = _joint_state_series(source, effort[0], joint, path, strict=False, fields={"effort": effort[1]})
+        on_samples = _on_samples(got["effort"], got["log_ns"], log_ns)
+        if on_samples is None:
+            raise LogError(path, f"{effort[0]} has fewer than 2 '{effort[1]}' values for joint '{joint}'")
+        channels["tau"] = on_samples
+        meta["tau_source"] = f"{effort[0]}:{effort[1]}"
+    if "tau" not in channels:
+        raise ChoiceError(path, f"topic {topic} has no effort for joint '{joint}' and no controller state gives one; choose the effort's topic", "effort")
     rate = nominal_rate_hz(t)
     if rate:
         meta["sample_rate_hz"] = rate

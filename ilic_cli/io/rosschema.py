@@ -19,6 +19,10 @@ for CDR and ROS 1 Noetic for ROS 1 serialisation):
 
 Message log time = sample time in integer nanoseconds (shifted by whole
 seconds when ``t`` starts below zero). Nothing depends on the wall clock.
+
+Read, never written: ros2_control's ``control_msgs/msg/JointTrajectoryControllerState``
+in each of its layouts (:data:`CONTROLLER_LAYOUTS`), whose definitions are
+built in here because the ``rosbags`` type stores do not ship ``control_msgs``.
 """
 
 from __future__ import annotations
@@ -35,8 +39,10 @@ TOPIC_METADATA = "/ilic/metadata"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 TRAJECTORY_POINT = "trajectory_msgs/msg/JointTrajectoryPoint"
 STRING = "std_msgs/msg/String"
+CONTROLLER_STATE = "control_msgs/msg/JointTrajectoryControllerState"
+TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 
-READ_TYPES = frozenset({JOINT_STATE, TRAJECTORY_POINT, STRING})
+READ_TYPES = frozenset({JOINT_STATE, TRAJECTORY_POINT, STRING, CONTROLLER_STATE, TRAJECTORY})
 """Message types the readers decode; containers may skip messages of other types."""
 
 TIME_NAME = "t_s"
@@ -52,13 +58,58 @@ ROS2 = "ros2"
 ROS1 = "ros1"
 
 
+CONTROLLER_LAYOUTS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    # control_msgs <= 4.0 (Foxy, Galactic, early Humble), as ROS 1's (Noetic)
+    "desired/actual": (("desired", "actual", "error"), ()),
+    # control_msgs 4.x (Humble): the new fields, then the deprecated ones kept
+    "reference/feedback+desired/actual": (
+        ("reference", "feedback", "error", "output", "desired", "actual"),
+        ("reference", "feedback", "error", "output", "desired", "actual"),
+    ),
+    # control_msgs >= 5 (Jazzy and later)
+    "reference/feedback": (("reference", "feedback", "error", "output"), ("reference", "feedback", "error", "output")),
+}
+"""ROS 2 layouts of :data:`CONTROLLER_STATE`: name -> (its ``trajectory_msgs/JointTrajectoryPoint`` fields, after ``header`` and
+``joint_names``; its ``multi_dof_*`` ``MultiDOFJointTrajectoryPoint`` fields, after ``multi_dof_joint_names``). CDR carries no
+field names, so a message is decoded with the first layout whose size matches it exactly. ROS 1's is ``desired/actual`` (MD5
+``10817c60c2486ef6b33e97dcd87f4474``)."""
+
+
+def _controller_fields(layout: str, kind: str) -> dict[str, Any]:
+    """:data:`CONTROLLER_STATE` in ``layout`` as a ``rosbags`` type definition, built field by field (no definition text is parsed)."""
+    from rosbags.interfaces import Nodetype
+
+    points, multi = CONTROLLER_LAYOUTS[layout]
+    names = (Nodetype.SEQUENCE, ((Nodetype.BASE, ("string", 0)), 0))
+    fields: list[tuple[str, Any]] = [("header", (Nodetype.NAME, "std_msgs/msg/Header")), ("joint_names", names)]
+    fields += [(p, (Nodetype.NAME, "trajectory_msgs/msg/JointTrajectoryPoint")) for p in points]
+    if multi and kind == ROS2:
+        fields.append(("multi_dof_joint_names", names))
+        fields += [(f"multi_dof_{p}", (Nodetype.NAME, "trajectory_msgs/msg/MultiDOFJointTrajectoryPoint")) for p in multi]
+    return {CONTROLLER_STATE: ([], fields)}
+
+
 # -- type stores -------------------------------------------------------------
 @functools.cache
 def typestore(kind: str) -> Any:
-    """Return the ``rosbags`` type store: ROS 2 Humble (``"ros2"``) or ROS 1 Noetic (``"ros1"``)."""
+    """Return the ``rosbags`` type store: ROS 2 Humble (``"ros2"``) or ROS 1 Noetic (``"ros1"``, with ROS 1's :data:`CONTROLLER_STATE`)."""
     from rosbags.typesys import Stores, get_typestore
 
-    return get_typestore(Stores.ROS1_NOETIC if kind == ROS1 else Stores.ROS2_HUMBLE)
+    if kind == ROS1:
+        ts = get_typestore(Stores.ROS1_NOETIC)
+        ts.register(_controller_fields("desired/actual", ROS1))
+        return ts
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
+@functools.cache
+def controller_typestore(layout: str) -> Any:
+    """Return a ROS 2 Humble type store with :data:`CONTROLLER_STATE` in ``layout`` (a key of :data:`CONTROLLER_LAYOUTS`)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ts.register(_controller_fields(layout, ROS2))
+    return ts
 
 
 def message_definition(msgtype: str, kind: str = ROS2) -> tuple[str, str]:

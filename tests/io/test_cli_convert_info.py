@@ -122,13 +122,19 @@ def _jittered(samples: int = 1500) -> RunLog:
 
 
 def test_convert_keeps_irregular_sampling_with_a_warning(tmp_path: Path) -> None:
-    log = _jittered()
-    src = write_log(log, tmp_path / "irregular.csv")
+    """Truly irregular stamps (steps of 0.2 to 1.8 periods) are kept with a warning; stamp jitter of a fixed-rate loop is kept silently."""
+    log = make_synthetic_log(samples=1500)
+    steps = np.random.default_rng(7).uniform(0.2e-3, 1.8e-3, len(log) - 1)
+    irregular = log.with_channels(t=np.concatenate([[0.0], np.cumsum(steps)]))
+    src = write_log(irregular, tmp_path / "irregular.csv")
     result = run_cli("convert", str(src), str(tmp_path / "kept.mcap"))
     assert result.status == 0, result.stderr
     warnings = [line for line in result.stderr.splitlines() if line.startswith("ilic: warning: ")]
     assert len(warnings) == 1 and "irregular sampling" in warnings[0] and "--resample" in warnings[0]
-    assert np.array_equal(read_log(tmp_path / "kept.mcap").t, log.t)
+    assert np.array_equal(read_log(tmp_path / "kept.mcap").t, irregular.t)
+    jittered = write_log(_jittered(), tmp_path / "jittered.csv")
+    result = run_cli("convert", str(jittered), str(tmp_path / "jittered.mcap"))
+    assert result.status == 0 and "warning" not in result.stderr, result.stderr
 
 
 def test_convert_resample(tmp_path: Path) -> None:
