@@ -281,6 +281,7 @@ def closed_loop_identify(
     name = METHODS[method]
     settings = settings or DEFAULT_SETTINGS[method]
     prepared = prepared or prepare_log(log)
+    log = prepared.log  # an irregularly sampled log is on a uniform grid now
     src = prepared.source
     require_closed_loop(log, src, name)
     prepared.require_contiguous(name)

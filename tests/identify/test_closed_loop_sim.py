@@ -173,3 +173,18 @@ def test_out_folder_has_the_convergence_plot_and_the_asked_estimate(pd_path: Pat
     assert model["method"] == "IDIM-IV"
     assert model["parameters"] == {n: v["value"] for n, v in report["iv"]["parameters"].items()}
     assert "## Closed-loop estimates beside IDIM-LS" in (tmp_path / "r" / "report.md").read_text()
+
+
+def test_irregular_log_is_identified_on_its_uniform_grid() -> None:
+    """An irregularly sampled log (5 % of the samples lost at random) is simulated and regressed on the grid prepare_log puts it on.
+
+    Measured: M 0.18 %, Fv 2.4 %, Fc 2.0 % (the linear interpolation smooths
+    the held command); on the raw stamps instead, M was 76 % off. Held to 3 %.
+    """
+    log = pd_log(2e-6)
+    keep = np.sort(np.random.default_rng(7).choice(len(log), size=int(0.95 * len(log)), replace=False))
+    irregular = RunLog({k: v[keep] for k, v in log.channels.items()}, dict(log.units), dict(log.meta))
+    res = closed_loop_identify("didim", irregular, get_model("rigid"), np.array([95.0, 200.0, 20.0]))
+    got = dict(zip(res.result.names, res.result.theta, strict=True))
+    errs = {n: 100.0 * abs(got[n] - PUBLISHED_RIGID[n]) / PUBLISHED_RIGID[n] for n in RIGID}
+    assert max(errs.values()) < 3.0, errs
