@@ -795,8 +795,7 @@ DISTURBANCE = register(
     Effect(
         "disturbance",
         "band-limited force disturbance",
-        "An unmodelled force acts on the axis (cable drag, vibration of the frame): white noise through a low-pass filter, "
-        "seeded, not in the logged force.",
+        "An unmodelled force acts on the axis (cable drag, vibration of the frame): white noise through a low-pass filter, seeded, not in the logged force.",
         params=(
             PlantParam("std", "N", 2.0, "standard deviation of the force", low=0.0),
             PlantParam("bandwidth_hz", "Hz", 20.0, "corner (-3 dB) frequency of its second-order Butterworth low-pass", low=0.0, low_open=True),

@@ -251,6 +251,7 @@ class Trajectory(Sampled):
             acc = np.where(after, 0.0, acc)
         return pos, vel, acc
 
+
 def _grid(n: int, fs_hz: float) -> np.ndarray:
     """``np.arange(n) / fs_hz`` (the same values, without the integer temporary)."""
     t = np.arange(n, dtype=np.float64)
@@ -325,7 +326,13 @@ def _ms(x: float) -> float:
 
 
 def trapezoid_moves(
-    seed: int | None = None, *, pairs: int = 4, v_range: tuple[float, float] = (0.06, 0.22), cruise_range: tuple[float, float] = (0.15, 0.5), dwell: float = 0.1, q0: float = DEFAULT_Q0
+    seed: int | None = None,
+    *,
+    pairs: int = 4,
+    v_range: tuple[float, float] = (0.06, 0.22),
+    cruise_range: tuple[float, float] = (0.15, 0.5),
+    dwell: float = 0.1,
+    q0: float = DEFAULT_Q0,
 ) -> Trajectory:
     """Back-and-forth trapezoidal velocity moves with a dwell at rest after each, repeating.
 
@@ -386,7 +393,15 @@ class Multisine(Sampled):
         return q, qd, qdd
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": "multisine", "q0": self.q0, "f0": self.f0, "harmonics": list(self.harmonics), "v_amp": self.v_amp, "phases": list(self.phases), "seed": self.seed}
+        return {
+            "kind": "multisine",
+            "q0": self.q0,
+            "f0": self.f0,
+            "harmonics": list(self.harmonics),
+            "v_amp": self.v_amp,
+            "phases": list(self.phases),
+            "seed": self.seed,
+        }
 
 
 def multisine(seed: int | None = None, *, f0: float = 0.1, harmonics: tuple[int, int] = (1, 12), v_rms: float = 0.1, q0: float = DEFAULT_Q0) -> Multisine:
