@@ -1,0 +1,214 @@
+"""How ``ilic diagnose`` does on the corpus of simulated logs with known truth (issue #11, plant/corpus.py).
+
+Runs :func:`ilic_cli.diagnosis.core.diagnose` (what ``ilic diagnose`` runs,
+default settings, replay included) on every case of :data:`plant.corpus.CASES`
+and prints a Markdown table, one row a case: the truth, the findings, and per
+finding ``right`` / ``false alarm``, plus the effects ``missed``. Scoring:
+
+* ``offset`` is always right (the rigid-offset model's column, not physics);
+* a ``delay`` on a log with a current loop and no concealed lag is right when
+  its drive lag (beyond the hold) is within 50 % of the loop's time constant;
+* a concealed effect named is right; any other finding is a false alarm.
+
+Summary: the false-alarm rate on clean cases (cases with any false alarm),
+the detection rate on effect cases (effects named; cases named exactly), the
+parameter error of the effects named (worst relative error of their main
+parameters; the lag of a ``delay`` is measured beyond the hold and compared
+with the concealed lag plus the current loop's time constant), whether the
+closed-loop simulated force error improved where something was accepted, and
+the distribution of the first round's best p-value on clean cases.
+
+Usage: python benchmarks/diagnose_corpus.py [--jobs 2] [--cases GLOB] [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from plant.corpus import CASES, NOISE_MODELS, Case, build_case, expected_delay_s  # noqa: E402
+
+DELAY_SIZE_TOLERANCE = 0.5
+"""A current-loop-sized ``delay`` is right within this relative error of the loop's time constant."""
+
+PARAM_TOLERANCE = 0.15
+"""Parameters recovered within this relative error count as recovered (issue #11)."""
+
+
+def _truth_values(eid: str, p: dict[str, float], case: Case) -> dict[str, float]:
+    """The main parameters of an effect, as compared: ``dFv`` (asymmetry), the drive lag (delay), the rest by name."""
+    if eid == "asymmetric_friction":
+        return {"dFv": p["Fv_neg"] - p["Fv_pos"]}
+    if eid == "stribeck":
+        return {"Fs": p["Fs"], "vs": p["vs"]}
+    if eid == "position_ripple":
+        return {"A": p["A"], "L": p["L"]}
+    if eid == "spring":
+        return {"k": p["k"]}
+    if eid == "payload_change":
+        return {"dM": p["dM"], "t_change": p["t_change"]}
+    if eid == "delay":
+        return {"lag": max(-p["delay"], 0.0)}
+    if eid == "flexibility":
+        return {"stiffness": p["stiffness"], "load_fraction": p["load_fraction"]}
+    return dict(p)
+
+
+def parameter_error(eid: str, found: dict[str, float] | None, case: Case) -> float:
+    """Worst relative error of the main parameters of a named effect (NaN when it has no plant form)."""
+    if found is None:
+        return math.nan
+    truth = _truth_values(eid, case.effects[eid], case)
+    if eid == "delay":
+        truth = {"lag": expected_delay_s(case)}
+    got = _truth_values(eid, found, case)
+    return max(abs(got[k] - v) / abs(v) for k, v in truth.items() if v != 0)
+
+
+def score(case: Case, findings: list[tuple[str, dict[str, float] | None]]) -> dict[str, Any]:
+    """Each finding ``right``/``false alarm``; the effects missed; parameter errors."""
+    verdicts = []
+    errors: dict[str, float] = {}
+    for eid, plant in findings:
+        if eid == "offset":
+            verdicts.append("right")
+        elif eid in case.effects:
+            verdicts.append("right")
+            errors[eid] = parameter_error(eid, plant, case)
+        elif eid == "delay" and "current_loop" in NOISE_MODELS[case.noise] and plant is not None:
+            lag, tau = max(-plant["delay"], 0.0), expected_delay_s(case)
+            verdicts.append("right" if abs(lag - tau) <= DELAY_SIZE_TOLERANCE * tau else "false alarm")
+        else:
+            verdicts.append("false alarm")
+    named = {eid for eid, _ in findings}
+    return {"verdicts": verdicts, "missed": sorted(set(case.effects) - named), "parameter_error": errors, "false_alarms": verdicts.count("false alarm")}
+
+
+def run_case(name: str) -> dict[str, Any]:
+    """Build one case's log and diagnose it (a worker of the pool)."""
+    from ilic_cli.diagnosis.core import diagnose
+
+    case = CASES[name]
+    t0 = time.process_time()
+    log = build_case(case)
+    t1 = time.process_time()
+    diag = diagnose(log)
+    t2 = time.process_time()
+    findings = [(f.effect.id, f.plant_effect) for f in diag.findings]
+    first = [e.test.p_value for e in diag.tried[0]] if diag.tried else []
+    return {
+        "case": name,
+        "clean": case.clean,
+        "truth": case.effects,
+        "size_pts": case.size_pts,
+        "findings": [{"effect": eid, "plant": plant} for eid, plant in findings],
+        **score(case, findings),
+        "first_round_min_p": min(first) if first else None,
+        "fit": diag.fit,
+        "cpu_s": {"simulate": t1 - t0, "diagnose": t2 - t1},
+    }
+
+
+def _fmt_effects(effects: dict[str, Any]) -> str:
+    return "; ".join(f"{k}({', '.join(f'{n}={v:.3g}' for n, v in p.items())})" for k, p in effects.items()) or "-"
+
+
+def _fmt_finding(f: dict[str, Any]) -> str:
+    p = f["plant"]
+    return f["effect"] if not p else f"{f['effect']}({', '.join(f'{n}={v:.3g}' for n, v in p.items())})"
+
+
+def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The rates of the issue's "Done when"."""
+    clean = [r for r in rows if r["clean"]]
+    eff = [r for r in rows if not r["clean"]]
+    named = sum(len(r["truth"]) - len(r["missed"]) for r in eff)
+    total = sum(len(r["truth"]) for r in eff)
+    errs = [e for r in eff for e in r["parameter_error"].values()]
+    finite = [e for e in errs if math.isfinite(e)]
+    accepted = [r for r in rows if any(f["effect"] != "offset" for f in r["findings"])]
+
+    def improved(r: dict[str, Any]) -> bool:
+        s = r["fit"].get("simulation_force_relative_error_pct") or {}
+        return s.get("before") is not None and s.get("after") is not None and s["after"] < s["before"]
+
+    ps = sorted(r["first_round_min_p"] for r in clean if r["first_round_min_p"] is not None)
+
+    def q(x: float) -> float | None:
+        return ps[min(int(x * len(ps)), len(ps) - 1)] if ps else None
+
+    return {
+        "clean_cases": len(clean),
+        "clean_without_false_alarm": sum(r["false_alarms"] == 0 for r in clean),
+        "false_alarm_rate": sum(r["false_alarms"] > 0 for r in clean) / len(clean) if clean else None,
+        "effect_cases": len(eff),
+        "effects_named": named,
+        "effects_total": total,
+        "detection_rate": named / total if total else None,
+        "effect_cases_exact": sum(not r["missed"] and r["false_alarms"] == 0 for r in eff),
+        "effect_cases_with_false_alarm": sum(r["false_alarms"] > 0 for r in eff),
+        "parameter_error_median": sorted(finite)[len(finite) // 2] if finite else None,
+        "parameters_within_15pct": sum(e <= PARAM_TOLERANCE for e in finite),
+        "parameters_compared": len(errs),
+        "accepted_cases": len(accepted),
+        "accepted_sim_force_improved": sum(improved(r) for r in accepted),
+        "clean_first_round_min_p": {"min": ps[0] if ps else None, "q25": q(0.25), "median": q(0.5), "q75": q(0.75), "max": ps[-1] if ps else None},
+    }
+
+
+def render(rows: list[dict[str, Any]], summ: dict[str, Any]) -> str:
+    lines = ["| case | size (pts) | truth | findings | verdicts | missed | param err |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(
+            f"| {r['case']} | {'' if r['size_pts'] is None else r['size_pts']} | {_fmt_effects(r['truth'])} | "
+            f"{'; '.join(_fmt_finding(f) for f in r['findings']) or '-'} | {', '.join(r['verdicts']) or '-'} | {', '.join(r['missed']) or '-'} | "
+            f"{', '.join(f'{k} {v:.0%}' for k, v in r['parameter_error'].items()) or '-'} |"
+        )
+    s = summ
+    lines += [
+        "",
+        f"- clean cases without a false alarm: {s['clean_without_false_alarm']}/{s['clean_cases']} (false-alarm rate {s['false_alarm_rate']:.0%})",
+        f"- effects named: {s['effects_named']}/{s['effects_total']} in {s['effect_cases']} effect cases; "
+        f"named exactly (nothing else but offset): {s['effect_cases_exact']}; with a false alarm: {s['effect_cases_with_false_alarm']}",
+        f"- parameters within 15 %: {s['parameters_within_15pct']}/{s['parameters_compared']} (median worst error {s['parameter_error_median']})",
+        f"- closed-loop simulated force error improved: {s['accepted_sim_force_improved']}/{s['accepted_cases']} cases with an accepted effect",
+        f"- clean cases, first round's best p-value: {s['clean_first_round_min_p']}",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    ap.add_argument("--cases", default="*", help="glob of case names (default all)")
+    ap.add_argument("--json", type=Path, default=None, help="also write every row and the summary as JSON")
+    args = ap.parse_args(argv)
+    names = [n for n in CASES if fnmatch.fnmatch(n, args.cases)]
+    if not names:
+        print(f"no case matches {args.cases!r}", file=sys.stderr)
+        return 2
+    if args.jobs > 1:
+        from multiprocessing import get_context
+
+        with get_context("spawn").Pool(args.jobs) as pool:
+            rows = pool.map(run_case, names, chunksize=1)
+    else:
+        rows = [run_case(n) for n in names]
+    summ = summary(rows)
+    print(render(rows, summ))
+    if args.json is not None:
+        args.json.write_text(json.dumps({"rows": rows, "summary": summ}, indent=1, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
