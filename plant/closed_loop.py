@@ -107,7 +107,7 @@ def simulate_loop(
     qdd_log = qdd_r if qdd_log is None else np.asarray(qdd_log, dtype=np.float64)
     pul = np.zeros(n) if pulses is None else np.ascontiguousarray(pulses, dtype=np.float64)
     noise_tau, noise_q = draw_noise(n, seed, effects)
-    dist = draw_disturbance(n, seed, effects, fs_hz)
+    dist = draw_disturbance(n, seed, effects, fs_hz) if "disturbance" in effects else None
     if x0 is None:
         x0 = (float(q_r[0]), float(qd_r[0]))
     x = np.array([x0[0], x0[1], x0[0], x0[1], np.nan], dtype=np.float64)  # the current loop's force: NaN = the first command
@@ -128,7 +128,7 @@ def simulate_loop(
 
     def run(a: int, b: int, chi_now: np.ndarray) -> None:
         chi8 = chi_vector(names, chi_now) if len(names) else np.zeros(8)
-        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, dist, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd)
+        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd, dist)
         if bad >= 0:
             raise SimulationError(None, f"the closed loop diverged at t = {bad * T:.6g} s (non-finite state); check the parameters and gains")
 

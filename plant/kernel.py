@@ -351,13 +351,14 @@ def _current_loop_substeps(p, c, y, d, x0, x1, x2, x3, tk, h, nsub, flex, tau_i)
 
 
 @njit(cache=CACHE)
-def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, dist, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd):
+def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd, dist=None):
     """Advance the closed loop over periods ``k0 <= k < k1``.
 
-    ``dist`` is the disturbance force on the axis per period (``current_loop``:
-    the applied force lags the command, :func:`_current_loop_substeps`; its
-    value is ``x[4]``, NaN before the first period).
-    ``x`` (motor q, qd, load q, qd, applied force) and ``cs`` (previous measured q, previous
+    ``dist`` (optional) is the disturbance force on the axis per period.
+    ``current_loop``: the applied force lags the command
+    (:func:`_current_loop_substeps`); ``x`` then has a fifth entry, that force
+    (NaN before the first period: the first command).
+    ``x`` (motor q, qd, load q, qd) and ``cs`` (previous measured q, previous
     filtered q, previous PD output, initialised flag) are updated in place.
     Per period ``k`` the outputs get the measured position, the applied force
     and control signal, and the plant's (motor) position, velocity and
@@ -394,7 +395,7 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, dist, p, c, ch
             cf1, cf2 = _linear_coefficients(p, h1, n1), _linear_coefficients(p, h2, n2)
     ramp = c[C_PULSE_RAMP] == 1.0
     tau_i = 1.0 / (TWO_PI * p[P_CL_BW]) if p[P_CL_BW] > 0.0 else 0.0
-    y = x[4]
+    y = x[4] if len(x) > 4 else math.nan
     for k in range(k0, k1):
         du = 0.0  # change of the applied force over the period (pulses ramped between control instants)
         qm = x0 + noise_q[k]
@@ -446,7 +447,10 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, dist, p, c, ch
         if lag_n >= 0:  # drive lag: the commands lag_n (+1) periods back
             ub = out_u[max(k - lag_n, 0)]
             ua = out_u[max(k - lag_n - 1, 0)] if phi > 0.0 else ub
-        dk = dist[k]
+        if dist is None:
+            dk = 0.0
+        else:
+            dk = dist[k]
         if tau_i > 0.0:  # current loop: the applied force y lags the (lagged) command
             if math.isnan(y):
                 y = ua
@@ -458,7 +462,7 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, dist, p, c, ch
             else:
                 x0, x1, x2, x3, y = _current_loop_substeps(p, ub, y, dk, x0, x1, x2, x3, tk, h, substeps, flex, tau_i)
             if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
-                x[0], x[1], x[2], x[3], x[4] = x0, x1, x2, x3, y
+                x[0], x[1], x[2], x[3] = x0, x1, x2, x3
                 return k
             continue
         ua += dk
@@ -498,5 +502,7 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, dist, p, c, ch
         if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
             x[0], x[1], x[2], x[3] = x0, x1, x2, x3
             return k
-    x[0], x[1], x[2], x[3], x[4] = x0, x1, x2, x3, y
+    x[0], x[1], x[2], x[3] = x0, x1, x2, x3
+    if len(x) > 4:
+        x[4] = y
     return -1
