@@ -18,7 +18,10 @@ with the concealed lag plus the current loop's time constant), whether the
 closed-loop simulated force error improved where something was accepted, and
 the distribution of the first round's best p-value on clean cases.
 
-Usage: python benchmarks/diagnose_corpus.py [--jobs 2] [--cases GLOB] [--json FILE]
+``--design``: calibrate the effect cases anew (:func:`plant.corpus.design`) and
+print them as the literal of ``plant/corpus.py`` (about two minutes).
+
+Usage: python benchmarks/diagnose_corpus.py [--jobs 2] [--cases GLOB] [--json FILE] [--design]
 """
 
 from __future__ import annotations
@@ -186,23 +189,48 @@ def render(rows: list[dict[str, Any]], summ: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+class _Serial:
+    """A stand-in for a pool of one process."""
+
+    def __enter__(self) -> _Serial:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def map(self, fn: Any, items: Any, chunksize: int = 1) -> list[Any]:
+        return [fn(x) for x in items]
+
+
+def _pool(jobs: int) -> Any:
+    """``jobs`` worker processes (spawned: each imports and compiles on its own), or in-process for one."""
+    if jobs <= 1:
+        return _Serial()
+    from multiprocessing import get_context
+
+    return get_context("spawn").Pool(jobs)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--cases", default="*", help="glob of case names (default all)")
     ap.add_argument("--json", type=Path, default=None, help="also write every row and the summary as JSON")
+    ap.add_argument("--design", action="store_true", help="calibrate the effect cases anew and print them")
     args = ap.parse_args(argv)
+    if args.design:
+        from plant.corpus import design, recipes
+
+        with _pool(args.jobs) as pool:
+            for c in pool.map(design, recipes(), chunksize=1):
+                print(f"    Case({c.name!r}, {c.trajectory!r}, {c.noise!r}, {c.seed}, {c.effects!r}, {c.size_pts!r}),".replace("'", '"'))
+        return 0
     names = [n for n in CASES if fnmatch.fnmatch(n, args.cases)]
     if not names:
         print(f"no case matches {args.cases!r}", file=sys.stderr)
         return 2
-    if args.jobs > 1:
-        from multiprocessing import get_context
-
-        with get_context("spawn").Pool(args.jobs) as pool:
-            rows = pool.map(run_case, names, chunksize=1)
-    else:
-        rows = [run_case(n) for n in names]
+    with _pool(args.jobs) as pool:
+        rows = pool.map(run_case, names, chunksize=1)
     summ = summary(rows)
     print(render(rows, summ))
     if args.json is not None:

@@ -330,29 +330,35 @@ def trapezoid_moves(
     *,
     pairs: int = 4,
     v_range: tuple[float, float] = (0.06, 0.22),
-    cruise_range: tuple[float, float] = (0.15, 0.5),
+    top: float = 0.14,
+    min_move: float = 0.03,
     dwell: float = 0.1,
     q0: float = DEFAULT_Q0,
 ) -> Trajectory:
     """Back-and-forth trapezoidal velocity moves with a dwell at rest after each, repeating.
 
-    ``pairs`` pairs of a forward move and a backward move of the same distance;
-    speeds drawn uniformly in ``v_range`` and cruise times in ``cruise_range``
-    (numpy PCG64(``seed``), default seed 0), ramps at :data:`TRAPEZOID_ACCEL`,
-    breakpoints on the 1 ms grid; the backward move's speed is adjusted so that
-    it returns exactly. Each move reverses the direction of motion, through a
-    dwell of ``dwell`` s at rest (stiction, then break-away).
+    ``pairs`` pairs of a forward move to a level drawn in ``[min_move, top]``
+    above ``q0`` and a backward move to a level drawn between ``0`` and
+    ``min_move`` below it (the last pair returns to ``q0``), so the turning
+    points vary from move to move; speeds drawn uniformly in ``v_range``
+    (numpy PCG64(``seed``), default seed 0), adjusted so that the move ends on
+    its level; ramps of about :data:`TRAPEZOID_ACCEL`, breakpoints on the 1 ms
+    grid. Each move reverses the direction of motion, through a dwell of
+    ``dwell`` s at rest (stiction, then break-away).
     """
     rng = np.random.Generator(np.random.PCG64(0 if seed is None else seed))
     moves: list[Move] = []
-    for _ in range(pairs):
-        v1, v2 = rng.uniform(*v_range, size=2)
-        c1, c2 = rng.uniform(*cruise_range, size=2)
-        fwd = Move(float(v1), _ms(v1 / TRAPEZOID_ACCEL), _ms(c1), dwell)
-        ta = _ms(v2 / TRAPEZOID_ACCEL)
-        tc = _ms(max(fwd.displacement / v2 - ta, 0.001))
-        back = Move(-fwd.displacement / (ta + tc), ta, tc, dwell)
-        moves += [fwd, back]
+    here = 0.0
+    for i in range(pairs):
+        up = float(rng.uniform(max(here + min_move, min_move), top))
+        down = 0.0 if i == pairs - 1 else float(rng.uniform(0.0, up - min_move))
+        for target in (up, down):
+            d = target - here
+            v = float(rng.uniform(*v_range))
+            ta = _ms(v / TRAPEZOID_ACCEL)
+            tc = _ms(max(abs(d) / v - ta, 0.02))
+            moves.append(Move(d / (ta + tc), ta, tc, dwell))
+            here = target
     desc = {"kind": "trapezoid", "seed": seed, "dwell": dwell, "moves": [[m.v, m.t_acc, m.t_const, m.dwell] for m in moves]}
     return Trajectory(tuple(s for m in moves for s in m.segments()), q0=q0, repeat=True, description=desc)
 

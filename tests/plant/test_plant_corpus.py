@@ -174,3 +174,12 @@ def test_corpus_case_is_deterministic_and_carries_its_truth() -> None:
     assert a.meta["simulation"]["tau_sensor"] == "command"
     assert expected_delay_s(case) == pytest.approx(1.2e-3 + 1.0 / (2 * math.pi * 700.0))
     assert expected_delay_s(CASES["clean-paper-sensor-s1"]) == 0.0
+
+
+def test_corpus_design_reproduces_a_stored_case() -> None:
+    from plant.corpus import CASES, EFFECT_CASES, PAIR_CASES, design, recipes
+
+    recipe = next(r for r in recipes() if r[0] == "single" and r[1][1] == "delay" and r[1][3] == "sensor")  # no search: two simulations
+    case = design(recipe)
+    assert CASES[case.name] == case
+    assert len(recipes()) == len(EFFECT_CASES) + len(PAIR_CASES)
