@@ -3,7 +3,8 @@
 Runs :func:`ilic_cli.diagnosis.core.diagnose` (what ``ilic diagnose`` runs,
 default settings, replay included) on every case of :data:`plant.corpus.CASES`
 and prints a Markdown table, one row a case: the truth, the findings, and per
-finding ``right`` / ``false alarm``, plus the effects ``missed``. Scoring:
+finding ``right`` / ``false alarm``, plus the effects ``missed``. Scoring
+(:func:`plant.corpus.score`):
 
 * ``offset`` is always right (the rigid-offset model's column, not physics);
 * a ``delay`` on a log with a current loop and no concealed lag is right when
@@ -38,62 +39,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from plant.corpus import CASES, NOISE_MODELS, Case, build_case, expected_delay_s  # noqa: E402
-
-DELAY_SIZE_TOLERANCE = 0.5
-"""A current-loop-sized ``delay`` is right within this relative error of the loop's time constant."""
-
-PARAM_TOLERANCE = 0.15
-"""Parameters recovered within this relative error count as recovered (issue #11)."""
-
-
-def _truth_values(eid: str, p: dict[str, float], case: Case) -> dict[str, float]:
-    """The main parameters of an effect, as compared: ``dFv`` (asymmetry), the drive lag (delay), the rest by name."""
-    if eid == "asymmetric_friction":
-        return {"dFv": p["Fv_neg"] - p["Fv_pos"]}
-    if eid == "stribeck":
-        return {"Fs": p["Fs"], "vs": p["vs"]}
-    if eid == "position_ripple":
-        return {"A": p["A"], "L": p["L"]}
-    if eid == "spring":
-        return {"k": p["k"]}
-    if eid == "payload_change":
-        return {"dM": p["dM"], "t_change": p["t_change"]}
-    if eid == "delay":
-        return {"lag": max(-p["delay"], 0.0)}
-    if eid == "flexibility":
-        return {"stiffness": p["stiffness"], "load_fraction": p["load_fraction"]}
-    return dict(p)
-
-
-def parameter_error(eid: str, found: dict[str, float] | None, case: Case) -> float:
-    """Worst relative error of the main parameters of a named effect (NaN when it has no plant form)."""
-    if found is None:
-        return math.nan
-    truth = _truth_values(eid, case.effects[eid], case)
-    if eid == "delay":
-        truth = {"lag": expected_delay_s(case)}
-    got = _truth_values(eid, found, case)
-    return max(abs(got[k] - v) / abs(v) for k, v in truth.items() if v != 0)
-
-
-def score(case: Case, findings: list[tuple[str, dict[str, float] | None]]) -> dict[str, Any]:
-    """Each finding ``right``/``false alarm``; the effects missed; parameter errors."""
-    verdicts = []
-    errors: dict[str, float] = {}
-    for eid, plant in findings:
-        if eid == "offset":
-            verdicts.append("right")
-        elif eid in case.effects:
-            verdicts.append("right")
-            errors[eid] = parameter_error(eid, plant, case)
-        elif eid == "delay" and "current_loop" in NOISE_MODELS[case.noise] and plant is not None:
-            lag, tau = max(-plant["delay"], 0.0), expected_delay_s(case)
-            verdicts.append("right" if abs(lag - tau) <= DELAY_SIZE_TOLERANCE * tau else "false alarm")
-        else:
-            verdicts.append("false alarm")
-    named = {eid for eid, _ in findings}
-    return {"verdicts": verdicts, "missed": sorted(set(case.effects) - named), "parameter_error": errors, "false_alarms": verdicts.count("false alarm")}
+from plant.corpus import CASES, PARAM_TOLERANCE, build_case, score  # noqa: E402
 
 
 def run_case(name: str) -> dict[str, Any]:

@@ -21,7 +21,8 @@ The concealed effects are sized so that each changes the rigid-offset
 IDIM-LS relative error by 0.2-1.5 points (:func:`size_points`; the measured
 change is stored with the case as :attr:`Case.size_pts`, and the tests
 re-measure some). A ``delay`` of the current loop's size is physics, not a
-false alarm (:func:`expected_delay_s`).
+false alarm (:func:`expected_delay_s`); :func:`score` judges a diagnosis
+against the truth.
 """
 
 from __future__ import annotations
@@ -199,6 +200,84 @@ def effect_of_size(eid: str, s: float, case: Case, variant: int = 0) -> dict[str
         k = (2.0 * math.pi * f_res) ** 2 * m_load
         return {"stiffness": round(k, 1), "damping": round(2.0 * zeta * math.sqrt(k * m_load), 2), "load_fraction": s}
     raise ValueError(f"no size rule for effect {eid!r}")
+
+
+# ---------------------------------------------------------------------------
+# scoring a diagnosis against the truth
+# ---------------------------------------------------------------------------
+DELAY_SIZE_TOLERANCE = 0.5
+"""A current-loop-sized ``delay`` is right within this relative error of the loop's time constant."""
+
+PARAM_TOLERANCE = 0.15
+"""Parameters recovered within this relative error count as recovered (issue #11)."""
+
+
+def _truth_values(eid: str, p: dict[str, float], case: Case) -> dict[str, float]:
+    """The main parameters of an effect, as compared: ``dFv`` (asymmetry), the drive lag (delay), the rest by name."""
+    if eid == "asymmetric_friction":
+        return {"dFv": p["Fv_neg"] - p["Fv_pos"]}
+    if eid == "stribeck":
+        return {"Fs": p["Fs"], "vs": p["vs"]}
+    if eid == "position_ripple":
+        return {"A": p["A"], "L": p["L"]}
+    if eid == "spring":
+        return {"k": p["k"]}
+    if eid == "payload_change":
+        return {"dM": p["dM"], "t_change": p["t_change"]}
+    if eid == "delay":
+        return {"lag": max(-p["delay"], 0.0)}
+    if eid == "flexibility":
+        return {"stiffness": p["stiffness"], "load_fraction": p["load_fraction"]}
+    return dict(p)
+
+
+def parameter_error(eid: str, found: dict[str, float] | None, case: Case) -> float:
+    """Worst relative error of the main parameters of a named effect (NaN when it has no plant form)."""
+    if found is None:
+        return math.nan
+    truth = _truth_values(eid, case.effects[eid], case)
+    if eid == "delay":
+        truth = {"lag": expected_delay_s(case)}
+    got = _truth_values(eid, found, case)
+    return max(abs(got[k] - v) / abs(v) for k, v in truth.items() if v != 0)
+
+
+def score(case: Case, findings: list[tuple[str, dict[str, float] | None]]) -> dict[str, Any]:
+    """Score a diagnosis of ``case``'s log against its truth.
+
+    ``offset`` is always right; a concealed effect named is right; a ``delay``
+    on a log with a current loop (and no concealed lag) is right when its drive
+    lag beyond the hold is within :data:`DELAY_SIZE_TOLERANCE` of the loop's
+    time constant; any other finding is a false alarm.
+
+    Parameters
+    ----------
+    case : Case
+        The case whose log was diagnosed.
+    findings : list of (effect id, plant parameters or None)
+        What the diagnosis accepted (``Finding.effect.id``, ``Finding.plant_effect``).
+
+    Returns
+    -------
+    dict
+        ``verdicts`` (one per finding), ``missed`` (concealed effects not named),
+        ``parameter_error`` (effect -> :func:`parameter_error`), ``false_alarms`` (count).
+    """
+    verdicts = []
+    errors: dict[str, float] = {}
+    for eid, plant in findings:
+        if eid == "offset":
+            verdicts.append("right")
+        elif eid in case.effects:
+            verdicts.append("right")
+            errors[eid] = parameter_error(eid, plant, case)
+        elif eid == "delay" and "current_loop" in NOISE_MODELS[case.noise] and plant is not None:
+            lag, tau = max(-plant["delay"], 0.0), expected_delay_s(case)
+            verdicts.append("right" if abs(lag - tau) <= DELAY_SIZE_TOLERANCE * tau else "false alarm")
+        else:
+            verdicts.append("false alarm")
+    named = {eid for eid, _ in findings}
+    return {"verdicts": verdicts, "missed": sorted(set(case.effects) - named), "parameter_error": errors, "false_alarms": verdicts.count("false alarm")}
 
 
 # ---------------------------------------------------------------------------

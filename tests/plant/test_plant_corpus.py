@@ -183,3 +183,20 @@ def test_corpus_design_reproduces_a_stored_case() -> None:
     case = design(recipe)
     assert CASES[case.name] == case
     assert len(recipes()) == len(EFFECT_CASES) + len(PAIR_CASES)
+
+
+def test_score_judges_findings_against_the_truth() -> None:
+    from plant.corpus import CASES, score
+
+    clean_cl = CASES["clean-paper-current_loop-s1"]
+    tau = 1.0 / (2 * math.pi * 700.0)
+    s = score(clean_cl, [("offset", None), ("delay", {"delay": -1.2 * tau})])
+    assert s["verdicts"] == ["right", "right"] and s["false_alarms"] == 0
+    s = score(clean_cl, [("delay", {"delay": -0.8e-3}), ("spring", {"k": 30.0, "q0": 0.0})])
+    assert s["verdicts"] == ["false alarm", "false alarm"] and s["false_alarms"] == 2
+    assert score(CASES["clean-paper-sensor-s1"], [("delay", {"delay": -tau})])["false_alarms"] == 1  # no current loop there
+    pair = CASES["delay+spring-multisine-combined-s304"]
+    s = score(pair, [("spring", {"k": pair.effects["spring"]["k"] * 1.1, "q0": 0.0})])
+    assert s["missed"] == ["delay"] and s["parameter_error"]["spring"] == pytest.approx(0.1)
+    s = score(pair, [("delay", {"delay": -(1.2e-3 + tau)})])  # the lag beyond the hold: concealed lag + current loop
+    assert s["parameter_error"]["delay"] == pytest.approx(0.0, abs=1e-12)
