@@ -790,3 +790,25 @@ NOISE = register(
         params=(PlantParam("tau_std", "N", 0.0, "force noise std", low=0.0), PlantParam("q_std", "m", 0.0, "position noise std", low=0.0)),
     )
 )
+
+DISTURBANCE = register(
+    Effect(
+        "disturbance",
+        "band-limited force disturbance",
+        "An unmodelled force acts on the axis (cable drag, vibration of the frame): white noise through a low-pass filter, seeded, not in the logged force.",
+        params=(
+            PlantParam("std", "N", 2.0, "standard deviation of the force", low=0.0),
+            PlantParam("bandwidth_hz", "Hz", 20.0, "corner (-3 dB) frequency of its second-order Butterworth low-pass", low=0.0, low_open=True),
+        ),
+    )
+)
+
+CURRENT_LOOP = register(
+    Effect(
+        "current_loop",
+        "current-loop lag",
+        "The drive's current loop makes the applied force follow the command as a first-order lag of time constant 1/(2 pi f), "
+        "f its bandwidth (about 700 Hz: 0.23 ms); an inverse model sees it as a drive lag of that size.",
+        params=(PlantParam("bandwidth_hz", "Hz", 700.0, "closed-loop bandwidth f of the current loop", low=0.0, low_open=True),),
+    )
+)

@@ -4,7 +4,7 @@ Modules
 -------
 ``plant.dynamics``      rigid parameters, the plant vector, :func:`force_model` (inverse dynamics);
                         the effects themselves are defined in :mod:`ilic_cli.effects`
-``plant.trajectories``  exciting trajectories (trapezoidal velocity profiles)
+``plant.trajectories``  exciting trajectories (trapezoidal velocity profiles, multisines)
 ``plant.controllers``   CTC (paper eqs. 11-16) and the benchmark PD loop settings
 ``plant.kernel``        the compiled inner loop (controller per period, RK4, stick/slip)
 ``plant.generic``       the loop compiled for effects without a compiled form
@@ -12,6 +12,7 @@ Modules
 ``plant.closed_loop``   :func:`simulate_loop` (online IDIM-ILIC) and the run log
 ``plant.replay``        :func:`simulate_replay`: a recorded log's reference through the plant
 ``plant.scenarios``     named scenarios (``paper-sim``, ``paper-payload``, ``emps-benchmark``)
+``plant.corpus``        named simulated logs with known truth, to calibrate and test the diagnosis
 
 Importing ``plant`` is cheap (deferred: numba's import and the compiled loop
 cost about a second); the loop is compiled once and cached.

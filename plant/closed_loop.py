@@ -22,7 +22,7 @@ from ilic_cli.runlog import RunLog
 from plant.controllers import CTCSettings, PDSettings, chi_vector
 from plant.dynamics import STICK_VELOCITY, RigidParameters, drive_lag_s, plant_vector
 from plant.generic import kernel_for
-from plant.sensors import TAU_SENSORS, draw_noise, measured_force
+from plant.sensors import TAU_SENSORS, draw_disturbance, draw_noise, measured_force
 
 
 @dataclass
@@ -96,6 +96,8 @@ def simulate_loop(
             effects["delay"]["delay"],
             '>= 0 with ramped pulses (pulse_input="ramp", the published setup): a drive lag cannot be combined with them',
         )
+    if isinstance(controller, PDSettings) and controller.pulse_input == "ramp" and "current_loop" in effects:
+        raise ParameterError("current_loop", effects["current_loop"].to_dict(), 'left out with ramped pulses (pulse_input="ramp", the published setup)')
     T = 1.0 / fs_hz
     p = plant_vector(params, effects)
     run_periods = kernel_for(effects).run_periods
@@ -105,9 +107,10 @@ def simulate_loop(
     qdd_log = qdd_r if qdd_log is None else np.asarray(qdd_log, dtype=np.float64)
     pul = np.zeros(n) if pulses is None else np.ascontiguousarray(pulses, dtype=np.float64)
     noise_tau, noise_q = draw_noise(n, seed, effects)
+    dist = draw_disturbance(n, seed, effects, fs_hz) if "disturbance" in effects else None
     if x0 is None:
         x0 = (float(q_r[0]), float(qd_r[0]))
-    x = np.array([x0[0], x0[1], x0[0], x0[1]], dtype=np.float64)
+    x = np.array([x0[0], x0[1], x0[0], x0[1], np.nan], dtype=np.float64)  # the current loop's force: NaN = the first command
     # controller memory as if the axis had been moving at qd0 before t = 0
     q_prev = x0[0] - x0[1] * T
     cs = np.array([q_prev, q_prev, 0.0, 1.0])
@@ -125,7 +128,7 @@ def simulate_loop(
 
     def run(a: int, b: int, chi_now: np.ndarray) -> None:
         chi8 = chi_vector(names, chi_now) if len(names) else np.zeros(8)
-        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd)
+        bad = run_periods(a, b, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd, dist)
         if bad >= 0:
             raise SimulationError(None, f"the closed loop diverged at t = {bad * T:.6g} s (non-finite state); check the parameters and gains")
 

@@ -12,8 +12,9 @@ against the definitions by the tests), any other effect's parameters after
 them (:data:`N_PLANT`), for the loop that compiles its ``force``.
 
 :func:`force_model` is the vectorised inverse dynamics with these effects (the
-measurement effects ``quantization`` and ``noise`` and the actuator limit
-``saturation`` are not part of it: they do not change the physics).
+measurement effects ``quantization`` and ``noise``, the actuator limit
+``saturation``, the random ``disturbance`` and the drive's ``current_loop``
+are not part of it).
 """
 
 from __future__ import annotations
@@ -113,8 +114,11 @@ def plant_model(values: Mapping[str, float], effects: Mapping[str, Any] | None =
     P_VEPS,
     P_RES,
     P_LAG,
-) = range(22)
-N_PLANT = 22
+    P_DIST_STD,
+    P_DIST_BW,
+    P_CL_BW,
+) = range(25)
+N_PLANT = 25
 
 SLOTS: dict[str, dict[str, int]] = {
     "asymmetric_friction": {"Fv_pos": P_FV_POS, "Fv_neg": P_FV_NEG, "Fc_pos": P_FC_POS, "Fc_neg": P_FC_NEG},
@@ -127,6 +131,8 @@ SLOTS: dict[str, dict[str, int]] = {
     "quantization": {"resolution": P_RES},
     "delay": {},  # the drive lag (a negative delay) goes to P_LAG; the measurement lag is the force sensor's
     "noise": {},  # drawn up front (plant.sensors.draw_noise)
+    "disturbance": {"std": P_DIST_STD, "bandwidth_hz": P_DIST_BW},  # recorded; the force is drawn up front (plant.sensors.draw_disturbance)
+    "current_loop": {"bandwidth_hz": P_CL_BW},
 }
 """Compiled form of the built-in effects: parameter -> slot of the plant vector."""
 
@@ -195,8 +201,8 @@ def force_model(
     (load at rest relative to the motor at ``t[0]``; uniform ``t`` expected);
     ``delay`` returns the force ``delay`` seconds earlier (later for a
     negative delay; linear interpolation, the end values held). ``saturation``,
-    ``quantization`` and ``noise`` are measurement/actuator effects and are
-    ignored here.
+    ``quantization``, ``noise``, ``disturbance`` and ``current_loop`` are
+    measurement/actuator effects and are ignored here.
 
     The built-in structural effects (asymmetric friction, payload, flexibility,
     delay) come from the plant vector; every effect with a ``force`` term

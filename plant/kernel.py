@@ -44,6 +44,7 @@ from numba import njit
 from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PULSE_RAMP, C_VMAX
 from plant.dynamics import (
     N_PLANT,
+    P_CL_BW,
     P_DM,
     P_FC_NEG,
     P_FC_POS,
@@ -333,9 +334,30 @@ def _substeps(p, u, x0, x1, x2, x3, tk, h, nsub, flex):
 
 
 @njit(cache=CACHE)
-def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd):
+def _current_loop_substeps(p, c, y, d, x0, x1, x2, x3, tk, h, nsub, flex, tau_i):
+    """``nsub`` steps of ``h`` from ``tk`` with the applied force ``y`` following the command ``c`` as a first-order lag.
+
+    Per step the force on the axis is the exact mean of ``c + (y - c) exp(-t/tau_i)``
+    over the step, plus the disturbance ``d``; ``y`` is advanced exactly.
+    Returns the state and the applied force at the end.
+    """
+    e = math.exp(-h / tau_i)
+    g = tau_i / h * (1.0 - e)
+    for j in range(nsub):
+        mm, ml = _masses(p, tk + j * h, flex)
+        x0, x1, x2, x3 = _step(p, c + (y - c) * g + d, x0, x1, x2, x3, h, mm, ml, flex)
+        y = c + (y - c) * e
+    return x0, x1, x2, x3, y
+
+
+@njit(cache=CACHE)
+def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd, dist=None):
     """Advance the closed loop over periods ``k0 <= k < k1``.
 
+    ``dist`` (optional) is the disturbance force on the axis per period.
+    ``current_loop``: the applied force lags the command
+    (:func:`_current_loop_substeps`); ``x`` then has a fifth entry, that force
+    (NaN before the first period: the first command).
     ``x`` (motor q, qd, load q, qd) and ``cs`` (previous measured q, previous
     filtered q, previous PD output, initialised flag) are updated in place.
     Per period ``k`` the outputs get the measured position, the applied force
@@ -372,6 +394,8 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
             h1, h2 = phi / n1, (T - phi) / n2
             cf1, cf2 = _linear_coefficients(p, h1, n1), _linear_coefficients(p, h2, n2)
     ramp = c[C_PULSE_RAMP] == 1.0
+    tau_i = 1.0 / (TWO_PI * p[P_CL_BW]) if p[P_CL_BW] > 0.0 else 0.0
+    y = x[4] if len(x) > 4 else math.nan
     for k in range(k0, k1):
         du = 0.0  # change of the applied force over the period (pulses ramped between control instants)
         qm = x0 + noise_q[k]
@@ -423,6 +447,27 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
         if lag_n >= 0:  # drive lag: the commands lag_n (+1) periods back
             ub = out_u[max(k - lag_n, 0)]
             ua = out_u[max(k - lag_n - 1, 0)] if phi > 0.0 else ub
+        if dist is None:
+            dk = 0.0
+        else:
+            dk = dist[k]
+        if tau_i > 0.0:  # current loop: the applied force y lags the (lagged) command
+            if math.isnan(y):
+                y = ua
+            mm, ml = _masses(p, tk, flex)
+            out_qdd[k] = _acceleration(p, y + dk, x0, x1, x2, x3, mm, ml, flex)
+            if phi > 0.0:
+                x0, x1, x2, x3, y = _current_loop_substeps(p, ua, y, dk, x0, x1, x2, x3, tk, h1, n1, flex, tau_i)
+                x0, x1, x2, x3, y = _current_loop_substeps(p, ub, y, dk, x0, x1, x2, x3, tk + phi, h2, n2, flex, tau_i)
+            else:
+                x0, x1, x2, x3, y = _current_loop_substeps(p, ub, y, dk, x0, x1, x2, x3, tk, h, substeps, flex, tau_i)
+            if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
+                x[0], x[1], x[2], x[3] = x0, x1, x2, x3
+                return k
+            continue
+        ua += dk
+        ub += dk
+        u += dk  # the ramped pulses' path: the disturbance with the command (out_u keeps the command)
         if du != 0.0:  # pulses ramped within the period: force changes every substep (general path; no drive lag)
             mm, ml = _masses(p, tk, flex)
             out_qdd[k] = _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex)
@@ -458,4 +503,6 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
             x[0], x[1], x[2], x[3] = x0, x1, x2, x3
             return k
     x[0], x[1], x[2], x[3] = x0, x1, x2, x3
+    if len(x) > 4:
+        x[4] = y
     return -1

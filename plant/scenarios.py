@@ -41,7 +41,7 @@ from plant.closed_loop import loop_log, simulate_loop
 from plant.controllers import CTCSettings, PDSettings
 from plant.dynamics import RigidParameters, plant_vector
 from plant.replay import simulate_replay
-from plant.trajectories import exciting_cycle
+from plant.trajectories import TRAJECTORIES, make_trajectory
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_EMPS_LOG = REPO_ROOT.parent / "shared" / "emps" / "DATA_EMPS.mat"
@@ -107,7 +107,9 @@ class Overrides:
     over the scenario's; an empty dict uses the effect's defaults);
     ``ctc``: ``omega, xi, alpha, window_s, sigma_max_pct, cutoff_hz, model,
     ilic, velocity``; ``chi0``: initial controller parameters; ``pd``: ``kp, kv, gtau, vmax``;
-    ``published_setup``: ``emps-benchmark`` as the published simulation ran (module docstring).
+    ``published_setup``: ``emps-benchmark`` as the published simulation ran (module docstring);
+    ``trajectory``: the reference's shape (:data:`plant.trajectories.TRAJECTORIES`, default
+    ``paper``) for the scenarios that follow an exciting trajectory, varied by ``trajectory_seed``.
     """
 
     params: dict[str, float] = field(default_factory=dict)
@@ -123,6 +125,7 @@ class Overrides:
     log_path: str | Path | None = None
     trajectory_seed: int | None = None
     published_setup: bool = False
+    trajectory: str | None = None
 
 
 def get_scenario(name: str) -> Scenario:
@@ -167,6 +170,10 @@ def check(name: str, ov: Overrides) -> None:
     if not isinstance(ov.substeps, int) or ov.substeps < 1:
         raise ParameterError("substeps", ov.substeps, "a positive integer")
     plant_vector(params, effects)
+    if ov.trajectory is not None and ov.trajectory not in TRAJECTORIES:
+        raise ParameterError("trajectory", ov.trajectory, f"one of {', '.join(TRAJECTORIES)}")
+    if ov.trajectory is not None and sc.reference == "log":
+        raise ParameterError("trajectory", ov.trajectory, "left out: the emps-benchmark scenario replays the recorded reference")
     if ov.published_setup and sc.reference != "log":
         raise ParameterError("published_setup", name, "used with the emps-benchmark replay only")
     if sc.reference == "log":
@@ -202,7 +209,7 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
         return out
     duration = sc.duration_s if ov.duration_s is None else ov.duration_s
     n = int(round(duration * FS_HZ))
-    traj = exciting_cycle(seed=ov.trajectory_seed)
+    traj = make_trajectory(ov.trajectory or "paper", ov.trajectory_seed)
     _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, FS_HZ)  # = sample(), sample_centred()
     sensor = ov.tau_sensor or ("centred" if isinstance(ctl, CTCSettings) else "command")
     res = simulate_loop(

@@ -1,4 +1,4 @@
-"""Force and position sensors of the closed loop: the held force as logged, delayed, with noise."""
+"""Force and position sensors of the closed loop: the held force as logged, delayed, with noise; the random disturbance force."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from ilic_cli.effects import EffectParams
+from ilic_cli.errors import ParameterError
 from plant.dynamics import measurement_lag_s
 
 
@@ -95,3 +96,45 @@ def draw_noise(n: int, seed: int, effects: Mapping[str, EffectParams]) -> tuple[
         return n_tau * tau_std, np.zeros(n)
     n_q = rng.standard_normal(n)
     return n_tau * tau_std, n_q * q_std
+
+
+DISTURBANCE_STREAM = 0xD157
+"""Second word of the disturbance's PCG64 seed ``[seed, DISTURBANCE_STREAM]``: a stream of its own, so adding
+the disturbance leaves the force and position noise of the same seed unchanged."""
+
+
+def draw_disturbance(n: int, seed: int, effects: Mapping[str, EffectParams], fs_hz: float) -> np.ndarray:
+    """The unmodelled force on the axis (N) at each of ``n`` control periods (``disturbance`` effect, else zeros).
+
+    White noise from PCG64(``[seed, DISTURBANCE_STREAM]``) through a second-order
+    Butterworth low-pass of corner ``bandwidth_hz``, started in steady state (a
+    burn-in of ten corner periods is dropped) and scaled by the filter's noise
+    gain, so that its stationary standard deviation is ``std``.
+
+    Parameters
+    ----------
+    n : int
+        Samples (one per control period, held over the period).
+    seed : int
+        The run's seed.
+    effects : mapping
+        The run's effects.
+    fs_hz : float
+        Control rate; ``bandwidth_hz`` must be below ``fs_hz / 2``.
+    """
+    e = effects.get("disturbance")
+    if e is None or e["std"] == 0.0:
+        return np.zeros(n)
+    bw = e["bandwidth_hz"]
+    if not bw < 0.5 * fs_hz:
+        raise ParameterError("disturbance.bandwidth_hz", bw, f"below the Nyquist frequency ({0.5 * fs_hz:g} Hz)")
+    from scipy.signal import butter, sosfilt  # deferred: scipy.signal only for runs with a disturbance
+
+    sos = butter(2, bw, fs=fs_hz, output="sos")
+    burn = int(math.ceil(10.0 * fs_hz / bw))
+    impulse = np.zeros(burn * 10)
+    impulse[0] = 1.0
+    gain = float(np.sqrt(np.sum(sosfilt(sos, impulse) ** 2)))
+    rng = np.random.Generator(np.random.PCG64([seed, DISTURBANCE_STREAM]))
+    out: np.ndarray = sosfilt(sos, rng.standard_normal(n + burn))[burn:]
+    return out * (e["std"] / gain)

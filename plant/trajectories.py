@@ -1,4 +1,9 @@
-"""Exciting reference trajectories: concatenated trapezoidal velocity profiles.
+"""Exciting reference trajectories: concatenated trapezoidal velocity profiles, and multisines.
+
+Shapes (:data:`TRAJECTORIES`, ``ilic simulate --trajectory``): ``paper``, the
+paper's exciting cycle (:func:`exciting_cycle`); ``trapezoid``, back-and-forth
+trapezoidal moves with a dwell at rest (:func:`trapezoid_moves`); ``multisine``,
+a band-limited sum of harmonics with random phases (:class:`Multisine`).
 
 A :class:`Trajectory` is a sequence of constant-acceleration segments, so the
 reference position, velocity and acceleration are exact piecewise
@@ -22,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.errors import SimulationError
+from ilic_cli.errors import ParameterError, SimulationError
 
 T_CYCLE = 6.2
 """Paper's cycle time T_cycle = T_obs (s)."""
@@ -77,8 +82,76 @@ DEFAULT_Q0 = 0.05
 """Start position (m): keeps the default cycle within 0.039-0.185 m of the EMPS stroke."""
 
 
+class Sampled:
+    """Sampling of a reference given by its point values (:meth:`evaluate`), shared by every shape."""
+
+    def evaluate(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Point values ``q, qd, qdd`` at times ``t``."""
+        raise NotImplementedError
+
+    def _cycle_samples(self, n: int, fs_hz: float) -> int:
+        """Samples per cycle when ``n`` samples repeat it exactly, else 0 (never, unless a shape says so)."""
+        return 0
+
+    def sample(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``t, q, qd, qdd`` point values at ``t = k/fs`` for ``k < n``."""
+        t = _grid(n, fs_hz)
+        return (t, *self._tiled(t, fs_hz, 0.0))
+
+    @staticmethod
+    def _tile(one: tuple[np.ndarray, ...], n: int) -> tuple[np.ndarray, ...]:
+        """Each array of ``one`` repeated to length ``n`` (the values of ``np.tile``, one copy each)."""
+        out = []
+        for a in one:
+            full = np.empty(n, dtype=a.dtype)
+            k = len(a)
+            full[:k] = a
+            m = k
+            while m < n:
+                c = min(m, n - m)
+                full[m : m + c] = full[:c]
+                m += c
+            out.append(full)
+        return tuple(out)
+
+    def _tiled(self, t: np.ndarray, fs_hz: float, shift: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``evaluate(t + shift)``; a returning cycle on the sample grid is evaluated once and tiled."""
+        k = self._cycle_samples(len(t), fs_hz)
+        if not k:
+            return self.evaluate(t + shift)
+        return self._tile(self.evaluate(t[:k] + shift), len(t))  # type: ignore[return-value]
+
+    def sample_centred(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``t, q, qd, qdd`` with ``qd, qdd`` averaged over ``[t - T/2, t + T/2]`` (exact).
+
+        Equal to the point values except at acceleration jumps (mean of both
+        sides there). These are the logged reference channels.
+        """
+        t, q, _, _, qd, qdd = self.sample_both(n, fs_hz)
+        return t, q, qd, qdd
+
+    def sample_both(self, n: int, fs_hz: float) -> tuple[np.ndarray, ...]:
+        """``t, q, qd, qdd, qd_centred, qdd_centred``: :meth:`sample` and :meth:`sample_centred` at once
+        (the same values; ``t`` and ``q`` shared)."""
+        t = _grid(n, fs_hz)
+        k = self._cycle_samples(n, fs_hz)
+        tc = t[:k] if k else t  # a returning cycle: one cycle, then tiled (same values)
+        h = 0.5 / fs_hz
+        q, vp, ap = self.evaluate(tc)
+        qa, va, _ = self.evaluate(tc - h)
+        qb, vb, _ = self.evaluate(tc + h)
+        qd = (qb - qa) * fs_hz
+        qdd = (vb - va) * fs_hz
+        # round-off: exact constants where the point value is already exact
+        qd = np.where(np.abs(qd - vp) < 1e-9, vp, qd)
+        qdd = np.where(np.abs(qdd - ap) < 1e-7, ap, qdd)
+        if k:
+            q, vp, ap, qd, qdd = self._tile((q, vp, ap, qd, qdd), n)
+        return t, q, vp, ap, qd, qdd
+
+
 @dataclass(frozen=True)
-class Trajectory:
+class Trajectory(Sampled):
     """Constant-acceleration segments ``(duration_s, acceleration)`` starting at velocity ``v0``.
 
     ``repeat``: repeat the segments every :attr:`period` seconds (the sum of
@@ -142,6 +215,16 @@ class Trajectory:
             return q - q_at0 + self.q0, v, a
         return self._raw(t)
 
+    def _cycle_samples(self, n: int, fs_hz: float) -> int:
+        """Samples per cycle when ``n`` samples at ``fs_hz`` repeat it exactly (a returning cycle on the
+        sample grid, more than two cycles long), else 0."""
+        m = self.period * fs_hz
+        k = int(round(m))
+        if not (self.repeat and abs(m - k) < 1e-9 and k > 0 and n > 2 * k):
+            return 0
+        _, _, _, qk = self._knots()
+        return k if abs(qk[-1]) < 1e-15 else 0
+
     def _raw(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         tk, a, v, q = self._knots()
         T = tk[-1]
@@ -167,72 +250,6 @@ class Trajectory:
             vel = np.where(after, v[-1], vel)
             acc = np.where(after, 0.0, acc)
         return pos, vel, acc
-
-    def sample(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``t, q, qd, qdd`` point values at ``t = k/fs`` for ``k < n``."""
-        t = _grid(n, fs_hz)
-        return (t, *self._tiled(t, fs_hz, 0.0))
-
-    def _cycle_samples(self, n: int, fs_hz: float) -> int:
-        """Samples per cycle when ``n`` samples at ``fs_hz`` repeat it exactly (a returning cycle on the
-        sample grid, more than two cycles long), else 0."""
-        m = self.period * fs_hz
-        k = int(round(m))
-        if not (self.repeat and abs(m - k) < 1e-9 and k > 0 and n > 2 * k):
-            return 0
-        _, _, _, qk = self._knots()
-        return k if abs(qk[-1]) < 1e-15 else 0
-
-    @staticmethod
-    def _tile(one: tuple[np.ndarray, ...], n: int) -> tuple[np.ndarray, ...]:
-        """Each array of ``one`` repeated to length ``n`` (the values of ``np.tile``, one copy each)."""
-        out = []
-        for a in one:
-            full = np.empty(n, dtype=a.dtype)
-            k = len(a)
-            full[:k] = a
-            m = k
-            while m < n:
-                c = min(m, n - m)
-                full[m : m + c] = full[:c]
-                m += c
-            out.append(full)
-        return tuple(out)
-
-    def _tiled(self, t: np.ndarray, fs_hz: float, shift: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``evaluate(t + shift)``; a returning cycle on the sample grid is evaluated once and tiled."""
-        k = self._cycle_samples(len(t), fs_hz)
-        if not k:
-            return self.evaluate(t + shift)
-        return self._tile(self.evaluate(t[:k] + shift), len(t))  # type: ignore[return-value]
-
-    def sample_centred(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``t, q, qd, qdd`` with ``qd, qdd`` averaged over ``[t - T/2, t + T/2]`` (exact).
-
-        Equal to the point values except at acceleration jumps (mean of both
-        sides there). These are the logged reference channels.
-        """
-        t, q, _, _, qd, qdd = self.sample_both(n, fs_hz)
-        return t, q, qd, qdd
-
-    def sample_both(self, n: int, fs_hz: float) -> tuple[np.ndarray, ...]:
-        """``t, q, qd, qdd, qd_centred, qdd_centred``: :meth:`sample` and :meth:`sample_centred` at once
-        (the same values; ``t`` and ``q`` shared)."""
-        t = _grid(n, fs_hz)
-        k = self._cycle_samples(n, fs_hz)
-        tc = t[:k] if k else t  # a returning cycle: one cycle, then tiled (same values)
-        h = 0.5 / fs_hz
-        q, vp, ap = self.evaluate(tc)
-        qa, va, _ = self.evaluate(tc - h)
-        qb, vb, _ = self.evaluate(tc + h)
-        qd = (qb - qa) * fs_hz
-        qdd = (vb - va) * fs_hz
-        # round-off: exact constants where the point value is already exact
-        qd = np.where(np.abs(qd - vp) < 1e-9, vp, qd)
-        qdd = np.where(np.abs(qdd - ap) < 1e-7, ap, qdd)
-        if k:
-            q, vp, ap, qd, qdd = self._tile((q, vp, ap, qd, qdd), n)
-        return t, q, vp, ap, qd, qdd
 
 
 def _grid(n: int, fs_hz: float) -> np.ndarray:
@@ -297,3 +314,128 @@ def with_constant_velocity(
         "cycle": cycle.to_dict(),
     }
     return Trajectory(tuple(out), q0=cycle.q0, repeat=False, description=desc)
+
+
+TRAPEZOID_ACCEL = 1.5
+"""Ramp acceleration of :func:`trapezoid_moves` (m/s^2), that of the paper's cycle."""
+
+
+def _ms(x: float) -> float:
+    """``x`` seconds on the 1 ms grid (at least 1 ms)."""
+    return max(round(x * 1000.0), 1) / 1000.0
+
+
+def trapezoid_moves(
+    seed: int | None = None,
+    *,
+    pairs: int = 4,
+    v_range: tuple[float, float] = (0.06, 0.22),
+    top: float = 0.14,
+    min_move: float = 0.03,
+    dwell: float = 0.1,
+    q0: float = DEFAULT_Q0,
+) -> Trajectory:
+    """Back-and-forth trapezoidal velocity moves with a dwell at rest after each, repeating.
+
+    ``pairs`` pairs of a forward move to a level drawn in ``[min_move, top]``
+    above ``q0`` and a backward move to a level drawn between ``0`` and
+    ``min_move`` below it (the last pair returns to ``q0``), so the turning
+    points vary from move to move; speeds drawn uniformly in ``v_range``
+    (numpy PCG64(``seed``), default seed 0), adjusted so that the move ends on
+    its level; ramps of about :data:`TRAPEZOID_ACCEL`, breakpoints on the 1 ms
+    grid. Each move reverses the direction of motion, through a dwell of
+    ``dwell`` s at rest (stiction, then break-away).
+    """
+    rng = np.random.Generator(np.random.PCG64(0 if seed is None else seed))
+    moves: list[Move] = []
+    here = 0.0
+    for i in range(pairs):
+        up = float(rng.uniform(max(here + min_move, min_move), top))
+        down = 0.0 if i == pairs - 1 else float(rng.uniform(0.0, up - min_move))
+        for target in (up, down):
+            d = target - here
+            v = float(rng.uniform(*v_range))
+            ta = _ms(v / TRAPEZOID_ACCEL)
+            tc = _ms(max(abs(d) / v - ta, 0.02))
+            moves.append(Move(d / (ta + tc), ta, tc, dwell))
+            here = target
+    desc = {"kind": "trapezoid", "seed": seed, "dwell": dwell, "moves": [[m.v, m.t_acc, m.t_const, m.dwell] for m in moves]}
+    return Trajectory(tuple(s for m in moves for s in m.segments()), q0=q0, repeat=True, description=desc)
+
+
+@dataclass(frozen=True)
+class Multisine(Sampled):
+    """A band-limited multisine position reference: harmonics ``k*f0`` of equal velocity amplitude.
+
+    ``q(t) = q0 + sum_k A_k (sin(w_k t + phi_k) - sin(phi_k))`` with
+    ``w_k = 2 pi k f0`` and ``A_k = v_amp / w_k`` (a flat velocity spectrum), so
+    ``q, qd, qdd`` are exact and consistent; the velocity crosses zero several
+    times per period ``1/f0`` (Coulomb friction is excited).
+    """
+
+    f0: float
+    harmonics: tuple[int, ...]
+    v_amp: float
+    phases: tuple[float, ...]
+    q0: float = DEFAULT_Q0
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        if not (self.f0 > 0 and self.harmonics and len(self.phases) == len(self.harmonics) and min(self.harmonics) > 0):
+            raise SimulationError("trajectory", "a multisine needs f0 > 0 and one phase per positive harmonic")
+
+    def evaluate(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Point values ``q, qd, qdd`` at times ``t``."""
+        t = np.asarray(t, dtype=np.float64)
+        q = np.full_like(t, self.q0)
+        qd = np.zeros_like(t)
+        qdd = np.zeros_like(t)
+        for k, ph in zip(self.harmonics, self.phases, strict=True):
+            w = 2.0 * np.pi * k * self.f0
+            arg = w * t + ph
+            q += self.v_amp / w * (np.sin(arg) - np.sin(ph))
+            qd += self.v_amp * np.cos(arg)
+            qdd -= self.v_amp * w * np.sin(arg)
+        return q, qd, qdd
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": "multisine",
+            "q0": self.q0,
+            "f0": self.f0,
+            "harmonics": list(self.harmonics),
+            "v_amp": self.v_amp,
+            "phases": list(self.phases),
+            "seed": self.seed,
+        }
+
+
+def multisine(seed: int | None = None, *, f0: float = 0.1, harmonics: tuple[int, int] = (1, 12), v_rms: float = 0.1, q0: float = DEFAULT_Q0) -> Multisine:
+    """A multisine of harmonics ``harmonics[0]..harmonics[1]`` of ``f0`` (default 0.1-1.2 Hz), velocity RMS ``v_rms``.
+
+    Phases uniform in ``[0, 2 pi)`` from numpy PCG64(``seed``) (default seed 0).
+    """
+    ks = tuple(range(harmonics[0], harmonics[1] + 1))
+    rng = np.random.Generator(np.random.PCG64(0 if seed is None else seed))
+    phases = tuple(float(x) for x in rng.uniform(0.0, 2.0 * np.pi, size=len(ks)))
+    return Multisine(f0, ks, v_rms * float(np.sqrt(2.0 / len(ks))), phases, q0, seed)
+
+
+TRAJECTORIES = ("paper", "trapezoid", "multisine")
+"""Shapes of the simulated reference (``ilic simulate --trajectory``)."""
+
+
+def make_trajectory(kind: str, seed: int | None = None) -> Trajectory | Multisine:
+    """The reference of shape ``kind`` (:data:`TRAJECTORIES`), varied by ``seed``.
+
+    ``paper``: :func:`exciting_cycle` (``seed`` scales its moves; none: the
+    paper's cycle); ``trapezoid``: :func:`trapezoid_moves`; ``multisine``:
+    :func:`multisine`.
+    """
+    if kind == "paper":
+        return exciting_cycle(seed=seed)
+    if kind == "trapezoid":
+        return trapezoid_moves(seed)
+    if kind == "multisine":
+        return multisine(seed)
+    raise ParameterError("trajectory", kind, f"one of {', '.join(TRAJECTORIES)}")

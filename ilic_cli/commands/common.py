@@ -162,6 +162,7 @@ OPTIONS: dict[str, str] = {
     "substeps": "--substeps",
     "published_setup": "--published-setup",
     "tau_sensor": "--tau-sensor",
+    "trajectory": "--trajectory",
     "effect": "--effect",
     "method": "--method",
     "clock_s": "--published-setup",

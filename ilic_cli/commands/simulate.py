@@ -38,7 +38,7 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
     multiple=True,
     metavar="ID[:k=v,...]",
     help="Add an effect (asymmetric_friction, stribeck, position_ripple, spring, payload_change, delay, flexibility, saturation, "
-    "quantization, noise, or any other defined in ilic_cli.effects); repeatable.",
+    "quantization, noise, disturbance, current_loop, or any other defined in ilic_cli.effects); repeatable.",
 )
 @click.option("--controller", type=click.Choice(["ctc", "pd"]), default=None, help="Controller [default: the scenario's].")
 @click.option("--omega", type=float, default=None, help="CTC bandwidth (rad/s) [default: 2*pi*20].")
@@ -77,7 +77,13 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
     default=None,
     help="Logged force: centred mean over the sample interval (CTC default) or the held command (PD default).",
 )
-@click.option("--trajectory-seed", type=int, default=None, help="Vary the cycle's amplitudes with this seed.")
+@click.option(
+    "--trajectory",
+    type=click.Choice(["paper", "trapezoid", "multisine"]),
+    default=None,
+    help="Reference shape: the paper's exciting cycle, back-and-forth trapezoidal moves with dwell, or a 0.1-1.2 Hz multisine [default: paper].",
+)
+@click.option("--trajectory-seed", type=int, default=None, help="Vary the reference with this seed (cycle amplitudes; trapezoid speeds; multisine phases).")
 @click.option(
     "--published-setup",
     is_flag=True,
@@ -117,6 +123,7 @@ def command(
     noise_q: float | None,
     resolution: float | None,
     tau_sensor: str | None,
+    trajectory: str | None,
     trajectory_seed: int | None,
     log_path: Path | None,
     published_setup: bool,
@@ -146,6 +153,7 @@ def command(
             tau_sensor=tau_sensor,
             log_path=log_path,
             trajectory_seed=trajectory_seed,
+            trajectory=trajectory,
             controller=controller,
             published_setup=published_setup,
         )

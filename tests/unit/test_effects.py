@@ -26,9 +26,12 @@ def test_registry_order_and_kinds() -> None:
         "saturation",
         "quantization",
         "noise",
+        "disturbance",
+        "current_loop",
     ]
     assert fx.catalogue_ids() == ("asymmetric_friction", "stribeck", "position_ripple", "spring", "payload_change", "offset", "delay", "flexibility")
     assert "offset" not in fx.plant_ids() and "noise" in fx.plant_ids()
+    assert {"disturbance", "current_loop"} <= set(fx.plant_ids())  # plant effects diagnosis does not fit
     assert [e for e in EFFECTS if EFFECTS[e].shift] == ["delay"]
     assert [e for e in EFFECTS if EFFECTS[e].nonlinear] == ["stribeck", "position_ripple", "payload_change", "delay", "flexibility"]
     with pytest.raises(ValueError, match="already defined"):
