@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.select import Evaluation, SelectSettings, Step, forward_select, moving_rows, system, validation_error
@@ -136,9 +137,10 @@ def effect_fit(
     """Reported estimates, plant parameters and a note of one accepted effect (:meth:`ilic_cli.effects.Effect.fit_to_plant`).
 
     ``hold_s``: half a sample period when the logged force is the held drive
-    command (it acts over the next period, so a rigid drive already shows a
-    delay of ``-hold_s``); the plant's ``delay`` is the found one plus
-    ``hold_s``, since the plant holds its force itself.
+    command; the baseline already evaluates the regressor that much later
+    (:mod:`ilic_cli.diagnosis.baseline`), so a found ``delay`` is a lag beyond
+    the hold and is the plant's ``delay`` as it is (the plant holds its force
+    itself).
     """
     return step.effect.fit_to_plant(Fit(names, theta, cov, step.value, value_std, hold_s))
 
@@ -155,11 +157,14 @@ def steps_from_effects(effects: dict[str, Any], M: float) -> list[Step]:
 
 
 def _prepare(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMData:
+    """The IDIM system of ``prepared``, its regressor evaluated like the logged force (:func:`ilic_cli.diagnosis.baseline.held`)."""
     log = prepared.log
     try:
-        return prepare(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
+        data = prepare(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
     except ValueError as exc:
         raise IdentificationError(prepared.source, str(exc)) from None
+    data = held(data, model, hold_s(tau_sensor(log), prepared.fs_hz))
+    return data
 
 
 def base_model(model_doc: dict[str, Any] | None, default: str) -> Model:
@@ -252,12 +257,12 @@ def diagnose(
     full = np.asarray(base.matrix(kin)) @ res0.theta[: len(base.names)]
     located.append(force_lag(data.tau, full, fs))
     findings = []
-    hold_s = 0.5 / fs if tau_sensor(log) == "command" else 0.0
+    hold = hold_s(tau_sensor(log), fs)
     for st, ev in zip(selection.steps, selection.accepted, strict=True):
-        params, plant, note = effect_fit(st, names1, res1.theta, cov1, ev.value_std, hold_s)
+        params, plant, note = effect_fit(st, names1, res1.theta, cov1, ev.value_std, hold)
         regs = sorted([r for r in located if r.kind in st.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
         findings.append(Finding(st.effect, params, plant, regs, ev, note))
-    rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold_s)
+    rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold)
     doc = model_document(base.name, rigid, method="IDIM-LS + ilic diagnose", effects=effects_doc, source=src or None)
     diag = Diagnosis(
         source=src,
