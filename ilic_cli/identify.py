@@ -7,19 +7,21 @@ Takes a :class:`~ilic_cli.runlog.RunLog`, returns an :class:`IdentifyReport`
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ilic_cli import parameters
-from ilic_cli.effects import EFFECTS, Fit, get, unit_of
+from ilic_cli.closed_loop_id import METHODS as CLOSED_LOOP_METHODS
+from ilic_cli.closed_loop_id import ClosedLoopResult, ClosedLoopSettings, closed_loop_identify, plant_of, require_closed_loop
+from ilic_cli.effects import get, unit_of
 from ilic_cli.errors import IdentificationError, ParameterError
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic, tracking_error_ratio
 from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, idim_ls
 from ilic_cli.lsq import LSResult
-from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import prepare_log
 from ilic_cli.regressor import Model, get_model
 from ilic_cli.runlog import RunLog
@@ -57,6 +59,24 @@ class IdentifyReport:
     """The joint's name, when the log names it."""
     joint_type: str = "prismatic"
     """``prismatic`` or ``revolute`` (from the position's unit): the parameters' units."""
+    didim: ClosedLoopResult | None = None
+    iv: ClosedLoopResult | None = None
+    method: str = "both"
+    """The ``method`` asked for: its estimate goes to the model file (:meth:`primary`)."""
+
+    def closed_loop(self) -> list[ClosedLoopResult]:
+        """The DIDIM and IDIM-IV results that were run, in that order."""
+        return [r for r in (self.didim, self.iv) if r is not None]
+
+    def primary(self) -> tuple[str, LSResult] | None:
+        """The method and estimate a model file takes: DIDIM for ``didim`` and ``all``, IDIM-IV for ``iv``, else IDIM-LS."""
+        if self.didim is not None and self.method in ("didim", "all"):
+            return self.didim.method, self.didim.result
+        if self.iv is not None and self.method == "iv":
+            return self.iv.method, self.iv.result
+        if self.ls is not None:
+            return "IDIM-LS", self.ls.result
+        return None
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -72,22 +92,24 @@ class IdentifyReport:
             "samples": self.samples,
             "ls": None if self.ls is None else self.ls.to_dict(),
             "ilic": None if self.ilic is None else self.ilic.to_dict(),
+            "didim": None if self.didim is None else self.didim.to_dict(),
+            "iv": None if self.iv is None else self.iv.to_dict(),
             "validation": [v.to_dict() for v in self.validation],
             "warnings": list(self.warnings),
         }
 
     def to_frame(self) -> Any:
-        """Tidy table: one row per method, window and parameter."""
+        """Tidy table: one row per method, window and parameter (``k``: the window, or DIDIM / IDIM-IV's iterations)."""
         import pandas as pd
 
         rows: list[dict[str, Any]] = []
-        if self.ls is not None:
-            r = self.ls.result
+        whole = ([("IDIM-LS", None, self.ls.result)] if self.ls is not None else []) + [(c.method, c.n_iterations, c.result) for c in self.closed_loop()]
+        for method, k, r in whole:  # one estimate on the whole log (k: a closed-loop method's iterations)
             for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True):
                 rows.append(
                     {
-                        "method": "IDIM-LS",
-                        "k": None,
+                        "method": method,
+                        "k": k,
                         "t_start": None,
                         "t_end": None,
                         "parameter": n,
@@ -121,27 +143,21 @@ class IdentifyReport:
         return pd.DataFrame(rows)
 
     def model_parameters(self) -> dict[str, float]:
-        """Rigid parameters for a model file: IDIM-LS when run, else the last window's essential estimates."""
-        if self.ls is not None:
-            return {n: float(v) for n, v in zip(self.ls.result.names, self.ls.result.theta, strict=True) if n in PARAMETERS}
+        """Rigid parameters for a model file: the :meth:`primary` estimate when run, else the last window's essential estimates."""
+        primary = self.primary()
+        if primary is not None:
+            return plant_of(primary[1].names, primary[1].theta)[0]
         if self.ilic is not None and self.ilic.windows:
             w = self.ilic.windows[-1]
             return {n: float(v) for n, v, e in zip(w.result.names, w.result.theta, w.essential, strict=True) if e}
         return {}
 
     def model_effects(self) -> dict[str, dict[str, float]]:
-        """Plant effects of the IDIM-LS fit, for a model file (:meth:`ilic_cli.effects.Effect.fit_to_plant`)."""
-        if self.ls is None:
+        """Plant effects of the :meth:`primary` fit, for a model file (:func:`ilic_cli.closed_loop_id.plant_of`)."""
+        primary = self.primary()
+        if primary is None:
             return {}
-        r = self.ls.result
-        cov = np.diag(np.where(np.isfinite(r.std), r.std, 0.0) ** 2)
-        out: dict[str, dict[str, float]] = {}
-        for eid, value in self.effects.items():
-            effect = EFFECTS[eid]
-            _, plant, _ = effect.fit_to_plant(Fit(r.names, r.theta, cov, value))
-            if effect.plant and plant is not None:
-                out[eid] = {k: float(v) for k, v in plant.items()}
-        return out
+        return plant_of(primary[1].names, primary[1].theta, self.effects)[1]
 
 
 def with_effects(structure: str, effects: dict[str, Any] | None, fs_hz: float) -> Model:
@@ -181,6 +197,7 @@ def identify(
     ls_settings: LSSettings = LSSettings(),
     ilic_settings: ILICSettings = ILICSettings(),
     validate: list[RunLog] | None = None,
+    closed_loop_settings: Mapping[str, ClosedLoopSettings] | None = None,
 ) -> IdentifyReport:
     """Run IDIM-LS and/or IDIM-ILIC on ``log`` and validate on other logs.
 
@@ -189,21 +206,29 @@ def identify(
     log : RunLog
         Needs ``t``, ``q``, ``tau``; IDIM-ILIC also needs ``q_ref``
         (``qd_ref``/``qdd_ref`` are derived from it when absent).
-    method : {"ls", "ilic", "both"}
+    method : {"ls", "ilic", "both", "didim", "iv", "all"}
+        ``both``: IDIM-LS and IDIM-ILIC; ``didim``, ``iv``: DIDIM or IDIM-IV
+        (:mod:`ilic_cli.closed_loop_id`) started from IDIM-LS, which is
+        reported beside them; ``all``: every method (IDIM-ILIC when usable).
     structure : {"rigid", "rigid-offset", "asymmetric"}
     effects : dict, optional
         Effects identified with the structure as further regressor columns
-        (IDIM-LS only): effect id -> its nonlinear value, ``None`` for a
+        (IDIM-LS, DIDIM, IDIM-IV): effect id -> its nonlinear value, ``None`` for a
         linear effect (:mod:`ilic_cli.effects`).
     validate : list of RunLog
         Logs to apply the estimates to (same processing).
+    closed_loop_settings : dict, optional
+        ``didim``/``iv`` -> iteration settings (default: each method's own,
+        :data:`ilic_cli.closed_loop_id.DEFAULT_SETTINGS`).
     """
     prepared = prepare_log(log)
     src, fs, valid = prepared.source, prepared.fs_hz, prepared.valid
     effects = dict(effects or {})
     model = with_effects(structure, effects, fs)
-    if effects and method != "ls":
-        raise ParameterError("method", method, "'ls' with effect columns (IDIM-ILIC windows identify the structure's own parameters)")
+    if method not in IDENTIFY_METHODS:
+        raise ParameterError("method", method, f"one of {', '.join(IDENTIFY_METHODS)}")
+    if effects and method not in ("ls", "didim", "iv"):
+        raise ParameterError("method", method, "'ls', 'didim' or 'iv' with effect columns (IDIM-ILIC windows identify the structure's own parameters)")
     report = IdentifyReport(
         source=src,
         model=structure,
@@ -213,24 +238,37 @@ def identify(
         effects=effects,
         joint=log.meta.get("joint"),
         joint_type=parameters.joint_type(log.units.get("q")),
+        method=method,
     )
-    if method in ("ls", "both"):
+    closed = [m for m in ("didim", "iv") if method in (m, "all")]
+    if closed:  # refuse before any work
+        require_closed_loop(log, src, " and ".join(CLOSED_LOOP_METHODS[m] for m in closed))
+    if method in ("ls", "both", "all") or closed:
         try:
             report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid, segments=prepared.segments)
         except ValueError as exc:
             raise IdentificationError(src, str(exc)) from None
         if not report.ls.result.full_rank:
             report.warnings.append("IDIM-LS: the observation matrix is rank-deficient; the trajectory does not excite every parameter")
-    if method == "both":
+    for m in closed:
+        assert report.ls is not None
+        result = closed_loop_identify(
+            m, log, model, report.ls.result.theta, effects=effects, ls_settings=ls_settings, settings=(closed_loop_settings or {}).get(m), prepared=prepared
+        )
+        setattr(report, m, result)
+        if not result.converged:
+            report.warnings.append(f"{result.method} did not converge: {result.stop_reason}; the last iterate is reported")
+    run_ilic = method in ("ilic", "both", "all")
+    if method in ("both", "all"):
         reason = ilic_unusable(log, fs, ilic_settings)
         if reason is not None:
-            report.warnings.append(f"IDIM-ILIC not run: {reason}; IDIM-LS only")
-            method = "ls"
+            report.warnings.append(f"IDIM-ILIC not run: {reason}; " + ("IDIM-LS only" if method == "both" else "the other methods only"))
+            run_ilic = False
     elif method == "ilic":
         reason = ilic_unusable(log, fs, ilic_settings)
         if reason is not None:
             raise IdentificationError(src, f"IDIM-ILIC cannot run: {reason}")
-    if method in ("ilic", "both"):
+    if run_ilic:
         try:
             report.ilic = identify_ilic(
                 log.t,
@@ -276,7 +314,14 @@ def identify(
             if np.all(np.isfinite(theta)):
                 res = cross_validate(theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
                 report.validation.append(Validation(osrc, f"IDIM-ILIC (k={report.ilic.windows[-1].k})", res))
+        for cl in report.closed_loop():
+            res = cross_validate(cl.result.theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
+            report.validation.append(Validation(osrc, cl.method, res))
     return report
+
+
+IDENTIFY_METHODS = ("ls", "ilic", "both", "didim", "iv", "all")
+"""Values of ``identify(method=...)``."""
 
 
 TRACKING_LIMIT = 0.5

@@ -10,6 +10,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from ilic_cli import parameters
+from ilic_cli.closed_loop_id import STD_SOURCE
 from ilic_cli.effects import unit_of
 
 if TYPE_CHECKING:
@@ -68,6 +69,7 @@ def to_markdown(report: IdentifyReport) -> str:
             f"error std {fmt(r.sigma_rho)}.",
             "",
         ]
+    out += _closed_loop_markdown(report)
     if report.ilic is not None:
         wins = report.ilic.windows
         shown = wins[:MAX_WINDOW_COLUMNS]
@@ -125,6 +127,50 @@ def to_markdown(report: IdentifyReport) -> str:
     if report.warnings:
         out += ["## Warnings", ""] + [f"- {w}" for w in report.warnings] + [""]
     return "\n".join(out)
+
+
+def _closed_loop_markdown(report: IdentifyReport) -> list[str]:
+    """DIDIM / IDIM-IV: estimates beside IDIM-LS, then each method's convergence and residual history."""
+    results = report.closed_loop()
+    if not results:
+        return []
+    out = ["## Closed-loop estimates" + (" beside IDIM-LS" if report.ls is not None else ""), ""]
+    columns = ([("IDIM-LS", report.ls.result)] if report.ls is not None else []) + [(r.method, r.result) for r in results]
+    header = ["parameter"] + [h for name, _ in columns for h in (name, "%σ")]
+    names = results[0].result.names
+    rows = [[_label(n, report.joint_type)] + [x for _, r in columns for x in (fmt_sig(r.theta[i]), fmt_sig(r.rel_std_pct[i], 2))] for i, n in enumerate(names)]
+    rows.append(["‖Y−Wθ̂‖/‖Y‖"] + [x for _, r in columns for x in (fmt_sig(r.relative_error_pct, 3) + " %", "")])
+    out += _table(header, rows)
+    out += [
+        "",
+        "DIDIM's relative error is its criterion, the force of the simulated closed loop against the measured one (filtered and decimated "
+        "as IDIM-LS); IDIM-IV's and IDIM-LS's are the inverse model's on the measured regressor. "
+        "The replay of the log with each estimate (same reference, same controller) against the recording, at the full rate:",
+        "",
+    ]
+    out += _table(
+        ["estimates", "force error %", "position error %", "velocity error %", "iterations", "converged"],
+        [
+            [
+                r.method,
+                fmt(r.closed_loop_error_pct.get("force")),
+                fmt(r.closed_loop_error_pct.get("position")),
+                fmt(r.closed_loop_error_pct.get("velocity")),
+                str(r.n_iterations),
+                "yes" if r.converged else "no",
+            ]
+            for r in results
+        ],
+    )
+    out.append("")
+    for r in results:
+        out += [f"### {r.method}", "", f"{'Converged' if r.converged else 'Not converged'}: {r.stop_reason}. Standard deviations: {STD_SOURCE[r.method]}.", ""]
+        out += _table(
+            ["k", "relative error %", "largest parameter change %", "residual change %"],
+            [[str(it.k), fmt(it.relative_error_pct), fmt(it.parameter_change_pct), fmt(it.error_change_pct)] for it in r.iterations],
+        )
+        out.append("")
+    return out
 
 
 def _sup(k: int) -> str:

@@ -111,6 +111,12 @@ def relative_error_pct(y: np.ndarray, y_hat: np.ndarray) -> float:
     return float(100.0 * np.linalg.norm(np.asarray(y) - np.asarray(y_hat)) / ny) if ny > 0 else float("inf")
 
 
+def relative_std_pct(theta: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """Relative standard deviation in percent (eq. 10): ``100 std / |theta|``, ``inf`` where ``theta`` is 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
+
+
 def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> list[LSResult]:
     """Solve ``y[k] = W[k] @ theta[k]`` for every ``k`` in the stack.
 
@@ -153,8 +159,7 @@ def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: 
             null = ~ok[k]
             touched = (np.abs(Vt[k][null]) > 1e-8).any(axis=0)
             std = np.where(touched, np.inf, std)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rel = np.where(theta[k] != 0, 100.0 * std / np.abs(theta[k]), np.inf)
+        rel = relative_std_pct(theta[k], std)
         cond = float(s[k, 0] / s[k, -1]) if rank[k] == b else float("inf")
         results.append(
             LSResult(
@@ -188,17 +193,56 @@ def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, 
     s = np.linalg.svd(W, compute_uv=False)
     var_unit = np.diag(pinv(W.T @ W))
     std = sig * np.sqrt(var_unit)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rel = np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
     return LSResult(
         names=tuple(names),
         theta=np.asarray(theta, dtype=np.float64),
         std=std,
-        rel_std_pct=rel,
+        rel_std_pct=relative_std_pct(theta, std),
         sigma_rho=sig,
         error_norm=float(np.linalg.norm(e)),
         relative_error_pct=relative_error_pct(y, W @ theta),
         condition_number=float(s[0] / s[-1]),
         rows=len(y),
         rank=int((s > rank_tolerance(s[0], *W.shape)).sum()),
+    )
+
+
+def solve_iv(Z: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:
+    """Instrumental-variable estimate ``theta = (Z' W)^-1 Z' y`` with its covariance.
+
+    The covariance is ``sigma^2 (Z' W)^-1 Z' Z (W' Z)^-1`` (Janot, Vandanjon,
+    Gautier, IEEE TCST 22(1), 2014), ``sigma`` from the residual ``y - W
+    theta`` by the convention of :func:`solve_batch`. With ``Z = W`` this is
+    :func:`solve`'s estimate and eq. (9). A singular ``Z' W`` (instruments
+    uncorrelated with a column) gives an infinite standard deviation and
+    rank below ``b``.
+    """
+    Z, W, y = (np.asarray(a, dtype=np.float64) for a in (Z, W, y))
+    r, b = W.shape
+    A = Z.T @ W
+    s = np.linalg.svd(A, compute_uv=False)
+    rank = int((s > rank_tolerance(s[0], b, b)).sum()) if len(s) else 0
+    if rank < b:
+        theta = pinv(A) @ (Z.T @ y)
+        std = np.full(b, np.inf)
+    else:
+        theta = np.linalg.solve(A, Z.T @ y)
+    e = y - W @ theta
+    err_norm = float(np.linalg.norm(e))
+    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else err_norm / np.sqrt(max(r - b, 1))
+    if rank == b:
+        A_inv = np.linalg.inv(A)
+        cov = sig**2 * (A_inv @ (Z.T @ Z) @ A_inv.T)
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return LSResult(
+        names=tuple(names),
+        theta=theta,
+        std=std,
+        rel_std_pct=relative_std_pct(theta, std),
+        sigma_rho=sig,
+        error_norm=err_norm,
+        relative_error_pct=relative_error_pct(y, W @ theta),
+        condition_number=float(s[0] / s[-1]) if rank == b else float("inf"),
+        rows=r,
+        rank=rank,
     )

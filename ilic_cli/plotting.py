@@ -37,7 +37,8 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
     ``parameters``: IDIM-ILIC estimates per window with ±σ bands and the
     IDIM-LS value as a line; ``force``: measured vs reconstructed (decimated)
     force with the error; ``tracking``: tracking error over time with the
-    per-window ratio ‖e_q‖/‖q − q̄‖.
+    per-window ratio ‖e_q‖/‖q − q̄‖; ``convergence`` (DIDIM / IDIM-IV): the
+    relative residual norm at each iteration, from the IDIM-LS start.
     """
     plt = _pyplot()
     from matplotlib.ticker import MaxNLocator
@@ -73,6 +74,9 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
         t = report.ls.t if report.ls.t is not None else np.arange(len(report.ls.y))
         ax1.plot(t, report.ls.y_hat, lw=1.4, color="C1", label="IDIM-LS model")
+        for i, cl in enumerate(report.closed_loop()):
+            if cl.y_hat is not None and len(cl.y_hat) == len(t):
+                ax1.plot(t, cl.y_hat, lw=1.0, ls="--", color=f"C{i + 4}", label=f"{cl.method} model")
         ax1.plot(t, report.ls.y, lw=0.6, color="C0", label="measured (decimated)")
         ax1.set_ylabel("force (N)")
         ax1.legend(fontsize=8)
@@ -87,6 +91,24 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
             ax.grid(alpha=0.3)
         fig.suptitle(f"Measured vs reconstructed force (relative error {report.ls.result.relative_error_pct:.4f} %)")
         written.append(_save(fig, outdir / f"force.{image_format}"))
+    if report.closed_loop():
+        fig, ax = plt.subplots(figsize=(7, 3.5))
+        for i, cl in enumerate(report.closed_loop()):
+            ks = [it.k for it in cl.iterations]
+            ax.plot(
+                ks,
+                [it.relative_error_pct for it in cl.iterations],
+                "o-",
+                color=f"C{i + 4}",
+                label=f"{cl.method} ({'converged' if cl.converged else 'not converged'})",
+            )
+        ax.set_xlabel("iteration k (0: IDIM-LS start)")
+        ax.set_ylabel("‖ε_k‖/‖Y‖ (%)")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        ax.set_title("Closed-loop identification: residual norm per iteration")
+        written.append(_save(fig, outdir / f"convergence.{image_format}"))
     if "q_ref" in log:
         fig, ax = plt.subplots(figsize=(9, 3))
         ax.plot(log.t, log["q_ref"] - log["q"], lw=0.6)

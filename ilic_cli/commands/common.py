@@ -147,6 +147,8 @@ OPTIONS: dict[str, str] = {
     "gear_ratio": "--gear-ratio",
     "torque_constant": "--torque-constant",
     "load_joint": "--load-joint",
+    "max_iterations": "--max-iterations",
+    "tolerance_pct": "--tolerance",
 }
 """Parameter of a :class:`~ilic_cli.errors.ParameterError` -> the option that sets it."""
 

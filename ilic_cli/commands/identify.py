@@ -2,12 +2,24 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
 
 from ilic_cli import identify_report as render
-from ilic_cli.commands.common import STRUCTURES, input_options, load, note, options_named, parse_effect_option, structure_or_model_file
+from ilic_cli.closed_loop_id import DEFAULT_SETTINGS
+from ilic_cli.commands.common import (
+    STRUCTURES,
+    controller_options,
+    input_options,
+    load,
+    note,
+    options_named,
+    parse_effect_option,
+    structure_or_model_file,
+    with_controller,
+)
 from ilic_cli.effects import get
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.identify import identify
@@ -22,7 +34,13 @@ from ilic_cli.prepare import to_load_side
 
 @click.command("identify")
 @click.argument("log", type=click.Path(path_type=Path))
-@click.option("--method", type=click.Choice(["ls", "ilic", "both"]), default="both", show_default=True, help="IDIM-LS, IDIM-ILIC per window, or both.")
+@click.option(
+    "--method",
+    type=click.Choice(["ls", "ilic", "both", "didim", "iv", "all"]),
+    default="both",
+    show_default=True,
+    help="IDIM-LS, IDIM-ILIC per window, both; DIDIM or IDIM-IV (closed-loop, from IDIM-LS, shown beside it); or all.",
+)
 @click.option(
     "--structure",
     "structure",
@@ -100,6 +118,21 @@ from ilic_cli.prepare import to_load_side
     show_default=True,
     help="MATLAB-compatible filtering (reproduces published digits) or SciPy second-order sections.",
 )
+@click.option(
+    "--max-iterations",
+    "max_iterations",
+    type=click.IntRange(min=1),
+    default=None,
+    help="DIDIM / IDIM-IV: most iterations [default: DIDIM 20, IDIM-IV 10].",
+)
+@click.option(
+    "--tolerance",
+    "tolerance",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    help="DIDIM / IDIM-IV: stop when the residual norm or the largest relative parameter change moves by less (%) [default: DIDIM 0.1, IDIM-IV 2.5].",
+)
+@controller_options
 @click.option("--format", "out_format", type=click.Choice(["md", "csv", "json"]), default="md", show_default=True, help="What to print on stdout.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
 @click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
@@ -124,6 +157,12 @@ def command(
     decimation: int,
     trim: int,
     filtering: str,
+    max_iterations: int | None,
+    tolerance: float | None,
+    controller: str | None,
+    kp: float | None,
+    kv: float | None,
+    drive_gain: float | None,
     out_format: str,
     out_dir: Path | None,
     plot_format: str,
@@ -133,11 +172,14 @@ def command(
     joint: str | None,
     columns: str | None,
 ) -> None:
-    """Identify the axis's parameters from LOG by IDIM-LS and IDIM-ILIC.
+    """Identify the axis's parameters from LOG by IDIM-LS, IDIM-ILIC, DIDIM or IDIM-IV.
 
     IDIM-LS (paper section III) filters and differentiates the measured
     position; IDIM-ILIC (section V) regresses each window of the force on the
-    noise-free reference trajectory. Defaults reproduce the published EMPS
+    noise-free reference trajectory. DIDIM and IDIM-IV iterate on closed-loop
+    simulations of LOG's reference through LOG's controller (the PD loop of
+    the EMPS recordings, or the controller in the metadata; --controller for
+    a log that records none). Defaults reproduce the published EMPS
     benchmark tables. With --format json stdout holds only the JSON document.
 
     \b
@@ -145,6 +187,7 @@ def command(
       ilic identify DATA_EMPS.mat --method ls
       ilic identify DATA_EMPS.mat --structure asymmetric --validate DATA_EMPS_PULSES.mat
       ilic identify DATA_EMPS.mat --method ls --effect position_ripple:L=0.0125
+      ilic identify DATA_EMPS.mat --method didim --structure asymmetric --validate DATA_EMPS_PULSES.mat
       ilic identify sim.mcap --format json --out report/
     """
 
@@ -176,6 +219,10 @@ def command(
     if out_dir is not None:
         _refuse_overwriting_inputs(out_dir, plot_format, (log, *validate))
     run = load(log, input_format, topic, ref_topic, joint, columns)
+    if method in ("didim", "iv", "all"):
+        run = with_controller(run, log, controller, kp, kv, drive_gain)
+    elif controller is not None or any(v is not None for v in (kp, kv, drive_gain)):
+        raise IlicError("--controller", "the loop that ran is used by --method didim, iv or all only")
     others = [load(p, None, topic, ref_topic, joint, columns) for p in validate]
     if torque_constant is not None and gear_ratio is None:
         raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
@@ -185,7 +232,18 @@ def command(
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
     ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
     with options_named():
-        result = identify(run, method=method, structure=structure, effects=chosen, ls_settings=ls_settings, ilic_settings=ilic_settings, validate=others)
+        given = {k: v for k, v in (("max_iterations", max_iterations), ("tolerance_pct", tolerance)) if v is not None}
+        closed = {m: replace(DEFAULT_SETTINGS[m], **given) for m in DEFAULT_SETTINGS}
+        result = identify(
+            run,
+            method=method,
+            structure=structure,
+            effects=chosen,
+            ls_settings=ls_settings,
+            ilic_settings=ilic_settings,
+            validate=others,
+            closed_loop_settings=closed,
+        )
     for w in result.warnings:
         note(f"ilic: warning: {w}")
     text = {"md": render.to_markdown, "csv": render.to_csv, "json": lambda r: render.to_json(r.to_dict())}[out_format](result)
@@ -200,7 +258,8 @@ def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[P
     atomic_write_text(out_dir / "report.md", render.to_markdown(result), inputs=inputs)
     atomic_write_text(out_dir / "report.csv", render.to_csv(result), inputs=inputs)
     atomic_write_text(out_dir / "report.json", render.to_json(result.to_dict()), inputs=inputs)
-    method = "IDIM-LS" if result.ls is not None else "IDIM-ILIC"
+    primary = result.primary()
+    method = primary[0] if primary is not None else "IDIM-ILIC"
     doc = model_document(result.model, result.model_parameters(), method=method, effects=result.model_effects(), source=result.source)
     atomic_write_text(out_dir / "model.json", render.to_json(doc), inputs=inputs)
     written = [out_dir / n for n in ("report.md", "report.csv", "report.json", "model.json")]
@@ -214,7 +273,7 @@ def _refuse_overwriting_inputs(out_dir: Path, plot_format: str, inputs: tuple[Pa
 
     names = ["report.md", "report.csv", "report.json", "model.json"]
     if plot_format != "none":
-        names += [f"{n}.{plot_format}" for n in ("parameters", "force")]
+        names += [f"{n}.{plot_format}" for n in ("parameters", "force", "tracking", "convergence")]
     for name in names:
         target = out_dir / name
         if target.exists() and any(same_path(src, target) for src in inputs):

@@ -7,7 +7,9 @@ from pathlib import Path
 import click
 
 from ilic_cli.commands.common import LOG_FORMATS, controller_options, input_options, load, note, plant_of_model_file, with_controller
+from ilic_cli.diagnosis.compare import relative_errors
 from ilic_cli.errors import IlicError
+from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import write_log
 from ilic_cli.io.atomic import same_path
 from ilic_cli.prepare import prepare_log
@@ -87,3 +89,9 @@ def command(
     sim.meta["model_file"] = str(model_file)
     write_log(sim, output, out_format, inputs=(log,))
     note(f"ilic: replayed {log} with {model_file}: wrote {output} ({len(sim)} samples)")
+    if "q" in run and "tau" in run:
+        errors = relative_errors(run, sim, LSSettings())
+        note(
+            f"ilic: closed loop against the recording (first {LSSettings().trim} samples dropped): force error {errors['force']:.4g} %, "
+            f"position error {errors['position']:.4g} %, velocity error {errors['velocity']:.4g} %"
+        )
