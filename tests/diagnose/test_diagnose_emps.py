@@ -86,3 +86,15 @@ def test_pulses_report_the_pulse_excited_dynamics(emps_pulses_mat: Path) -> None
     assert peaks
     flex = [e for step in d.tried for e in step if e.effect == "flexibility"]
     assert flex and all(not e.accepted for e in flex)
+
+
+def test_emps_every_kept_effect_lowers_the_replay_error_on_pulses(emps_mat: Path, emps_pulses_mat: Path) -> None:
+    """DATA_EMPS_PULSES.mat as held-out data only: the replay keeps an effect only if the pulse run's simulated force error falls."""
+    d = diagnose(read_log(emps_mat), validate=read_log(emps_pulses_mat))
+    assert d.findings[0].effect.id == "asymmetric_friction"
+    kept = [v for v in d.decisions if v.accepted]
+    assert [v.effect for v in kept] == [f.effect.id for f in d.findings]
+    for v in kept:
+        assert v.validation_before is not None and v.validation_after < v.validation_before, v
+        assert v.force_after < v.force_before
+    assert kept[0].validation_before == pytest.approx(8.70, abs=0.005) and kept[-1].validation_after == pytest.approx(7.80, abs=0.005)
