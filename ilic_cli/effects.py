@@ -125,7 +125,8 @@ class Fit:
         Standard deviation of the nonlinear value.
     hold_s : float
         Half a sample period when the logged force is the held drive
-        command (see ``delay``), else 0.
+        command, which the fit's regressor already accounts for (a ``delay``
+        found is beyond it), else 0.
     """
 
     names: tuple[str, ...]
@@ -553,10 +554,11 @@ def _spring_estimate(fit: Fit) -> EstimateResult:
 
 
 def _delay_estimate(fit: Fit) -> EstimateResult:
-    d = float(fit.value) + fit.hold_s
+    # the diagnosis baseline already holds the logged command (the regressor half a sample later): the delay found is beyond the hold
+    d = float(fit.value)
     note = ""
     if fit.hold_s:
-        note = f"the logged force is the held command: {-fit.hold_s * 1e3:.3g} ms of the delay is the zero-order hold, the plant's delay is {d * 1e3:.3g} ms"
+        note = f"the logged force is the held command: the delay is measured beyond its {fit.hold_s * 1e3:.3g} ms zero-order hold"
     if d < 0:
         note += ("; " if note else "") + "negative: the force acts after it is logged (drive lag)"
     return {"delay": Estimate(float(fit.value), fit.value_std, "s")}, {"delay": d}, note

@@ -56,7 +56,9 @@ from ilic_cli.modelfile import load_model_file
 )
 @click.option("--folds", type=click.IntRange(min=2), default=5, show_default=True, help="Contiguous cross-validation blocks over time.")
 @click.option("--effects", "effects", default=None, help="Comma-separated catalogue ids to try [default: all].")
-@click.option("--no-simulation", "no_simulation", is_flag=True, help="Skip the replay through the plant.")
+@click.option(
+    "--no-simulation", "no_simulation", is_flag=True, help="Skip the replay through the plant (the comparison, and its decision on the proposed effects)."
+)
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="What to print on stdout.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report.md, report.json, model.json and plots.")
 @controller_options

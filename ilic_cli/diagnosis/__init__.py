@@ -2,10 +2,12 @@
 the model left out, model it, and show the fit improve.
 
 - the effects themselves (ids, physics, regressor form, search, signature) are :mod:`ilic_cli.effects`;
+- :mod:`~ilic_cli.diagnosis.baseline`: the sample hold and the reversal rows the rigid baseline accounts for;
 - :mod:`~ilic_cli.diagnosis.locate`: where a residual is structured (state, time, frequency);
 - :mod:`~ilic_cli.diagnosis.stats`: prewhitened F-tests, blocked folds, Diebold-Mariano;
 - :mod:`~ilic_cli.diagnosis.select`: forward selection on the IDIM least squares;
 - :mod:`~ilic_cli.diagnosis.compare`: replay through the plant, simulation against recording;
+- :mod:`~ilic_cli.diagnosis.decide`: materiality, and the replay decides which proposed effects are findings;
 - :mod:`~ilic_cli.diagnosis.core`: :func:`diagnose` -> :class:`Diagnosis`;
 - :mod:`~ilic_cli.diagnosis.report`, :mod:`~ilic_cli.diagnosis.plots`: rendering.
 """

@@ -12,9 +12,11 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
+from ilic_cli.diagnosis.decide import ReplayVerdict, effect_force_rms, immaterial, replay_decide
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
-from ilic_cli.diagnosis.select import Evaluation, SelectSettings, Step, forward_select, moving_rows, system, validation_error
+from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
 from ilic_cli.errors import IdentificationError, ParameterError
@@ -92,6 +94,7 @@ class Diagnosis:
     fit: dict[str, dict[str, float | None]]
     located: list[Region]
     tried: list[list[Evaluation]]
+    decisions: list[ReplayVerdict]
     model_file: dict[str, Any]
     settings: DiagnoseSettings
     simulation: SimulationComparison | None = None
@@ -119,6 +122,7 @@ class Diagnosis:
             "augmented": self.augmented.to_dict(),
             "located": [r.to_dict() for r in self.located],
             "selection": [[e.to_dict() for e in step] for step in self.tried],
+            "decisions": [v.to_dict() for v in self.decisions],
             "simulation": None if self.simulation is None else self.simulation.to_dict(),
             "validation_source": self.validation_source,
             "model_file": self.model_file,
@@ -136,9 +140,10 @@ def effect_fit(
     """Reported estimates, plant parameters and a note of one accepted effect (:meth:`ilic_cli.effects.Effect.fit_to_plant`).
 
     ``hold_s``: half a sample period when the logged force is the held drive
-    command (it acts over the next period, so a rigid drive already shows a
-    delay of ``-hold_s``); the plant's ``delay`` is the found one plus
-    ``hold_s``, since the plant holds its force itself.
+    command; the baseline already evaluates the regressor that much later
+    (:mod:`ilic_cli.diagnosis.baseline`), so a found ``delay`` is a lag beyond
+    the hold and is the plant's ``delay`` as it is (the plant holds its force
+    itself).
     """
     return step.effect.fit_to_plant(Fit(names, theta, cov, step.value, value_std, hold_s))
 
@@ -155,11 +160,14 @@ def steps_from_effects(effects: dict[str, Any], M: float) -> list[Step]:
 
 
 def _prepare(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMData:
+    """The IDIM system of ``prepared``, its regressor evaluated like the logged force (:func:`ilic_cli.diagnosis.baseline.held`)."""
     log = prepared.log
     try:
-        return prepare(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
+        data = prepare(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
     except ValueError as exc:
         raise IdentificationError(prepared.source, str(exc)) from None
+    data = held(data, model, hold_s(tau_sensor(log), prepared.fs_hz))
+    return data
 
 
 def base_model(model_doc: dict[str, Any] | None, default: str) -> Model:
@@ -219,7 +227,9 @@ def diagnose(
         sel_settings = replace(sel_settings, effects=tuple(e for e in sel_settings.effects if e not in {s.effect.id for s in known}))
     selection = forward_select(data, base, fs, sel_settings, validation=vdata, known=known)
     rows = moving_rows(data)
-    steps = [*known, *selection.steps]
+    hold = hold_s(tau_sensor(log), fs)
+    kept, verdicts = _decide(log, data, base, known, selection, rows, settings, hold, validate, against)
+    steps = [*known, *kept]
     W0, y0, names0 = system(data, base, known, rows)
     W1, y1, names1 = system(data, base, steps, rows)
     if not len(y0) > 4 * W1.shape[1]:
@@ -252,12 +262,13 @@ def diagnose(
     full = np.asarray(base.matrix(kin)) @ res0.theta[: len(base.names)]
     located.append(force_lag(data.tau, full, fs))
     findings = []
-    hold_s = 0.5 / fs if tau_sensor(log) == "command" else 0.0
-    for st, ev in zip(selection.steps, selection.accepted, strict=True):
-        params, plant, note = effect_fit(st, names1, res1.theta, cov1, ev.value_std, hold_s)
+    accepted = {ev.effect: ev for ev in selection.accepted}
+    for st in kept:
+        ev = accepted[st.effect.id]
+        params, plant, note = effect_fit(st, names1, res1.theta, cov1, ev.value_std, hold)
         regs = sorted([r for r in located if r.kind in st.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
         findings.append(Finding(st.effect, params, plant, regs, ev, note))
-    rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold_s)
+    rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold)
     doc = model_document(base.name, rigid, method="IDIM-LS + ilic diagnose", effects=effects_doc, source=src or None)
     diag = Diagnosis(
         source=src,
@@ -271,6 +282,7 @@ def diagnose(
         fit=fit,
         located=located,
         tried=selection.tried,
+        decisions=verdicts,
         model_file=doc,
         settings=settings,
         validation_source=None if validate is None else str(validate.meta.get("source", "")),
@@ -300,6 +312,59 @@ def diagnose(
             if diag.simulation.note:
                 warnings.append(diag.simulation.note)
     return diag
+
+
+def _decide(
+    log: RunLog,
+    data: IDIMData,
+    base: Model,
+    known: list[Step],
+    selection: SelectionResult,
+    rows: np.ndarray,
+    settings: DiagnoseSettings,
+    hold: float,
+    validate: RunLog | None,
+    against: RunLog | None,
+) -> tuple[list[Step], list[ReplayVerdict]]:
+    """The proposed steps that are material and, when the log can be replayed, that the replay keeps (:mod:`ilic_cli.diagnosis.decide`).
+
+    Every evaluation the inverse model accepted gets the verdict as its decision
+    (``selection.tried`` is updated in place).
+    """
+    material: list[Step] = []
+    verdicts: list[ReplayVerdict] = []
+    kept_so_far = list(known)
+    for st in selection.steps:
+        why = immaterial(st, *effect_force_rms(data, base, kept_so_far, st, rows), data.fs_hz)
+        if why:
+            verdicts.append(ReplayVerdict(st.effect.id, None, None, None, None, None, None, None, False, why))
+        else:
+            material.append(st)
+            kept_so_far.append(st)
+    replayable = settings.simulate and against is None and "q_ref" in log and material
+    if replayable:
+
+        def plant_of(steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> tuple[dict[str, float], dict[str, Any]]:
+            return model_parameters(steps, names, theta, np.zeros((len(theta), len(theta))), hold)
+
+        v = (validate, settings.ls) if validate is not None and "q_ref" in validate else None
+        kept, judged = replay_decide(
+            log, data, base, known, material, rows, plant_of, folds=settings.select.folds, alpha=settings.select.alpha_heldout, validate=v
+        )
+        verdicts += judged
+        kept = kept[len(known) :]
+    else:
+        kept = material
+    by_effect = {v.effect: v for v in verdicts}
+    for step in selection.tried:
+        for i, ev in enumerate(step):
+            if ev.accepted and ev.effect in by_effect and not by_effect[ev.effect].accepted:
+                step[i] = replace(ev, accepted=False, reason=f"{ev.reason}; {by_effect[ev.effect].reason}")
+            elif ev.accepted and ev.effect in by_effect:
+                step[i] = replace(ev, reason=f"{ev.reason}; {by_effect[ev.effect].reason}")
+    order = [s.effect.id for s in selection.steps]
+    verdicts.sort(key=lambda v: order.index(v.effect))
+    return kept, verdicts
 
 
 def _with_std(res: LSResult, cov: np.ndarray) -> LSResult:

@@ -58,9 +58,10 @@ def to_markdown(diag: Diagnosis) -> str:
     rel = fit["relative_error_pct"]
     ho = fit["heldout_relative_error_pct"]
     if not diag.findings:
+        judged = f" ({len(diag.decisions)} proposed, none material or kept by the replay: see below)" if diag.decisions else ""
         lines += [
-            f"No significant mismatch: none of the {len(diag.tried[0]) if diag.tried else 0} effects of the catalogue passed both the F-test "
-            f"and the held-out test. The rigid model ({diag.model}) explains the force to {_pct(rel['before'])} "
+            f"No significant mismatch: none of the {len(diag.tried[0]) if diag.tried else 0} effects of the catalogue passed the F-test, "
+            f"the held-out test, materiality and the replay{judged}. The rigid model ({diag.model}) explains the force to {_pct(rel['before'])} "
             f"(held out: {_pct(ho['before'])}).",
             "",
         ]
@@ -90,7 +91,7 @@ def to_markdown(diag: Diagnosis) -> str:
             "",
         ]
     lines += [
-        f"{diag.rows_used} of {diag.rows_total} decimated rows used (standstill and the filter's edge left out).",
+        f"{diag.rows_used} of {diag.rows_total} decimated rows used (standstill, velocity reversals and the filter's edge left out).",
         "",
         "## Findings",
         "",
@@ -131,6 +132,19 @@ def to_markdown(diag: Diagnosis) -> str:
         s_sig = [r for r in sim.located if r.significant]
         lines += ["## Where the simulation differs from the recording (force)", ""]
         lines += [f"- {_region_words(r)}" for r in sorted(s_sig, key=lambda r: r.p_value)[:8]] or ["- nowhere (no significant region)"]
+        lines.append("")
+    if diag.decisions:
+        lines += [
+            "## Proposed by the inverse model, decided by materiality and the replay",
+            "",
+            "| effect | held-out simulated force | held-out simulated position | p | decision |",
+            "| --- | --- | --- | --- | --- |",
+        ]
+        for v in diag.decisions:
+            force = "" if v.force_before is None else f"{_pct(v.force_before)} -> {_pct(v.force_after)}"
+            pos = "" if v.position_before is None else f"{v.position_before:.3g} % -> {v.position_after:.3g} %"
+            p = "" if v.p_value is None else f"{v.p_value:.2g}"
+            lines.append(f"| {v.effect} | {force} | {pos} | {p} | {v.reason} |")
         lines.append("")
     lines += ["## Candidates tried", "", "| step | effect | F | p (adjusted) | held out before -> after | decision |", "| --- | --- | --- | --- | --- | --- |"]
     for k, step in enumerate(diag.tried, 1):

@@ -18,10 +18,11 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.diagnosis.baseline import reversal_samples
 from ilic_cli.diagnosis.stats import FTest, batched_rss, blocked_folds, diebold_mariano, heldout_errors, lag1_autocorrelation, nested_f_test, shifted_rss
 from ilic_cli.effects import EFFECTS, Effect, applicable, catalogue_ids
 from ilic_cli.filtering import kept_indices
-from ilic_cli.idim_ls import IDIMData
+from ilic_cli.idim_ls import IDIMData, valid_rows
 from ilic_cli.lsq import lstsq, relative_error_pct
 from ilic_cli.regressor import Kinematics, Model
 
@@ -91,8 +92,11 @@ def moving_rows(data: IDIMData) -> np.ndarray:
     nothing about the model (``sign(qd)`` of a velocity that is zero or noise
     is meaningless); and, mirroring the samples the procedure drops at the
     start, the rows within as many samples of either end of the trimmed
-    record, where the zero-phase filters have their edge transients. A run
-    without dwells (the EMPS recordings) loses only those edge rows.
+    record, where the zero-phase filters have their edge transients; and the
+    rows whose decimation span touches a velocity reversal, where the Coulomb
+    switch is timed only through the filtered velocity
+    (:mod:`ilic_cli.diagnosis.baseline`). A run without dwells (the EMPS
+    recordings) loses only those edge and reversal rows.
     """
     from scipy.ndimage import maximum_filter1d  # deferred: scipy.ndimage costs start-up time the other commands need not pay
 
@@ -102,7 +106,7 @@ def moving_rows(data: IDIMData) -> np.ndarray:
     kept = kept_indices(len(v), r)
     peak = maximum_filter1d(v, 6 * r + 1)[kept]
     edge = data.settings.trim
-    moving = (peak >= STANDSTILL_FRACTION * top) & (kept >= edge) & (kept < len(v) - edge)
+    moving = (peak >= STANDSTILL_FRACTION * top) & (kept >= edge) & (kept < len(v) - edge) & valid_rows(~reversal_samples(data.kin.qd), r)
     return moving if data.rows is None else moving[data.rows]
 
 

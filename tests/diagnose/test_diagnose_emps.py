@@ -25,7 +25,8 @@ def test_emps_names_asymmetric_friction_first(emps_mat: Path) -> None:
     # the asymmetric model alone reaches the published 3.1117 % (here on the rows the diagnosis uses)
     assert first.relative_error_pct <= 3.2
     assert d.fit["relative_error_pct"]["after"] <= 3.2
-    assert d.fit["relative_error_pct"]["before"] == pytest.approx(4.08, abs=0.06)
+    # 4.08 % before the hold was part of the baseline; the regressor half a sample later fits the held command better
+    assert d.fit["relative_error_pct"]["before"] == pytest.approx(3.78, abs=0.005)
     assert d.fit["heldout_relative_error_pct"]["after"] < d.fit["heldout_relative_error_pct"]["before"]
     fv = d.findings[0].parameters
     assert fv["Fv_neg"].value > fv["Fv_pos"].value + 50  # backward friction clearly higher (published 240 vs 167)
@@ -35,7 +36,9 @@ def test_emps_validated_on_pulses_no_worse_than_rigid(emps_diagnosis) -> None:  
     d = emps_diagnosis
     assert d.findings and d.findings[0].effect.id == "asymmetric_friction"
     v = d.fit["validation_relative_error_pct"]
-    assert v["before"] == pytest.approx(5.98, abs=0.1)  # published cross-test 5.9824 % (edge rows aside)
+    # published cross-test 5.9824 % without the hold (5.98 % here before it was in the baseline): the pulses' sharp force
+    # changes are where the half-sample misalignment of the held command costs most
+    assert v["before"] == pytest.approx(4.41, abs=0.005)
     assert v["after"] <= v["before"]
     for f in d.findings:
         ev = f.evidence
@@ -52,17 +55,22 @@ def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> 
     for key in ("relative_error_pct", "heldout_relative_error_pct", "simulation_force_relative_error_pct"):
         assert set(fit[key]) >= {"before", "after"}
     # the README's figures, at their printed digits
-    assert [f["effect"] for f in doc["findings"]] == ["asymmetric_friction", "position_ripple", "stribeck", "delay"]
-    assert fit["relative_error_pct"]["before"] == pytest.approx(4.03, abs=0.005)
-    assert doc["findings"][0]["evidence"]["relative_error_pct"] == pytest.approx(3.06, abs=0.005)  # asymmetric friction alone
-    assert fit["relative_error_pct"]["after"] == pytest.approx(2.07, abs=0.005)
-    assert doc["findings"][3]["parameters"]["delay"]["value"] == pytest.approx(-0.55e-3, abs=0.005e-3)
+    assert [f["effect"] for f in doc["findings"]] == ["asymmetric_friction", "stribeck", "position_ripple"]
+    assert fit["relative_error_pct"]["before"] == pytest.approx(3.78, abs=0.005)
+    assert doc["findings"][0]["evidence"]["relative_error_pct"] == pytest.approx(2.76, abs=0.005)  # asymmetric friction alone
+    assert fit["relative_error_pct"]["after"] == pytest.approx(1.85, abs=0.005)
     sim = fit["simulation_force_relative_error_pct"]
     assert sim["before"] == pytest.approx(5.86, abs=0.005)  # published 5.848 % (variable-step solver)
-    assert sim["after"] == pytest.approx(4.39, abs=0.005)  # the drive lag net of the zero-order hold, a negative Stribeck level
+    assert sim["after"] == pytest.approx(3.98, abs=0.005)
     effects = doc["model_file"]["effects"]
     assert effects["stribeck"]["Fs"] < 0
-    assert effects["delay"]["delay"] == pytest.approx(-0.55e-3 + 0.5e-3, abs=0.005e-3)  # -0.5 ms of it is the zero-order hold
+    # the delay beyond the hold (-0.24 ms) is proposed by the inverse model and rejected as shorter than a sample
+    decisions = {v["effect"]: v for v in doc["decisions"]}
+    assert not decisions["delay"]["accepted"] and "shorter than one sample" in decisions["delay"]["reason"]
+    assert "delay" not in effects
+    for eid in ("asymmetric_friction", "stribeck", "position_ripple"):  # each kept effect lowered the held-out replay error
+        ho = decisions[eid]["heldout_simulated_force_relative_error_pct"]
+        assert decisions[eid]["accepted"] and ho["after"] < ho["before"]
     for name in ("report.md", "report.json", "model.json", "residual.png", "spectrum.png", "force_fit.png"):
         assert (tmp_path / "diag" / name).is_file()
 
@@ -78,3 +86,15 @@ def test_pulses_report_the_pulse_excited_dynamics(emps_pulses_mat: Path) -> None
     assert peaks
     flex = [e for step in d.tried for e in step if e.effect == "flexibility"]
     assert flex and all(not e.accepted for e in flex)
+
+
+def test_emps_every_kept_effect_lowers_the_replay_error_on_pulses(emps_mat: Path, emps_pulses_mat: Path) -> None:
+    """DATA_EMPS_PULSES.mat as held-out data only: the replay keeps an effect only if the pulse run's simulated force error falls."""
+    d = diagnose(read_log(emps_mat), validate=read_log(emps_pulses_mat))
+    assert d.findings[0].effect.id == "asymmetric_friction"
+    kept = [v for v in d.decisions if v.accepted]
+    assert [v.effect for v in kept] == [f.effect.id for f in d.findings]
+    for v in kept:
+        assert v.validation_before is not None and v.validation_after < v.validation_before, v
+        assert v.force_after < v.force_before
+    assert kept[0].validation_before == pytest.approx(8.70, abs=0.005) and kept[-1].validation_after == pytest.approx(7.80, abs=0.005)

@@ -96,7 +96,9 @@ def test_a_nonlinear_candidate_significant_once_but_not_over_its_grid() -> None:
     # twice as strong, it passes
     strong = forward_select(concealed_asymmetry(dfv_neg=0.0, seed=3, stribeck=0.7), BASE, FS, SelectSettings(effects=("stribeck",), max_effects=1))
     assert [e.effect for e in strong.accepted] == ["stribeck"]
-    assert strong.accepted[0].value == pytest.approx(0.02, rel=0.1)
+    # the rows around the reversals, where the speed passes through the lowest Stribeck bins, are left out
+    # (ilic_cli.diagnosis.baseline): the estimate leans low, 0.0166 (0.02 within 10 % with them)
+    assert strong.accepted[0].value == pytest.approx(0.02, rel=0.2)
     assert strong.accepted[0].value_std is not None and 0 < strong.accepted[0].value_std < 0.01
 
 
@@ -126,7 +128,12 @@ def test_moving_rows_leave_out_standstill_and_edges() -> None:
     dwell = (kept + 49 > 4100) & (kept + 49 < 5900)
     assert not rows[dwell].any()
     moving = (kept + 49 > 500) & (kept + 49 < 3500)
-    assert rows[moving].all()
+    sgn = np.sign(data.kin.qd)
+    changes = np.flatnonzero(sgn[1:] != sgn[:-1])  # sign changes of the filtered velocity (trimmed samples)
+    near = np.min(np.abs(kept[:, None] - changes[None, :]), axis=1) <= 10
+    assert near[moving].sum() >= 6  # the motion reverses inside that span
+    assert rows[moving & ~near].all()
+    assert not rows[moving & (np.min(np.abs(kept[:, None] - changes[None, :]), axis=1) <= 5)].any()  # a span touching a reversal
 
 
 class QuadraticSearcher(Searcher):
@@ -369,9 +376,10 @@ def test_an_effect_that_raises_the_validation_error_is_refused() -> None:
 
 def test_not_lowering_the_heldout_error_is_the_reason_given() -> None:
     data = concealed_asymmetry(dfv_neg=0.0, seed=1)
-    res = forward_select(data, BASE, FS, SelectSettings(effects=("spring",), max_effects=1))
+    # alpha 0.01: the spring's in-sample p is 0.0054 once the reversal rows are left out (1.1e-4 with them)
+    res = forward_select(data, BASE, FS, SelectSettings(effects=("spring",), max_effects=1, alpha=0.01))
     ev = res.tried[0][0]
-    assert ev.test.p_adjusted < 0.001  # significant in-sample (see test_no_concealed_effect_no_acceptance) ...
+    assert ev.test.p_adjusted < 0.01  # significant in-sample (see test_no_concealed_effect_no_acceptance) ...
     assert ev.reason == "does not lower the held-out error significantly" and not ev.accepted  # ... but not held out
 
 
@@ -387,8 +395,9 @@ def test_a_zero_delay_step_leaves_the_force_alone() -> None:
 
 def test_moving_rows_match_a_direct_loop() -> None:
     """Brute force of the rule in moving_rows' docstring: a row is used when, within the support of the decimation
-    filter (3 decimation periods either side), the speed reaches 1 % of the top speed (99.5th percentile), and it is
-    at least ``trim`` samples from either end of the trimmed record."""
+    filter (3 decimation periods either side), the speed reaches 1 % of the top speed (99.5th percentile), it is
+    at least ``trim`` samples from either end of the trimmed record, and no change of sign of the velocity lies
+    within ``r - 1`` samples of it (the samples on both sides of a change are marked)."""
     from ilic_cli.diagnosis.select import moving_rows
 
     t, q, qd, qdd = motion(10_000)
@@ -401,7 +410,9 @@ def test_moving_rows_match_a_direct_loop() -> None:
     want = []
     for i in range(n - 1, -1, -r):
         peak = max(v[j] for j in range(max(0, i - 3 * r), min(n, i + 3 * r + 1)))
-        want.append(peak >= 0.01 * top and edge <= i < n - edge)
+        near = [j for j in range(max(0, i - r), min(n - 1, i + r)) if np.sign(data.kin.qd[j]) != np.sign(data.kin.qd[j + 1])]
+        touches = any(abs(j - i) <= r - 1 or abs(j + 1 - i) <= r - 1 for j in near)
+        want.append(peak >= 0.01 * top and edge <= i < n - edge and not touches)
     np.testing.assert_array_equal(moving_rows(data), want[::-1])
 
 

@@ -162,7 +162,7 @@ def test_ripple_spring_payload_delay_to_plant() -> None:
     est, plant, _ = EFFECTS["payload_change"].fit_to_plant(_fit({"dM": 0.8}, value=11.7, value_std=0.2))
     assert plant == {"dM": 0.8, "t_change": 11.7} and est["t_change"].std == 0.2 and est["t_change"].unit == "s"
     _, plant, note = EFFECTS["delay"].fit_to_plant(_fit({}, value=-0.0006, hold_s=0.0005))
-    assert plant == {"delay": pytest.approx(-0.0001)} and "zero-order hold" in note and "drive lag" in note
+    assert plant == {"delay": -0.0006} and "beyond its 0.5 ms zero-order hold" in note and "drive lag" in note
     _, plant, note = EFFECTS["delay"].fit_to_plant(_fit({}, value=0.002))
     assert plant == {"delay": 0.002} and note == ""
     _, plant, _ = EFFECTS["offset"].fit_to_plant(_fit({"offset": -3.0}))

@@ -1,0 +1,93 @@
+"""The inverse model's baseline: what the rigid model must already account for before an effect is sought.
+
+Two things a rigid fit leaves in the residual without any missing physics:
+
+* **The sample hold.** When the logged force is the held drive command
+  (``u[k]`` applied over ``[kT, (k+1)T)``: the EMPS recordings' ``gtau*vir``,
+  our plant with ``tau_sensor = "command"``), it equals the mean over that
+  interval of the inverse model, i.e. the model half a sample later. The
+  regressor is therefore evaluated at ``t_k + T/2`` (:func:`held`). For the
+  filtered kinematics (100 Hz position filter at 1 kHz), the value at the
+  midpoint and the mean over the interval differ by ``O((2 pi f T)^2 / 24)``,
+  below 1e-3. ``delay`` is then only a lag beyond the hold.
+* **The Coulomb switch at velocity reversals.** The force steps by ``2 Fc``
+  when the velocity changes sign, or sticks in between, but the instant is
+  known only through the low-passed velocity, whose zero crossing is biased
+  when the deceleration differs on the two sides of the reversal (it does: the
+  friction step itself). That bias reads as timing (a spurious delay of
+  0.1-0.2 ms on clean PD logs of the EMPS reference, after the hold). The
+  rows whose decimation span touches a reversal are left out
+  (:func:`reversal_samples`, applied by :func:`ilic_cli.diagnosis.select.moving_rows`),
+  as standstill rows are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ilic_cli.idim_ls import IDIMData
+from ilic_cli.regressor import Kinematics, Model
+
+
+def hold_s(sensor: str | None, fs_hz: float) -> float:
+    """Half a sample period when the logged force is the held command (``sensor == "command"``), else 0."""
+    return 0.5 / fs_hz if sensor == "command" else 0.0
+
+
+def held(data: IDIMData, model: Model, shift_s: float) -> IDIMData:
+    """``data`` with ``model``'s regressor (and every effect column built later) evaluated ``shift_s`` later.
+
+    Parameters
+    ----------
+    data : IDIMData
+        Prepared with ``model`` (:func:`ilic_cli.idim_ls.prepare`).
+    model : Model
+        The regressor of ``data.W``.
+    shift_s : float
+        :func:`hold_s` of the log; 0 returns ``data`` itself.
+
+    Returns
+    -------
+    IDIMData
+        Same force, time stamps and rows; kinematics linearly interpolated at
+        ``t + shift_s`` (the last value held at the end, inside the trimmed
+        edge rows) and the decimated regressor rebuilt from them.
+    """
+    if shift_s == 0.0:
+        return data
+    k = data.kin
+    t = k.t
+    assert t is not None
+
+    def later(x: np.ndarray) -> np.ndarray:
+        return np.interp(t + shift_s, t, x)
+
+    kin = Kinematics(
+        qd=later(k.qd),
+        qdd=later(k.qdd),
+        q=None if k.q is None else later(k.q),
+        t=t,
+        sign_qd=None if k.sign_qd is None else later(k.sign_qd),
+        extra={n: later(v) for n, v in k.extra.items()},
+    )
+    return rebuilt(data, model, kin)
+
+
+def rebuilt(data: IDIMData, model: Model, kin: Kinematics) -> IDIMData:
+    """``data`` with kinematics ``kin`` and ``model``'s decimated regressor rebuilt from them (same force and rows)."""
+    return replace(data, kin=kin, W=np.ascontiguousarray(data.decimate(model.matrix(kin))), memo={})
+
+
+def reversal_samples(qd: np.ndarray) -> np.ndarray:
+    """Full-rate samples on either side of a change of sign of ``qd`` (boolean mask).
+
+    A sample that is exactly zero between two of opposite sign is marked too.
+    """
+    s = np.sign(qd)
+    change = s[1:] != s[:-1]
+    out = np.zeros(len(qd), dtype=bool)
+    out[:-1] |= change
+    out[1:] |= change
+    return out
