@@ -1,0 +1,109 @@
+"""The ROS 2 sqlite3 fast read: batches joined by sqlite3, their checks and the row-by-row fall-backs.
+
+Every bag here is also read message by message through ``rosbags``; the
+columns must have the same bits (:func:`tests.io.test_io_differential.read_both`).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import pytest
+
+from ilic_cli.io import WriteOptions, rosbag2, write_log
+from tests.conftest import make_synthetic_log
+from tests.io.test_io_differential import assert_log_equals_source, read_both
+
+N = 3000
+
+
+def _table(rows: list[tuple[object, ...]], key: str = "INTEGER PRIMARY KEY") -> sqlite3.Connection:
+    db = sqlite3.connect(":memory:")
+    db.execute(f"CREATE TABLE messages(id {key}, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data BLOB NOT NULL)")
+    db.executemany("INSERT INTO messages VALUES (?, ?, ?, ?)", rows)
+    return db
+
+
+ROWS = [(1, 1, -5, b"\x00\x01\x00"), (2, 2, 2**63 - 1, b""), (5, 1, 7, b"\xff\xfe\x00abc"), (9, 3, 8, b"x" * 300)]
+SQL = rosbag2.SQL_ROWS.format(ids="1, 2")
+
+
+def test_joined_batch_gives_the_rows_of_the_wanted_topics_in_id_order() -> None:
+    ids, (topic_id, log_ns, sizes, buf) = rosbag2._joined_batch(_table(ROWS), SQL, -(2**63))  # type: ignore[misc]
+    assert ids.tolist() == [1, 2, 5]
+    assert topic_id.tolist() == [1, 2, 1]
+    assert log_ns.tolist() == [-5, 2**63 - 1, 7]  # int64 extremes survive the decimal text
+    assert sizes.tolist() == [3, 0, 6]
+    assert buf.tobytes() == b"\x00\x01\x00\xff\xfe\x00abc"  # NULs inside blobs are kept
+    assert rosbag2._joined_batch(_table(ROWS), SQL, 5) is None  # nothing after id 5
+
+
+@pytest.mark.parametrize(
+    "row",
+    [(3, 1, 6, "t\u00e9xt"), (3, 1, 6, "text"), (3, 1, 6, 12), (3, 1, 6.5, b"ab"), (3, 1, "later", b"ab")],
+    ids=["non-ascii-text-data", "ascii-text-data", "integer-data", "real-timestamp", "text-timestamp"],
+)
+def test_joined_batch_refuses_rows_of_other_types(row: tuple[object, ...]) -> None:
+    """Such a batch goes row by row, where the values keep their type (as on the per-message path)."""
+    assert rosbag2._joined_batch(_table([*ROWS, row]), SQL, -(2**63)) is None
+
+
+def test_joined_batch_refuses_ids_that_do_not_increase() -> None:
+    """The ids checked are the ones joined: a sub-query in another order is refused, not read."""
+    backwards = SQL.replace("ORDER BY id", "ORDER BY id DESC").replace("id > ?", "id > ? - 0")
+    assert rosbag2._joined_batch(_table(ROWS), backwards, -(2**63)) is None
+    text_ids = _table([(1, 1, 1, b"a"), ("b", 1, 2, b"b")], key="PRIMARY KEY")
+    assert rosbag2._joined_batch(text_ids, SQL, -(2**63)) is None
+
+
+@pytest.fixture
+def bag(tmp_path: Path) -> tuple[Path, object]:
+    log = make_synthetic_log(samples=N)
+    return write_log(log, tmp_path / "bag", options=WriteOptions(storage="sqlite3")), log
+
+
+def _spy(monkeypatch: pytest.MonkeyPatch, refuse_every: int = 0) -> list[bool]:
+    """Record whether each batch was joined; refuse every ``refuse_every``-th joined batch (0: none)."""
+    joined: list[bool] = []
+    original = rosbag2._joined_batch
+
+    def spy(db: sqlite3.Connection, rows_sql: str, last: int):  # type: ignore[no-untyped-def]
+        got = original(db, rows_sql, last)
+        if got is not None and refuse_every and (len(joined) + 1) % refuse_every == 0:
+            got = None
+        joined.append(got is not None)
+        return got
+
+    monkeypatch.setattr(rosbag2, "_joined_batch", spy)
+    return joined
+
+
+def test_small_batches_joined_and_fetched_give_the_per_message_columns(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch) -> None:
+    path, log = bag
+    monkeypatch.setattr(rosbag2, "SQL_BATCH", 1000)  # 9001 rows: 10 batches, batch edges inside samples
+    joined = _spy(monkeypatch, refuse_every=3)
+    assert_log_equals_source(read_both(path), log)
+    assert joined[:10] == [True, True, False, True, True, False, True, True, False, True]
+
+
+def test_our_bag_is_read_in_joined_batches(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch) -> None:
+    path, log = bag
+    joined = _spy(monkeypatch)
+    assert_log_equals_source(read_both(path), log)
+    assert joined == [True, False]  # one batch of 9001 rows, then the empty end
+
+
+def test_bag_whose_ids_are_not_a_key_is_read_through_one_cursor(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch) -> None:
+    """``messages.id`` without PRIMARY KEY (another writer): no batches by id, same columns."""
+    path, log = bag
+    db_file = next(path.glob("*.db3"))
+    with sqlite3.connect(db_file) as db:
+        db.executescript(
+            "CREATE TABLE plain(id INTEGER, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data BLOB NOT NULL);"
+            "INSERT INTO plain SELECT * FROM messages ORDER BY id; DROP TABLE messages; ALTER TABLE plain RENAME TO messages;"
+        )
+    db.close()
+    joined = _spy(monkeypatch)
+    assert_log_equals_source(read_both(path), log)
+    assert joined == []
