@@ -1,6 +1,7 @@
-"""The ROS 2 sqlite3 fast read: batches joined by sqlite3, their checks and the row-by-row fall-backs.
+"""ROS 2 sqlite3 bags in bulk: the read in batches joined by sqlite3 (their checks, the row-by-row
+fall-backs) and the write in statements that sqlite3 cuts into rows.
 
-Every bag here is also read message by message through ``rosbags``; the
+Every bag read here is also read message by message through ``rosbags``; the
 columns must have the same bits (:func:`tests.io.test_io_differential.read_both`).
 """
 
@@ -9,9 +10,10 @@ from __future__ import annotations
 import sqlite3
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from ilic_cli.io import WriteOptions, rosbag2, write_log
+from ilic_cli.io import WriteOptions, rosbag2, rosbulk, write_log
 from tests.conftest import make_synthetic_log
 from tests.io.test_io_differential import assert_log_equals_source, read_both
 
@@ -107,3 +109,22 @@ def test_bag_whose_ids_are_not_a_key_is_read_through_one_cursor(bag: tuple[Path,
     joined = _spy(monkeypatch)
     assert_log_equals_source(read_both(path), log)
     assert joined == []
+
+
+def test_insert_statement_cuts_blobs_and_stamps_into_rows_in_order() -> None:
+    db = _table([])
+    stamps = np.array([-(2**63), -5, 0, 2**63 - 1], dtype=np.int64)
+    text = np.char.zfill(stamps.astype(f"S{rosbulk.STAMP_DIGITS}"), rosbulk.STAMP_DIGITS).tobytes()
+    db.execute(rosbulk.insert_rows_sql([7, 3], [2, 3]), [8, text, b"a0a1a2a3", b"\x00b0\x00b1\x00b2\x00b3"])
+    rows = db.execute("SELECT id, topic_id, timestamp, data FROM messages").fetchall()
+    assert rows == [(i + 1, (7, 3)[i % 2], int(stamps[i // 2]), (b"a%d" % (i // 2)) if i % 2 == 0 else b"\x00b%d" % (i // 2)) for i in range(8)]
+
+
+def test_bulk_sqlite3_writer_gives_the_per_message_bytes_across_statements(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    log = make_synthetic_log(samples=N)
+    monkeypatch.setattr(rosbulk, "SAMPLES_PER_INSERT", 700)  # 5 statements, the last one short
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    bulk = write_log(log, tmp_path / "a" / "bag", options=WriteOptions(storage="sqlite3", fast=True))
+    each = write_log(log, tmp_path / "b" / "bag", options=WriteOptions(storage="sqlite3", fast=False))
+    assert (bulk / "bag.db3").read_bytes() == (each / "bag.db3").read_bytes()
