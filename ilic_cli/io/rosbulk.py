@@ -43,8 +43,16 @@ class BulkSqlite3Storage(Sqlite3Writer):
     """
 
     def __init__(self, path: Path, compression: CompressionMode) -> None:
-        super().__init__(path, compression)
-        self.conn.execute("PRAGMA synchronous = OFF")
+        """``rosbags``' ``Sqlite3Writer.__init__``, with ``synchronous = OFF`` set before the schema is committed."""
+        import sqlite3
+
+        if compression == CompressionMode.STORAGE:
+            raise WriterError("SQLITE3 writer does not support storage-side compression.")
+        self.path = path / f"{path.name}.db3"
+        self.conn = sqlite3.connect(f"file:{self.path}", uri=True)
+        self.conn.execute("PRAGMA synchronous = OFF")  # before the schema's commit, which would wait for the disk
+        self.conn.executescript(self.SQLITE_SCHEMA)
+        self.cursor = self.conn.cursor()
 
     def add_samples(self, columns: Columns, ids: dict[str, int]) -> None:
         """Insert every per-sample message of ``columns`` (topic ids from ``ids``).
