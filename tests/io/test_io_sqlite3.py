@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ilic_cli.io import WriteOptions, rosbag2, rosbulk, write_log
+from ilic_cli.io import WriteOptions, read_log, rosbag2, rosbulk, write_log
+from ilic_cli.runlog import RunLog
 from tests.conftest import make_synthetic_log
 from tests.io.test_io_differential import assert_log_equals_source, read_both
 
@@ -128,3 +129,16 @@ def test_bulk_sqlite3_writer_gives_the_per_message_bytes_across_statements(tmp_p
     bulk = write_log(log, tmp_path / "a" / "bag", options=WriteOptions(storage="sqlite3", fast=True))
     each = write_log(log, tmp_path / "b" / "bag", options=WriteOptions(storage="sqlite3", fast=False))
     assert (bulk / "bag.db3").read_bytes() == (each / "bag.db3").read_bytes()
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_simulate_writes_either_ros2_bag_storage(tmp_path: Path, storage: str) -> None:
+    """``ilic simulate --format rosbag2 --storage S``: the bag's storage file is S's, with the log of the .mcap output."""
+    from tests.clirun import run_cli
+
+    args = ["simulate", "--scenario", "paper-sim", "--duration", "1", "--seed", "2"]
+    assert run_cli(*args, "-o", str(tmp_path / "x.mcap")).status == 0
+    assert run_cli(*args, "-o", str(tmp_path / "bag"), "--format", "rosbag2", "--storage", storage).status == 0
+    assert [p.suffix for p in sorted((tmp_path / "bag").iterdir())] == [{"sqlite3": ".db3", "mcap": ".mcap"}[storage], ".yaml"]
+    log = read_log(tmp_path / "x.mcap")
+    assert_log_equals_source(read_both(tmp_path / "bag"), RunLog(log.channels, log.units, {k: v for k, v in log.meta.items() if k != "source"}))
