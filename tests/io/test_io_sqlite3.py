@@ -142,3 +142,17 @@ def test_simulate_writes_either_ros2_bag_storage(tmp_path: Path, storage: str) -
     assert [p.suffix for p in sorted((tmp_path / "bag").iterdir())] == [{"sqlite3": ".db3", "mcap": ".mcap"}[storage], ".yaml"]
     log = read_log(tmp_path / "x.mcap")
     assert_log_equals_source(read_both(tmp_path / "bag"), RunLog(log.channels, log.units, {k: v for k, v in log.meta.items() if k != "source"}))
+
+
+def test_rosbags_opens_bags_without_automatic_indexes_and_only_then() -> None:
+    import apsw
+
+    def automatic_index() -> int:
+        return int(apsw.Connection(":memory:").execute("PRAGMA automatic_index").fetchall()[0][0])
+
+    hooks = list(apsw.connection_hooks)
+    with pytest.raises(KeyError), rosbag2._without_automatic_indexes():
+        assert automatic_index() == 0
+        raise KeyError("a failed open")
+    assert automatic_index() == 1
+    assert apsw.connection_hooks == hooks
