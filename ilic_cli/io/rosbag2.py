@@ -160,7 +160,7 @@ SQL_JOINED = (
 the rows' ids, topic ids, timestamps and blob sizes (decimal, comma-separated) and their blobs, joined in the
 order of the sub-query.
 
-Needs sqlite3 3.7.11 or later (anything Python 3.11 links with). The order of
+Plain SQL of any sqlite3 that Python 3.11 builds with (3.7.15 or later). The order of
 ``group_concat`` over an ordered sub-query is not promised by SQL; the ids
 come along, and :func:`_joined_batch` refuses a batch whose ids do not increase.
 """
