@@ -165,8 +165,8 @@ Plain SQL of any sqlite3 that Python 3.11 builds with (3.7.15 or later). The ord
 come along, and :func:`_joined_batch` refuses a batch whose ids do not increase.
 """
 
-SQL_ROWS = "SELECT id, topic_id, timestamp, data FROM messages WHERE id > ? AND topic_id IN ({ids}) ORDER BY id LIMIT ?"
-"""The rows of one batch: the next :data:`SQL_BATCH` messages of the wanted topics after an id."""
+SQL_ROWS = "SELECT id, topic_id, timestamp, data FROM messages WHERE id >= ? AND topic_id IN ({ids}) ORDER BY id LIMIT ?"
+"""The rows of one batch: the next :data:`SQL_BATCH` messages of the wanted topics from an id on."""
 
 SQL_ALL_ROWS = "SELECT id, topic_id, timestamp, data FROM messages WHERE topic_id IN ({ids}) ORDER BY id"
 """Every message of the wanted topics, for one cursor."""
@@ -227,22 +227,24 @@ Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 def _batches(db: Any, rows_sql: str, joined: bool) -> Iterator[Batch]:
-    """Batches of rows in id order, each after the last id of the one before (``messages.id`` is a unique key).
+    """Batches of rows in id order, each from the id after the last one of the batch before (``messages.id`` is a unique key).
 
     A batch is joined by sqlite3 (:func:`_joined_batch`) when ``joined`` and
     it can be, else fetched row by row.
     """
-    last = -(2**63)
+    first = -(2**63)
     while True:
-        got = _joined_batch(db, rows_sql, last) if joined else None
+        got = _joined_batch(db, rows_sql, first) if joined else None
         if got is None:
-            rows = db.execute(rows_sql, (last, SQL_BATCH)).fetchall()
+            rows = db.execute(rows_sql, (first, SQL_BATCH)).fetchall()
             if not rows:
                 return
             got = _split_rows(rows)
         ids, batch = got
-        last = int(ids[-1])
         yield batch
+        if int(ids[-1]) == 2**63 - 1:  # the largest id: nothing after it
+            return
+        first = int(ids[-1]) + 1
 
 
 def _cursor_batches(db: Any, all_sql: str) -> Iterator[Batch]:
@@ -259,12 +261,12 @@ def _id_is_key(db: Any) -> bool:
     return keys == [("id", "INTEGER")]
 
 
-def _joined_batch(db: Any, rows_sql: str, last: int) -> tuple[np.ndarray, Batch] | None:
-    """Ids and rows after id ``last`` joined by sqlite3 (:data:`SQL_JOINED`); None when there are none or they must be fetched row by row."""
+def _joined_batch(db: Any, rows_sql: str, first: int) -> tuple[np.ndarray, Batch] | None:
+    """Ids and rows from id ``first`` on, joined by sqlite3 (:data:`SQL_JOINED`); None when there are none or they must be fetched row by row."""
     import sqlite3
 
     try:
-        count, odd, *numbers, blobs = db.execute(SQL_JOINED.format(rows=rows_sql), (last, SQL_BATCH)).fetchone()
+        count, odd, *numbers, blobs = db.execute(SQL_JOINED.format(rows=rows_sql), (first, SQL_BATCH)).fetchone()
     except sqlite3.DataError:  # the joined batch is longer than sqlite3's longest string
         return None
     if not count or odd or not all(isinstance(text, str) for text in numbers):
@@ -274,7 +276,7 @@ def _joined_batch(db: Any, rows_sql: str, last: int) -> tuple[np.ndarray, Batch]
     except ValueError:
         return None
     buf = np.frombuffer(blobs or b"", dtype=np.uint8)
-    if any(len(column) != count for column in (ids, topic_id, log_ns, sizes)) or ids[0] <= last or (np.diff(ids) <= 0).any() or int(sizes.sum()) != len(buf):
+    if any(len(column) != count for column in (ids, topic_id, log_ns, sizes)) or ids[0] < first or (np.diff(ids) <= 0).any() or int(sizes.sum()) != len(buf):
         return None
     return ids, (topic_id, log_ns, sizes, buf)
 

@@ -39,7 +39,7 @@ def test_joined_batch_gives_the_rows_of_the_wanted_topics_in_id_order() -> None:
     assert log_ns.tolist() == [-5, 2**63 - 1, 7]  # int64 extremes survive the decimal text
     assert sizes.tolist() == [3, 0, 6]
     assert buf.tobytes() == b"\x00\x01\x00\xff\xfe\x00abc"  # NULs inside blobs are kept
-    assert rosbag2._joined_batch(_table(ROWS), SQL, 5) is None  # nothing after id 5
+    assert rosbag2._joined_batch(_table(ROWS), SQL, 6) is None  # nothing from id 6 on
 
 
 @pytest.mark.parametrize(
@@ -54,10 +54,20 @@ def test_joined_batch_refuses_rows_of_other_types(row: tuple[object, ...]) -> No
 
 def test_joined_batch_refuses_ids_that_do_not_increase() -> None:
     """The ids checked are the ones joined: a sub-query in another order is refused, not read."""
-    backwards = SQL.replace("ORDER BY id", "ORDER BY id DESC").replace("id > ?", "id > ? - 0")
+    backwards = SQL.replace("ORDER BY id", "ORDER BY id DESC")
     assert rosbag2._joined_batch(_table(ROWS), backwards, -(2**63)) is None
     text_ids = _table([(1, 1, 1, b"a"), ("b", 1, 2, b"b")], key="PRIMARY KEY")
     assert rosbag2._joined_batch(text_ids, SQL, -(2**63)) is None
+
+
+@pytest.mark.parametrize("joined", [True, False], ids=["joined", "row-by-row"])
+def test_batches_take_every_id_from_the_smallest_to_the_largest(monkeypatch: pytest.MonkeyPatch, joined: bool) -> None:
+    monkeypatch.setattr(rosbag2, "SQL_BATCH", 2)
+    rows = [(-(2**63), 1, 1, b"a"), (-1, 2, 2, b"bb"), (0, 1, 3, b"c"), (7, 2, 4, b"dd"), (2**63 - 1, 1, 5, b"e")]
+    batches = list(rosbag2._batches(_table(rows), SQL, joined))
+    assert [len(b[0]) for b in batches] == [2, 2, 1]
+    assert np.concatenate([b[1] for b in batches]).tolist() == [1, 2, 3, 4, 5]
+    assert b"".join(b[3].tobytes() for b in batches) == b"abbcdde"
 
 
 @pytest.fixture
@@ -71,8 +81,8 @@ def _spy(monkeypatch: pytest.MonkeyPatch, refuse_every: int = 0) -> list[bool]:
     joined: list[bool] = []
     original = rosbag2._joined_batch
 
-    def spy(db: sqlite3.Connection, rows_sql: str, last: int):  # type: ignore[no-untyped-def]
-        got = original(db, rows_sql, last)
+    def spy(db: sqlite3.Connection, rows_sql: str, first: int):  # type: ignore[no-untyped-def]
+        got = original(db, rows_sql, first)
         if got is not None and refuse_every and (len(joined) + 1) % refuse_every == 0:
             got = None
         joined.append(got is not None)
