@@ -11,8 +11,9 @@ per-message path (``.mat``) or does not take the keyword yet (a
 ``TypeError``). Every read is checked to give the written columns.
 
 Then times ``ilic simulate --scenario paper-sim --duration 300`` to ``.mat``,
-``.mcap`` and a ROS 2 bag (``--format rosbag2``, sqlite3) as whole processes
-(start-up included) and prints each as a multiple of real time.
+``.mcap``, ``.bag`` and ROS 2 bags (``--format rosbag2``, ``--storage sqlite3``
+and ``mcap``) as whole processes (start-up included) and prints each as a
+multiple of real time, with the process's CPU time (user + system).
 
 Never asserted by tests: run it with ``make bench`` (or
 ``python benchmarks/bench_io.py [--samples N] [--repeat R] [--fast-only] [--no-simulate]``).
@@ -138,18 +139,37 @@ def bench(log: Any, repeat: int = 3, per_message: bool = True, formats: list[str
     return rows
 
 
+SIMULATE_OUTPUTS: list[tuple[str, list[str]]] = [
+    ("x.mat", []),
+    ("x.mcap", []),
+    ("x.bag", []),
+    ("x_bag", ["--format", "rosbag2", "--storage", "sqlite3"]),
+    ("m_bag", ["--format", "rosbag2", "--storage", "mcap"]),
+]
+"""``ilic simulate`` outputs timed: .mat, MCAP, ROS 1 bag, ROS 2 bags with sqlite3 and MCAP storage."""
+
+
 def simulate_rates(duration_s: float = 300.0) -> None:
-    """Wall time of ``ilic simulate`` to each output as a whole process, as a multiple of real time."""
+    """Wall and CPU time of ``ilic simulate`` to each output as a whole process, as a multiple of real time."""
+    import resource
+
     work = Path(tempfile.mkdtemp(prefix="ilic-bench-sim-"))
     env = dict(os.environ, CI="1")  # no progress display
     try:
-        for label, out, extra in (("mat", "x.mat", []), ("mcap", "x.mcap", []), ("rosbag2 (sqlite3)", "x_bag", ["--format", "rosbag2"])):
+        for out, extra in SIMULATE_OUTPUTS:
             args = [sys.executable, "-m", "ilic_cli", "simulate", "--scenario", "paper-sim", "--duration", f"{duration_s:g}", "-o", str(work / out), *extra]
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
             t0 = time.perf_counter()
             proc = subprocess.run(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, check=False)
             wall = time.perf_counter() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
             status = "" if proc.returncode == 0 else f"  status {proc.returncode}: {proc.stderr.strip().splitlines()[-1:]}"
-            print(f"ilic simulate --duration {duration_s:g} -o {out:<8} {wall:6.2f} s wall = {duration_s / wall:6.1f}x real time{status}", flush=True)
+            label = f"{out} {' '.join(extra)}".strip()
+            print(
+                f"ilic simulate --duration {duration_s:g} -o {label:<40} {wall:6.2f} s wall = {duration_s / wall:6.1f}x real time ({cpu:5.2f} s CPU){status}",
+                flush=True,
+            )
             remove(work / out)
     finally:
         shutil.rmtree(work, ignore_errors=True)

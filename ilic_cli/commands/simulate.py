@@ -18,7 +18,7 @@ from ilic_cli.commands.common import (
     structure_or_model_file,
 )
 from ilic_cli.errors import SimulationError
-from ilic_cli.io import write_log
+from ilic_cli.io import WriteOptions, write_log
 from ilic_cli.io.atomic import same_path
 from plant.scenarios import DEFAULT_EMPS_LOG, Overrides, check, get_scenario, run_scenario
 
@@ -31,6 +31,7 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the noise (numpy PCG64).")
 @click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True, help="Output log (.mcap, .mat, .csv, .bag or a ROS 2 bag folder).")
 @click.option("--format", "out_format", type=click.Choice(LOG_FORMATS), default=None, help="Output format [default: from the extension; MCAP for .mcap].")
+@click.option("--storage", type=click.Choice(["sqlite3", "mcap"]), default="sqlite3", show_default=True, help="Storage plugin of a ROS 2 bag.")
 @click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="Plant parameter (M, Fv, Fc, offset); repeatable.")
 @click.option(
     "--effect",
@@ -102,6 +103,7 @@ def command(
     seed: int,
     output: Path,
     out_format: str | None,
+    storage: str,
     params: tuple[str, ...],
     effects: tuple[str, ...],
     controller: str | None,
@@ -201,7 +203,7 @@ def command(
             est = ", ".join(f"{n}={p['value']:.6g}" + ("" if w["essential"][n] else "*") for n, p in w["parameters"].items() if p["value"] is not None)
             note(f"  window {w['k']} [{w['t_start']:.1f}, {w['t_end']:.1f}] s: {est}")
         reference = (log.meta.get("scenario") or {}).get("log")
-        write_log(log, output, out_format, inputs=(reference,) if reference else ())
+        write_log(log, output, out_format, WriteOptions(storage=storage), inputs=(reference,) if reference else ())
         note(f"ilic: wrote {output} ({len(log)} samples, {log.duration_s:.3f} s)")
 
 

@@ -12,9 +12,12 @@ classes.
 
 from __future__ import annotations
 
+import collections
 import struct
 import zlib
 from collections.abc import Mapping
+from concurrent.futures import Future
+from dataclasses import dataclass
 from typing import IO, Any
 
 import numpy as np
@@ -25,6 +28,38 @@ MESSAGE_HEAD = 31
 
 OP_MESSAGE = 0x05
 OP_MESSAGE_INDEX = 0x07
+
+COMPRESSING = 2
+"""Threads compressing chunks while the next ones are framed (zstd and crc32 release the GIL)."""
+
+MAX_PENDING = 4
+"""Most closed chunks held in memory before the oldest one is written."""
+
+
+def compress_chunk(compression: str, data: bytes) -> tuple[bytes, int]:
+    """``data`` compressed as ``mcap.writer.Writer`` compresses a chunk (``"zstd"`` level 3, ``"lz4"``, ``""``), and its crc32."""
+    if compression == "zstd":
+        import zstandard
+
+        compressed = zstandard.compress(data)
+    elif compression == "lz4":
+        import lz4.frame
+
+        compressed = lz4.frame.compress(data)
+    else:
+        compressed = data
+    return compressed, zlib.crc32(data)
+
+
+@dataclass
+class _Pending:
+    """A closed chunk waiting for its compression: what its records need besides the compressed bytes."""
+
+    job: Future[tuple[bytes, int]]
+    size: int
+    start: int
+    end: int
+    index: dict[int, tuple[list[np.ndarray], list[np.ndarray]]]
 
 
 def frame_head(rows: np.ndarray, offset: int, length: int, channel_id: int, sequence: np.ndarray, log_ns: np.ndarray) -> None:
@@ -70,6 +105,8 @@ class BulkWriter:
         self.channels: dict[int, Any] = {}
         self.chunk_indexes: list[Any] = []
         self.metadata_indexes: list[Any] = []
+        self.pending: collections.deque[_Pending] = collections.deque()
+        self.pool: Any = None
         self.stats = Statistics(
             attachment_count=0,
             channel_count=0,
@@ -216,38 +253,49 @@ class BulkWriter:
             self._finish_chunk()
 
     def _finish_chunk(self) -> None:
-        from mcap.records import Chunk, ChunkIndex
+        """Close the current chunk: hand it to a compressing thread; write the chunks whose compression is done, in order."""
+        from concurrent.futures import ThreadPoolExecutor
 
         if self.num_messages == 0:
             return
         self.stats.chunk_count += 1
-        data = b"".join(self.pieces)
-        if self.compression == "zstd":
-            import zstandard
+        if self.pool is None:
+            self.pool = ThreadPoolExecutor(COMPRESSING, thread_name_prefix="mcap-chunk")
+        job = self.pool.submit(compress_chunk, self.compression, b"".join(self.pieces))
+        self.pending.append(_Pending(job, self.count, self.chunk_start, self.chunk_end, self.index))
+        self._reset_chunk()
+        while self.pending and (len(self.pending) > MAX_PENDING or self.pending[0].job.done()):
+            self._write_chunk(self.pending.popleft())
 
-            compressed = zstandard.compress(data)
-        elif self.compression == "lz4":
-            import lz4.frame
+    def _flush_chunks(self) -> None:
+        """Write every closed chunk; stop the compressing threads."""
+        while self.pending:
+            self._write_chunk(self.pending.popleft())
+        if self.pool is not None:
+            self.pool.shutdown()
+            self.pool = None
 
-            compressed = lz4.frame.compress(data)
-        else:
-            compressed = data
-        chunk = Chunk(
+    def _write_chunk(self, chunk: _Pending) -> None:
+        """Write a chunk record and its message indexes (once its compression is done)."""
+        from mcap.records import Chunk, ChunkIndex
+
+        compressed, crc = chunk.job.result()
+        record = Chunk(
             compression=self.compression,
             data=compressed,
-            message_start_time=self.chunk_start,
-            message_end_time=self.chunk_end,
-            uncompressed_crc=zlib.crc32(data),
-            uncompressed_size=len(data),
+            message_start_time=chunk.start,
+            message_end_time=chunk.end,
+            uncompressed_crc=crc,
+            uncompressed_size=chunk.size,
         )
         chunk_offset = self.stream.tell()
-        record = self._record(chunk)
-        self._write(record)
+        data = self._record(record)
+        self._write(data)
         index_start = self.stream.tell()
         offsets: dict[int, int] = {}
         parts = []
         at = index_start
-        for channel_id, (times, offs) in self.index.items():
+        for channel_id, (times, offs) in chunk.index.items():
             offsets[channel_id] = at
             entries = np.empty((sum(len(t) for t in times), 2), dtype="<u8")
             entries[:, 0] = np.concatenate(times)
@@ -260,24 +308,24 @@ class BulkWriter:
         self._write(indexes)
         self.chunk_indexes.append(
             ChunkIndex(
-                message_start_time=chunk.message_start_time,
-                message_end_time=chunk.message_end_time,
+                message_start_time=chunk.start,
+                message_end_time=chunk.end,
                 chunk_start_offset=chunk_offset,
-                chunk_length=len(record),
+                chunk_length=len(data),
                 message_index_offsets=offsets,
                 message_index_length=len(indexes),
-                compression=chunk.compression,
+                compression=self.compression,
                 compressed_size=len(compressed),
-                uncompressed_size=chunk.uncompressed_size,
+                uncompressed_size=chunk.size,
             )
         )
-        self._reset_chunk()
 
     def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
         """Close the current chunk, then write a metadata record (indexed in the summary)."""
         from mcap.records import Metadata, MetadataIndex
 
         self._finish_chunk()
+        self._flush_chunks()
         offset = self.stream.tell()
         self.stats.metadata_count += 1
         record = self._record(Metadata(name=name, metadata=dict(data)))
@@ -291,6 +339,7 @@ class BulkWriter:
         from mcap.records import DataEnd, Footer, SummaryOffset
 
         self._finish_chunk()
+        self._flush_chunks()
         self._write(self._record(DataEnd(self.crc if self.data_crc else 0)))
         summary_start = self.stream.tell()
         builder = RecordBuilder()

@@ -16,8 +16,12 @@ messages one by one.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from ilic_cli.errors import LogError
 from ilic_cli.io import container, roscollect, rosdecode, rosencode, rosschema
@@ -148,18 +152,37 @@ SQL_BATCH = 65536
 SQL_MMAP = 2**30
 """Bytes of the database file sqlite3 may map into memory (an address range, not resident memory)."""
 
+SQL_JOINED = (
+    "SELECT count(*), sum(typeof(timestamp) != 'integer' OR typeof(data) != 'blob'), group_concat(id), group_concat(topic_id), group_concat(timestamp), "
+    "group_concat(length(data)), CAST(group_concat(data, '') AS BLOB) FROM ({rows})"
+)
+"""One batch of messages as one row: its count, its rows whose timestamp is not an integer or data not a blob,
+the rows' ids, topic ids, timestamps and blob sizes (decimal, comma-separated) and their blobs, joined in the
+order of the sub-query.
+
+Plain SQL of any sqlite3 that Python 3.11 builds with (3.7.15 or later). The order of
+``group_concat`` over an ordered sub-query is not promised by SQL; the ids
+come along, and :func:`_joined_batch` refuses a batch whose ids do not increase.
+"""
+
+SQL_ROWS = "SELECT id, topic_id, timestamp, data FROM messages WHERE id >= ? AND topic_id IN ({ids}) ORDER BY id LIMIT ?"
+"""The rows of one batch: the next :data:`SQL_BATCH` messages of the wanted topics from an id on."""
+
+SQL_ALL_ROWS = "SELECT id, topic_id, timestamp, data FROM messages WHERE topic_id IN ({ids}) ORDER BY id"
+"""Every message of the wanted topics, for one cursor."""
+
 
 def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: Path) -> None:
-    """Read the messages with one ``SELECT`` in insertion order and hand each topic's blobs to its sink as runs.
+    """Read the messages in batches of :data:`SQL_BATCH` rows in id order and hand each topic's blobs to its sink as runs.
 
-    Within a batch of rows, a topic's messages of one size at a constant
-    distance in the joined blobs form one run
-    (:meth:`ilic_cli.io.roscollect._Sink.add_run`). Sinks sort by log time
+    sqlite3 joins each batch into one row (:data:`SQL_JOINED`, no Python
+    object per message); a batch with a row of other types, or whose ids do
+    not increase, is fetched again row by row. Within a batch, a topic's
+    messages of one size at a constant distance in the joined blobs form one
+    run (:meth:`ilic_cli.io.roscollect._Sink.add_run`). Sinks sort by log time
     (stably), which gives ``rosbags``' order: log time, then insertion.
     """
     import sqlite3
-
-    import numpy as np
 
     from ilic_cli.io import current_progress
 
@@ -175,21 +198,18 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
             ):
                 by_id[int(stored.id)] = sinks[conn.id]
                 sinks[conn.id].reserve(int(getattr(stored, "msgcount", 0) or 0))
-    total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections) or 1
+    if not by_id:
+        return
+    total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections if int(stored.id) in by_id) or 1
     done = 0
+    ids = ", ".join(str(tid) for tid in sorted(by_id))
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
     try:
         db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
+        joined = db.execute("PRAGMA encoding").fetchone()[0] == "UTF-8"  # group_concat joins blobs as UTF-8 text
+        batches = _batches(db, SQL_ROWS.format(ids=ids), joined) if _id_is_key(db) else _cursor_batches(db, SQL_ALL_ROWS.format(ids=ids))
         with current_progress(path) as progress:
-            cursor = db.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id")
-            while rows := cursor.fetchmany(SQL_BATCH):
-                topic_ids, stamps, blobs = zip(*rows)
-                del rows
-                topic_id = np.array(topic_ids, dtype=np.int64)
-                log_ns = np.array(stamps, dtype=np.int64)
-                sizes = np.fromiter(map(len, blobs), dtype=np.int64, count=len(blobs))
-                buf = np.frombuffer(b"".join(blobs), dtype=np.uint8)
-                del blobs
+            for topic_id, log_ns, sizes, buf in batches:
                 starts = np.cumsum(sizes) - sizes
                 for tid, sink in by_id.items():
                     mine = np.flatnonzero(topic_id == tid)
@@ -200,6 +220,73 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
                     progress(done, total)
     finally:
         db.close()
+
+
+Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""Topic ids, timestamps, blob sizes (int64 each) and the joined blobs (uint8) of a batch of rows."""
+
+
+def _batches(db: Any, rows_sql: str, joined: bool) -> Iterator[Batch]:
+    """Batches of rows in id order, each from the id after the last one of the batch before (``messages.id`` is a unique key).
+
+    A batch is joined by sqlite3 (:func:`_joined_batch`) when ``joined`` and
+    it can be, else fetched row by row.
+    """
+    first = -(2**63)
+    while True:
+        got = _joined_batch(db, rows_sql, first) if joined else None
+        if got is None:
+            rows = db.execute(rows_sql, (first, SQL_BATCH)).fetchall()
+            if not rows:
+                return
+            got = _split_rows(rows)
+        ids, batch = got
+        yield batch
+        if int(ids[-1]) == 2**63 - 1:  # the largest id: nothing after it
+            return
+        first = int(ids[-1]) + 1
+
+
+def _cursor_batches(db: Any, all_sql: str) -> Iterator[Batch]:
+    """Batches of the rows of ``all_sql`` through one cursor (``messages.id`` is not known to be unique)."""
+    cursor = db.execute(all_sql)
+    while rows := cursor.fetchmany(SQL_BATCH):
+        yield _split_rows(rows)[1]
+
+
+def _id_is_key(db: Any) -> bool:
+    """Whether ``messages.id`` is the table's only primary key, declared INTEGER (unique, so batches can follow ids)."""
+    info = db.execute("PRAGMA table_info(messages)").fetchall()
+    keys = [(name, str(kind).upper()) for _, name, kind, _, _, pk in info if pk]
+    return keys == [("id", "INTEGER")]
+
+
+def _joined_batch(db: Any, rows_sql: str, first: int) -> tuple[np.ndarray, Batch] | None:
+    """Ids and rows from id ``first`` on, joined by sqlite3 (:data:`SQL_JOINED`); None when there are none or they must be fetched row by row."""
+    import sqlite3
+
+    try:
+        count, odd, *numbers, blobs = db.execute(SQL_JOINED.format(rows=rows_sql), (first, SQL_BATCH)).fetchone()
+    except sqlite3.DataError:  # the joined batch is longer than sqlite3's longest string
+        return None
+    if not count or odd or not all(isinstance(text, str) for text in numbers):
+        return None
+    try:  # ids and topic ids may be of any type: then a number does not parse
+        ids, topic_id, log_ns, sizes = (np.fromstring(text, dtype=np.int64, sep=",") for text in numbers)
+    except ValueError:
+        return None
+    buf = np.frombuffer(blobs or b"", dtype=np.uint8)
+    if any(len(column) != count for column in (ids, topic_id, log_ns, sizes)) or ids[0] < first or (np.diff(ids) <= 0).any() or int(sizes.sum()) != len(buf):
+        return None
+    return ids, (topic_id, log_ns, sizes, buf)
+
+
+def _split_rows(rows: list[tuple[Any, ...]]) -> tuple[np.ndarray, Batch]:
+    """Ids and columns of rows ``(id, topic_id, timestamp, data)`` fetched as Python tuples."""
+    ids, topic_ids, stamps, blobs = zip(*rows)
+    sizes = np.fromiter(map(len, blobs), dtype=np.int64, count=len(blobs))
+    buf = np.frombuffer(b"".join(blobs), dtype=np.uint8)
+    return np.array(ids, dtype=np.int64), (np.array(topic_ids, dtype=np.int64), np.array(stamps, dtype=np.int64), sizes, buf)
 
 
 def _feed_runs(sink: Any, buf: Any, starts: Any, sizes: Any, log_ns: Any) -> None:
@@ -247,6 +334,30 @@ def _reads_only(reader: Any, path: Path) -> bool:
     return isinstance(stored, Path) and stored.suffix == ".mcap" and [stored.resolve()] == [p.resolve() for p in path.glob("*.mcap")]
 
 
+@contextlib.contextmanager
+def _without_automatic_indexes() -> Iterator[None]:
+    """While ``rosbags`` opens a bag, its sqlite3 connections plan without automatic indexes.
+
+    Its per-topic message count (``topics LEFT JOIN messages``) otherwise
+    builds a temporary index over every message, which costs more than a
+    scan of the table per topic. A planner setting: the counts are the same.
+    """
+    try:
+        import apsw  # rosbags' sqlite3 driver
+    except ImportError:  # no sqlite3 storage to open
+        yield
+        return
+
+    def hook(connection: Any) -> None:
+        connection.execute("PRAGMA automatic_index = OFF")
+
+    apsw.connection_hooks.append(hook)
+    try:
+        yield
+    finally:
+        apsw.connection_hooks.remove(hook)
+
+
 def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     """Read a run log from a ROS 2 bag folder.
 
@@ -274,7 +385,8 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     scanned = _scan_mcap(path, fast)
     try:
         reader = Reader(path)
-        reader.open()
+        with _without_automatic_indexes():
+            reader.open()
     except LogError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags/sqlite/yaml raise many kinds on bad bags

@@ -7,8 +7,8 @@ Both implement the writer's storage protocol (``add_msgtype``,
 writer writes them (per sample: ``/joint_states``, ``/joint_reference``,
 ``/ilic/extras``).
 
-- :class:`BulkSqlite3Storage`: ``rosbags``' sqlite3 storage, with one
-  ``executemany`` of precomputed blobs.
+- :class:`BulkSqlite3Storage`: ``rosbags``' sqlite3 storage; sqlite3 cuts
+  each topic's messages, passed as one blob, into rows.
 - :class:`BulkMcapStorage`: an MCAP file written by
   :class:`ilic_cli.io.mcapframe.BulkWriter` (zstd chunks with CRCs, message
   indexes, summary), with ``rosbags``' channel metadata (``offered_qos_profiles``)
@@ -27,11 +27,11 @@ from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
 from ilic_cli.io.rosencode import Columns
 
-ROWS_PER_INSERT = 65536 * 3
-"""Messages prepared at a time."""
+SAMPLES_PER_INSERT = 65536
+"""Samples inserted by one statement."""
 
-ROWS_PER_STATEMENT = 256
-"""Rows of one multi-row ``INSERT`` (768 parameters, below every sqlite3 build's limit)."""
+STAMP_DIGITS = 20
+"""Characters of a log time in the joined stamps (sign and 19 digits, zero-padded: any int64)."""
 
 
 class BulkSqlite3Storage(Sqlite3Writer):
@@ -43,38 +43,55 @@ class BulkSqlite3Storage(Sqlite3Writer):
     """
 
     def __init__(self, path: Path, compression: CompressionMode) -> None:
-        super().__init__(path, compression)
-        self.conn.execute("PRAGMA synchronous = OFF")
+        """``rosbags``' ``Sqlite3Writer.__init__``, with ``synchronous = OFF`` set before the schema is committed."""
+        import sqlite3
+
+        if compression == CompressionMode.STORAGE:
+            raise WriterError("SQLITE3 writer does not support storage-side compression.")
+        self.path = path / f"{path.name}.db3"
+        self.conn = sqlite3.connect(f"file:{self.path}", uri=True)
+        self.conn.execute("PRAGMA synchronous = OFF")  # before the schema's commit, which would wait for the disk
+        self.conn.executescript(self.SQLITE_SCHEMA)
+        self.cursor = self.conn.cursor()
 
     def add_samples(self, columns: Columns, ids: dict[str, int]) -> None:
         """Insert every per-sample message of ``columns`` (topic ids from ``ids``).
 
-        Rows go in :data:`ROWS_PER_STATEMENT` at a time through one multi-row
-        ``INSERT`` (the same rows, in the same order, as one ``INSERT`` each).
+        One ``INSERT`` per :data:`SAMPLES_PER_INSERT` samples (:func:`insert_rows_sql`)
+        takes each topic's messages as one blob and the log times as one
+        fixed-width text, and sqlite3 cuts them into rows: the same rows, in
+        the same order, as one ``INSERT`` each, so the same file, without a
+        Python object per message.
         """
         import numpy as np
 
         topics = columns.sample_topics()
-        per = max(1, len(topics))
-        step = max(1, ROWS_PER_INSERT // per)
-        one = "INSERT INTO messages (topic_id, timestamp, data) VALUES(?, ?, ?)"
-        many = "INSERT INTO messages (topic_id, timestamp, data) VALUES " + ", ".join(["(?, ?, ?)"] * ROWS_PER_STATEMENT)
-        for start in range(0, len(columns.log_ns), step):
-            stop = min(start + step, len(columns.log_ns))
-            table = np.empty((stop - start, per, 3), dtype=object)
-            stamps = columns.log_ns[start:stop].tolist()
-            for j, topic in enumerate(topics):
-                data = columns.rows(topic, start, stop).tobytes()
-                size = columns.sizes[topic]
-                table[:, j, 0] = ids[topic]
-                table[:, j, 1] = stamps
-                table[:, j, 2] = [data[k : k + size] for k in range(0, len(data), size)]
-            flat = table.reshape(-1).tolist()
-            del table
-            whole = len(flat) // (3 * ROWS_PER_STATEMENT) * 3 * ROWS_PER_STATEMENT
-            width = 3 * ROWS_PER_STATEMENT
-            self.cursor.executemany(many, (flat[k : k + width] for k in range(0, whole, width)))
-            self.cursor.executemany(one, (flat[k : k + 3] for k in range(whole, len(flat), 3)))
+        if not topics:
+            return
+        sql = insert_rows_sql([ids[topic] for topic in topics], [columns.sizes[topic] for topic in topics])
+        for start in range(0, len(columns.log_ns), SAMPLES_PER_INSERT):
+            stop = min(start + SAMPLES_PER_INSERT, len(columns.log_ns))
+            stamps = np.char.zfill(columns.log_ns[start:stop].astype(f"S{STAMP_DIGITS}"), STAMP_DIGITS)
+            blobs = [columns.rows(topic, start, stop).tobytes() for topic in topics]
+            self.cursor.execute(sql, [(stop - start) * len(topics), stamps.tobytes(), *blobs])
+
+
+def insert_rows_sql(topic_ids: list[int], sizes: list[int]) -> str:
+    """An ``INSERT`` of ``?1`` messages into ``messages``: for message ``x``, sample ``x / k`` of topic ``x % k``.
+
+    Parameters: ``?1`` the number of messages, ``?2`` the samples' log times
+    (:data:`STAMP_DIGITS` characters each), then one blob per topic with its
+    messages back to back (``sizes`` bytes each). A recursive common table
+    expression counts the messages in order (sqlite3 3.8.3 or later).
+    """
+    k = len(topic_ids)
+    topic = " ".join(f"WHEN {j} THEN {tid}" for j, tid in enumerate(topic_ids))
+    data = " ".join(f"WHEN {j} THEN substr(?{3 + j}, (x / {k}) * {size} + 1, {size})" for j, size in enumerate(sizes))
+    return (
+        "WITH RECURSIVE message(x) AS (SELECT 0 UNION ALL SELECT x + 1 FROM message WHERE x + 1 < ?1) "
+        "INSERT INTO messages (topic_id, timestamp, data) "
+        f"SELECT CASE x % {k} {topic} END, CAST(substr(?2, (x / {k}) * {STAMP_DIGITS} + 1, {STAMP_DIGITS}) AS INTEGER), CASE x % {k} {data} END FROM message"
+    )
 
 
 class BulkMcapStorage:

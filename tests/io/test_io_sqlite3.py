@@ -1,0 +1,168 @@
+"""ROS 2 sqlite3 bags in bulk: the read in batches joined by sqlite3 (their checks, the row-by-row
+fall-backs) and the write in statements that sqlite3 cuts into rows.
+
+Every bag read here is also read message by message through ``rosbags``; the
+columns must have the same bits (:func:`tests.io.test_io_differential.read_both`).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ilic_cli.io import WriteOptions, read_log, rosbag2, rosbulk, write_log
+from ilic_cli.runlog import RunLog
+from tests.conftest import make_synthetic_log
+from tests.io.test_io_differential import assert_log_equals_source, read_both
+
+N = 3000
+
+
+def _table(rows: list[tuple[object, ...]], key: str = "INTEGER PRIMARY KEY") -> sqlite3.Connection:
+    db = sqlite3.connect(":memory:")
+    db.execute(f"CREATE TABLE messages(id {key}, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data BLOB NOT NULL)")
+    db.executemany("INSERT INTO messages VALUES (?, ?, ?, ?)", rows)
+    return db
+
+
+ROWS = [(1, 1, -5, b"\x00\x01\x00"), (2, 2, 2**63 - 1, b""), (5, 1, 7, b"\xff\xfe\x00abc"), (9, 3, 8, b"x" * 300)]
+SQL = rosbag2.SQL_ROWS.format(ids="1, 2")
+
+
+def test_joined_batch_gives_the_rows_of_the_wanted_topics_in_id_order() -> None:
+    ids, (topic_id, log_ns, sizes, buf) = rosbag2._joined_batch(_table(ROWS), SQL, -(2**63))  # type: ignore[misc]
+    assert ids.tolist() == [1, 2, 5]
+    assert topic_id.tolist() == [1, 2, 1]
+    assert log_ns.tolist() == [-5, 2**63 - 1, 7]  # int64 extremes survive the decimal text
+    assert sizes.tolist() == [3, 0, 6]
+    assert buf.tobytes() == b"\x00\x01\x00\xff\xfe\x00abc"  # NULs inside blobs are kept
+    assert rosbag2._joined_batch(_table(ROWS), SQL, 6) is None  # nothing from id 6 on
+
+
+@pytest.mark.parametrize(
+    "row",
+    [(3, 1, 6, "t\u00e9xt"), (3, 1, 6, "text"), (3, 1, 6, 12), (3, 1, 6.5, b"ab"), (3, 1, "later", b"ab")],
+    ids=["non-ascii-text-data", "ascii-text-data", "integer-data", "real-timestamp", "text-timestamp"],
+)
+def test_joined_batch_refuses_rows_of_other_types(row: tuple[object, ...]) -> None:
+    """Such a batch goes row by row, where the values keep their type (as on the per-message path)."""
+    assert rosbag2._joined_batch(_table([*ROWS, row]), SQL, -(2**63)) is None
+
+
+def test_joined_batch_refuses_ids_that_do_not_increase() -> None:
+    """The ids checked are the ones joined: a sub-query in another order is refused, not read."""
+    backwards = SQL.replace("ORDER BY id", "ORDER BY id DESC")
+    assert rosbag2._joined_batch(_table(ROWS), backwards, -(2**63)) is None
+    text_ids = _table([(1, 1, 1, b"a"), ("b", 1, 2, b"b")], key="PRIMARY KEY")
+    assert rosbag2._joined_batch(text_ids, SQL, -(2**63)) is None
+
+
+@pytest.mark.parametrize("joined", [True, False], ids=["joined", "row-by-row"])
+def test_batches_take_every_id_from_the_smallest_to_the_largest(monkeypatch: pytest.MonkeyPatch, joined: bool) -> None:
+    monkeypatch.setattr(rosbag2, "SQL_BATCH", 2)
+    rows = [(-(2**63), 1, 1, b"a"), (-1, 2, 2, b"bb"), (0, 1, 3, b"c"), (7, 2, 4, b"dd"), (2**63 - 1, 1, 5, b"e")]
+    batches = list(rosbag2._batches(_table(rows), SQL, joined))
+    assert [len(b[0]) for b in batches] == [2, 2, 1]
+    assert np.concatenate([b[1] for b in batches]).tolist() == [1, 2, 3, 4, 5]
+    assert b"".join(b[3].tobytes() for b in batches) == b"abbcdde"
+
+
+@pytest.fixture
+def bag(tmp_path: Path) -> tuple[Path, object]:
+    log = make_synthetic_log(samples=N)
+    return write_log(log, tmp_path / "bag", options=WriteOptions(storage="sqlite3")), log
+
+
+def _spy(monkeypatch: pytest.MonkeyPatch, refuse_every: int = 0) -> list[bool]:
+    """Record whether each batch was joined; refuse every ``refuse_every``-th joined batch (0: none)."""
+    joined: list[bool] = []
+    original = rosbag2._joined_batch
+
+    def spy(db: sqlite3.Connection, rows_sql: str, first: int):  # type: ignore[no-untyped-def]
+        got = original(db, rows_sql, first)
+        if got is not None and refuse_every and (len(joined) + 1) % refuse_every == 0:
+            got = None
+        joined.append(got is not None)
+        return got
+
+    monkeypatch.setattr(rosbag2, "_joined_batch", spy)
+    return joined
+
+
+def test_small_batches_joined_and_fetched_give_the_per_message_columns(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch) -> None:
+    path, log = bag
+    monkeypatch.setattr(rosbag2, "SQL_BATCH", 1000)  # 9001 rows: 10 batches, batch edges inside samples
+    joined = _spy(monkeypatch, refuse_every=3)
+    assert_log_equals_source(read_both(path), log)
+    assert joined[:10] == [True, True, False, True, True, False, True, True, False, True]
+
+
+def test_our_bag_is_read_in_joined_batches(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch) -> None:
+    path, log = bag
+    joined = _spy(monkeypatch)
+    assert_log_equals_source(read_both(path), log)
+    assert joined == [True, False]  # one batch of 9001 rows, then the empty end
+
+
+def test_bag_whose_ids_are_not_a_key_is_read_through_one_cursor(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch) -> None:
+    """``messages.id`` without PRIMARY KEY (another writer): no batches by id, same columns."""
+    path, log = bag
+    db_file = next(path.glob("*.db3"))
+    with sqlite3.connect(db_file) as db:
+        db.executescript(
+            "CREATE TABLE plain(id INTEGER, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data BLOB NOT NULL);"
+            "INSERT INTO plain SELECT * FROM messages ORDER BY id; DROP TABLE messages; ALTER TABLE plain RENAME TO messages;"
+        )
+    db.close()
+    joined = _spy(monkeypatch)
+    assert_log_equals_source(read_both(path), log)
+    assert joined == []
+
+
+def test_insert_statement_cuts_blobs_and_stamps_into_rows_in_order() -> None:
+    db = _table([])
+    stamps = np.array([-(2**63), -5, 0, 2**63 - 1], dtype=np.int64)
+    text = np.char.zfill(stamps.astype(f"S{rosbulk.STAMP_DIGITS}"), rosbulk.STAMP_DIGITS).tobytes()
+    db.execute(rosbulk.insert_rows_sql([7, 3], [2, 3]), [8, text, b"a0a1a2a3", b"\x00b0\x00b1\x00b2\x00b3"])
+    rows = db.execute("SELECT id, topic_id, timestamp, data FROM messages").fetchall()
+    assert rows == [(i + 1, (7, 3)[i % 2], int(stamps[i // 2]), (b"a%d" % (i // 2)) if i % 2 == 0 else b"\x00b%d" % (i // 2)) for i in range(8)]
+
+
+def test_bulk_sqlite3_writer_gives_the_per_message_bytes_across_statements(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    log = make_synthetic_log(samples=N)
+    monkeypatch.setattr(rosbulk, "SAMPLES_PER_INSERT", 700)  # 5 statements, the last one short
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    bulk = write_log(log, tmp_path / "a" / "bag", options=WriteOptions(storage="sqlite3", fast=True))
+    each = write_log(log, tmp_path / "b" / "bag", options=WriteOptions(storage="sqlite3", fast=False))
+    assert (bulk / "bag.db3").read_bytes() == (each / "bag.db3").read_bytes()
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_simulate_writes_either_ros2_bag_storage(tmp_path: Path, storage: str) -> None:
+    """``ilic simulate --format rosbag2 --storage S``: the bag's storage file is S's, with the log of the .mcap output."""
+    from tests.clirun import run_cli
+
+    args = ["simulate", "--scenario", "paper-sim", "--duration", "1", "--seed", "2"]
+    assert run_cli(*args, "-o", str(tmp_path / "x.mcap")).status == 0
+    assert run_cli(*args, "-o", str(tmp_path / "bag"), "--format", "rosbag2", "--storage", storage).status == 0
+    assert [p.suffix for p in sorted((tmp_path / "bag").iterdir())] == [{"sqlite3": ".db3", "mcap": ".mcap"}[storage], ".yaml"]
+    log = read_log(tmp_path / "x.mcap")
+    assert_log_equals_source(read_both(tmp_path / "bag"), RunLog(log.channels, log.units, {k: v for k, v in log.meta.items() if k != "source"}))
+
+
+def test_rosbags_opens_bags_without_automatic_indexes_and_only_then() -> None:
+    import apsw
+
+    def automatic_index() -> int:
+        return int(apsw.Connection(":memory:").execute("PRAGMA automatic_index").fetchall()[0][0])
+
+    hooks = list(apsw.connection_hooks)
+    with pytest.raises(KeyError), rosbag2._without_automatic_indexes():
+        assert automatic_index() == 0
+        raise KeyError("a failed open")
+    assert automatic_index() == 1
+    assert apsw.connection_hooks == hooks
