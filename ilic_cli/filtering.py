@@ -5,6 +5,13 @@ Pure functions on arrays. The ``matlab`` helpers reproduce MATLAB's
 (see ``../shared/reference/emps-benchmark.md``): odd-reflection padding of
 length ``3*(max(len(a), len(b)) - 1)`` and decimation that keeps the samples
 aligned on the end of the record.
+
+Everything here is NumPy (``import scipy.signal`` alone costs about a
+second of start-up): the filters are designed by SciPy's algorithms
+(analog prototype, pre-warping, bilinear transform, pole-zero pairing into
+second-order sections) and the linear recursion runs blockwise
+(:func:`_run`). ``tests/unit/test_filtering_scipy.py`` checks every
+function against ``scipy.signal``.
 """
 
 from __future__ import annotations
@@ -13,11 +20,179 @@ import functools
 import math
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
+
+# ---------------------------------------------------------------------------
+# filter design (SciPy's algorithms in NumPy: importing scipy.signal costs ~1 s)
+# ---------------------------------------------------------------------------
+def _lowpass_zpk(poles: np.ndarray, gain: float, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Digital low-pass ``(z, p, k)`` from an analog prototype with no zeros, cut-off ``wn`` (fraction of Nyquist).
+
+    Pre-warping, low-pass scaling and bilinear transform at ``fs = 2`` (``scipy.signal.iirfilter``).
+    """
+    if not 0.0 < wn < 1.0:
+        raise ValueError(f"normalised cut-off {wn} must lie strictly between 0 and 1")
+    warped = 4.0 * math.tan(math.pi * wn / 2.0)
+    p = warped * poles
+    k = gain * warped ** len(p)
+    z_d = -np.ones(len(p))
+    p_d = (4.0 + p) / (4.0 - p)
+    k_d = k * float(np.real(1.0 / np.prod(4.0 - p)))
+    return z_d, p_d, k_d
+
+
+def _butter_zpk(order: int, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Butterworth low-pass of ``order`` (analog prototype ``scipy.signal.buttap``)."""
+    m = np.arange(-order + 1, order, 2)
+    return _lowpass_zpk(-np.exp(1j * math.pi * m / (2 * order)), 1.0, wn)
+
+
+def _cheby1_zpk(order: int, ripple_db: float, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Chebyshev type I low-pass (analog prototype ``scipy.signal.cheb1ap``)."""
+    eps = math.sqrt(10 ** (0.1 * ripple_db) - 1.0)
+    mu = math.asinh(1 / eps) / order
+    theta = math.pi * np.arange(-order + 1, order, 2) / (2 * order)
+    p = -np.sinh(mu + 1j * theta)
+    k = float(np.prod(-p).real)
+    if order % 2 == 0:
+        k = k / math.sqrt(1 + eps * eps)
+    return _lowpass_zpk(p, k, wn)
+
+
+def _zpk2tf(z: np.ndarray, p: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray]:
+    """Transfer-function coefficients ``(b, a)`` of ``(z, p, k)`` (conjugate pairs give real polynomials)."""
+    return k * np.real(np.poly(z)), np.real(np.poly(p))
+
+
+def _section(z: list[complex], p: list[complex]) -> np.ndarray:
+    """One second-order section ``[b0, b1, b2, 1, a1, a2]`` with unit gain (``scipy.signal`` ``_single_zpksos``)."""
+    sos = np.zeros(6)
+    b, a = _zpk2tf(np.array(z), np.array(p), 1.0)
+    sos[3 - len(b) : 3] = b
+    sos[6 - len(a) : 6] = a
+    return sos
+
+
+def _zpk2sos(z: np.ndarray, p: np.ndarray, k: float) -> np.ndarray:
+    """Second-order sections of a low-pass with real zeros (``scipy.signal.zpk2sos``, pairing ``nearest``).
+
+    Poles are taken from the closest to the unit circle, which go last, each
+    paired with its nearest zeros.
+    """
+    if len(p) % 2:
+        p, z = np.append(p, 0.0), np.append(z, 0.0)
+    n_sections = len(p) // 2
+    # one pole of each conjugate pair (sorted as scipy's _cplxreal), then the real poles
+    p = p[np.lexsort((abs(p.imag), p.real))]
+    is_real = abs(p.imag) <= 100 * np.finfo(float).eps * abs(p)
+    p = np.concatenate([(p[~is_real & (p.imag > 0)] + p[~is_real & (p.imag < 0)].conj()) / 2, p[is_real].real])
+    z = np.sort(z.real)
+    sos = np.zeros((n_sections, 6))
+    for si in range(n_sections - 1, -1, -1):
+        i = int(np.argmin(np.abs(1 - np.abs(p))))
+        p1, p = p[i], np.delete(p, i)
+        reals = np.flatnonzero(np.isreal(p))
+        if np.isreal(p1) and len(reals) == 0:
+            j = int(np.argmin(abs(z - p1)))
+            sos[si] = _section([z[j], 0], [p1, 0])
+            z = np.delete(z, j)
+            continue
+        if np.isreal(p1):
+            i2 = reals[int(np.argmin(np.abs(1 - np.abs(p[reals]))))]
+            p2, p = p[i2], np.delete(p, i2)
+        else:
+            p2 = np.conj(p1)
+        pair = []
+        for _ in range(2):
+            j = int(np.argsort(abs(z - p1), kind="stable")[0])
+            pair.append(z[j])
+            z = np.delete(z, j)
+        sos[si] = _section(pair, [p1, p2])
+    sos[0, :3] *= k
+    return sos
+
+
+# ---------------------------------------------------------------------------
+# linear recursion, blockwise (exact linear algebra, vectorised over blocks)
+# ---------------------------------------------------------------------------
+BLOCK = 32
+"""Samples per block of the blockwise recursion (:func:`_run`): the zero-state response of a block is a BLOCK x BLOCK matmul."""
+
+
+@dataclass(frozen=True)
+class _StateSpace:
+    """``z' = A z + B u``, ``y = C z + D u`` and its block matrices for blocks of ``L`` samples.
+
+    ``T`` (L x L): zero-state response of a block (lower-triangular Toeplitz
+    matrix of the impulse response); ``G`` (L x m): each sample's input to
+    the state after the block; ``Obs`` (m x L): each sample's response to the
+    state at the block's start; ``P = A^L``.
+    """
+
+    A: np.ndarray
+    D: float
+    L: int
+    T: np.ndarray
+    G: np.ndarray
+    Obs: np.ndarray
+    P: np.ndarray
+
+
+@functools.lru_cache(maxsize=64)
+def _blocks(A_key: bytes, B_key: bytes, C_key: bytes, D: float, m: int, L: int) -> _StateSpace:
+    """The block matrices of a state-space system (cached: filters are designed from a few settings)."""
+    A = np.frombuffer(A_key).reshape(m, m)
+    B = np.frombuffer(B_key)
+    C = np.frombuffer(C_key)
+    Obs = np.empty((m, L))  # Obs[:, j] = (C A^j)^T
+    G = np.empty((L, m))  # G[L-1-j] = A^j B
+    row, col = C.copy(), B.copy()
+    for j in range(L):
+        Obs[:, j] = row
+        G[L - 1 - j] = col
+        row, col = row @ A, A @ col
+    h = np.concatenate([[D], C @ G[::-1].T])[:L]  # impulse response: D, C B, C A B, ...
+    idx = np.arange(L)
+    diff = idx[:, None] - idx[None, :]
+    T = np.where(diff >= 0, h[np.clip(diff, 0, None)], 0.0)
+    return _StateSpace(A=A, D=D, L=L, T=T, G=G, Obs=Obs, P=np.linalg.matrix_power(A, L))
+
+
+def _run(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, x: np.ndarray) -> np.ndarray:
+    """Zero-state output of ``z' = A z + B u, y = C z + D u`` for rows ``x`` (R, n).
+
+    Blocks of :data:`BLOCK` samples: within a block the zero-state response is
+    ``T`` times the block and the state after it ``P z + G^T u``; the states at
+    every block's start come from a prefix scan over the blocks (doubling:
+    log2 of the number of blocks matrix products, all blocks at once).
+    """
+    rows, n = x.shape
+    m = len(B)
+    L = min(BLOCK, n)
+    s = _blocks(A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
+    nb = -(-n // L)
+    if nb * L != n:
+        x = np.concatenate([x, np.zeros((rows, nb * L - n))], axis=1)
+    u = x.reshape(rows, nb, L)
+    # state at the end of each block from a zero state at its start, then the prefix scan
+    end = u @ s.G
+    step = s.P
+    d = 1
+    while d < nb and np.max(np.abs(step)) > 1e-300:
+        end[:, d:] += end[:, :-d] @ step.T
+        step = step @ step
+        d *= 2
+    start = np.concatenate([np.zeros((rows, 1, m)), end[:, :-1]], axis=1)
+    y = u @ s.T.T
+    y += start @ s.Obs
+    return y.reshape(rows, nb * L)[:, :n]
+
+
 PARALLEL_MIN_SIZE = 200_000
-"""Arrays at least this large are filtered in threads (SciPy's filters release the GIL)."""
+"""Arrays at least this large are filtered in threads (NumPy's matrix products release the GIL)."""
 
 
 CHUNK_ELEMENTS = 1 << 21
@@ -59,15 +234,152 @@ def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: i
     return np.moveaxis(np.concatenate(parts, axis=0), -1, axis)
 
 
+def _df2t(b: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """State-space ``(A, B, C, D)`` of ``b/a`` in direct form II transposed (the state ``zi`` of ``scipy.signal.lfilter``)."""
+    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    b, a = b / a[0], a / a[0]
+    n = max(len(a), len(b))
+    b, a = np.pad(b, (0, n - len(b))), np.pad(a, (0, n - len(a)))
+    A = np.eye(n - 1, k=1)
+    A[:, 0] = -a[1:]
+    C = np.zeros(n - 1)
+    C[:1] = 1.0
+    return A, b[1:] - a[1:] * b[0], C, float(b[0])
+
+
+System = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]
+"""``(A, B, C, D, gain)``: a state-space filter and its DC gain."""
+
+
+def _cascade(sections: list[tuple[np.ndarray, np.ndarray]]) -> System:
+    """State-space of the filters ``b_i/a_i`` in series (each in direct form II transposed) and its DC gain."""
+    parts = [_df2t(b, a) for b, a in sections]
+    m = sum(len(p[1]) for p in parts)
+    A, B, C = np.zeros((m, m)), np.zeros(m), np.zeros(m)
+    D, gain, start = 1.0, 1.0, 0
+    for (Ai, Bi, Ci, Di), (b, a) in zip(parts, sections, strict=True):
+        k = slice(start, start + len(Bi))
+        # each filter is fed by the output of those before it, C z + D u
+        A[k, :start] = np.outer(Bi, C[:start])
+        A[k, k] = Ai
+        B[k] = Bi * D
+        C[:start] *= Di
+        C[k] = Ci
+        D *= Di
+        gain *= math.fsum(b) / math.fsum(a)  # exactly rounded sums: a low-pass's a(1) is a small difference of large terms
+        start = k.stop
+    return A, B, C, D, gain
+
+
+def _polished_roots(a: np.ndarray, steps: int = 3) -> np.ndarray:
+    """Roots of ``a`` refined by Newton steps in extended precision (their conjugate pairs exact, real ones real).
+
+    ``np.roots`` is backward stable only: a low-pass's clustered poles come
+    out about 1e-9 off, which moves the output by 1e-7.
+    """
+    roots = np.roots(a)
+    roots = np.where(abs(roots.imag) <= 1e-12 * abs(roots), roots.real, roots).astype(np.clongdouble)
+    coef = np.asarray(a, dtype=np.longdouble)
+    for _ in range(steps):
+        value, slope = np.zeros_like(roots), np.zeros_like(roots)
+        for c in coef:  # Horner: the polynomial and its derivative
+            slope = slope * roots + value
+            value = value * roots + c
+        roots = roots - np.where(slope != 0, value / np.where(slope != 0, slope, 1), 0)
+    return roots
+
+
+def _tf_system(b: np.ndarray, a: np.ndarray) -> System:
+    """``b/a`` as the FIR ``b`` followed by first- and second-order all-pole sections of the roots of ``a``.
+
+    The same transfer function as the direct form, without its ill-conditioned
+    recursion (an 8th-order low-pass's denominator amplifies rounding by 1e9).
+    """
+    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    b, a = b / a[0], a / a[0]
+    poles = _polished_roots(a)
+    pairs = poles[poles.imag > 0]
+    real = np.sort(poles[poles.imag == 0].real)
+    sections: list[tuple[np.ndarray, np.ndarray]] = [(b, np.ones(1))]
+    sections += [(np.ones(1), np.array([1.0, -2.0 * p.real, p.real**2 + p.imag**2], dtype=np.float64)) for p in pairs]
+    sections += [(np.ones(1), np.poly(real[i : i + 2]).astype(np.float64)) for i in range(0, len(real), 2)]
+    A, B, C, D, _ = _cascade(sections)
+    return A, B, C, D, math.fsum(b) / math.fsum(a)
+
+
+def _odd_extension(x: np.ndarray, n: int) -> np.ndarray:
+    """Rows ``x`` extended by ``n`` samples at both ends by odd reflection (``scipy.signal`` ``odd_ext``)."""
+    if n == 0:
+        return x
+    return np.concatenate([2 * x[:, :1] - x[:, n:0:-1], x, 2 * x[:, -1:] - x[:, -2 : -(n + 2) : -1]], axis=1)
+
+
+def _steady_start(system: System, x: np.ndarray) -> np.ndarray:
+    """Rows ``x`` filtered from the steady state of their first sample: ``gain x0`` plus the zero-state response to ``x - x0``."""
+    A, B, C, D, gain = system
+    x0 = x[:, :1].copy()
+    y = _run(A, B, C, D, x - x0)
+    y += gain * x0
+    return y
+
+
+def _forward_backward(system: System, x: np.ndarray, padlen: int) -> np.ndarray:
+    """Rows ``x`` (R, n) filtered forward then backward, odd-padded, each pass from the steady state of its first sample.
+
+    ``scipy.signal.filtfilt`` (``method="pad"``) and ``scipy.signal.sosfiltfilt``.
+    """
+    if x.shape[-1] <= padlen:
+        raise ValueError(f"The length of the input vector x must be greater than padlen, which is {padlen}.")
+    y = _steady_start(system, _odd_extension(x, padlen))
+    y = _steady_start(system, y[:, ::-1])[:, ::-1]
+    return y[:, padlen : y.shape[1] - padlen]
+
+
+def _rows(x: np.ndarray) -> np.ndarray:
+    """``x`` (any shape, filtered along the last axis) as float rows (R, n)."""
+    return np.asarray(x, dtype=np.float64).reshape(-1, x.shape[-1])
+
+
+def _filtfilt_rows(system: System, padlen: int) -> Callable[[np.ndarray], np.ndarray]:
+    """Forward-backward filtering of ``system`` along the last axis of a block, padded by ``padlen``."""
+    return lambda c: _forward_backward(system, _rows(c), padlen).reshape(c.shape[:-1] + (-1,))
+
+
+def _sos_padlen(sos: np.ndarray) -> int:
+    """SciPy's default padding of ``sosfiltfilt``: ``3 * (2 * sections + 1)``, less the trivial taps."""
+    return 3 * (2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum())))
+
+
 def filtfilt_matlab(b: np.ndarray, a: np.ndarray, x: np.ndarray, axis: int = 0, keep: np.ndarray | None = None) -> np.ndarray:
     """Zero-phase filtering as MATLAB ``filtfilt`` (odd padding of 3*(order) samples).
 
     ``keep``: indices along ``axis`` to return (decimation while filtering).
     """
-    from scipy.signal import filtfilt
-
     padlen = 3 * (max(len(a), len(b)) - 1)
-    return _in_threads(lambda c: filtfilt(b, a, c, axis=-1, padtype="odd", padlen=padlen), x, axis, keep)
+    return _in_threads(_filtfilt_rows(_tf_system(b, a), padlen), x, axis, keep)
+
+
+@functools.lru_cache(maxsize=32)
+def _butter_ba(order: int, wn: float) -> tuple[np.ndarray, np.ndarray]:
+    """Butterworth low-pass ``(b, a)`` (``scipy.signal.butter(order, wn)``; cached)."""
+    return _zpk2tf(*_butter_zpk(order, wn))
+
+
+@functools.lru_cache(maxsize=32)
+def _butter_sos(order: int, wn: float) -> np.ndarray:
+    """Butterworth low-pass in second-order sections (``scipy.signal.butter(order, wn, output="sos")``; cached: the online loop designs it every window)."""
+    return _zpk2sos(*_butter_zpk(order, wn))
+
+
+def _sos_system(sos: np.ndarray) -> System:
+    """Second-order sections in series as one state-space filter."""
+    return _cascade([(row[:3], row[3:]) for row in sos])
+
+
+@functools.lru_cache(maxsize=32)
+def _cheby1_ba(order: int, ripple_db: float, wn: float) -> tuple[np.ndarray, np.ndarray]:
+    """Chebyshev type I low-pass ``(b, a)`` (``scipy.signal.cheby1(order, ripple_db, wn)``; cached)."""
+    return _zpk2tf(*_cheby1_zpk(order, ripple_db, wn))
 
 
 def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 4, *, matlab: bool = True, axis: int = 0) -> np.ndarray:
@@ -86,16 +398,13 @@ def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, ord
         published digits); otherwise second-order sections with SciPy's
         default padding (numerically safer at very low cut-offs).
     """
-    from scipy import signal
-
     wn = cutoff_hz / (fs_hz / 2.0)
     if not 0.0 < wn < 1.0:
         raise ValueError(f"cut-off {cutoff_hz} Hz must lie between 0 and the Nyquist frequency {fs_hz / 2} Hz")
     if matlab:
-        b, a = signal.butter(order, wn)
-        return filtfilt_matlab(b, a, x, axis=axis)
-    sos = signal.butter(order, wn, output="sos")
-    return signal.sosfiltfilt(sos, x, axis=axis)
+        return filtfilt_matlab(*_butter_ba(order, wn), x, axis=axis)
+    sos = _butter_sos(order, wn)
+    return _in_threads(_filtfilt_rows(_sos_system(sos), _sos_padlen(sos)), x, axis)
 
 
 def central_difference(x: np.ndarray, dt_s: float) -> np.ndarray:
@@ -126,11 +435,9 @@ def decimate_matlab(x: np.ndarray, r: int, axis: int = 0) -> np.ndarray:
     Applied column-wise to a 2-D array, this is the parallel decimation of
     the observation matrix (paper section III).
     """
-    from scipy import signal
-
     if r == 1:
         return np.asarray(x)
-    b, a = signal.cheby1(8, 0.05, 0.8 / r)
+    b, a = _cheby1_ba(8, 0.05, 0.8 / r)
     x = np.asarray(x)
     return filtfilt_matlab(b, a, x, axis=axis, keep=kept_indices(x.shape[axis], r))
 
@@ -143,30 +450,31 @@ def lowpass_decimate(x: np.ndarray, r: int, cutoff_hz: float, fs_hz: float, orde
     cut-offs (5 Hz at 1 kHz) where the transfer-function form is not. Kept
     samples are aligned on the end of the record, as :func:`decimate_matlab`.
     """
-    from scipy import signal
-
-    sos = _butter_sos(order, cutoff_hz / (fs_hz / 2.0)).copy()
+    sos = _butter_sos(order, cutoff_hz / (fs_hz / 2.0))
     n = x.shape[axis]
-    padlen = min(n - 1, 3 * (2 * len(sos) + 1))
-    return _in_threads(lambda c: signal.sosfiltfilt(sos, c, axis=-1, padlen=padlen), x, axis, kept_indices(n, r))
-
-
-@functools.lru_cache(maxsize=32)
-def _butter_sos(order: int, wn: float) -> np.ndarray:
-    """Butterworth low-pass in second-order sections (cached: the online loop designs it every window)."""
-    from scipy import signal
-
-    sos = signal.butter(order, wn, output="sos")
-    return sos
+    return _in_threads(_filtfilt_rows(_sos_system(sos), min(n - 1, 3 * (2 * len(sos) + 1))), x, axis, kept_indices(n, r))
 
 
 def bilinear_lfilter(b_s: list[float], a_s: list[float], fs_hz: float, x: np.ndarray) -> np.ndarray:
     """Apply the continuous filter ``B(s)/A(s)`` to ``x`` forward only (bilinear transform, causal).
 
     The filter starts in the steady state of ``x[0]`` (no start-up transient).
+    ``s`` is replaced by ``2 fs (z - 1)/(z + 1)`` (``scipy.signal.bilinear``).
     """
-    from scipy import signal
+    x = np.asarray(x, dtype=np.float64)
+    return _steady_start(_tf_system(*_bilinear(tuple(b_s), tuple(a_s), float(fs_hz))), x.reshape(1, -1)).reshape(x.shape)
 
-    b, a = signal.bilinear(b_s, a_s, fs=fs_hz)
-    out, _ = signal.lfilter(b, a, x, zi=signal.lfilter_zi(b, a) * x[0])
-    return np.asarray(out)
+
+@functools.lru_cache(maxsize=64)
+def _bilinear(b_s: tuple[float, ...], a_s: tuple[float, ...], fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Digital ``(b, a)`` of the analog ``B(s)/A(s)`` by the bilinear transform (``scipy.signal.bilinear``; cached)."""
+    from numpy.polynomial import Polynomial  # deferred: only the flexible-mode columns need it
+
+    b, a = np.trim_zeros(np.atleast_1d(np.asarray(b_s, dtype=float)), "f"), np.trim_zeros(np.atleast_1d(np.asarray(a_s, dtype=float)), "f")
+    fac = math.sqrt(fs_hz * 2)
+    zp1, zm1 = Polynomial((+1, 1)) / fac, Polynomial((-1, 1)) * fac
+    n = max(len(a), len(b)) - 1
+    num = sum(c * zp1 ** (n - q) * zm1**q for q, c in enumerate(b[::-1]))
+    den = sum(c * zp1 ** (n - q) * zm1**q for q, c in enumerate(a[::-1]))
+    bz, az = num.coef[::-1], den.coef[::-1]
+    return bz / az[0], az / az[0]
