@@ -126,8 +126,8 @@ BLOCK = 32
 class _StateSpace:
     """``z' = A z + B u``, ``y = C z + D u`` and its block matrices for blocks of ``L`` samples.
 
-    ``T`` (L x L): zero-state response of a block (lower-triangular Toeplitz
-    matrix of the impulse response); ``G`` (L x m): each sample's input to
+    ``TT`` (L x L): zero-state response of a block, transposed (upper-triangular
+    Toeplitz matrix of the impulse response); ``G`` (L x m): each sample's input to
     the state after the block; ``Obs`` (m x L): each sample's response to the
     state at the block's start; ``P = A^L``.
     """
@@ -135,7 +135,7 @@ class _StateSpace:
     A: np.ndarray
     D: float
     L: int
-    T: np.ndarray
+    TT: np.ndarray
     G: np.ndarray
     Obs: np.ndarray
     P: np.ndarray
@@ -157,38 +157,64 @@ def _blocks(A_key: bytes, B_key: bytes, C_key: bytes, D: float, m: int, L: int) 
     h = np.concatenate([[D], C @ G[::-1].T])[:L]  # impulse response: D, C B, C A B, ...
     idx = np.arange(L)
     diff = idx[:, None] - idx[None, :]
-    T = np.where(diff >= 0, h[np.clip(diff, 0, None)], 0.0)
-    return _StateSpace(A=A, D=D, L=L, T=T, G=G, Obs=Obs, P=np.linalg.matrix_power(A, L))
+    TT = np.where(diff <= 0, h[np.clip(-diff, 0, None)], 0.0)
+    return _StateSpace(A=A, D=D, L=L, TT=TT, G=G, Obs=Obs, P=np.linalg.matrix_power(A, L))
 
 
-def _run(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, x: np.ndarray) -> np.ndarray:
-    """Zero-state output of ``z' = A z + B u, y = C z + D u`` for rows ``x`` (R, n).
+NEGLIGIBLE = 2.0**-100
+"""The prefix scan stops once ``A^(dL)`` is below this (relative to 1): farther blocks' states no longer reach the result's rounding."""
+
+BLAS_ONE_THREAD = 1 << 18
+"""Products of ``m x k`` by ``k x n`` are cut into row chunks with ``m k n`` below this: OpenBLAS then uses one thread
+(its threads cost several times the CPU time on these skinny products and compete with :func:`_in_threads`)."""
+
+
+def _product(a: np.ndarray, b: np.ndarray, out: np.ndarray, *, add: bool = False) -> None:
+    """``out = a @ b`` (or ``out += a @ b``) for 2-D ``a``, in row chunks (:data:`BLAS_ONE_THREAD`); rows processed last to first."""
+    step = max(1, BLAS_ONE_THREAD // (b.shape[0] * b.shape[1]))
+    for i in range(((len(a) - 1) // step) * step, -1, -step):
+        if add:
+            out[i : i + step] += a[i : i + step] @ b
+        else:
+            np.matmul(a[i : i + step], b, out=out[i : i + step])
+
+
+def _run(system: System, x: np.ndarray) -> np.ndarray:
+    """Zero-state output of ``system`` for rows ``x`` (R, n): the FIR numerator, then ``z' = A z + B u``, ``y = C z + D u``.
 
     Blocks of :data:`BLOCK` samples: within a block the zero-state response is
-    ``T`` times the block and the state after it ``P z + G^T u``; the states at
-    every block's start come from a prefix scan over the blocks (doubling:
-    log2 of the number of blocks matrix products, all blocks at once).
+    ``T`` times the block and the state after it ``G^T u``; the state at
+    every block's start is the prefix sum ``sum_j P^(k-1-j) G^T u_j``,
+    computed by doubling (``log2`` of the blocks' count matrix products, all
+    blocks at once); each block's output adds ``Obs^T`` times its start state.
     """
+    fir, A, B, C, D, _ = system
     rows, n = x.shape
+    if fir is not None:  # the numerator alone, zero history
+        x = np.stack([np.convolve(row, fir)[:n] for row in x])
     m = len(B)
     L = min(BLOCK, n)
     s = _blocks(A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
-    nb = -(-n // L)
-    if nb * L != n:
-        x = np.concatenate([x, np.zeros((rows, nb * L - n))], axis=1)
-    u = x.reshape(rows, nb, L)
-    # state at the end of each block from a zero state at its start, then the prefix scan
-    end = u @ s.G
-    step = s.P
-    d = 1
-    while d < nb and np.max(np.abs(step)) > 1e-300:
-        end[:, d:] += end[:, :-d] @ step.T
-        step = step @ step
-        d *= 2
-    start = np.concatenate([np.zeros((rows, 1, m)), end[:, :-1]], axis=1)
-    y = u @ s.T.T
-    y += start @ s.Obs
-    return y.reshape(rows, nb * L)[:, :n]
+    nb, tail = divmod(n, L)
+    full = x[:, : nb * L].reshape(rows, nb, L)
+    # states at the blocks' starts, laid out (block, row, state); block 0 starts at rest
+    start = np.zeros((nb + 1, rows, m))
+    for r in range(rows):
+        _product(full[r], s.G, start[1:, r])
+    flat = start.reshape(-1, m)
+    step, d = s.P.T.copy(), 1
+    while d < nb and np.max(np.abs(step)) > NEGLIGIBLE:
+        # start[k] += P^d start[k - d]; chunks from the last, so every source chunk is read before it is updated
+        _product(flat[rows : (nb + 1 - d) * rows], step, flat[(d + 1) * rows :], add=True)
+        step, d = step @ step, 2 * d
+    y = np.empty((rows, n))
+    out = y[:, : nb * L].reshape(rows, nb, L)
+    for r in range(rows):
+        _product(full[r], s.TT, out[r])
+        _product(start[:nb, r], s.Obs, out[r], add=True)
+    if tail:
+        y[:, nb * L :] = x[:, nb * L :] @ s.TT[:tail, :tail] + start[nb] @ s.Obs[:, :tail]
+    return y
 
 
 PARALLEL_MIN_SIZE = 200_000
@@ -247,8 +273,8 @@ def _df2t(b: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
     return A, b[1:] - a[1:] * b[0], C, float(b[0])
 
 
-System = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]
-"""``(A, B, C, D, gain)``: a state-space filter and its DC gain."""
+System = tuple[np.ndarray | None, np.ndarray, np.ndarray, np.ndarray, float, float]
+"""``(fir, A, B, C, D, gain)``: an FIR numerator (or ``None``), then a state-space filter; the DC gain of the whole."""
 
 
 def _cascade(sections: list[tuple[np.ndarray, np.ndarray]]) -> System:
@@ -268,7 +294,7 @@ def _cascade(sections: list[tuple[np.ndarray, np.ndarray]]) -> System:
         D *= Di
         gain *= math.fsum(b) / math.fsum(a)  # exactly rounded sums: a low-pass's a(1) is a small difference of large terms
         start = k.stop
-    return A, B, C, D, gain
+    return None, A, B, C, D, gain
 
 
 def _polished_roots(a: np.ndarray, steps: int = 3) -> np.ndarray:
@@ -300,11 +326,10 @@ def _tf_system(b: np.ndarray, a: np.ndarray) -> System:
     poles = _polished_roots(a)
     pairs = poles[poles.imag > 0]
     real = np.sort(poles[poles.imag == 0].real)
-    sections: list[tuple[np.ndarray, np.ndarray]] = [(b, np.ones(1))]
-    sections += [(np.ones(1), np.array([1.0, -2.0 * p.real, p.real**2 + p.imag**2], dtype=np.float64)) for p in pairs]
+    sections = [(np.ones(1), np.array([1.0, -2.0 * p.real, p.real**2 + p.imag**2], dtype=np.float64)) for p in pairs]
     sections += [(np.ones(1), np.poly(real[i : i + 2]).astype(np.float64)) for i in range(0, len(real), 2)]
-    A, B, C, D, _ = _cascade(sections)
-    return A, B, C, D, math.fsum(b) / math.fsum(a)
+    _, A, B, C, D, _ = _cascade(sections)
+    return b, A, B, C, D, math.fsum(b) / math.fsum(a)
 
 
 def _odd_extension(x: np.ndarray, n: int) -> np.ndarray:
@@ -316,10 +341,9 @@ def _odd_extension(x: np.ndarray, n: int) -> np.ndarray:
 
 def _steady_start(system: System, x: np.ndarray) -> np.ndarray:
     """Rows ``x`` filtered from the steady state of their first sample: ``gain x0`` plus the zero-state response to ``x - x0``."""
-    A, B, C, D, gain = system
     x0 = x[:, :1].copy()
-    y = _run(A, B, C, D, x - x0)
-    y += gain * x0
+    y = _run(system, x - x0)
+    y += system[-1] * x0
     return y
 
 
