@@ -170,17 +170,45 @@ BLAS_ONE_THREAD = 1 << 18
 
 
 def _product(a: np.ndarray, b: np.ndarray, out: np.ndarray, *, add: bool = False) -> None:
-    """``out = a @ b`` (or ``out += a @ b``) for 2-D ``a``, in row chunks (:data:`BLAS_ONE_THREAD`); rows processed last to first."""
+    """``out = a @ b`` (or ``out += a @ b``) for 2-D ``a``, in row chunks (:data:`BLAS_ONE_THREAD`) from the last.
+
+    ``out`` may be ``a`` itself: each chunk's product is formed before it is stored.
+    """
     step = max(1, BLAS_ONE_THREAD // (b.shape[0] * b.shape[1]))
     for i in range(((len(a) - 1) // step) * step, -1, -step):
         if add:
             out[i : i + step] += a[i : i + step] @ b
         else:
-            np.matmul(a[i : i + step], b, out=out[i : i + step])
+            out[i : i + step] = a[i : i + step] @ b
 
 
-def _run(system: System, x: np.ndarray) -> np.ndarray:
-    """Zero-state output of ``system`` for rows ``x`` (R, n): the FIR numerator, then ``z' = A z + B u``, ``y = C z + D u``.
+CHUNK = 1 << 16
+"""Samples a row handled at once by the in-place FIR and reversal (bounded temporaries)."""
+
+
+def _fir_in_place(x: np.ndarray, fir: np.ndarray) -> None:
+    """Rows ``x`` (R, n) replaced by their convolution with ``fir`` from a zero history, chunk by chunk from the end."""
+    n, k = x.shape[1], len(fir) - 1
+    for row in x:
+        for s in range(((n - 1) // CHUNK) * CHUNK, -1, -CHUNK):
+            e = min(s + CHUNK, n)
+            # outputs s..e-1 need inputs s-k..e-1, none of them overwritten yet
+            row[s:e] = np.convolve(row[s - k : e], fir, mode="valid") if s >= k else np.convolve(row[:e], fir)[s:e]
+
+
+def _reverse_in_place(x: np.ndarray) -> None:
+    """Reverse rows ``x`` (R, n) in place, swapping chunks from both ends (bounded temporaries)."""
+    n = x.shape[1]
+    for i in range(0, n // 2, CHUNK):
+        c = min(CHUNK, n // 2 - i)
+        head = x[:, i : i + c].copy()
+        x[:, i : i + c] = x[:, n - i - c : n - i][:, ::-1]
+        x[:, n - i - c : n - i] = head[:, ::-1]
+
+
+def _run(system: System, x: np.ndarray) -> None:
+    """Zero-state output of ``system`` for rows ``x`` (R, n, contiguous), written over ``x``: the FIR numerator, then
+    ``z' = A z + B u``, ``y = C z + D u``.
 
     Blocks of :data:`BLOCK` samples: within a block the zero-state response is
     ``T`` times the block and the state after it ``G^T u``; the state at
@@ -190,8 +218,8 @@ def _run(system: System, x: np.ndarray) -> np.ndarray:
     """
     fir, A, B, C, D, _ = system
     rows, n = x.shape
-    if fir is not None:  # the numerator alone, zero history
-        x = np.stack([np.convolve(row, fir)[:n] for row in x])
+    if fir is not None:
+        _fir_in_place(x, fir)
     m = len(B)
     L = min(BLOCK, n)
     s = _blocks(A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
@@ -207,14 +235,11 @@ def _run(system: System, x: np.ndarray) -> np.ndarray:
         # start[k] += P^d start[k - d]; chunks from the last, so every source chunk is read before it is updated
         _product(flat[rows : (nb + 1 - d) * rows], step, flat[(d + 1) * rows :], add=True)
         step, d = step @ step, 2 * d
-    y = np.empty((rows, n))
-    out = y[:, : nb * L].reshape(rows, nb, L)
-    for r in range(rows):
-        _product(full[r], s.TT, out[r])
-        _product(start[:nb, r], s.Obs, out[r], add=True)
     if tail:
-        y[:, nb * L :] = x[:, nb * L :] @ s.TT[:tail, :tail] + start[nb] @ s.Obs[:, :tail]
-    return y
+        x[:, nb * L :] = x[:, nb * L :] @ s.TT[:tail, :tail] + start[nb] @ s.Obs[:, :tail]
+    for r in range(rows):  # each block's output over its input
+        _product(full[r], s.TT, full[r])
+        _product(start[:nb, r], s.Obs, full[r], add=True)
 
 
 PARALLEL_MIN_SIZE = 200_000
@@ -238,12 +263,12 @@ def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: i
     moved = np.moveaxis(np.asarray(x, dtype=np.float64), axis, -1)
 
     def run(block: np.ndarray) -> np.ndarray:
-        y = func(np.ascontiguousarray(block))
+        y = func(block)
         return y if keep is None else np.take(y, keep, axis=-1)
 
     if moved.ndim < 2:
         return run(moved)
-    # blocks along the first axis: views, copied one block at a time by run()
+    # blocks along the first axis: views, copied one block at a time by func
     per_row = int(np.prod(moved.shape[1:]))
     rows = max(1, CHUNK_ELEMENTS // max(per_row, 1))
     blocks = [moved[i : i + rows] for i in range(0, moved.shape[0], rows)]
@@ -333,29 +358,33 @@ def _tf_system(b: np.ndarray, a: np.ndarray) -> System:
 
 
 def _odd_extension(x: np.ndarray, n: int) -> np.ndarray:
-    """Rows ``x`` extended by ``n`` samples at both ends by odd reflection (``scipy.signal`` ``odd_ext``)."""
+    """Rows ``x`` extended by ``n`` samples at both ends by odd reflection (``scipy.signal`` ``odd_ext``); always a new array."""
     if n == 0:
-        return x
+        return np.array(x, dtype=np.float64, order="C")
     return np.concatenate([2 * x[:, :1] - x[:, n:0:-1], x, 2 * x[:, -1:] - x[:, -2 : -(n + 2) : -1]], axis=1)
 
 
-def _steady_start(system: System, x: np.ndarray) -> np.ndarray:
-    """Rows ``x`` filtered from the steady state of their first sample: ``gain x0`` plus the zero-state response to ``x - x0``."""
+def _steady_start(system: System, x: np.ndarray) -> None:
+    """Rows ``x`` filtered in place from the steady state of their first sample: ``gain x0`` plus the zero-state response to ``x - x0``."""
     x0 = x[:, :1].copy()
-    y = _run(system, x - x0)
-    y += system[-1] * x0
-    return y
+    x -= x0
+    _run(system, x)
+    x += system[-1] * x0
 
 
 def _forward_backward(system: System, x: np.ndarray, padlen: int) -> np.ndarray:
     """Rows ``x`` (R, n) filtered forward then backward, odd-padded, each pass from the steady state of its first sample.
 
     ``scipy.signal.filtfilt`` (``method="pad"``) and ``scipy.signal.sosfiltfilt``.
+    One padded copy of ``x`` is filtered in place (a view of it is returned).
     """
     if x.shape[-1] <= padlen:
         raise ValueError(f"The length of the input vector x must be greater than padlen, which is {padlen}.")
-    y = _steady_start(system, _odd_extension(x, padlen))
-    y = _steady_start(system, y[:, ::-1])[:, ::-1]
+    y = _odd_extension(x, padlen)
+    _steady_start(system, y)
+    _reverse_in_place(y)
+    _steady_start(system, y)
+    _reverse_in_place(y)
     return y[:, padlen : y.shape[1] - padlen]
 
 
@@ -485,8 +514,9 @@ def bilinear_lfilter(b_s: list[float], a_s: list[float], fs_hz: float, x: np.nda
     The filter starts in the steady state of ``x[0]`` (no start-up transient).
     ``s`` is replaced by ``2 fs (z - 1)/(z + 1)`` (``scipy.signal.bilinear``).
     """
-    x = np.asarray(x, dtype=np.float64)
-    return _steady_start(_tf_system(*_bilinear(tuple(b_s), tuple(a_s), float(fs_hz))), x.reshape(1, -1)).reshape(x.shape)
+    y = np.array(x, dtype=np.float64).reshape(1, -1)
+    _steady_start(_tf_system(*_bilinear(tuple(b_s), tuple(a_s), float(fs_hz))), y)
+    return y.reshape(np.shape(x))
 
 
 @functools.lru_cache(maxsize=64)

@@ -116,7 +116,9 @@ def test_ill_conditioned_chebyshev_is_closer_to_exact_than_scipy() -> None:
 
 def bilinear_lfilter_free(b: np.ndarray, a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``lfilter(b, a, x, zi=lfilter_zi(b, a) * x[0])`` by :mod:`ilic_cli.filtering`'s recursion."""
-    return filtering._steady_start(filtering._tf_system(b, a), x[None, :])[0]
+    y = np.array(x[None, :])
+    filtering._steady_start(filtering._tf_system(b, a), y)
+    return y[0]
 
 
 @pytest.mark.parametrize("n", LENGTHS)
