@@ -170,16 +170,18 @@ BLAS_ONE_THREAD = 1 << 18
 
 
 def _product(a: np.ndarray, b: np.ndarray, out: np.ndarray, *, add: bool = False) -> None:
-    """``out = a @ b`` (or ``out += a @ b``) for 2-D ``a``, in row chunks (:data:`BLAS_ONE_THREAD`) from the last.
+    """``out = a @ b`` (or ``out += a @ b``) in chunks along ``a``'s second-last axis (:data:`BLAS_ONE_THREAD`), from the last.
 
-    ``out`` may be ``a`` itself: each chunk's product is formed before it is stored.
+    ``out`` may be ``a`` itself: each chunk's product is formed before it is
+    stored. The chunks do not depend on ``a``'s leading axes, so a row's
+    result does not depend on the rows filtered with it.
     """
     step = max(1, BLAS_ONE_THREAD // (b.shape[0] * b.shape[1]))
-    for i in range(((len(a) - 1) // step) * step, -1, -step):
+    for i in range(((a.shape[-2] - 1) // step) * step, -1, -step):
         if add:
-            out[i : i + step] += a[i : i + step] @ b
+            out[..., i : i + step, :] += a[..., i : i + step, :] @ b
         else:
-            out[i : i + step] = a[i : i + step] @ b
+            out[..., i : i + step, :] = a[..., i : i + step, :] @ b
 
 
 CHUNK = 1 << 16
@@ -225,21 +227,20 @@ def _run(system: System, x: np.ndarray) -> None:
     s = _blocks(A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
     nb, tail = divmod(n, L)
     full = x[:, : nb * L].reshape(rows, nb, L)
-    # states at the blocks' starts, laid out (block, row, state); block 0 starts at rest
-    start = np.zeros((nb + 1, rows, m))
-    for r in range(rows):
-        _product(full[r], s.G, start[1:, r])
-    flat = start.reshape(-1, m)
+    # states at the blocks' starts, (row, block, state); block 0 starts at rest
+    start = np.zeros((rows, nb + 1, m))
+    _product(full, s.G, start[:, 1:])
     step, d = s.P.T.copy(), 1
     while d < nb and np.max(np.abs(step)) > NEGLIGIBLE:
         # start[k] += P^d start[k - d]; chunks from the last, so every source chunk is read before it is updated
-        _product(flat[rows : (nb + 1 - d) * rows], step, flat[(d + 1) * rows :], add=True)
+        _product(start[:, 1 : nb + 1 - d], step, start[:, d + 1 :], add=True)
         step, d = step @ step, 2 * d
     if tail:
-        x[:, nb * L :] = x[:, nb * L :] @ s.TT[:tail, :tail] + start[nb] @ s.Obs[:, :tail]
-    for r in range(rows):  # each block's output over its input
-        _product(full[r], s.TT, full[r])
-        _product(start[:nb, r], s.Obs, full[r], add=True)
+        # (rows, 1, tail): one product per row, as for the full blocks
+        x[:, None, nb * L :] = x[:, None, nb * L :] @ s.TT[:tail, :tail] + start[:, nb : nb + 1] @ s.Obs[:, :tail]
+    # each block's output over its input
+    _product(full, s.TT, full)
+    _product(start[:, :nb], s.Obs, full, add=True)
 
 
 PARALLEL_MIN_SIZE = 200_000

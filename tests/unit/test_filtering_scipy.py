@@ -194,3 +194,13 @@ def test_identify_ls_on_a_mat_file_does_not_import_scipy_signal(tmp_path: Path) 
     assert out.returncode == 0, out.stderr
     assert '"IDIM-LS"' in out.stdout  # the command did identify
     assert out.stdout.strip().splitlines()[-1] == "HEAVY []"
+
+
+def test_a_rows_result_does_not_depend_on_the_rows_beside_it() -> None:
+    """Columns filtered together or one at a time: the same bits (IDIM-LS decimates its matrix column by column)."""
+    x = np.cumsum(np.random.default_rng(12).standard_normal((5, 2_503)), axis=1)
+    together = decimate_matlab(x, 10, axis=1)
+    for i in (0, 4):
+        np.testing.assert_array_equal(decimate_matlab(x[i], 10), together[i])
+    windows = lowpass_decimate(x, 80, 5.0, 1000.0)
+    np.testing.assert_array_equal(lowpass_decimate(x[2:3], 80, 5.0, 1000.0), windows[2:3])
