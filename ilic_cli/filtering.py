@@ -223,6 +223,9 @@ def _run(system: System, x: np.ndarray) -> None:
     if fir is not None:
         _fir_in_place(x, fir)
     m = len(B)
+    if m == 0:  # no recursion: a pure FIR (or gain)
+        x *= D
+        return
     L = min(BLOCK, n)
     s = _blocks(A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
     nb, tail = divmod(n, L)

@@ -81,6 +81,13 @@ def test_filtfilt_matlab_is_scipys_transfer_function_filtfilt(n: int, order: int
     _assert_close(filtfilt_matlab(b, a, x), signal.filtfilt(b, a, x, padtype="odd", padlen=3 * order), x, 1e-9)
 
 
+def test_fir_filtfilt_is_scipys() -> None:
+    """A denominator of 1 (moving average): no recursion, the numerator alone."""
+    x = _walk(200, 3)
+    b, a = np.ones(5) / 5, np.ones(1)
+    _assert_close(filtfilt_matlab(b, a, x), signal.filtfilt(b, a, x, padtype="odd", padlen=12), x, 1e-14)
+
+
 @pytest.mark.parametrize("n", [25, 33, 100, 1000, 20_003])
 @pytest.mark.parametrize("r", [2, 5, 10])
 def test_decimate_matlab_is_scipys_chebyshev_filtfilt(n: int, r: int) -> None:
