@@ -345,12 +345,19 @@ def _polished_roots(a: np.ndarray, steps: int = 3) -> np.ndarray:
 
 
 def _tf_system(b: np.ndarray, a: np.ndarray) -> System:
+    """``b/a`` as :func:`_tf_sections` (cached by the coefficients' bytes: diagnosis filters with the same few designs hundreds of times)."""
+    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    return _tf_sections(b.tobytes(), a.tobytes())
+
+
+@functools.lru_cache(maxsize=64)
+def _tf_sections(b_key: bytes, a_key: bytes) -> System:
     """``b/a`` as the FIR ``b`` followed by first- and second-order all-pole sections of the roots of ``a``.
 
     The same transfer function as the direct form, without its ill-conditioned
     recursion (an 8th-order low-pass's denominator amplifies rounding by 1e9).
     """
-    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    b, a = np.frombuffer(b_key), np.frombuffer(a_key)
     b, a = b / a[0], a / a[0]
     poles = _polished_roots(a)
     pairs = poles[poles.imag > 0]
@@ -429,8 +436,14 @@ def _butter_sos(order: int, wn: float) -> np.ndarray:
 
 
 def _sos_system(sos: np.ndarray) -> System:
-    """Second-order sections in series as one state-space filter."""
-    return _cascade([(row[:3], row[3:]) for row in sos])
+    """Second-order sections in series as one state-space filter (cached by the sections' bytes)."""
+    return _sos_sections(np.asarray(sos, dtype=np.float64).tobytes())
+
+
+@functools.lru_cache(maxsize=64)
+def _sos_sections(key: bytes) -> System:
+    """:func:`_sos_system` of the sections stored in ``key``."""
+    return _cascade([(row[:3], row[3:]) for row in np.frombuffer(key).reshape(-1, 6)])
 
 
 @functools.lru_cache(maxsize=32)
