@@ -359,6 +359,9 @@ def _tf_sections(b_key: bytes, a_key: bytes) -> System:
     """
     b, a = np.frombuffer(b_key), np.frombuffer(a_key)
     b, a = b / a[0], a / a[0]
+    if 1 < len(a) <= 3:  # one section already: no roots needed
+        _, A, B, C, D, _ = _cascade([(np.ones(1), a)])
+        return b, A, B, C, D, math.fsum(b) / math.fsum(a)
     poles = _polished_roots(a)
     pairs = poles[poles.imag > 0]
     real = np.sort(poles[poles.imag == 0].real)
@@ -538,14 +541,27 @@ def bilinear_lfilter(b_s: list[float], a_s: list[float], fs_hz: float, x: np.nda
 
 @functools.lru_cache(maxsize=64)
 def _bilinear(b_s: tuple[float, ...], a_s: tuple[float, ...], fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Digital ``(b, a)`` of the analog ``B(s)/A(s)`` by the bilinear transform (``scipy.signal.bilinear``; cached)."""
-    from numpy.polynomial import Polynomial  # deferred: only the flexible-mode columns need it
+    """Digital ``(b, a)`` of the analog ``B(s)/A(s)`` by the bilinear transform (``scipy.signal.bilinear``; cached).
 
+    ``sum_q c_q ((z + 1)/f)^(N - q) ((z - 1) f)^q`` with ``f = sqrt(2 fs)``, for
+    the numerator and the denominator, in ascending powers of ``z``.
+    """
     b, a = np.trim_zeros(np.atleast_1d(np.asarray(b_s, dtype=float)), "f"), np.trim_zeros(np.atleast_1d(np.asarray(a_s, dtype=float)), "f")
     fac = math.sqrt(fs_hz * 2)
-    zp1, zm1 = Polynomial((+1, 1)) / fac, Polynomial((-1, 1)) * fac
+    zp1, zm1 = np.array([1.0, 1.0]) / fac, np.array([-1.0, 1.0]) * fac
     n = max(len(a), len(b)) - 1
-    num = sum(c * zp1 ** (n - q) * zm1**q for q, c in enumerate(b[::-1]))
-    den = sum(c * zp1 ** (n - q) * zm1**q for q, c in enumerate(a[::-1]))
-    bz, az = num.coef[::-1], den.coef[::-1]
+
+    def power(c: np.ndarray, k: int) -> np.ndarray:
+        out = np.ones(1)
+        for _ in range(k):
+            out = np.convolve(out, c)
+        return out
+
+    def transformed(coef: np.ndarray) -> np.ndarray:
+        total = np.zeros(n + 1)
+        for q, c in enumerate(coef[::-1]):
+            total += c * np.convolve(power(zp1, n - q), power(zm1, q))
+        return total[::-1]
+
+    bz, az = transformed(b), transformed(a)
     return bz / az[0], az / az[0]
