@@ -164,6 +164,31 @@ def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
     return PreparedLog(log=log, fs_hz=fs, valid=valid, warnings=warnings, segments=segments(log.t, fs))
 
 
+JOINT_UNITS = {"prismatic": ("m", "N"), "revolute": ("rad", "N·m")}
+"""Position and force units of a joint (ROS REP 103: a JointState is in these units and says nothing of which)."""
+
+
+def _joint_units(joint: str) -> tuple[str, str]:
+    if joint not in JOINT_UNITS:
+        raise ParameterError("load_joint", joint, "prismatic or revolute")
+    return JOINT_UNITS[joint]
+
+
+def as_joint(log: RunLog, joint: str) -> RunLog:
+    """``log`` with the position and force units of a ``joint`` axis, values unchanged.
+
+    For logs that carry no units (a ROS ``JointState``: metres and newtons or
+    radians and newton-metres, by the joint's type, which the message does not
+    say): the user's declaration labels every parameter (kg or kg·m², ...).
+    """
+    position, force = _joint_units(joint)
+    units = dict(log.units)
+    for name, unit in (("q", position), ("q_ref", position), ("qd", f"{position}/s"), ("qd_ref", f"{position}/s"), ("qdd_ref", f"{position}/s^2"), ("tau", force)):
+        if name in log.channels:
+            units[name] = unit
+    return RunLog(dict(log.channels), units, dict(log.meta))
+
+
 def to_load_side(log: RunLog, gear_ratio: float, torque_constant: float | None = None, load_joint: str = "prismatic") -> RunLog:
     """A motor-side log seen from the load, through a transmission of ``gear_ratio``.
 
@@ -179,9 +204,7 @@ def to_load_side(log: RunLog, gear_ratio: float, torque_constant: float | None =
         raise ParameterError("gear_ratio", gear_ratio, "a positive number (motor rad per load unit)")
     if torque_constant is not None and not (torque_constant > 0 and np.isfinite(torque_constant)):
         raise ParameterError("torque_constant", torque_constant, "a positive number (N·m/A)")
-    if load_joint not in ("prismatic", "revolute"):
-        raise ParameterError("load_joint", load_joint, "prismatic or revolute")
-    position, force = ("m", "N") if load_joint == "prismatic" else ("rad", "N·m")
+    position, force = _joint_units(load_joint)
     scale = {
         "q": (1 / gear_ratio, position),
         "q_ref": (1 / gear_ratio, position),
