@@ -168,6 +168,10 @@ JOINT_UNITS = {"prismatic": ("m", "N"), "revolute": ("rad", "N·m")}
 """Position and force units of a joint (ROS REP 103: a JointState is in these units and says nothing of which)."""
 
 
+MOTION_CHANNELS = ("q", "q_ref", "qd", "qd_ref", "qdd_ref")
+"""Channels in the joint's position unit (or its derivatives), scaled by a transmission."""
+
+
 def _joint_units(joint: str) -> tuple[str, str]:
     if joint not in JOINT_UNITS:
         raise ParameterError("load_joint", joint, "prismatic or revolute")
@@ -182,10 +186,9 @@ def as_joint(log: RunLog, joint: str) -> RunLog:
     say): the user's declaration labels every parameter (kg or kg·m², ...).
     """
     position, force = _joint_units(joint)
-    units = dict(log.units)
-    for name, unit in (("q", position), ("q_ref", position), ("qd", f"{position}/s"), ("qd_ref", f"{position}/s"), ("qdd_ref", f"{position}/s^2"), ("tau", force)):
-        if name in log.channels:
-            units[name] = unit
+    suffix = {"q": "", "q_ref": "", "qd": "/s", "qd_ref": "/s", "qdd_ref": "/s^2"}
+    labels = {"tau": force} | {n: position + suffix[n] for n in MOTION_CHANNELS}
+    units = dict(log.units) | {name: unit for name, unit in labels.items() if name in log.channels}
     return RunLog(dict(log.channels), units, dict(log.meta))
 
 
@@ -204,27 +207,15 @@ def to_load_side(log: RunLog, gear_ratio: float, torque_constant: float | None =
         raise ParameterError("gear_ratio", gear_ratio, "a positive number (motor rad per load unit)")
     if torque_constant is not None and not (torque_constant > 0 and np.isfinite(torque_constant)):
         raise ParameterError("torque_constant", torque_constant, "a positive number (N·m/A)")
-    position, force = _joint_units(load_joint)
-    scale = {
-        "q": (1 / gear_ratio, position),
-        "q_ref": (1 / gear_ratio, position),
-        "qd": (1 / gear_ratio, f"{position}/s"),
-        "qd_ref": (1 / gear_ratio, f"{position}/s"),
-        "qdd_ref": (1 / gear_ratio, f"{position}/s^2"),
-        "tau": ((torque_constant or 1.0) * gear_ratio, force),
-    }
-    channels, units = dict(log.channels), dict(log.units)
-    for name, (factor, unit) in scale.items():
-        if name in channels:
-            channels[name] = channels[name] * factor
-            units[name] = unit
+    factor = {"tau": (torque_constant or 1.0) * gear_ratio} | {n: 1 / gear_ratio for n in MOTION_CHANNELS}
+    channels = {n: (v * factor[n] if n in factor else v) for n, v in log.channels.items()}
     meta = {
         **log.meta,
         "transmission": {
             "gear_ratio": gear_ratio,
             "torque_constant": torque_constant,
             "load_joint": load_joint,
-            "motor_units": {n: log.units.get(n, "") for n in scale if n in log.channels},
+            "motor_units": {n: log.units.get(n, "") for n in factor if n in log.channels},
         },
     }
-    return RunLog(channels, units, meta)
+    return as_joint(RunLog(channels, dict(log.units), meta), load_joint)

@@ -81,7 +81,10 @@ from ilic_cli.prepare import as_joint, to_load_side
     "load_joint",
     type=click.Choice(["prismatic", "revolute"]),
     default=None,
-    help="The joint's type, i.e. its units (m, N or rad, N·m): with --gear-ratio the load's [default: prismatic]; without, it declares the log's units (a ROS JointState does not say).",
+    help=(
+        "The joint's type, i.e. its units (m, N or rad, N·m): with --gear-ratio the load's [default: prismatic]; "
+        "without, it declares the log's units (a ROS JointState does not say)."
+    ),
 )
 @click.option(
     "--validate", "validate", multiple=True, type=click.Path(path_type=Path), help="Apply the estimates to this log too (cross-test validation); repeatable."
@@ -227,10 +230,9 @@ def command(
         raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
     if gear_ratio is not None:
         with options_named():
-            joint_of_load = load_joint or "prismatic"
-            run, others = to_load_side(run, gear_ratio, torque_constant, joint_of_load), [to_load_side(o, gear_ratio, torque_constant, joint_of_load) for o in others]
+            run, *others = [to_load_side(x, gear_ratio, torque_constant, load_joint or "prismatic") for x in (run, *others)]
     elif load_joint is not None:
-        run, others = as_joint(run, load_joint), [as_joint(o, load_joint) for o in others]
+        run, *others = [as_joint(x, load_joint) for x in (run, *others)]
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
     ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
     with options_named():
