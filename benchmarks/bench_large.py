@@ -8,8 +8,9 @@ caches it under ``out/bench/hour_1khz.mcap``; then
        ilic info out/bench/hour_1khz.mcap
        ilic identify out/bench/hour_1khz.mcap --method both --format json
 
-   each in its own subprocess and prints its wall time and peak resident
-   set size (from ``os.wait4``, i.e. that child's ``ru_maxrss``). The goal
+   each in its own subprocess and prints its wall time, CPU time (user +
+   sys: steadier than wall on a shared machine) and peak resident set size
+   (from ``os.wait4``, i.e. that child's ``ru_maxrss``). The goal
    is at most 8 s and 600 MB each;
 2. writes and reads the log in every format with the fast paths
    (:mod:`bench_io`; ``--per-message`` adds the per-message paths, which
@@ -64,8 +65,8 @@ def formats(per_message: bool) -> None:
     bench(log, repeat=1, per_message=per_message)
 
 
-def run(args: list[str]) -> tuple[float, float, int, str]:
-    """Run ``python -m ilic_cli ARGS``; return wall time (s), peak RSS (MB), status and stderr tail."""
+def run(args: list[str]) -> tuple[float, float, float, int, str]:
+    """Run ``python -m ilic_cli ARGS``; return wall time (s), CPU time (user + sys, s), peak RSS (MB), status and stderr tail."""
     env = dict(os.environ, CI="1")  # no progress bar in the measurement
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "ilic_cli", *args], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=ROOT, env=env)
@@ -75,7 +76,7 @@ def run(args: list[str]) -> tuple[float, float, int, str]:
     proc.returncode = os.waitstatus_to_exitcode(status)
     wall = time.perf_counter() - t0
     rss_mb = usage.ru_maxrss / 1024.0  # Linux: kilobytes
-    return wall, rss_mb, proc.returncode, err.strip().splitlines()[-1] if err.strip() else ""
+    return wall, usage.ru_utime + usage.ru_stime, rss_mb, proc.returncode, err.strip().splitlines()[-1] if err.strip() else ""
 
 
 def main() -> None:
@@ -91,11 +92,11 @@ def main() -> None:
         ("info", ["info", str(CACHE)]),
         ("identify --method both --format json", ["identify", str(CACHE), "--method", "both", "--format", "json"]),
     ):
-        wall, rss, status, last = run(args)
+        wall, cpu, rss, status, last = run(args)
         rows.append((name, wall, rss, status))
         flag = "ok" if rss <= LIMIT_MB and wall <= LIMIT_S else f"OVER {LIMIT_S:.0f} s / {LIMIT_MB:.0f} MB"
         print(
-            f"ilic {name:<38} status {status}  wall {wall:7.1f} s  peak RSS {rss:7.0f} MB  [{flag}]  {samples / wall / 1e3:.0f} k samples/s"
+            f"ilic {name:<38} status {status}  wall {wall:7.1f} s  cpu {cpu:7.1f} s  peak RSS {rss:7.0f} MB  [{flag}]  {samples / wall / 1e3:.0f} k samples/s"
             + (f"  ({last})" if status else ""),
             flush=True,
         )

@@ -646,6 +646,14 @@ STRIBECK = register(
         scan=Scan("vs", "m/s", _stribeck_grid),
         estimate=_stribeck_estimate,
         sentence=_stribeck_sentence,
+        # Stribeck friction rises above Coulomb at low speed; a fit that falls below it
+        # is another mechanism (pre-sliding, smoothed or stuck Coulomb friction at a
+        # dwell), which the catalogue does not model, and is not named Stribeck
+        impossible=lambda th, v: (
+            None
+            if th[0] > 0
+            else f"static friction below Coulomb (Fs = {th[0]:.3g} N) is not Stribeck friction (pre-sliding or stuck Coulomb friction: outside the catalogue)"
+        ),
     )
 )
 

@@ -5,6 +5,13 @@ Pure functions on arrays. The ``matlab`` helpers reproduce MATLAB's
 (see ``../shared/reference/emps-benchmark.md``): odd-reflection padding of
 length ``3*(max(len(a), len(b)) - 1)`` and decimation that keeps the samples
 aligned on the end of the record.
+
+Everything here is NumPy (``import scipy.signal`` alone costs about a
+second of start-up): the filters are designed by SciPy's algorithms
+(analog prototype, pre-warping, bilinear transform, pole-zero pairing into
+second-order sections) and the linear recursion runs blockwise
+(:func:`_run`). ``tests/unit/test_filtering_scipy.py`` checks every
+function against ``scipy.signal``.
 """
 
 from __future__ import annotations
@@ -13,11 +20,234 @@ import functools
 import math
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
+
+# ---------------------------------------------------------------------------
+# filter design (SciPy's algorithms in NumPy: importing scipy.signal costs ~1 s)
+# ---------------------------------------------------------------------------
+def _lowpass_zpk(poles: np.ndarray, gain: float, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Digital low-pass ``(z, p, k)`` from an analog prototype with no zeros, cut-off ``wn`` (fraction of Nyquist).
+
+    Pre-warping, low-pass scaling and bilinear transform at ``fs = 2`` (``scipy.signal.iirfilter``).
+    """
+    if not 0.0 < wn < 1.0:
+        raise ValueError(f"normalised cut-off {wn} must lie strictly between 0 and 1")
+    warped = 4.0 * math.tan(math.pi * wn / 2.0)
+    p = warped * poles
+    k = gain * warped ** len(p)
+    z_d = -np.ones(len(p))
+    p_d = (4.0 + p) / (4.0 - p)
+    k_d = k * float(np.real(1.0 / np.prod(4.0 - p)))
+    return z_d, p_d, k_d
+
+
+def _butter_zpk(order: int, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Butterworth low-pass of ``order`` (analog prototype ``scipy.signal.buttap``)."""
+    m = np.arange(-order + 1, order, 2)
+    return _lowpass_zpk(-np.exp(1j * math.pi * m / (2 * order)), 1.0, wn)
+
+
+def _cheby1_zpk(order: int, ripple_db: float, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Chebyshev type I low-pass (analog prototype ``scipy.signal.cheb1ap``)."""
+    eps = math.sqrt(10 ** (0.1 * ripple_db) - 1.0)
+    mu = math.asinh(1 / eps) / order
+    theta = math.pi * np.arange(-order + 1, order, 2) / (2 * order)
+    p = -np.sinh(mu + 1j * theta)
+    k = float(np.prod(-p).real)
+    if order % 2 == 0:
+        k = k / math.sqrt(1 + eps * eps)
+    return _lowpass_zpk(p, k, wn)
+
+
+def _zpk2tf(z: np.ndarray, p: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray]:
+    """Transfer-function coefficients ``(b, a)`` of ``(z, p, k)`` (conjugate pairs give real polynomials)."""
+    return k * np.real(np.poly(z)), np.real(np.poly(p))
+
+
+def _section(z: list[complex], p: list[complex]) -> np.ndarray:
+    """One second-order section ``[b0, b1, b2, 1, a1, a2]`` with unit gain (``scipy.signal`` ``_single_zpksos``)."""
+    sos = np.zeros(6)
+    b, a = _zpk2tf(np.array(z), np.array(p), 1.0)
+    sos[3 - len(b) : 3] = b
+    sos[6 - len(a) : 6] = a
+    return sos
+
+
+def _zpk2sos(z: np.ndarray, p: np.ndarray, k: float) -> np.ndarray:
+    """Second-order sections of a low-pass with real zeros (``scipy.signal.zpk2sos``, pairing ``nearest``).
+
+    Poles are taken from the closest to the unit circle, which go last, each
+    paired with its nearest zeros.
+    """
+    if len(p) % 2:
+        p, z = np.append(p, 0.0), np.append(z, 0.0)
+    n_sections = len(p) // 2
+    # one pole of each conjugate pair (sorted as scipy's _cplxreal), then the real poles
+    p = p[np.lexsort((abs(p.imag), p.real))]
+    is_real = abs(p.imag) <= 100 * np.finfo(float).eps * abs(p)
+    p = np.concatenate([(p[~is_real & (p.imag > 0)] + p[~is_real & (p.imag < 0)].conj()) / 2, p[is_real].real])
+    z = np.sort(z.real)
+    sos = np.zeros((n_sections, 6))
+    for si in range(n_sections - 1, -1, -1):
+        i = int(np.argmin(np.abs(1 - np.abs(p))))
+        p1, p = p[i], np.delete(p, i)
+        reals = np.flatnonzero(np.isreal(p))
+        if np.isreal(p1) and len(reals) == 0:
+            j = int(np.argmin(abs(z - p1)))
+            sos[si] = _section([z[j], 0], [p1, 0])
+            z = np.delete(z, j)
+            continue
+        if np.isreal(p1):
+            i2 = reals[int(np.argmin(np.abs(1 - np.abs(p[reals]))))]
+            p2, p = p[i2], np.delete(p, i2)
+        else:
+            p2 = np.conj(p1)
+        pair = []
+        for _ in range(2):
+            j = int(np.argsort(abs(z - p1), kind="stable")[0])
+            pair.append(z[j])
+            z = np.delete(z, j)
+        sos[si] = _section(pair, [p1, p2])
+    sos[0, :3] *= k
+    return sos
+
+
+# ---------------------------------------------------------------------------
+# linear recursion, blockwise (exact linear algebra, vectorised over blocks)
+# ---------------------------------------------------------------------------
+BLOCK = 32
+"""Samples per block of the blockwise recursion (:func:`_run`): the zero-state response of a block is a BLOCK x BLOCK matmul."""
+
+
+@dataclass(frozen=True)
+class _StateSpace:
+    """``z' = A z + B u``, ``y = C z + D u`` and its block matrices for blocks of ``L`` samples.
+
+    ``TT`` (L x L): zero-state response of a block, transposed (upper-triangular
+    Toeplitz matrix of the impulse response); ``G`` (L x m): each sample's input to
+    the state after the block; ``Obs`` (m x L): each sample's response to the
+    state at the block's start; ``P = A^L``.
+    """
+
+    A: np.ndarray
+    D: float
+    L: int
+    TT: np.ndarray
+    G: np.ndarray
+    Obs: np.ndarray
+    P: np.ndarray
+
+
+@functools.lru_cache(maxsize=64)
+def _blocks(A_key: bytes, B_key: bytes, C_key: bytes, D: float, m: int, L: int) -> _StateSpace:
+    """The block matrices of a state-space system (cached: filters are designed from a few settings)."""
+    A = np.frombuffer(A_key).reshape(m, m)
+    B = np.frombuffer(B_key)
+    C = np.frombuffer(C_key)
+    Obs = np.empty((m, L))  # Obs[:, j] = (C A^j)^T
+    G = np.empty((L, m))  # G[L-1-j] = A^j B
+    row, col = C.copy(), B.copy()
+    for j in range(L):
+        Obs[:, j] = row
+        G[L - 1 - j] = col
+        row, col = row @ A, A @ col
+    h = np.concatenate([[D], C @ G[::-1].T])[:L]  # impulse response: D, C B, C A B, ...
+    idx = np.arange(L)
+    diff = idx[:, None] - idx[None, :]
+    TT = np.where(diff <= 0, h[np.clip(-diff, 0, None)], 0.0)
+    return _StateSpace(A=A, D=D, L=L, TT=TT, G=G, Obs=Obs, P=np.linalg.matrix_power(A, L))
+
+
+NEGLIGIBLE = 2.0**-100
+"""The prefix scan stops once ``A^(dL)`` is below this (relative to 1): farther blocks' states no longer reach the result's rounding."""
+
+BLAS_ONE_THREAD = 1 << 18
+"""Products of ``m x k`` by ``k x n`` are cut into row chunks with ``m k n`` below this: OpenBLAS then uses one thread
+(its threads cost several times the CPU time on these skinny products and compete with :func:`_in_threads`)."""
+
+
+def _product(a: np.ndarray, b: np.ndarray, out: np.ndarray, *, add: bool = False) -> None:
+    """``out = a @ b`` (or ``out += a @ b``) in chunks along ``a``'s second-last axis (:data:`BLAS_ONE_THREAD`), from the last.
+
+    ``out`` may be ``a`` itself: each chunk's product is formed before it is
+    stored. The chunks do not depend on ``a``'s leading axes, so a row's
+    result does not depend on the rows filtered with it.
+    """
+    step = max(1, BLAS_ONE_THREAD // (b.shape[0] * b.shape[1]))
+    for i in range(((a.shape[-2] - 1) // step) * step, -1, -step):
+        if add:
+            out[..., i : i + step, :] += a[..., i : i + step, :] @ b
+        else:
+            out[..., i : i + step, :] = a[..., i : i + step, :] @ b
+
+
+CHUNK = 1 << 16
+"""Samples a row handled at once by the in-place FIR and reversal (bounded temporaries)."""
+
+
+def _fir_in_place(x: np.ndarray, fir: np.ndarray) -> None:
+    """Rows ``x`` (R, n) replaced by their convolution with ``fir`` from a zero history, chunk by chunk from the end."""
+    n, k = x.shape[1], len(fir) - 1
+    for row in x:
+        for s in range(((n - 1) // CHUNK) * CHUNK, -1, -CHUNK):
+            e = min(s + CHUNK, n)
+            # outputs s..e-1 need inputs s-k..e-1, none of them overwritten yet
+            row[s:e] = np.convolve(row[s - k : e], fir, mode="valid") if s >= k else np.convolve(row[:e], fir)[s:e]
+
+
+def _reverse_in_place(x: np.ndarray) -> None:
+    """Reverse rows ``x`` (R, n) in place, swapping chunks from both ends (bounded temporaries)."""
+    n = x.shape[1]
+    for i in range(0, n // 2, CHUNK):
+        c = min(CHUNK, n // 2 - i)
+        head = x[:, i : i + c].copy()
+        x[:, i : i + c] = x[:, n - i - c : n - i][:, ::-1]
+        x[:, n - i - c : n - i] = head[:, ::-1]
+
+
+def _run(system: System, x: np.ndarray) -> None:
+    """Zero-state output of ``system`` for rows ``x`` (R, n, contiguous), written over ``x``: the FIR numerator, then
+    ``z' = A z + B u``, ``y = C z + D u``.
+
+    Blocks of :data:`BLOCK` samples: within a block the zero-state response is
+    ``T`` times the block and the state after it ``G^T u``; the state at
+    every block's start is the prefix sum ``sum_j P^(k-1-j) G^T u_j``,
+    computed by doubling (``log2`` of the blocks' count matrix products, all
+    blocks at once); each block's output adds ``Obs^T`` times its start state.
+    """
+    fir, A, B, C, D, _ = system
+    rows, n = x.shape
+    if fir is not None:
+        _fir_in_place(x, fir)
+    m = len(B)
+    if m == 0:  # no recursion: a pure FIR (or gain)
+        x *= D
+        return
+    L = min(BLOCK, n)
+    s = _blocks(A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
+    nb, tail = divmod(n, L)
+    full = x[:, : nb * L].reshape(rows, nb, L)
+    # states at the blocks' starts, (row, block, state); block 0 starts at rest
+    start = np.zeros((rows, nb + 1, m))
+    _product(full, s.G, start[:, 1:])
+    step, d = s.P.T.copy(), 1
+    while d < nb and np.max(np.abs(step)) > NEGLIGIBLE:
+        # start[k] += P^d start[k - d]; chunks from the last, so every source chunk is read before it is updated
+        _product(start[:, 1 : nb + 1 - d], step, start[:, d + 1 :], add=True)
+        step, d = step @ step, 2 * d
+    if tail:
+        # (rows, 1, tail): one product per row, as for the full blocks
+        x[:, None, nb * L :] = x[:, None, nb * L :] @ s.TT[:tail, :tail] + start[:, nb : nb + 1] @ s.Obs[:, :tail]
+    # each block's output over its input
+    _product(full, s.TT, full)
+    _product(start[:, :nb], s.Obs, full, add=True)
+
+
 PARALLEL_MIN_SIZE = 200_000
-"""Arrays at least this large are filtered in threads (SciPy's filters release the GIL)."""
+"""Arrays at least this large are filtered in threads (NumPy's matrix products release the GIL)."""
 
 
 CHUNK_ELEMENTS = 1 << 21
@@ -37,12 +267,12 @@ def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: i
     moved = np.moveaxis(np.asarray(x, dtype=np.float64), axis, -1)
 
     def run(block: np.ndarray) -> np.ndarray:
-        y = func(np.ascontiguousarray(block))
+        y = func(block)
         return y if keep is None else np.take(y, keep, axis=-1)
 
     if moved.ndim < 2:
         return run(moved)
-    # blocks along the first axis: views, copied one block at a time by run()
+    # blocks along the first axis: views, copied one block at a time by func
     per_row = int(np.prod(moved.shape[1:]))
     rows = max(1, CHUNK_ELEMENTS // max(per_row, 1))
     blocks = [moved[i : i + rows] for i in range(0, moved.shape[0], rows)]
@@ -59,15 +289,170 @@ def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: i
     return np.moveaxis(np.concatenate(parts, axis=0), -1, axis)
 
 
+def _df2t(b: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """State-space ``(A, B, C, D)`` of ``b/a`` in direct form II transposed (the state ``zi`` of ``scipy.signal.lfilter``)."""
+    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    b, a = b / a[0], a / a[0]
+    n = max(len(a), len(b))
+    b, a = np.pad(b, (0, n - len(b))), np.pad(a, (0, n - len(a)))
+    A = np.eye(n - 1, k=1)
+    A[:, 0] = -a[1:]
+    C = np.zeros(n - 1)
+    C[:1] = 1.0
+    return A, b[1:] - a[1:] * b[0], C, float(b[0])
+
+
+System = tuple[np.ndarray | None, np.ndarray, np.ndarray, np.ndarray, float, float]
+"""``(fir, A, B, C, D, gain)``: an FIR numerator (or ``None``), then a state-space filter; the DC gain of the whole."""
+
+
+def _cascade(sections: list[tuple[np.ndarray, np.ndarray]]) -> System:
+    """State-space of the filters ``b_i/a_i`` in series (each in direct form II transposed) and its DC gain."""
+    parts = [_df2t(b, a) for b, a in sections]
+    m = sum(len(p[1]) for p in parts)
+    A, B, C = np.zeros((m, m)), np.zeros(m), np.zeros(m)
+    D, gain, start = 1.0, 1.0, 0
+    for (Ai, Bi, Ci, Di), (b, a) in zip(parts, sections, strict=True):
+        k = slice(start, start + len(Bi))
+        # each filter is fed by the output of those before it, C z + D u
+        A[k, :start] = np.outer(Bi, C[:start])
+        A[k, k] = Ai
+        B[k] = Bi * D
+        C[:start] *= Di
+        C[k] = Ci
+        D *= Di
+        gain *= math.fsum(b) / math.fsum(a)  # exactly rounded sums: a low-pass's a(1) is a small difference of large terms
+        start = k.stop
+    return None, A, B, C, D, gain
+
+
+def _polished_roots(a: np.ndarray, steps: int = 3) -> np.ndarray:
+    """Roots of ``a`` refined by Newton steps in extended precision (their conjugate pairs exact, real ones real).
+
+    ``np.roots`` is backward stable only: a low-pass's clustered poles come
+    out about 1e-9 off, which moves the output by 1e-7.
+    """
+    roots = np.roots(a)
+    roots = np.where(abs(roots.imag) <= 1e-12 * abs(roots), roots.real, roots).astype(np.clongdouble)
+    coef = np.asarray(a, dtype=np.longdouble)
+    for _ in range(steps):
+        value, slope = np.zeros_like(roots), np.zeros_like(roots)
+        for c in coef:  # Horner: the polynomial and its derivative
+            slope = slope * roots + value
+            value = value * roots + c
+        roots = roots - np.where(slope != 0, value / np.where(slope != 0, slope, 1), 0)
+    return roots
+
+
+def _tf_system(b: np.ndarray, a: np.ndarray) -> System:
+    """``b/a`` as :func:`_tf_sections` (cached by the coefficients' bytes: diagnosis filters with the same few designs hundreds of times)."""
+    b, a = np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64)
+    return _tf_sections(b.tobytes(), a.tobytes())
+
+
+@functools.lru_cache(maxsize=64)
+def _tf_sections(b_key: bytes, a_key: bytes) -> System:
+    """``b/a`` as the FIR ``b`` followed by first- and second-order all-pole sections of the roots of ``a``.
+
+    The same transfer function as the direct form, without its ill-conditioned
+    recursion (an 8th-order low-pass's denominator amplifies rounding by 1e9).
+    """
+    b, a = np.frombuffer(b_key), np.frombuffer(a_key)
+    b, a = b / a[0], a / a[0]
+    if 1 < len(a) <= 3:  # one section already: no roots needed
+        _, A, B, C, D, _ = _cascade([(np.ones(1), a)])
+        return b, A, B, C, D, math.fsum(b) / math.fsum(a)
+    poles = _polished_roots(a)
+    pairs = poles[poles.imag > 0]
+    real = np.sort(poles[poles.imag == 0].real)
+    sections = [(np.ones(1), np.array([1.0, -2.0 * p.real, p.real**2 + p.imag**2], dtype=np.float64)) for p in pairs]
+    sections += [(np.ones(1), np.poly(real[i : i + 2]).astype(np.float64)) for i in range(0, len(real), 2)]
+    _, A, B, C, D, _ = _cascade(sections)
+    return b, A, B, C, D, math.fsum(b) / math.fsum(a)
+
+
+def _odd_extension(x: np.ndarray, n: int) -> np.ndarray:
+    """Rows ``x`` extended by ``n`` samples at both ends by odd reflection (``scipy.signal`` ``odd_ext``); always a new array."""
+    if n == 0:
+        return np.array(x, dtype=np.float64, order="C")
+    return np.concatenate([2 * x[:, :1] - x[:, n:0:-1], x, 2 * x[:, -1:] - x[:, -2 : -(n + 2) : -1]], axis=1)
+
+
+def _steady_start(system: System, x: np.ndarray) -> None:
+    """Rows ``x`` filtered in place from the steady state of their first sample: ``gain x0`` plus the zero-state response to ``x - x0``."""
+    x0 = x[:, :1].copy()
+    x -= x0
+    _run(system, x)
+    x += system[-1] * x0
+
+
+def _forward_backward(system: System, x: np.ndarray, padlen: int) -> np.ndarray:
+    """Rows ``x`` (R, n) filtered forward then backward, odd-padded, each pass from the steady state of its first sample.
+
+    ``scipy.signal.filtfilt`` (``method="pad"``) and ``scipy.signal.sosfiltfilt``.
+    One padded copy of ``x`` is filtered in place (a view of it is returned).
+    """
+    if x.shape[-1] <= padlen:
+        raise ValueError(f"The length of the input vector x must be greater than padlen, which is {padlen}.")
+    y = _odd_extension(x, padlen)
+    _steady_start(system, y)
+    _reverse_in_place(y)
+    _steady_start(system, y)
+    _reverse_in_place(y)
+    return y[:, padlen : y.shape[1] - padlen]
+
+
+def _rows(x: np.ndarray) -> np.ndarray:
+    """``x`` (any shape, filtered along the last axis) as float rows (R, n)."""
+    return np.asarray(x, dtype=np.float64).reshape(-1, x.shape[-1])
+
+
+def _filtfilt_rows(system: System, padlen: int) -> Callable[[np.ndarray], np.ndarray]:
+    """Forward-backward filtering of ``system`` along the last axis of a block, padded by ``padlen``."""
+    return lambda c: _forward_backward(system, _rows(c), padlen).reshape(c.shape[:-1] + (-1,))
+
+
+def _sos_padlen(sos: np.ndarray) -> int:
+    """SciPy's default padding of ``sosfiltfilt``: ``3 * (2 * sections + 1)``, less the trivial taps."""
+    return 3 * (2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum())))
+
+
 def filtfilt_matlab(b: np.ndarray, a: np.ndarray, x: np.ndarray, axis: int = 0, keep: np.ndarray | None = None) -> np.ndarray:
     """Zero-phase filtering as MATLAB ``filtfilt`` (odd padding of 3*(order) samples).
 
     ``keep``: indices along ``axis`` to return (decimation while filtering).
     """
-    from scipy.signal import filtfilt
-
     padlen = 3 * (max(len(a), len(b)) - 1)
-    return _in_threads(lambda c: filtfilt(b, a, c, axis=-1, padtype="odd", padlen=padlen), x, axis, keep)
+    return _in_threads(_filtfilt_rows(_tf_system(b, a), padlen), x, axis, keep)
+
+
+@functools.lru_cache(maxsize=32)
+def _butter_ba(order: int, wn: float) -> tuple[np.ndarray, np.ndarray]:
+    """Butterworth low-pass ``(b, a)`` (``scipy.signal.butter(order, wn)``; cached)."""
+    return _zpk2tf(*_butter_zpk(order, wn))
+
+
+@functools.lru_cache(maxsize=32)
+def _butter_sos(order: int, wn: float) -> np.ndarray:
+    """Butterworth low-pass in second-order sections (``scipy.signal.butter(order, wn, output="sos")``; cached: the online loop designs it every window)."""
+    return _zpk2sos(*_butter_zpk(order, wn))
+
+
+def _sos_system(sos: np.ndarray) -> System:
+    """Second-order sections in series as one state-space filter (cached by the sections' bytes)."""
+    return _sos_sections(np.asarray(sos, dtype=np.float64).tobytes())
+
+
+@functools.lru_cache(maxsize=64)
+def _sos_sections(key: bytes) -> System:
+    """:func:`_sos_system` of the sections stored in ``key``."""
+    return _cascade([(row[:3], row[3:]) for row in np.frombuffer(key).reshape(-1, 6)])
+
+
+@functools.lru_cache(maxsize=32)
+def _cheby1_ba(order: int, ripple_db: float, wn: float) -> tuple[np.ndarray, np.ndarray]:
+    """Chebyshev type I low-pass ``(b, a)`` (``scipy.signal.cheby1(order, ripple_db, wn)``; cached)."""
+    return _zpk2tf(*_cheby1_zpk(order, ripple_db, wn))
 
 
 def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 4, *, matlab: bool = True, axis: int = 0) -> np.ndarray:
@@ -86,16 +471,13 @@ def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, ord
         published digits); otherwise second-order sections with SciPy's
         default padding (numerically safer at very low cut-offs).
     """
-    from scipy import signal
-
     wn = cutoff_hz / (fs_hz / 2.0)
     if not 0.0 < wn < 1.0:
         raise ValueError(f"cut-off {cutoff_hz} Hz must lie between 0 and the Nyquist frequency {fs_hz / 2} Hz")
     if matlab:
-        b, a = signal.butter(order, wn)
-        return filtfilt_matlab(b, a, x, axis=axis)
-    sos = signal.butter(order, wn, output="sos")
-    return signal.sosfiltfilt(sos, x, axis=axis)
+        return filtfilt_matlab(*_butter_ba(order, wn), x, axis=axis)
+    sos = _butter_sos(order, wn)
+    return _in_threads(_filtfilt_rows(_sos_system(sos), _sos_padlen(sos)), x, axis)
 
 
 def central_difference(x: np.ndarray, dt_s: float) -> np.ndarray:
@@ -126,11 +508,9 @@ def decimate_matlab(x: np.ndarray, r: int, axis: int = 0) -> np.ndarray:
     Applied column-wise to a 2-D array, this is the parallel decimation of
     the observation matrix (paper section III).
     """
-    from scipy import signal
-
     if r == 1:
         return np.asarray(x)
-    b, a = signal.cheby1(8, 0.05, 0.8 / r)
+    b, a = _cheby1_ba(8, 0.05, 0.8 / r)
     x = np.asarray(x)
     return filtfilt_matlab(b, a, x, axis=axis, keep=kept_indices(x.shape[axis], r))
 
@@ -143,30 +523,45 @@ def lowpass_decimate(x: np.ndarray, r: int, cutoff_hz: float, fs_hz: float, orde
     cut-offs (5 Hz at 1 kHz) where the transfer-function form is not. Kept
     samples are aligned on the end of the record, as :func:`decimate_matlab`.
     """
-    from scipy import signal
-
-    sos = _butter_sos(order, cutoff_hz / (fs_hz / 2.0)).copy()
+    sos = _butter_sos(order, cutoff_hz / (fs_hz / 2.0))
     n = x.shape[axis]
-    padlen = min(n - 1, 3 * (2 * len(sos) + 1))
-    return _in_threads(lambda c: signal.sosfiltfilt(sos, c, axis=-1, padlen=padlen), x, axis, kept_indices(n, r))
-
-
-@functools.lru_cache(maxsize=32)
-def _butter_sos(order: int, wn: float) -> np.ndarray:
-    """Butterworth low-pass in second-order sections (cached: the online loop designs it every window)."""
-    from scipy import signal
-
-    sos = signal.butter(order, wn, output="sos")
-    return sos
+    return _in_threads(_filtfilt_rows(_sos_system(sos), min(n - 1, 3 * (2 * len(sos) + 1))), x, axis, kept_indices(n, r))
 
 
 def bilinear_lfilter(b_s: list[float], a_s: list[float], fs_hz: float, x: np.ndarray) -> np.ndarray:
     """Apply the continuous filter ``B(s)/A(s)`` to ``x`` forward only (bilinear transform, causal).
 
     The filter starts in the steady state of ``x[0]`` (no start-up transient).
+    ``s`` is replaced by ``2 fs (z - 1)/(z + 1)`` (``scipy.signal.bilinear``).
     """
-    from scipy import signal
+    y = np.array(x, dtype=np.float64).reshape(1, -1)
+    _steady_start(_tf_system(*_bilinear(tuple(b_s), tuple(a_s), float(fs_hz))), y)
+    return y.reshape(np.shape(x))
 
-    b, a = signal.bilinear(b_s, a_s, fs=fs_hz)
-    out, _ = signal.lfilter(b, a, x, zi=signal.lfilter_zi(b, a) * x[0])
-    return np.asarray(out)
+
+@functools.lru_cache(maxsize=64)
+def _bilinear(b_s: tuple[float, ...], a_s: tuple[float, ...], fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Digital ``(b, a)`` of the analog ``B(s)/A(s)`` by the bilinear transform (``scipy.signal.bilinear``; cached).
+
+    ``sum_q c_q ((z + 1)/f)^(N - q) ((z - 1) f)^q`` with ``f = sqrt(2 fs)``, for
+    the numerator and the denominator, in ascending powers of ``z``.
+    """
+    b, a = np.trim_zeros(np.atleast_1d(np.asarray(b_s, dtype=float)), "f"), np.trim_zeros(np.atleast_1d(np.asarray(a_s, dtype=float)), "f")
+    fac = math.sqrt(fs_hz * 2)
+    zp1, zm1 = np.array([1.0, 1.0]) / fac, np.array([-1.0, 1.0]) * fac
+    n = max(len(a), len(b)) - 1
+
+    def power(c: np.ndarray, k: int) -> np.ndarray:
+        out = np.ones(1)
+        for _ in range(k):
+            out = np.convolve(out, c)
+        return out
+
+    def transformed(coef: np.ndarray) -> np.ndarray:
+        total = np.zeros(n + 1)
+        for q, c in enumerate(coef[::-1]):
+            total += c * np.convolve(power(zp1, n - q), power(zm1, q))
+        return total[::-1]
+
+    bz, az = transformed(b), transformed(a)
+    return bz / az[0], az / az[0]

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.filtering import central_difference, decimation_factor, lowpass_decimate
-from ilic_cli.idim_ls import usable_mask, valid_rows
+from ilic_cli.idim_ls import _columns, usable_mask, valid_rows
 from ilic_cli.lsq import LSResult, finite_or_none, solve_batch
 from ilic_cli.regressor import Kinematics, Model
 
@@ -188,9 +188,10 @@ def estimate_windows(
     """
     qd_ref, qdd_ref, tau = (np.atleast_2d(np.asarray(a, dtype=np.float64)) for a in (qd_ref, qdd_ref, tau))
     kin = Kinematics(qd=qd_ref, qdd=qdd_ref, q=None if q_ref is None else np.atleast_2d(q_ref), t=None if t is None else np.atleast_2d(t))
-    W = model.matrix(kin)
     r = settings.factor(fs_hz)
-    Wd = lowpass_decimate(W, r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
+    # the windows' observation matrices decimated one column at a time: the full-rate matrices are never held
+    columns = [lowpass_decimate(np.asarray(c, dtype=np.float64), r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1) for c in _columns(model, kin)]
+    Wd = np.moveaxis(np.stack(columns, axis=1), 1, -1)  # (K, rows, columns), laid out as before: solve_batch's bits depend on it
     yd = lowpass_decimate(tau, r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
     results = solve_batch(Wd, yd, model.names, sigma="eq8")
     masked: dict[int, str] = {}

@@ -10,7 +10,7 @@ With the defaults it reproduces the published EMPS tables to every digit.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -201,8 +201,8 @@ def prepare(
         extra={k: np.asarray(v, dtype=np.float64)[s] for k, v in (extra or {}).items()},
     )
     y_full = np.asarray(tau, dtype=np.float64)[s]
-    # parallel decimation of the force and every column, in one call (columns filtered in threads)
-    Wy = _decimate(np.column_stack([model.matrix(kin), y_full]), settings, fs_hz)
+    # parallel decimation of every column and the force, one column at a time: the full-rate matrix is never held
+    Wy = np.column_stack([_decimate(np.asarray(c, dtype=np.float64), settings, fs_hz) for c in _columns(model, kin, y_full)])
     rows = None
     valid = usable_mask(valid, np.shape(q))
     if valid is not None:
@@ -214,6 +214,14 @@ def prepare(
             )
     W, y = np.ascontiguousarray(Wy[:, :-1]), np.ascontiguousarray(Wy[:, -1])
     return IDIMData(kin=kin, tau=y_full, W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
+
+
+def _columns(model: Model, kin: Kinematics, *more: np.ndarray) -> Iterator[np.ndarray]:
+    """The columns of ``model.matrix(kin)`` built one at a time, then ``more``."""
+    shape = np.shape(kin.qd)
+    for c in model.columns:
+        yield np.broadcast_to(c.build(kin), shape)
+    yield from more
 
 
 def min_samples(settings: LSSettings) -> int:

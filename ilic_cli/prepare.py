@@ -164,6 +164,34 @@ def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
     return PreparedLog(log=log, fs_hz=fs, valid=valid, warnings=warnings, segments=segments(log.t, fs))
 
 
+JOINT_UNITS = {"prismatic": ("m", "N"), "revolute": ("rad", "N·m")}
+"""Position and force units of a joint (ROS REP 103: a JointState is in these units and says nothing of which)."""
+
+
+MOTION_CHANNELS = ("q", "q_ref", "qd", "qd_ref", "qdd_ref")
+"""Channels in the joint's position unit (or its derivatives), scaled by a transmission."""
+
+
+def _joint_units(joint: str) -> tuple[str, str]:
+    if joint not in JOINT_UNITS:
+        raise ParameterError("load_joint", joint, "prismatic or revolute")
+    return JOINT_UNITS[joint]
+
+
+def as_joint(log: RunLog, joint: str) -> RunLog:
+    """``log`` with the position and force units of a ``joint`` axis, values unchanged.
+
+    For logs that carry no units (a ROS ``JointState``: metres and newtons or
+    radians and newton-metres, by the joint's type, which the message does not
+    say): the user's declaration labels every parameter (kg or kg·m², ...).
+    """
+    position, force = _joint_units(joint)
+    suffix = {"q": "", "q_ref": "", "qd": "/s", "qd_ref": "/s", "qdd_ref": "/s^2"}
+    labels = {"tau": force} | {n: position + suffix[n] for n in MOTION_CHANNELS}
+    units = dict(log.units) | {name: unit for name, unit in labels.items() if name in log.channels}
+    return RunLog(dict(log.channels), units, dict(log.meta))
+
+
 def to_load_side(log: RunLog, gear_ratio: float, torque_constant: float | None = None, load_joint: str = "prismatic") -> RunLog:
     """A motor-side log seen from the load, through a transmission of ``gear_ratio``.
 
@@ -179,29 +207,15 @@ def to_load_side(log: RunLog, gear_ratio: float, torque_constant: float | None =
         raise ParameterError("gear_ratio", gear_ratio, "a positive number (motor rad per load unit)")
     if torque_constant is not None and not (torque_constant > 0 and np.isfinite(torque_constant)):
         raise ParameterError("torque_constant", torque_constant, "a positive number (N·m/A)")
-    if load_joint not in ("prismatic", "revolute"):
-        raise ParameterError("load_joint", load_joint, "prismatic or revolute")
-    position, force = ("m", "N") if load_joint == "prismatic" else ("rad", "N·m")
-    scale = {
-        "q": (1 / gear_ratio, position),
-        "q_ref": (1 / gear_ratio, position),
-        "qd": (1 / gear_ratio, f"{position}/s"),
-        "qd_ref": (1 / gear_ratio, f"{position}/s"),
-        "qdd_ref": (1 / gear_ratio, f"{position}/s^2"),
-        "tau": ((torque_constant or 1.0) * gear_ratio, force),
-    }
-    channels, units = dict(log.channels), dict(log.units)
-    for name, (factor, unit) in scale.items():
-        if name in channels:
-            channels[name] = channels[name] * factor
-            units[name] = unit
+    factor = {"tau": (torque_constant or 1.0) * gear_ratio} | {n: 1 / gear_ratio for n in MOTION_CHANNELS}
+    channels = {n: (v * factor[n] if n in factor else v) for n, v in log.channels.items()}
     meta = {
         **log.meta,
         "transmission": {
             "gear_ratio": gear_ratio,
             "torque_constant": torque_constant,
             "load_joint": load_joint,
-            "motor_units": {n: log.units.get(n, "") for n in scale if n in log.channels},
+            "motor_units": {n: log.units.get(n, "") for n in factor if n in log.channels},
         },
     }
-    return RunLog(channels, units, meta)
+    return as_joint(RunLog(channels, dict(log.units), meta), load_joint)

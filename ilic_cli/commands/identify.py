@@ -29,7 +29,7 @@ from ilic_cli.io.atomic import atomic_write_text, same_path
 from ilic_cli.modelfile import load_model_file, model_document
 from ilic_cli.parameters import DEFAULTS
 from ilic_cli.plotting import plot_identify
-from ilic_cli.prepare import to_load_side
+from ilic_cli.prepare import as_joint, to_load_side
 
 
 @click.command("identify")
@@ -80,9 +80,11 @@ from ilic_cli.prepare import to_load_side
     "--load-joint",
     "load_joint",
     type=click.Choice(["prismatic", "revolute"]),
-    default="prismatic",
-    show_default=True,
-    help="The load's joint, for --gear-ratio (its units).",
+    default=None,
+    help=(
+        "The joint's type, i.e. its units (m, N or rad, N·m): with --gear-ratio the load's [default: prismatic]; "
+        "without, it declares the log's units (a ROS JointState does not say)."
+    ),
 )
 @click.option(
     "--validate", "validate", multiple=True, type=click.Path(path_type=Path), help="Apply the estimates to this log too (cross-test validation); repeatable."
@@ -145,7 +147,7 @@ def command(
     effects: tuple[str, ...],
     gear_ratio: float | None,
     torque_constant: float | None,
-    load_joint: str,
+    load_joint: str | None,
     validate: tuple[Path, ...],
     window_s: float,
     sigma_max: float,
@@ -228,7 +230,9 @@ def command(
         raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
     if gear_ratio is not None:
         with options_named():
-            run, others = to_load_side(run, gear_ratio, torque_constant, load_joint), [to_load_side(o, gear_ratio, torque_constant, load_joint) for o in others]
+            run, *others = [to_load_side(x, gear_ratio, torque_constant, load_joint or "prismatic") for x in (run, *others)]
+    elif load_joint is not None:
+        run, *others = [as_joint(x, load_joint) for x in (run, *others)]
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
     ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
     with options_named():

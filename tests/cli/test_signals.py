@@ -20,7 +20,7 @@ from ilic_cli.io import write_log
 from tests.conftest import make_synthetic_log
 
 ROOT = Path(__file__).parents[2]
-SAMPLES = 200_000  # a .mat that takes several seconds to write as MCAP or a bag
+SAMPLES = 500_000  # a .mat that takes about a second to write as MCAP or a bag
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def test_interrupted_convert_leaves_nothing(tmp_path: Path, big_mat: Path, sig: 
                 break
             time.sleep(0.01)
         assert started, f"the temporary output never appeared (status {proc.poll()})"
-        time.sleep(0.2)  # well inside the write
+        time.sleep(0.05)  # well inside the write (MCAP: ~0.5 s for these samples)
         assert proc.poll() is None, "the conversion finished before the signal; use a bigger log"
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=60)

@@ -449,3 +449,16 @@ def test_a_ros1_bag_with_a_controller_state_keeps_the_columnar_reader(corpus: di
         assert fast.channels.keys() == slow.channels.keys() and "q_ref" in fast
         for name in fast.channels:
             assert np.array_equal(fast[name], slow[name]), name
+
+
+def test_a_joint_state_of_a_revolute_joint_is_declared_so(corpus: dict[str, Path]) -> None:
+    """6. A JointState says nothing of units: --load-joint revolute labels it rad and N·m, and every parameter with it, values unchanged."""
+    args = ("identify", str(corpus["ros2-jazzy-mcap-ros2"]), "--method", "ls", *CONTROLLER)
+    as_logged = json.loads(run_cli(*args, "--format", "json").stdout)
+    assert as_logged["joint_type"] == "prismatic" and as_logged["units"]["M"] == "kg"
+    res = run_cli(*args, "--format", "json", "--load-joint", "revolute")
+    assert res.status == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["joint_type"] == "revolute" and doc["units"] == {"M": "kg·m²", "Fv": "N·m·s/rad", "Fc": "N·m", "offset": "N·m"}
+    assert doc["ls"]["parameters"] == as_logged["ls"]["parameters"]
+    assert "| M (kg·m²) |" in run_cli(*args, "--load-joint", "revolute").stdout
