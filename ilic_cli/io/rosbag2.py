@@ -10,7 +10,7 @@ of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
 (CRCs, bounded decompression). With ``fast`` (the default) that scan of a
 bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag is
 read in ranges of ids that sqlite3 joins into one row each, whose blobs are decoded in runs;
-``rosbags`` still reads ``metadata.yaml`` and the topics. Otherwise ``rosbags`` streams the
+``rosbags`` still reads ``metadata.yaml`` and the topics, without counting the messages. Otherwise ``rosbags`` streams the
 messages one by one.
 """
 
@@ -201,10 +201,14 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
                 and (not stored.digest or not conn.digest or stored.digest == conn.digest)
             ):
                 by_id[int(stored.id)] = sinks[conn.id]
-                sinks[conn.id].reserve(int(getattr(stored, "msgcount", 0) or 0))
     if not by_id:
         return
-    total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections if int(stored.id) in by_id) or 1
+    # the counts of metadata.yaml (rosbags' storage did not count): a hint, at most a message per byte of the file
+    most = storage.path.stat().st_size
+    counts = {conn.id: min(conn.msgcount, most) if isinstance(conn.msgcount, int) and conn.msgcount > 0 else 0 for conn in wanted}
+    for conn in wanted:
+        sinks[conn.id].reserve(counts[conn.id])
+    total = sum(counts.values()) or 1
     done = 0
     ids = ", ".join(str(tid) for tid in sorted(by_id))
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
@@ -349,15 +353,27 @@ def _reads_only(reader: Any, path: Path) -> bool:
     return isinstance(stored, Path) and stored.suffix == ".mcap" and [stored.resolve()] == [p.resolve() for p in path.glob("*.mcap")]
 
 
+ROSBAGS_UNCOUNTED = (
+    ("count(messages.id)", "0"),
+    (" LEFT JOIN messages ON topics.id == messages.topic_id", ""),
+    ("SELECT MIN(timestamp), MAX(timestamp) + 1, COUNT(*) FROM messages", "SELECT NULL, NULL, 0"),
+)
+"""Parts of ``rosbags``' queries when it opens an sqlite3 storage, and what the fast read asks instead: no
+message counts or time range, which cost a scan of the messages per topic and one more; ``metadata.yaml``
+gives both (and the fast read counts as it reads). A query of another ``rosbags`` is left as it is."""
+
+
 @contextlib.contextmanager
-def _rosbags_sqlite_settings() -> Iterator[None]:
+def _rosbags_sqlite_settings(uncounted: bool = False) -> Iterator[None]:
     """While ``rosbags`` opens a bag, its sqlite3 connections plan without automatic indexes and map the file.
 
     Its per-topic message count (``topics LEFT JOIN messages``) otherwise
     builds a temporary index over every message, which costs more than a
     scan of the table per topic; the scans read mapped pages (``mmap_size``)
     instead of copying each through ``read()``. Settings of the planner and
-    the pager: the counts are the same.
+    the pager: the counts are the same. With ``uncounted``, the storage's
+    queries do not count at all (:data:`ROSBAGS_UNCOUNTED`): its topics then
+    have ``msgcount`` 0.
     """
     try:
         import apsw  # rosbags' sqlite3 driver
@@ -365,9 +381,17 @@ def _rosbags_sqlite_settings() -> Iterator[None]:
         yield
         return
 
+    class Uncounted(apsw.Cursor):  # type: ignore[misc]
+        def execute(self, statements: str, *args: Any, **kwargs: Any) -> Any:
+            for part, instead in ROSBAGS_UNCOUNTED:
+                statements = statements.replace(part, instead)
+            return super().execute(statements, *args, **kwargs)
+
     def hook(connection: Any) -> None:
         connection.execute("PRAGMA automatic_index = OFF")
         connection.execute(f"PRAGMA mmap_size = {SQL_MMAP}")
+        if uncounted:
+            connection.cursor_factory = Uncounted
 
     apsw.connection_hooks.append(hook)
     try:
@@ -403,7 +427,7 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     scanned = _scan_mcap(path, fast)
     try:
         reader = Reader(path)
-        with _rosbags_sqlite_settings():
+        with _rosbags_sqlite_settings(uncounted=fast):
             reader.open()
     except LogError:
         raise

@@ -194,3 +194,31 @@ def test_rosbags_opens_bags_without_automatic_indexes_and_mapped_and_only_then(t
         raise KeyError("a failed open")
     assert settings() == (1, 0)
     assert apsw.connection_hooks == hooks
+
+
+@pytest.mark.parametrize("uncounted", [False, True])
+def test_fast_read_opens_the_storage_without_counting(bag: tuple[Path, object], uncounted: bool) -> None:
+    """The storage's topics stay (ids, names, types); only the counts of its scans go; ``metadata.yaml``'s remain."""
+    from rosbags.rosbag2 import Reader
+
+    path, _ = bag
+    reader = Reader(path)
+    with rosbag2._rosbags_sqlite_settings(uncounted=uncounted):
+        reader.open()
+    try:
+        (storage,) = reader.storage.storages  # type: ignore[attr-defined]
+        assert [(c.id, c.topic, c.msgcount) for c in storage.connections] == [(c.id, c.topic, 0 if uncounted else c.msgcount) for c in reader.connections]
+        assert {c.topic: c.msgcount for c in reader.connections}["/joint_states"] == N
+        assert storage.metadata.message_count == (0 if uncounted else 3 * N + 1)
+    finally:
+        reader.close()
+
+
+@pytest.mark.parametrize("count", [10**15, -3, "many"])
+def test_counts_of_metadata_yaml_are_only_a_hint(bag: tuple[Path, object], count: object) -> None:
+    """A bag whose metadata.yaml claims another message count reads the same (the count only sizes the columns)."""
+    path, log = bag
+    yaml = (path / "metadata.yaml").read_text()
+    assert f"message_count: {N}\n" in yaml
+    (path / "metadata.yaml").write_text(yaml.replace(f"message_count: {N}\n", f"message_count: {count!r}\n".replace("'", '"')))
+    assert_log_equals_source(read_log(path), log)
