@@ -9,8 +9,8 @@ one, or an MCAP file with zstd chunks). Reading accepts both storages; the ``.mc
 of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
 (CRCs, bounded decompression). With ``fast`` (the default) that scan of a
 bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag is
-read with one ``SELECT`` whose blobs are decoded in runs; ``rosbags`` still
-reads ``metadata.yaml`` and the topics. Otherwise ``rosbags`` streams the
+read in ranges of ids that sqlite3 joins into one row each, whose blobs are decoded in runs;
+``rosbags`` still reads ``metadata.yaml`` and the topics, without counting the messages. Otherwise ``rosbags`` streams the
 messages one by one.
 """
 
@@ -147,33 +147,37 @@ def _single_sqlite(reader: Any) -> Any:
 
 
 SQL_BATCH = 65536
-"""Rows fetched from sqlite3 at a time."""
+"""Message ids per batch (so at most as many rows)."""
 
 SQL_MMAP = 2**30
 """Bytes of the database file sqlite3 may map into memory (an address range, not resident memory)."""
 
 SQL_JOINED = (
-    "SELECT count(*), sum(typeof(timestamp) != 'integer' OR typeof(data) != 'blob'), group_concat(id), group_concat(topic_id), group_concat(timestamp), "
-    "group_concat(length(data)), CAST(group_concat(data, '') AS BLOB) FROM ({rows})"
+    "SELECT count(*), sum(CASE WHEN typeof(timestamp) = 'integer' AND typeof(data) = 'blob' THEN 0 ELSE 1 END), "
+    "group_concat(id), group_concat(topic_id), group_concat(timestamp), group_concat(length(data)), CAST(group_concat(data, '') AS BLOB) "
+    "FROM messages WHERE id BETWEEN ?1 AND ?2 AND topic_id IN ({ids})"
 )
-"""One batch of messages as one row: its count, its rows whose timestamp is not an integer or data not a blob,
-the rows' ids, topic ids, timestamps and blob sizes (decimal, comma-separated) and their blobs, joined in the
-order of the sub-query.
+"""The messages of the wanted topics with ids from ``?1`` to ``?2`` as one row: their count, the rows whose timestamp
+is not an integer or data not a blob, the rows' ids, topic ids, timestamps and blob sizes (decimal,
+comma-separated) and their blobs, joined in the order sqlite3 visits the rows.
 
-Plain SQL of any sqlite3 that Python 3.11 builds with (3.7.15 or later). The order of
-``group_concat`` over an ordered sub-query is not promised by SQL; the ids
+Plain SQL of any sqlite3 that Python 3.11 builds with (3.7.15 or later). sqlite3 visits a range of
+``rowid`` in order, but SQL does not promise the order of ``group_concat``; the ids
 come along, and :func:`_joined_batch` refuses a batch whose ids do not increase.
 """
 
-SQL_ROWS = "SELECT id, topic_id, timestamp, data FROM messages WHERE id >= ? AND topic_id IN ({ids}) ORDER BY id LIMIT ?"
-"""The rows of one batch: the next :data:`SQL_BATCH` messages of the wanted topics from an id on."""
+SQL_ROWS = "SELECT id, topic_id, timestamp, data FROM messages WHERE id BETWEEN ? AND ? AND topic_id IN ({ids}) ORDER BY id"
+"""The same rows as :data:`SQL_JOINED`, one by one."""
+
+SQL_NEXT_ID = "SELECT min(id) FROM messages WHERE id >= ?"
+"""The first message id from an id on (a search of the ``rowid`` tree, not a scan)."""
 
 SQL_ALL_ROWS = "SELECT id, topic_id, timestamp, data FROM messages WHERE topic_id IN ({ids}) ORDER BY id"
 """Every message of the wanted topics, for one cursor."""
 
 
 def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: Path) -> None:
-    """Read the messages in batches of :data:`SQL_BATCH` rows in id order and hand each topic's blobs to its sink as runs.
+    """Read the messages in batches of :data:`SQL_BATCH` ids in id order and hand each topic's blobs to its sink as runs.
 
     sqlite3 joins each batch into one row (:data:`SQL_JOINED`, no Python
     object per message); a batch with a row of other types, or whose ids do
@@ -197,17 +201,25 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
                 and (not stored.digest or not conn.digest or stored.digest == conn.digest)
             ):
                 by_id[int(stored.id)] = sinks[conn.id]
-                sinks[conn.id].reserve(int(getattr(stored, "msgcount", 0) or 0))
     if not by_id:
         return
-    total = sum(int(getattr(stored, "msgcount", 0) or 0) for stored in storage.connections if int(stored.id) in by_id) or 1
+    # the counts of metadata.yaml (rosbags' storage did not count): a hint, at most a message per byte of the file
+    most = storage.path.stat().st_size
+    counts = {conn.id: min(conn.msgcount, most) if isinstance(conn.msgcount, int) and conn.msgcount > 0 else 0 for conn in wanted}
+    for conn in wanted:
+        sinks[conn.id].reserve(counts[conn.id])
+    total = sum(counts.values()) or 1
     done = 0
     ids = ", ".join(str(tid) for tid in sorted(by_id))
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
     try:
         db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
         joined = db.execute("PRAGMA encoding").fetchone()[0] == "UTF-8"  # group_concat joins blobs as UTF-8 text
-        batches = _batches(db, SQL_ROWS.format(ids=ids), joined) if _id_is_key(db) else _cursor_batches(db, SQL_ALL_ROWS.format(ids=ids))
+        if _id_is_rowid(db):
+            joined_sql, rows_sql = (SQL_JOINED.format(ids=ids) if joined else None), SQL_ROWS.format(ids=ids)
+            batches = (_range_batch(db, joined_sql, rows_sql, first, last) for first, last in _id_ranges(db))
+        else:
+            batches = _cursor_batches(db, SQL_ALL_ROWS.format(ids=ids))
         with current_progress(path) as progress:
             for topic_id, log_ns, sizes, buf in batches:
                 starts = np.cumsum(sizes) - sizes
@@ -226,67 +238,74 @@ Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 """Topic ids, timestamps, blob sizes (int64 each) and the joined blobs (uint8) of a batch of rows."""
 
 
-def _batches(db: Any, rows_sql: str, joined: bool) -> Iterator[Batch]:
-    """Batches of rows in id order, each from the id after the last one of the batch before (``messages.id`` is a unique key).
-
-    A batch is joined by sqlite3 (:func:`_joined_batch`) when ``joined`` and
-    it can be, else fetched row by row.
-    """
-    first = -(2**63)
-    while True:
-        got = _joined_batch(db, rows_sql, first) if joined else None
-        if got is None:
-            rows = db.execute(rows_sql, (first, SQL_BATCH)).fetchall()
-            if not rows:
-                return
-            got = _split_rows(rows)
-        ids, batch = got
-        yield batch
-        if int(ids[-1]) == 2**63 - 1:  # the largest id: nothing after it
+def _id_ranges(db: Any) -> Iterator[tuple[int, int]]:
+    """Ranges of :data:`SQL_BATCH` ids (first and last, inclusive), each from the first id after the range before, up to the largest id."""
+    last = 2**63 - 1
+    (first,) = db.execute(SQL_NEXT_ID, (-(2**63),)).fetchone()
+    while first is not None:
+        end = min(int(first) + SQL_BATCH - 1, last)
+        yield int(first), end
+        if end == last:
             return
-        first = int(ids[-1]) + 1
+        (first,) = db.execute(SQL_NEXT_ID, (end + 1,)).fetchone()
+
+
+def _range_batch(db: Any, joined_sql: str | None, rows_sql: str, first: int, last: int) -> Batch:
+    """The rows with ids from ``first`` to ``last``: joined by sqlite3 when ``joined_sql`` is given and they can be (:func:`_joined_batch`), else one by one."""
+    got = _joined_batch(db, joined_sql, first, last) if joined_sql is not None else None
+    return got if got is not None else _split_rows(db.execute(rows_sql, (first, last)).fetchall())
 
 
 def _cursor_batches(db: Any, all_sql: str) -> Iterator[Batch]:
-    """Batches of the rows of ``all_sql`` through one cursor (``messages.id`` is not known to be unique)."""
+    """Batches of the rows of ``all_sql`` through one cursor (``messages.id`` is not known to be the ``rowid``)."""
     cursor = db.execute(all_sql)
     while rows := cursor.fetchmany(SQL_BATCH):
-        yield _split_rows(rows)[1]
+        yield _split_rows(rows)
 
 
-def _id_is_key(db: Any) -> bool:
-    """Whether ``messages.id`` is the table's only primary key, declared INTEGER (unique, so batches can follow ids)."""
+def _id_is_rowid(db: Any) -> bool:
+    """Whether ``messages.id`` is the ``rowid`` of its table: the only primary key, declared INTEGER, no index of its own.
+
+    Then every id is a distinct integer, and ranges of ids hold every row.
+    (``WITHOUT ROWID`` or ``INTEGER PRIMARY KEY DESC`` give the key an index,
+    and such an id may hold text.)
+    """
     info = db.execute("PRAGMA table_info(messages)").fetchall()
     keys = [(name, str(kind).upper()) for _, name, kind, _, _, pk in info if pk]
-    return keys == [("id", "INTEGER")]
+    indexed = any(origin == "pk" for _, _, _, origin, *_ in db.execute("PRAGMA index_list(messages)").fetchall())
+    return keys == [("id", "INTEGER")] and not indexed
 
 
-def _joined_batch(db: Any, rows_sql: str, first: int) -> tuple[np.ndarray, Batch] | None:
-    """Ids and rows from id ``first`` on, joined by sqlite3 (:data:`SQL_JOINED`); None when there are none or they must be fetched row by row."""
+def _joined_batch(db: Any, joined_sql: str, first: int, last: int) -> Batch | None:
+    """The rows with ids from ``first`` to ``last``, joined by sqlite3 (:data:`SQL_JOINED`); None when they must be fetched row by row."""
     import sqlite3
 
     try:
-        count, odd, *numbers, blobs = db.execute(SQL_JOINED.format(rows=rows_sql), (first, SQL_BATCH)).fetchone()
+        count, odd, *numbers, blobs = db.execute(joined_sql, (first, last)).fetchone()
     except sqlite3.DataError:  # the joined batch is longer than sqlite3's longest string
         return None
-    if not count or odd or not all(isinstance(text, str) for text in numbers):
+    if not count:
+        return _split_rows([])
+    if odd or not all(isinstance(text, str) for text in numbers):
         return None
     try:  # ids and topic ids may be of any type: then a number does not parse
         ids, topic_id, log_ns, sizes = (np.fromstring(text, dtype=np.int64, sep=",") for text in numbers)
     except ValueError:
         return None
     buf = np.frombuffer(blobs or b"", dtype=np.uint8)
-    if any(len(column) != count for column in (ids, topic_id, log_ns, sizes)) or ids[0] < first or (np.diff(ids) <= 0).any() or int(sizes.sum()) != len(buf):
+    if any(len(column) != count for column in (ids, topic_id, log_ns, sizes)) or int(sizes.sum()) != len(buf):
         return None
-    return ids, (topic_id, log_ns, sizes, buf)
+    if ids[0] < first or ids[-1] > last or (np.diff(ids) <= 0).any():
+        return None
+    return topic_id, log_ns, sizes, buf
 
 
-def _split_rows(rows: list[tuple[Any, ...]]) -> tuple[np.ndarray, Batch]:
-    """Ids and columns of rows ``(id, topic_id, timestamp, data)`` fetched as Python tuples."""
-    ids, topic_ids, stamps, blobs = zip(*rows)
+def _split_rows(rows: list[tuple[Any, ...]]) -> Batch:
+    """The columns of rows ``(id, topic_id, timestamp, data)`` fetched as Python tuples."""
+    _, topic_ids, stamps, blobs = zip(*rows) if rows else ((), (), (), ())
     sizes = np.fromiter(map(len, blobs), dtype=np.int64, count=len(blobs))
     buf = np.frombuffer(b"".join(blobs), dtype=np.uint8)
-    return np.array(ids, dtype=np.int64), (np.array(topic_ids, dtype=np.int64), np.array(stamps, dtype=np.int64), sizes, buf)
+    return np.array(topic_ids, dtype=np.int64), np.array(stamps, dtype=np.int64), sizes, buf
 
 
 def _feed_runs(sink: Any, buf: Any, starts: Any, sizes: Any, log_ns: Any) -> None:
@@ -334,13 +353,27 @@ def _reads_only(reader: Any, path: Path) -> bool:
     return isinstance(stored, Path) and stored.suffix == ".mcap" and [stored.resolve()] == [p.resolve() for p in path.glob("*.mcap")]
 
 
+ROSBAGS_UNCOUNTED = (
+    ("count(messages.id)", "0"),
+    (" LEFT JOIN messages ON topics.id == messages.topic_id", ""),
+    ("SELECT MIN(timestamp), MAX(timestamp) + 1, COUNT(*) FROM messages", "SELECT NULL, NULL, 0"),
+)
+"""Parts of ``rosbags``' queries when it opens an sqlite3 storage, and what the fast read asks instead: no
+message counts or time range, which cost a scan of the messages per topic and one more; ``metadata.yaml``
+gives both (and the fast read counts as it reads). A query of another ``rosbags`` is left as it is."""
+
+
 @contextlib.contextmanager
-def _without_automatic_indexes() -> Iterator[None]:
-    """While ``rosbags`` opens a bag, its sqlite3 connections plan without automatic indexes.
+def _rosbags_sqlite_settings(uncounted: bool = False) -> Iterator[None]:
+    """While ``rosbags`` opens a bag, its sqlite3 connections plan without automatic indexes and map the file.
 
     Its per-topic message count (``topics LEFT JOIN messages``) otherwise
     builds a temporary index over every message, which costs more than a
-    scan of the table per topic. A planner setting: the counts are the same.
+    scan of the table per topic; the scans read mapped pages (``mmap_size``)
+    instead of copying each through ``read()``. Settings of the planner and
+    the pager: the counts are the same. With ``uncounted``, the storage's
+    queries do not count at all (:data:`ROSBAGS_UNCOUNTED`): its topics then
+    have ``msgcount`` 0.
     """
     try:
         import apsw  # rosbags' sqlite3 driver
@@ -348,8 +381,17 @@ def _without_automatic_indexes() -> Iterator[None]:
         yield
         return
 
+    class Uncounted(apsw.Cursor):  # type: ignore[misc]
+        def execute(self, statements: str, *args: Any, **kwargs: Any) -> Any:
+            for part, instead in ROSBAGS_UNCOUNTED:
+                statements = statements.replace(part, instead)
+            return super().execute(statements, *args, **kwargs)
+
     def hook(connection: Any) -> None:
         connection.execute("PRAGMA automatic_index = OFF")
+        connection.execute(f"PRAGMA mmap_size = {SQL_MMAP}")
+        if uncounted:
+            connection.cursor_factory = Uncounted
 
     apsw.connection_hooks.append(hook)
     try:
@@ -368,8 +410,8 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     selection : Selection
         Topic, reference topic and joint (for bags not written by ilic).
     fast : bool
-        Decode runs of same-layout messages as columns (one query per topic
-        for sqlite3, the MCAP chunk walker for MCAP storage); False: message by
+        Decode runs of same-layout messages as columns (ranges of ids joined
+        by sqlite3, the MCAP chunk walker for MCAP storage); False: message by
         message through ``rosbags``.
 
     Returns
@@ -385,7 +427,7 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     scanned = _scan_mcap(path, fast)
     try:
         reader = Reader(path)
-        with _without_automatic_indexes():
+        with _rosbags_sqlite_settings(uncounted=fast):
             reader.open()
     except LogError:
         raise

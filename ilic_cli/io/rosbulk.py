@@ -58,39 +58,48 @@ class BulkSqlite3Storage(Sqlite3Writer):
         """Insert every per-sample message of ``columns`` (topic ids from ``ids``).
 
         One ``INSERT`` per :data:`SAMPLES_PER_INSERT` samples (:func:`insert_rows_sql`)
-        takes each topic's messages as one blob and the log times as one
-        fixed-width text, and sqlite3 cuts them into rows: the same rows, in
-        the same order, as one ``INSERT`` each, so the same file, without a
-        Python object per message.
+        takes the samples' messages back to back as one blob and their log
+        times as one fixed-width text, and sqlite3 cuts them into rows: the
+        same rows, in the same order, as one ``INSERT`` each, so the same
+        file, without a Python object per message.
         """
         import numpy as np
 
         topics = columns.sample_topics()
         if not topics:
             return
-        sql = insert_rows_sql([ids[topic] for topic in topics], [columns.sizes[topic] for topic in topics])
+        sql = insert_rows_sql([ids[topic] for topic in topics], [columns.sizes[topic] for topic in topics], SAMPLES_PER_INSERT)
         for start in range(0, len(columns.log_ns), SAMPLES_PER_INSERT):
             stop = min(start + SAMPLES_PER_INSERT, len(columns.log_ns))
             stamps = np.char.zfill(columns.log_ns[start:stop].astype(f"S{STAMP_DIGITS}"), STAMP_DIGITS)
-            blobs = [columns.rows(topic, start, stop).tobytes() for topic in topics]
-            self.cursor.execute(sql, [(stop - start) * len(topics), stamps.tobytes(), *blobs])
+            messages = np.hstack([columns.rows(topic, start, stop) for topic in topics])
+            self.cursor.execute(sql, [stop - start, memoryview(stamps), memoryview(messages)])  # bound as blobs, not copied to bytes first
 
 
-def insert_rows_sql(topic_ids: list[int], sizes: list[int]) -> str:
-    """An ``INSERT`` of ``?1`` messages into ``messages``: for message ``x``, sample ``x / k`` of topic ``x % k``.
+def insert_rows_sql(topic_ids: list[int], sizes: list[int], most: int) -> str:
+    """An ``INSERT`` into ``messages`` of the messages of ``?1`` samples (at most ``most``): per sample, one message of each topic in order.
 
-    Parameters: ``?1`` the number of messages, ``?2`` the samples' log times
-    (:data:`STAMP_DIGITS` characters each), then one blob per topic with its
-    messages back to back (``sizes`` bytes each). A recursive common table
-    expression counts the messages in order (sqlite3 3.8.3 or later).
+    Parameters: ``?1`` the number of samples, ``?2`` their log times
+    (:data:`STAMP_DIGITS` characters each), ``?3`` their messages, sample
+    after sample, topic after topic (``sizes`` bytes each). The samples are
+    counted by a ``CROSS JOIN`` of two counters of ``isqrt(most)`` rounded
+    up (cheaper than counting every row in a recursive common table
+    expression, sqlite3 3.8.3 or later); a ``CROSS JOIN`` keeps its left
+    table in the outer loop, so the rows come in order.
     """
-    k = len(topic_ids)
-    topic = " ".join(f"WHEN {j} THEN {tid}" for j, tid in enumerate(topic_ids))
-    data = " ".join(f"WHEN {j} THEN substr(?{3 + j}, (x / {k}) * {size} + 1, {size})" for j, size in enumerate(sizes))
+    import math
+
+    side = math.isqrt(max(most, 1) - 1) + 1
+    width = sum(sizes)
+    starts = [sum(sizes[:j]) for j in range(len(sizes))]
+    topics = ", ".join(f"({tid}, {start + 1}, {size})" for tid, start, size in zip(topic_ids, starts, sizes))
     return (
-        "WITH RECURSIVE message(x) AS (SELECT 0 UNION ALL SELECT x + 1 FROM message WHERE x + 1 < ?1) "
+        f"WITH RECURSIVE counter(x) AS (SELECT 0 UNION ALL SELECT x + 1 FROM counter WHERE x + 1 < {side}), "
+        f"sample(i) AS (SELECT a.x * {side} + b.x FROM counter AS a CROSS JOIN counter AS b WHERE a.x * {side} < ?1 AND a.x * {side} + b.x < ?1), "
+        f"topic(id, start, size) AS (VALUES {topics}) "
         "INSERT INTO messages (topic_id, timestamp, data) "
-        f"SELECT CASE x % {k} {topic} END, CAST(substr(?2, (x / {k}) * {STAMP_DIGITS} + 1, {STAMP_DIGITS}) AS INTEGER), CASE x % {k} {data} END FROM message"
+        f"SELECT topic.id, CAST(substr(?2, i * {STAMP_DIGITS} + 1, {STAMP_DIGITS}) AS INTEGER), substr(?3, i * {width} + topic.start, topic.size) "
+        "FROM sample CROSS JOIN topic"
     )
 
 

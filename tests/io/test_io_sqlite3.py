@@ -29,17 +29,19 @@ def _table(rows: list[tuple[object, ...]], key: str = "INTEGER PRIMARY KEY") -> 
 
 
 ROWS = [(1, 1, -5, b"\x00\x01\x00"), (2, 2, 2**63 - 1, b""), (5, 1, 7, b"\xff\xfe\x00abc"), (9, 3, 8, b"x" * 300)]
-SQL = rosbag2.SQL_ROWS.format(ids="1, 2")
+JOINED = rosbag2.SQL_JOINED.format(ids="1, 2")
+ROWS_SQL = rosbag2.SQL_ROWS.format(ids="1, 2")
+ALL = (-(2**63), 2**63 - 1)
 
 
-def test_joined_batch_gives_the_rows_of_the_wanted_topics_in_id_order() -> None:
-    ids, (topic_id, log_ns, sizes, buf) = rosbag2._joined_batch(_table(ROWS), SQL, -(2**63))  # type: ignore[misc]
-    assert ids.tolist() == [1, 2, 5]
+def test_joined_batch_gives_the_rows_of_the_wanted_topics_in_the_range_in_id_order() -> None:
+    topic_id, log_ns, sizes, buf = rosbag2._joined_batch(_table(ROWS), JOINED, *ALL)  # type: ignore[misc]
     assert topic_id.tolist() == [1, 2, 1]
     assert log_ns.tolist() == [-5, 2**63 - 1, 7]  # int64 extremes survive the decimal text
     assert sizes.tolist() == [3, 0, 6]
     assert buf.tobytes() == b"\x00\x01\x00\xff\xfe\x00abc"  # NULs inside blobs are kept
-    assert rosbag2._joined_batch(_table(ROWS), SQL, 6) is None  # nothing from id 6 on
+    assert rosbag2._joined_batch(_table(ROWS), JOINED, 2, 5)[1].tolist() == [2**63 - 1, 7]  # type: ignore[index]
+    assert len(rosbag2._joined_batch(_table(ROWS), JOINED, 6, 8)[0]) == 0  # type: ignore[index]  # none in the range: an empty batch
 
 
 @pytest.mark.parametrize(
@@ -49,25 +51,39 @@ def test_joined_batch_gives_the_rows_of_the_wanted_topics_in_id_order() -> None:
 )
 def test_joined_batch_refuses_rows_of_other_types(row: tuple[object, ...]) -> None:
     """Such a batch goes row by row, where the values keep their type (as on the per-message path)."""
-    assert rosbag2._joined_batch(_table([*ROWS, row]), SQL, -(2**63)) is None
+    assert rosbag2._joined_batch(_table([*ROWS, row]), JOINED, *ALL) is None
 
 
-def test_joined_batch_refuses_ids_that_do_not_increase() -> None:
-    """The ids checked are the ones joined: a sub-query in another order is refused, not read."""
-    backwards = SQL.replace("ORDER BY id", "ORDER BY id DESC")
-    assert rosbag2._joined_batch(_table(ROWS), backwards, -(2**63)) is None
-    text_ids = _table([(1, 1, 1, b"a"), ("b", 1, 2, b"b")], key="PRIMARY KEY")
-    assert rosbag2._joined_batch(text_ids, SQL, -(2**63)) is None
+def test_joined_batch_refuses_ids_that_do_not_increase_or_leave_the_range() -> None:
+    """The ids checked are the ones joined: rows visited in another order, or outside the range, are refused, not read."""
+    backwards = JOINED.replace("FROM messages", "FROM (SELECT * FROM messages ORDER BY id DESC LIMIT 100)")
+    assert rosbag2._joined_batch(_table(ROWS), backwards, *ALL) is None
+    wider = JOINED.replace("BETWEEN ?1 AND ?2", "BETWEEN ?1 AND ?2 + 4")
+    assert rosbag2._joined_batch(_table(ROWS), wider, 1, 2) is None
+
+
+@pytest.mark.parametrize(
+    ("key", "rowid"),
+    [("INTEGER PRIMARY KEY", True), ("integer primary key", True), ("INTEGER PRIMARY KEY DESC", False), ("PRIMARY KEY", False), ("INTEGER", False)],
+)
+def test_only_an_id_that_is_the_rowid_is_read_in_ranges(key: str, rowid: bool) -> None:
+    assert rosbag2._id_is_rowid(_table(ROWS, key)) is rowid
+    without = sqlite3.connect(":memory:")
+    without.execute("CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, data BLOB) WITHOUT ROWID")
+    assert not rosbag2._id_is_rowid(without)
 
 
 @pytest.mark.parametrize("joined", [True, False], ids=["joined", "row-by-row"])
-def test_batches_take_every_id_from_the_smallest_to_the_largest(monkeypatch: pytest.MonkeyPatch, joined: bool) -> None:
+def test_id_ranges_take_every_id_from_the_smallest_to_the_largest(monkeypatch: pytest.MonkeyPatch, joined: bool) -> None:
     monkeypatch.setattr(rosbag2, "SQL_BATCH", 2)
-    rows = [(-(2**63), 1, 1, b"a"), (-1, 2, 2, b"bb"), (0, 1, 3, b"c"), (7, 2, 4, b"dd"), (2**63 - 1, 1, 5, b"e")]
-    batches = list(rosbag2._batches(_table(rows), SQL, joined))
-    assert [len(b[0]) for b in batches] == [2, 2, 1]
+    db = _table([(-(2**63), 1, 1, b"a"), (-1, 2, 2, b"bb"), (0, 1, 3, b"c"), (7, 2, 4, b"dd"), (2**63 - 1, 1, 5, b"e")])
+    ranges = list(rosbag2._id_ranges(db))
+    assert ranges == [(-(2**63), -(2**63) + 1), (-1, 0), (7, 8), (2**63 - 1, 2**63 - 1)]
+    batches = [rosbag2._range_batch(db, JOINED if joined else None, ROWS_SQL, *r) for r in ranges]
+    assert [len(b[0]) for b in batches] == [1, 2, 1, 1]
     assert np.concatenate([b[1] for b in batches]).tolist() == [1, 2, 3, 4, 5]
     assert b"".join(b[3].tobytes() for b in batches) == b"abbcdde"
+    assert list(rosbag2._id_ranges(_table([]))) == []
 
 
 @pytest.fixture
@@ -81,8 +97,8 @@ def _spy(monkeypatch: pytest.MonkeyPatch, refuse_every: int = 0) -> list[bool]:
     joined: list[bool] = []
     original = rosbag2._joined_batch
 
-    def spy(db: sqlite3.Connection, rows_sql: str, first: int):  # type: ignore[no-untyped-def]
-        got = original(db, rows_sql, first)
+    def spy(db: sqlite3.Connection, joined_sql: str, first: int, last: int):  # type: ignore[no-untyped-def]
+        got = original(db, joined_sql, first, last)
         if got is not None and refuse_every and (len(joined) + 1) % refuse_every == 0:
             got = None
         joined.append(got is not None)
@@ -104,17 +120,25 @@ def test_our_bag_is_read_in_joined_batches(bag: tuple[Path, object], monkeypatch
     path, log = bag
     joined = _spy(monkeypatch)
     assert_log_equals_source(read_both(path), log)
-    assert joined == [True, False]  # one batch of 9001 rows, then the empty end
+    assert joined == [True]  # one batch of 9001 rows
 
 
-def test_bag_whose_ids_are_not_a_key_is_read_through_one_cursor(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch) -> None:
-    """``messages.id`` without PRIMARY KEY (another writer): no batches by id, same columns."""
+@pytest.mark.parametrize(
+    ("table", "update"),
+    [
+        ("plain(id INTEGER, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data BLOB NOT NULL)", ""),
+        # a text id sorts after every number: ranges of numbers would miss its message
+        ("plain(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, data BLOB) WITHOUT ROWID", "UPDATE messages SET id = 'last' WHERE id = 10;"),
+    ],
+    ids=["no-key", "without-rowid-text-id"],
+)
+def test_bag_whose_ids_are_not_the_rowid_is_read_through_one_cursor(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch, table: str, update: str) -> None:
+    """``messages.id`` that is not the ``rowid`` (another writer): no batches by id, same columns."""
     path, log = bag
     db_file = next(path.glob("*.db3"))
     with sqlite3.connect(db_file) as db:
         db.executescript(
-            "CREATE TABLE plain(id INTEGER, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, data BLOB NOT NULL);"
-            "INSERT INTO plain SELECT * FROM messages ORDER BY id; DROP TABLE messages; ALTER TABLE plain RENAME TO messages;"
+            f"CREATE TABLE {table}; INSERT INTO plain SELECT * FROM messages ORDER BY id; DROP TABLE messages; ALTER TABLE plain RENAME TO messages;{update}"
         )
     db.close()
     joined = _spy(monkeypatch)
@@ -122,13 +146,16 @@ def test_bag_whose_ids_are_not_a_key_is_read_through_one_cursor(bag: tuple[Path,
     assert joined == []
 
 
-def test_insert_statement_cuts_blobs_and_stamps_into_rows_in_order() -> None:
+@pytest.mark.parametrize("samples", [1, 3, 4])
+def test_insert_statement_cuts_blobs_and_stamps_into_rows_in_order(samples: int) -> None:
+    """Up to ``most`` samples (4: a 2 x 2 counter), each with a message of topic 7 (2 bytes) then one of topic 3 (3 bytes)."""
     db = _table([])
-    stamps = np.array([-(2**63), -5, 0, 2**63 - 1], dtype=np.int64)
+    stamps = np.array([-(2**63), -5, 0, 2**63 - 1], dtype=np.int64)[:samples]
     text = np.char.zfill(stamps.astype(f"S{rosbulk.STAMP_DIGITS}"), rosbulk.STAMP_DIGITS).tobytes()
-    db.execute(rosbulk.insert_rows_sql([7, 3], [2, 3]), [8, text, b"a0a1a2a3", b"\x00b0\x00b1\x00b2\x00b3"])
+    messages = b"".join(b"a%d\x00b%d" % (i, i) for i in range(samples))
+    db.execute(rosbulk.insert_rows_sql([7, 3], [2, 3], 4), [samples, text, messages])
     rows = db.execute("SELECT id, topic_id, timestamp, data FROM messages").fetchall()
-    assert rows == [(i + 1, (7, 3)[i % 2], int(stamps[i // 2]), (b"a%d" % (i // 2)) if i % 2 == 0 else b"\x00b%d" % (i // 2)) for i in range(8)]
+    assert rows == [(i + 1, (7, 3)[i % 2], int(stamps[i // 2]), (b"a%d" % (i // 2)) if i % 2 == 0 else b"\x00b%d" % (i // 2)) for i in range(2 * samples)]
 
 
 def test_bulk_sqlite3_writer_gives_the_per_message_bytes_across_statements(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -154,15 +181,44 @@ def test_simulate_writes_either_ros2_bag_storage(tmp_path: Path, storage: str) -
     assert_log_equals_source(read_both(tmp_path / "bag"), RunLog(log.channels, log.units, {k: v for k, v in log.meta.items() if k != "source"}))
 
 
-def test_rosbags_opens_bags_without_automatic_indexes_and_only_then() -> None:
+def test_rosbags_opens_bags_without_automatic_indexes_and_mapped_and_only_then(tmp_path: Path) -> None:
     import apsw
 
-    def automatic_index() -> int:
-        return int(apsw.Connection(":memory:").execute("PRAGMA automatic_index").fetchall()[0][0])
+    def settings() -> tuple[int, int]:
+        db = apsw.Connection(str(tmp_path / "x.db3"))
+        return int(db.execute("PRAGMA automatic_index").fetchall()[0][0]), int(db.execute("PRAGMA mmap_size").fetchall()[0][0])
 
     hooks = list(apsw.connection_hooks)
-    with pytest.raises(KeyError), rosbag2._without_automatic_indexes():
-        assert automatic_index() == 0
+    with pytest.raises(KeyError), rosbag2._rosbags_sqlite_settings():
+        assert settings() == (0, rosbag2.SQL_MMAP)
         raise KeyError("a failed open")
-    assert automatic_index() == 1
+    assert settings() == (1, 0)
     assert apsw.connection_hooks == hooks
+
+
+@pytest.mark.parametrize("uncounted", [False, True])
+def test_fast_read_opens_the_storage_without_counting(bag: tuple[Path, object], uncounted: bool) -> None:
+    """The storage's topics stay (ids, names, types); only the counts of its scans go; ``metadata.yaml``'s remain."""
+    from rosbags.rosbag2 import Reader
+
+    path, _ = bag
+    reader = Reader(path)
+    with rosbag2._rosbags_sqlite_settings(uncounted=uncounted):
+        reader.open()
+    try:
+        (storage,) = reader.storage.storages  # type: ignore[attr-defined]
+        assert [(c.id, c.topic, c.msgcount) for c in storage.connections] == [(c.id, c.topic, 0 if uncounted else c.msgcount) for c in reader.connections]
+        assert {c.topic: c.msgcount for c in reader.connections}["/joint_states"] == N
+        assert storage.metadata.message_count == (0 if uncounted else 3 * N + 1)
+    finally:
+        reader.close()
+
+
+@pytest.mark.parametrize("count", [10**15, -3, "many"])
+def test_counts_of_metadata_yaml_are_only_a_hint(bag: tuple[Path, object], count: object) -> None:
+    """A bag whose metadata.yaml claims another message count reads the same (the count only sizes the columns)."""
+    path, log = bag
+    yaml = (path / "metadata.yaml").read_text()
+    assert f"message_count: {N}\n" in yaml
+    (path / "metadata.yaml").write_text(yaml.replace(f"message_count: {N}\n", f"message_count: {count!r}\n".replace("'", '"')))
+    assert_log_equals_source(read_log(path), log)
