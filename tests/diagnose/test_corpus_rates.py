@@ -50,7 +50,5 @@ def test_a_concealed_effect_is_named_alone(name: str) -> None:
     s, findings = _scored(name)
     truth = set(CASES[name].effects)
     assert {eid for eid, _ in findings} - {"offset"} == truth and not s["missed"] and s["false_alarms"] == 0, findings
-    if name.startswith("delay-"):  # the lag comes out too long (position noise through the loop): README
-        assert all(err < 0.45 for err in s["parameter_error"].values()), s
-    else:
-        assert all(err <= PARAM_TOLERANCE for err in s["parameter_error"].values()), s
+    # the delay measured beyond the hold, refined on the closed loop (the inverse model's lag was 38 % too long here)
+    assert all(err <= PARAM_TOLERANCE for err in s["parameter_error"].values()), s
