@@ -1,12 +1,16 @@
 """Run the speed benchmarks beside this file (``make bench``); print their figures.
 
+Each script runs in its own interpreter: one benchmark's heap (the 1-hour
+arrays of ``bench_identify.py``) must not slow the next (it cost the sqlite3
+read about 20 % when they shared a process).
+
 ``bench_large.py`` (a 1-hour MCAP log: minutes to generate and read) runs only
 with ``--large`` (``make bench-large``).
 """
 
 from __future__ import annotations
 
-import runpy
+import subprocess
 import sys
 from pathlib import Path
 
@@ -18,8 +22,7 @@ def main() -> None:
         if (script.name == "bench_large.py") != large:
             continue
         print(f"== {script.name}", flush=True)
-        sys.argv = [str(script)]
-        runpy.run_path(str(script), run_name="__main__")
+        subprocess.run([sys.executable, str(script)], check=True)
         print(flush=True)
 
 
