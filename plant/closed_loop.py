@@ -27,7 +27,7 @@ from plant.sensors import TAU_SENSORS, draw_disturbance, draw_noise, measured_fo
 
 @dataclass
 class LoopResult:
-    """Samples of one closed-loop run (all arrays of length n)."""
+    """Samples of one closed-loop run (all arrays of length n) and the settings it ran with (for :func:`loop_log`)."""
 
     t: np.ndarray
     q: np.ndarray
@@ -39,6 +39,14 @@ class LoopResult:
     tau: np.ndarray
     chi: np.ndarray
     names: tuple[str, ...]
+    controller: CTCSettings | PDSettings
+    params: RigidParameters
+    effects: Effects
+    fs_hz: float
+    substeps: int
+    seed: int
+    tau_sensor: str
+    pulses: np.ndarray | None = None
     windows: list[Any] = field(default_factory=list)
 
 
@@ -178,7 +186,27 @@ def simulate_loop(
     tau = measured_force(out_u, T, n, effects, tau_sensor, noise_tau)
     t = np.arange(n, dtype=np.float64)
     t *= T  # = np.arange(n) * T
-    return LoopResult(t=t, q=out_q, q_true=out_qt, qd_true=out_qd, qdd_true=out_qdd, u=out_u, vir=out_vir, tau=tau, chi=chi_hist, names=names, windows=windows)
+    return LoopResult(
+        t=t,
+        q=out_q,
+        q_true=out_qt,
+        qd_true=out_qd,
+        qdd_true=out_qdd,
+        u=out_u,
+        vir=out_vir,
+        tau=tau,
+        chi=chi_hist,
+        names=names,
+        controller=controller,
+        params=params,
+        effects=effects,
+        fs_hz=fs_hz,
+        substeps=int(substeps),
+        seed=seed,
+        tau_sensor=tau_sensor,
+        pulses=pulses,
+        windows=windows,
+    )
 
 
 def loop_log(
@@ -187,17 +215,9 @@ def loop_log(
     q_ref: np.ndarray,
     qd_ref: np.ndarray,
     qdd_ref: np.ndarray,
-    controller: CTCSettings | PDSettings,
-    params: RigidParameters,
-    effects: Effects,
-    fs_hz: float,
-    substeps: int,
-    seed: int,
-    tau_sensor: str,
-    pulses: np.ndarray | None = None,
     meta: dict[str, Any] | None = None,
 ) -> RunLog:
-    """Build the run log of a closed-loop result.
+    """Build the run log of a closed-loop result (with the controller, plant and settings it ran with).
 
     Channels: ``t, q`` (measured position: with the quantization and noise
     effects), ``q_ref, qd_ref, qdd_ref`` (the logged reference), ``tau`` (the
@@ -219,6 +239,7 @@ def loop_log(
         "qdd_plant": res.qdd_true,
     }
     units: dict[str, str] = {"qd_plant": "m/s", "qdd_plant": "m/s^2"}
+    controller, fs_hz, pulses = res.controller, res.fs_hz, res.pulses
     if isinstance(controller, PDSettings):
         chans["vir"] = res.vir
     if pulses is not None:
@@ -231,17 +252,17 @@ def loop_log(
             units[f"{name}_hat"] = model.units[i]
     m: dict[str, Any] = {
         "sample_rate_hz": fs_hz,
-        "true_parameters": params.to_dict(),
-        "effects": effects_to_dict(effects),
+        "true_parameters": res.params.to_dict(),
+        "effects": effects_to_dict(res.effects),
         "controller": controller.to_dict(),
         "simulation": {
-            "seed": int(seed),
-            "substeps": int(substeps),
-            "dt": 1.0 / fs_hz / substeps,
+            "seed": int(res.seed),
+            "substeps": res.substeps,
+            "dt": 1.0 / fs_hz / res.substeps,
             "control_period": 1.0 / fs_hz,
             "integrator": "RK4, fixed step, control held per period, Karnopp stick/slip with zero-crossing location",
             "stick_velocity": STICK_VELOCITY,
-            "tau_sensor": tau_sensor,
+            "tau_sensor": res.tau_sensor,
             "samples": len(res.t),
             "duration_s": len(res.t) / fs_hz,
             "plant": "plant (ilic)",

@@ -167,21 +167,7 @@ def simulate_replay(
     meta: dict[str, Any] = {"replay_of": log.meta.get("source"), "scenario": {"name": "replay", "source": log.meta.get("source")}}
     if resampled:
         meta["replay_clock_s"] = clock_s
-    return loop_log(
-        res,
-        q_ref=q_ref,
-        qd_ref=qd_ref,
-        qdd_ref=qdd_ref,
-        controller=ctl,
-        params=params,
-        effects=eff,
-        fs_hz=fs,
-        substeps=substeps,
-        seed=seed,
-        tau_sensor=sensor,
-        pulses=pulses,
-        meta=meta,
-    )
+    return loop_log(res, q_ref=q_ref, qd_ref=qd_ref, qdd_ref=qdd_ref, meta=meta)
 
 
 def _trajectory_from_meta(log: RunLog, fs: float) -> Any:
@@ -283,20 +269,6 @@ def simulate_open_loop(
     res.t = np.asarray(log.t[init_samples:], dtype=np.float64).copy()
     rmse = float(np.sqrt(np.mean((res.q_true - q) ** 2)))
     figure = BenchmarkFigure(rmse_mm=1e3 * rmse, fit_pct=100.0 * (1.0 - rmse / float(np.std(q))), samples=len(q), init_samples=init_samples)
-    out = loop_log(
-        res,
-        q_ref=q,
-        qd_ref=zero,
-        qdd_ref=zero,
-        controller=OpenLoopSettings(gtau=float(gain)),
-        params=params,
-        effects=eff,
-        fs_hz=1.0 / T,
-        substeps=substeps,
-        seed=0,
-        tau_sensor="command",
-        pulses=np.asarray(log["vir"][init_samples:], dtype=np.float64),
-        meta={"replay_of": log.meta.get("source"), "benchmark": figure.to_dict()},
-    )
+    out = loop_log(res, q_ref=q, qd_ref=zero, qdd_ref=zero, meta={"replay_of": log.meta.get("source"), "benchmark": figure.to_dict()})
     out.channels["q"] = res.q_true  # the simulated output (no sensor effects in the benchmark's comparison)
     return out, figure

@@ -228,20 +228,7 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
         progress=progress,
     )
     scen_meta["trajectory"] = traj.to_dict()
-    return loop_log(
-        res,
-        q_ref=q_r,
-        qd_ref=qd_log,
-        qdd_ref=qdd_log,
-        controller=ctl,
-        params=params,
-        effects=effects,
-        fs_hz=FS_HZ,
-        substeps=ov.substeps,
-        seed=ov.seed,
-        tau_sensor=sensor,
-        meta={"scenario": scen_meta},
-    )
+    return loop_log(res, q_ref=q_r, qd_ref=qd_log, qdd_ref=qdd_log, meta={"scenario": scen_meta})
 
 
 def _read_reference_log(path: str | Path | None) -> RunLog:

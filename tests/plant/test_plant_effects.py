@@ -87,7 +87,7 @@ def _closed_loop(effects: dict, *, sensor: str = "centred", seconds: float = 3.0
     ctl = CTCSettings(ilic=False, chi0={"M": 95.0, "Fv": 200.0, "Fc": 20.0})
     eff = make_effects(effects)
     res = simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, params=P, effects=eff, controller=ctl, tau_sensor=sensor, seed=seed)
-    log = loop_log(res, q_ref=q_r, qd_ref=qd_r, qdd_ref=qdd_r, controller=ctl, params=P, effects=eff, fs_hz=FS, substeps=10, seed=seed, tau_sensor=sensor)
+    log = loop_log(res, q_ref=q_r, qd_ref=qd_r, qdd_ref=qdd_r)
     return log
 
 
