@@ -168,8 +168,8 @@ JOINT_UNITS = {"prismatic": ("m", "N"), "revolute": ("rad", "N·m")}
 """Position and force units of a joint (ROS REP 103: a JointState is in these units and says nothing of which)."""
 
 
-MOTION_CHANNELS = ("q", "q_ref", "qd", "qd_ref", "qdd_ref")
-"""Channels in the joint's position unit (or its derivatives), scaled by a transmission."""
+MOTION_CHANNELS = {"q": "", "q_ref": "", "qd": "/s", "qd_ref": "/s", "qdd_ref": "/s^2"}
+"""Channels in the joint's position unit (or its derivatives: the unit's suffix), scaled by a transmission."""
 
 
 def _joint_units(joint: str) -> tuple[str, str]:
@@ -186,8 +186,7 @@ def as_joint(log: RunLog, joint: str) -> RunLog:
     say): the user's declaration labels every parameter (kg or kg·m², ...).
     """
     position, force = _joint_units(joint)
-    suffix = {"q": "", "q_ref": "", "qd": "/s", "qd_ref": "/s", "qdd_ref": "/s^2"}
-    labels = {"tau": force} | {n: position + suffix[n] for n in MOTION_CHANNELS}
+    labels = {"tau": force} | {n: position + suffix for n, suffix in MOTION_CHANNELS.items()}
     units = dict(log.units) | {name: unit for name, unit in labels.items() if name in log.channels}
     return RunLog(dict(log.channels), units, dict(log.meta))
 
