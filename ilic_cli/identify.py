@@ -301,23 +301,22 @@ def identify(
             )
     if valid is not None:
         report.warnings.append(_masked_summary(report, valid, str(prepared.saturation_note())))
+    estimates: list[tuple[str, np.ndarray]] = []  # (method, theta) applied to each validation log
+    if report.ls is not None:
+        estimates.append(("IDIM-LS", report.ls.result.theta))
+    if report.ilic is not None and report.ilic.windows and np.all(np.isfinite(report.ilic.windows[-1].result.theta)):
+        estimates.append((f"IDIM-ILIC (k={report.ilic.windows[-1].k})", report.ilic.windows[-1].result.theta))
+    estimates += [(cl.method, cl.result.theta) for cl in report.closed_loop()]
     for other in validate or []:
         osrc = str(other.meta.get("source", ""))
         op = prepare_log(other, prefix=f"validation log {osrc}")
+        vlog = op.log  # an irregularly sampled log is on a uniform grid now
         report.warnings.extend(op.warnings)
         if op.valid is not None:
             report.warnings.append(f"validation log {osrc}: {op.saturation_note()}")
-        if report.ls is not None:
-            res = cross_validate(report.ls.result.theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
-            report.validation.append(Validation(osrc, "IDIM-LS", res))
-        if report.ilic is not None and report.ilic.windows:
-            theta = report.ilic.windows[-1].result.theta
-            if np.all(np.isfinite(theta)):
-                res = cross_validate(theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
-                report.validation.append(Validation(osrc, f"IDIM-ILIC (k={report.ilic.windows[-1].k})", res))
-        for cl in report.closed_loop():
-            res = cross_validate(cl.result.theta, other.t, other["q"], other["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
-            report.validation.append(Validation(osrc, cl.method, res))
+        for label, theta in estimates:
+            res = cross_validate(theta, vlog.t, vlog["q"], vlog["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
+            report.validation.append(Validation(osrc, label, res))
     return report
 
 

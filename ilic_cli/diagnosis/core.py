@@ -208,6 +208,7 @@ def diagnose(
     """
     settings = settings or DiagnoseSettings()
     prepared = prepare_log(log)
+    log = prepared.log  # an irregularly sampled log is on a uniform grid now
     prepared.require_contiguous("diagnosis")
     fs = prepared.fs_hz
     src = prepared.source
@@ -216,6 +217,7 @@ def diagnose(
     data = _prepare(prepared, base, settings.ls)
     vprepared = prepare_log(validate, prefix=f"validation log {validate.meta.get('source', '')}") if validate is not None else None
     if vprepared is not None:
+        validate = vprepared.log
         vprepared.require_contiguous("diagnosis")
     vdata = _prepare(vprepared, base, settings.ls) if vprepared is not None else None
     for p in (prepared, vprepared):
