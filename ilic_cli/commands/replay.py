@@ -73,8 +73,9 @@ def command(
         raise IlicError(output, "output would overwrite the input; choose another output path")
     params, effects = plant_of_model_file(model_file)
     if open_loop:
-        run = load(log, input_format, topic, ref_topic, joint, columns)
-        prepare_log(run).require_contiguous("an open-loop simulation")
+        prepared = prepare_log(load(log, input_format, topic, ref_topic, joint, columns))
+        prepared.require_contiguous("an open-loop simulation")
+        run = prepared.log  # an irregularly sampled log is on a uniform grid now
         sim, figure = simulate_open_loop(run, params, effects, substeps=substeps)
         sim.meta["model_file"] = str(model_file)
         write_log(sim, output, out_format, inputs=(log,))

@@ -278,3 +278,24 @@ def test_an_irregular_validation_log_is_validated_on_its_uniform_grid(emps: RunL
     regular = identify(emps, method="ls", validate=[emps]).validation[0].to_dict()["relative_error_pct"]
     irregular = identify(emps, method="ls", validate=[_irregular(emps)]).validation[0].to_dict()["relative_error_pct"]
     assert abs(irregular - regular) < 0.2, (regular, irregular)
+
+
+def test_an_irregular_log_is_simulated_open_loop_on_its_uniform_grid(emps_pulses_mat: Path, tmp_path: Path) -> None:
+    """The benchmark figure of the published rigid model: 8.38 mm on the pulse run, 8.3-8.5 mm on its irregular copy.
+
+    On the raw stamps the recorded command was applied as if uniformly spaced: 11.63 mm here (and 4.97 mm, a
+    better figure that was wrong, with the diagnosed model, which gives 11.76 mm on the recording).
+    """
+    import json
+
+    from plant.scenarios import PUBLISHED_RIGID
+
+    model = tmp_path / "rigid.json"
+    model.write_text(json.dumps(PUBLISHED_RIGID))
+    path = write_log(_irregular(read_log(emps_pulses_mat)), tmp_path / "irregular.mcap")
+    figures = []
+    for log in (emps_pulses_mat, path):
+        res = run_cli("replay", str(log), "--model", str(model), "--open-loop", "-o", str(tmp_path / "ol.mcap"))
+        assert res.status == 0, res.stderr
+        figures.append(float(res.stderr.split("RMSE ")[1].split(" mm")[0]))
+    assert figures[0] == pytest.approx(8.38, abs=0.005) and abs(figures[1] - figures[0]) < 0.3, figures
