@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
-from ilic_cli.errors import LogError
+from ilic_cli.errors import ChoiceError, LogError
 
 if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
@@ -187,6 +187,7 @@ def read_log(
     if p.is_file() and p.stat().st_size == 0:
         raise LogError(p, "file is empty")
     name = detect_format(p, fmt)
+    _refuse_unused(p, name, selection or Selection())
     token = _PROGRESS.set(progress)
     try:
         # the keyword is passed only when it asks for the per-message path, so a
@@ -200,6 +201,23 @@ def read_log(
     if validate:
         validate_samples(log, str(p))
     return log
+
+
+SELECTED_BY = {
+    "topic": ("topics", ("mcap", "rosbag1", "rosbag2")),
+    "ref_topic": ("reference topics", ("mcap", "rosbag1", "rosbag2")),
+    "joint": ("joint names", ("mcap", "rosbag1", "rosbag2")),
+    "effort": ("effort topics", ("mcap", "rosbag1", "rosbag2")),
+    "columns": ("named columns", ("csv",)),
+}
+"""Each field of a :class:`Selection`: what it selects and the formats that have it."""
+
+
+def _refuse_unused(path: Path, fmt: str, selection: Selection) -> None:
+    """Refuse a selection the format has nothing to apply to (it would be ignored, and the log read as if it were not given)."""
+    for name, (what, formats) in SELECTED_BY.items():
+        if getattr(selection, name) and fmt not in formats:
+            raise ChoiceError(path, f"a {fmt} log has no {what} to select", name.replace("_", "-"))
 
 
 def _return_freed_memory() -> None:
