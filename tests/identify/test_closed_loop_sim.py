@@ -29,11 +29,13 @@ from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
 from plant.scenarios import PUBLISHED_RIGID, Overrides, run_scenario
 from tests.clirun import run_cli
+from tests.conftest import require_shared
 
 RIGID = ("M", "Fv", "Fc")
 
 
 def pd_log(q_std: float, seed: int = 1) -> RunLog:
+    require_shared()  # the emps-benchmark scenario replays DATA_EMPS.mat's reference
     return run_scenario("emps-benchmark", Overrides(duration_s=10.0, seed=seed, effects={"noise": {"tau_std": 2.0, "q_std": q_std}}))
 
 
