@@ -155,6 +155,7 @@ def test_bad_settings_are_domain_errors() -> None:
 def test_didim_with_effect_columns_simulates_the_effect() -> None:
     # the diagnosis will refit effects as closed-loop models: the Model's extra columns become a plant effect in each replay
     ripple = {"A": 3.0, "L": 0.0125, "phase": 0.5}
+    require_shared()  # the emps-benchmark scenario replays DATA_EMPS.mat's reference
     log = run_scenario("emps-benchmark", Overrides(duration_s=10.0, seed=1, effects={"noise": {"tau_std": 2.0, "q_std": 2e-6}, "position_ripple": ripple}))
     report = identify(log, method="didim", structure="rigid-offset", effects={"position_ripple": ripple["L"]})
     assert report.didim is not None and report.didim.converged
