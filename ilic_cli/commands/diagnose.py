@@ -8,10 +8,12 @@ import click
 
 from ilic_cli.commands.common import STRUCTURES, controller_options, input_options, load, note, with_controller
 from ilic_cli.diagnosis import DiagnoseSettings, SelectSettings, diagnose
+from ilic_cli.diagnosis.core import replay_alpha as replay_alpha_of
+from ilic_cli.diagnosis.null import NULL_KINDS, NullSettings
 from ilic_cli.diagnosis.plots import write_plots
 from ilic_cli.diagnosis.report import to_json, to_markdown
 from ilic_cli.effects import catalogue_ids
-from ilic_cli.errors import IlicError
+from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.io.atomic import atomic_write_text
 from ilic_cli.modelfile import load_model_file
 
@@ -59,6 +61,30 @@ from ilic_cli.modelfile import load_model_file
 @click.option(
     "--no-simulation", "no_simulation", is_flag=True, help="Skip the replay through the plant (the comparison, and its decision on the proposed effects)."
 )
+@click.option(
+    "--null",
+    "null",
+    type=click.Choice(NULL_KINDS),
+    default="dm",
+    show_default=True,
+    help="Test that decides the replay: dm (Diebold-Mariano, asymptotic) or montecarlo "
+    "(the kept model simulated in closed loop with the log's own noise model, --replicates times).",
+)
+@click.option(
+    "--replicates",
+    type=click.IntRange(min=1),
+    default=99,
+    show_default=True,
+    help="Replicates B of --null montecarlo; at least 1/alpha - 1 for --replay-alpha.",
+)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Seed of the Monte-Carlo replicates.")
+@click.option(
+    "--replay-alpha",
+    "replay_alpha",
+    type=click.FloatRange(min=0, max=1, min_open=True, max_open=True),
+    default=None,
+    help="Level of the replay's test [default: 0.01, the held-out level].",
+)
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="What to print on stdout.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report.md, report.json, model.json and plots.")
 @controller_options
@@ -73,6 +99,10 @@ def command(
     folds: int,
     effects: str | None,
     no_simulation: bool,
+    null: str,
+    replicates: int,
+    seed: int,
+    replay_alpha: float | None,
     out_format: str,
     out_dir: Path | None,
     controller: str | None,
@@ -117,7 +147,16 @@ def command(
         run = with_controller(run, log, controller, kp, kv, drive_gain)
     sim = load(against, None, topic, ref_topic, joint, columns) if against is not None else None
     other = load(validate, None, topic, ref_topic, joint, columns) if validate is not None else None
-    settings = DiagnoseSettings(model=structure, select=SelectSettings(alpha=alpha, folds=folds, effects=chosen), simulate=not no_simulation)
+    settings = DiagnoseSettings(
+        model=structure,
+        select=SelectSettings(alpha=alpha, folds=folds, effects=chosen),
+        simulate=not no_simulation,
+        null=NullSettings(null, replicates, seed, replay_alpha),
+    )
+    try:
+        settings.null.check(replay_alpha_of(settings))
+    except ParameterError as exc:
+        raise IlicError("--replicates", exc.problem) from None
     result = diagnose(run, settings=settings, model_doc=model_doc, against=sim, validate=other)
     for w in result.warnings:
         note(f"ilic: warning: {w}")

@@ -36,18 +36,19 @@ class SimulationComparison:
         return {"source": self.source, "before": self.before, "after": self.after, "located": [r.to_dict() for r in self.located], "note": self.note}
 
 
-def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None) -> RunLog:
+def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, *, seed: int = 0) -> RunLog:
     """Replay ``log``'s reference (and pulses) through the plant (:func:`plant.simulate_replay`).
 
     The controller is the log's (metadata); the force sensor is the one the
     log was simulated with when it says so, else the benchmark's command
     (``tau = gtau * vir``). ``payload_change`` times are log times; the
-    closed loop counts from the first sample.
+    closed loop counts from the first sample. ``seed``: of the noise effects
+    (:mod:`ilic_cli.diagnosis.null`'s replicates).
     """
     effects = dict(effects or {})
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
-    return simulate_replay(log, params, effects, tau_sensor=tau_sensor(log))
+    return simulate_replay(log, params, effects, tau_sensor=tau_sensor(log), seed=seed)
 
 
 def tau_sensor(log: RunLog) -> str | None:

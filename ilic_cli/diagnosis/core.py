@@ -16,6 +16,7 @@ from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
 from ilic_cli.diagnosis.decide import ReplayVerdict, effect_force_rms, immaterial, replay_decide
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
+from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
 from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
@@ -43,12 +44,15 @@ class DiagnoseSettings:
         Statistics of the forward selection.
     simulate : bool
         Replay the recorded reference through the plant (before/after).
+    null : NullSettings
+        The test that decides the replay (default: Diebold-Mariano; or a Monte-Carlo null).
     """
 
     model: str = "rigid-offset"
     ls: LSSettings = LSSettings()
     select: SelectSettings = field(default_factory=SelectSettings)
     simulate: bool = True
+    null: NullSettings = NullSettings()
 
 
 @dataclass
@@ -126,7 +130,12 @@ class Diagnosis:
             "simulation": None if self.simulation is None else self.simulation.to_dict(),
             "validation_source": self.validation_source,
             "model_file": self.model_file,
-            "settings": {"model": self.settings.model, "ls": self.settings.ls.to_dict(), "selection": self.settings.select.to_dict()},
+            "settings": {
+                "model": self.settings.model,
+                "ls": self.settings.ls.to_dict(),
+                "selection": self.settings.select.to_dict(),
+                "replay_test": self.settings.null.to_dict(),
+            },
             "warnings": list(self.warnings),
         }
 
@@ -207,6 +216,7 @@ def diagnose(
         Another recording: candidates must not raise the error there.
     """
     settings = settings or DiagnoseSettings()
+    settings.null.check(replay_alpha(settings))
     prepared = prepare_log(log)
     log = prepared.log  # an irregularly sampled log is on a uniform grid now
     prepared.require_contiguous("diagnosis")
@@ -350,8 +360,12 @@ def _decide(
             return model_parameters(steps, names, theta, np.zeros((len(theta), len(theta))), hold)
 
         v = (validate, settings.ls) if validate is not None and "q_ref" in validate else None
+        ns = settings.null
+        null = None
+        if ns.kind == "montecarlo":
+            null = MonteCarloNull(ns.replicates, ns.seed, settings.ls, lambda lg: _prepare(prepare_log(lg), base, settings.ls))
         kept, judged = replay_decide(
-            log, data, base, known, material, rows, plant_of, folds=settings.select.folds, alpha=settings.select.alpha_heldout, validate=v
+            log, data, base, known, material, rows, plant_of, folds=settings.select.folds, alpha=replay_alpha(settings), validate=v, null=null
         )
         verdicts += judged
         kept = kept[len(known) :]
@@ -367,6 +381,11 @@ def _decide(
     order = [s.effect.id for s in selection.steps]
     verdicts.sort(key=lambda v: order.index(v.effect))
     return kept, verdicts
+
+
+def replay_alpha(settings: DiagnoseSettings) -> float:
+    """Level of the replay's test: ``settings.null.alpha``, else the selection's held-out level."""
+    return settings.null.alpha if settings.null.alpha is not None else settings.select.alpha_heldout
 
 
 def _with_std(res: LSResult, cov: np.ndarray) -> LSResult:

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,6 +37,9 @@ from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import lstsq, relative_error_pct
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
+
+if TYPE_CHECKING:
+    from ilic_cli.diagnosis.null import MonteCarloNull, NullDistribution
 
 MATERIAL_FORCE = 0.003
 """An effect whose force (RMS over the rows used) is below this share of the RMS force is not a finding.
@@ -73,19 +76,28 @@ class ReplayVerdict:
     validation_after: float | None
     accepted: bool
     reason: str
+    null: NullDistribution | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "effect": self.effect,
             "heldout_simulated_force_relative_error_pct": {"before": self.force_before, "after": self.force_after},
             "heldout_simulated_position_relative_error_pct": {"before": self.position_before, "after": self.position_after},
-            "test": None if self.p_value is None else {"test": DM_TEST, "p_value": self.p_value},
+            "test": self._test(),
             "validation_simulated_force_relative_error_pct": None
             if self.validation_before is None
             else {"before": self.validation_before, "after": self.validation_after},
             "accepted": self.accepted,
             "reason": self.reason,
         }
+
+    def _test(self) -> dict[str, Any] | None:
+        """The test that decided (``None``: none ran), with the Monte-Carlo null's summary when it was that one."""
+        if self.null is not None:
+            from ilic_cli.diagnosis.null import MC_TEST
+
+            return {"test": MC_TEST, "p_value": self.p_value, "replicates": len(self.null.t_null), "null_distribution": self.null.to_dict()}
+        return None if self.p_value is None else {"test": DM_TEST, "p_value": self.p_value}
 
 
 def immaterial(step: Step, force_rms: float, total_rms: float, fs_hz: float) -> str | None:
@@ -150,6 +162,7 @@ def replay_decide(
     folds: int = 5,
     alpha: float = 0.01,
     validate: tuple[RunLog, LSSettings] | None = None,
+    null: MonteCarloNull | None = None,
 ) -> tuple[list[Step], list[ReplayVerdict]]:
     """Keep the proposed steps that lower the held-out closed-loop output error, in order.
 
@@ -176,6 +189,9 @@ def replay_decide(
     validate : (RunLog, LSSettings), optional
         A validation recording (and the settings of :func:`ilic_cli.diagnosis.compare.relative_errors`):
         its simulated force error, with the model fitted on ``data``, must not rise.
+    null : MonteCarloNull, optional
+        Significance from a Monte-Carlo null of the closed loop (:mod:`ilic_cli.diagnosis.null`)
+        instead of the Diebold-Mariano test's asymptotic p; computed when the error falls.
 
     Returns
     -------
@@ -230,6 +246,12 @@ def replay_decide(
         fb, fa = rel(current[0], tau_dec, idx_tau), rel(after[0], tau_dec, idx_tau)
         pb, pa = rel(current[1], q, idx_q), rel(after[1], q, idx_q)
         p = diebold_mariano(current[0], after[0])
+        mc, significant = None, p < alpha
+        if null is not None:  # a Monte-Carlo p where the error falls (significant at p <= alpha); where it does not, no test decides
+            mc = null.distribution(log, data, base, kept, st, rows, plant_of, folds, p) if fa < fb else None
+            p = mc.p_value if mc is not None else None
+            significant = p is not None and p <= alpha * (1 + 1e-9)
+        p_text = "" if p is None else f"p = {p:.2g}" if mc is None else f"Monte-Carlo p = {p:.2g}, B = {len(mc.t_null)}"
         vb = va = None
         if validate is not None:
             vlog, vls = validate
@@ -238,20 +260,26 @@ def replay_decide(
                 vb, va = (relative_errors(vlog, s, vls)["force"] for s in sims)
         if not fa < fb:
             ok, why = False, f"rejected by the replay: the held-out simulated force error does not fall ({fb:.3g} % -> {fa:.3g} %)"
-        elif p >= alpha:
-            ok, why = False, f"rejected by the replay: the held-out simulated force error falls ({fb:.3g} % -> {fa:.3g} %) but not significantly (p = {p:.2g})"
+        elif not significant:
+            ok, why = (
+                False,
+                (f"rejected by the replay: the held-out simulated force error falls ({fb:.3g} % -> {fa:.3g} %) but not significantly ({p_text})"),
+            )
         elif pa > pb:
             ok, why = False, f"rejected by the replay: the held-out simulated position error rises ({pb:.3g} % -> {pa:.3g} %)"
         elif va is not None and vb is not None and va > vb:
             ok, why = False, f"rejected by the replay: the validation log's simulated force error rises ({vb:.3g} % -> {va:.3g} %)"
         else:
-            ok, why = True, f"the replay agrees: held-out simulated force error {fb:.3g} % -> {fa:.3g} % (p = {p:.2g}), position {pb:.3g} % -> {pa:.3g} %"
+            ok, why = (
+                True,
+                (f"the replay agrees: held-out simulated force error {fb:.3g} % -> {fa:.3g} % ({p_text}), position {pb:.3g} % -> {pa:.3g} %"),
+            )
         if ok and st.effect.shift and st.value:
             refined = _refined_shift(log, data, base, kept, st, rows, plant_of, tau_dec, step_dec)
             if refined.value != st.value:
                 why += f"; the lag refined on the closed loop: {1e3 * st.value:.3g} ms -> {1e3 * refined.value:.3g} ms"
                 st = refined
-        verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why))
+        verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why, mc))
         if ok:
             kept.append(st)
             current = after

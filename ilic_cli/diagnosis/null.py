@@ -1,0 +1,573 @@
+"""A Monte-Carlo null for the replay's decision: simulate the kept model with the log's own noise, and see how often it does as well.
+
+The replay (:func:`ilic_cli.diagnosis.decide.replay_decide`) keeps a proposed
+effect when its held-out simulated force error falls significantly. By default
+significance is a one-sided Diebold-Mariano test, whose level is asymptotic and
+assumes what closed-loop errors are not (measured on 96 forced spurious
+candidates on clean plant logs: median p 0.92, conservative but not calibrated
+by construction). Here (``ilic diagnose --null montecarlo``) it comes from the
+test's own distribution under the null hypothesis that the model kept so far is
+the truth:
+
+1. The log's residual noise model (:func:`estimate_noise`): white position
+   noise and the encoder's quantisation step, estimated from the recording's
+   position, and a band-limited force disturbance on the axis sized so that
+   the kept model's replay leaves the recording's force residual (in the band
+   the replay compares: the error decimated as the IDIM system is).
+2. For ``b = 1..B``: the kept model's closed loop, driven by the log's
+   reference and controller, with that noise (seed :func:`replicate_seed`)
+   gives a synthetic log with the recording's metadata (:func:`synthetic_log`);
+   it is prepared as the recording is, the same candidate effect is proposed
+   on it again (its nonlinear parameter searched as
+   :mod:`ilic_cli.diagnosis.select` does) and the same held-out replay
+   statistic is computed (the Diebold-Mariano ``z`` of
+   :func:`~ilic_cli.diagnosis.decide.replay_decide`: larger is a larger fall).
+3. ``p = (1 + #{T_b >= T_obs}) / (B + 1)`` (:func:`mc_p_value`): exact at any
+   ``B`` under exchangeability; a decision at level ``alpha`` needs
+   ``B >= 1/alpha - 1`` (:func:`min_replicates`), else it could never reject.
+
+The noise uses the plant's own effects (``noise``, ``quantization``,
+``disturbance``: :mod:`plant.sensors`), as the corpus builds its noisy logs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.diagnosis.compare import replay
+from ilic_cli.diagnosis.decide import PlantOf, replay_decide
+from ilic_cli.diagnosis.select import Searcher, Step, moving_rows, system
+from ilic_cli.errors import ParameterError
+from ilic_cli.filtering import butter_lowpass_zero_phase, decimate_matlab, kept_indices
+from ilic_cli.idim_ls import IDIMData, LSSettings
+from ilic_cli.lsq import lstsq
+from ilic_cli.regressor import Model
+from ilic_cli.runlog import RunLog
+
+NULL_KINDS = ("dm", "montecarlo")
+"""``dm``: the asymptotic Diebold-Mariano test (default); ``montecarlo``: this module's null."""
+
+MC_TEST = "Monte-Carlo null: the kept model simulated in closed loop with the log's noise model, the candidate proposed again on each replicate"
+
+GRID_TOLERANCE = 0.01
+"""A position lies on a grid of step ``d`` when every ``(q - q[0]) / d`` is within this many steps of an integer."""
+
+BANDWIDTH_RANGE = (0.5, 0.4)
+"""The disturbance's corner frequency is kept within [0.5 Hz, 0.4 times the decimated rate]."""
+
+
+def min_replicates(alpha: float) -> int:
+    """Fewest replicates with which a Monte-Carlo test can reject at level ``alpha``: ``ceil(1/alpha - 1)``.
+
+    Parameters
+    ----------
+    alpha : float
+        Level of the test, in (0, 1).
+    """
+    return max(int(math.ceil(1.0 / alpha - 1.0 - 1e-9)), 1)
+
+
+def mc_p_value(t_obs: float, t_null: np.ndarray) -> float:
+    """Monte-Carlo p-value ``(1 + #{T_b >= T_obs}) / (B + 1)``; a replicate without a statistic (NaN) counts as ``>=``.
+
+    Parameters
+    ----------
+    t_obs : float
+        The statistic on the recording (larger: more evidence against the null).
+    t_null : ndarray
+        The ``B`` statistics of the replicates.
+    """
+    t = np.asarray(t_null, dtype=np.float64)
+    at_least = int(np.sum(~(t < t_obs)))  # NaN: not less, so counted
+    return (1.0 + at_least) / (len(t) + 1.0)
+
+
+def replicate_seed(seed: int, b: int) -> int:
+    """Noise seed of replicate ``b`` (``b = 0``: the sizing of the disturbance), from the run's ``seed`` (NumPy ``SeedSequence``).
+
+    Parameters
+    ----------
+    seed : int
+        ``ilic diagnose --seed``.
+    b : int
+        Replicate number.
+    """
+    return int(np.random.SeedSequence([int(seed), int(b)]).generate_state(1)[0])
+
+
+@dataclass(frozen=True)
+class NullSettings:
+    """Which test decides the replay, and how.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`NULL_KINDS`.
+    replicates : int
+        ``B`` of the Monte-Carlo null.
+    seed : int
+        Seed of the replicates (:func:`replicate_seed`).
+    alpha : float or None
+        Level of the replay's test; ``None``: the selection's ``alpha_heldout``.
+    """
+
+    kind: str = "dm"
+    replicates: int = 99
+    seed: int = 0
+    alpha: float | None = None
+
+    def check(self, alpha: float) -> None:
+        """Refuse an unknown kind, or a ``B`` too small for level ``alpha`` (:class:`ParameterError`).
+
+        Parameters
+        ----------
+        alpha : float
+            The level the replay's test decides at.
+        """
+        if self.kind not in NULL_KINDS:
+            raise ParameterError("null", self.kind, f"one of {', '.join(NULL_KINDS)}")
+        if self.kind == "montecarlo" and self.replicates < min_replicates(alpha):
+            raise ParameterError(
+                "replicates",
+                self.replicates,
+                f"at least {min_replicates(alpha)} for a Monte-Carlo test at level {alpha:g} (p cannot go below 1/(B+1)); "
+                f"or a larger --replay-alpha (B = 19 suffices for 0.05)",
+            )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"null": self.kind, "replicates": self.replicates if self.kind == "montecarlo" else None, "seed": self.seed, "alpha": self.alpha}
+
+
+# ---------------------------------------------------------------------------
+# the log's own noise model
+# ---------------------------------------------------------------------------
+def grid_step(q: np.ndarray) -> float | None:
+    """The step of the grid ``q`` lies on (an encoder's count), else ``None``.
+
+    Rule: ``d`` is the smallest difference between two distinct values of
+    ``q``; ``q`` is on the grid when every ``(q - q[0]) / d`` is within
+    :data:`GRID_TOLERANCE` of an integer (DATA_EMPS.mat: 5e-8 m, within 0.003
+    steps; the corpus logs: their 2e-7 m, within 5e-5).
+
+    Parameters
+    ----------
+    q : ndarray
+        Measured position.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    values = np.unique(q)
+    if len(values) < 3:
+        return None
+    d = float(np.min(np.diff(values)))
+    if not d > 0:
+        return None
+    r = (q - q[0]) / d
+    return d if float(np.max(np.abs(r - np.round(r)))) <= GRID_TOLERANCE else None
+
+
+def highpass_gain(fs_hz: float, ls: LSSettings, n: int = 4001) -> float:
+    """Variance gain of ``x - lowpass(x)`` for white ``x`` (the zero-phase low-pass of the IDIM position filter).
+
+    Exact for the linear operator away from the record's edges: the energy of
+    its response to a unit impulse in the middle of a record of ``n`` samples.
+
+    Parameters
+    ----------
+    fs_hz : float
+        Sample rate.
+    ls : LSSettings
+        The IDIM position filter (cut-off, order, MATLAB padding).
+    n : int
+        Length of the impulse record (odd).
+    """
+    x = np.zeros(n)
+    x[n // 2] = 1.0
+    h = x - butter_lowpass_zero_phase(x, ls.cutoff_hz, fs_hz, ls.order, matlab=ls.matlab)
+    return float(h @ h)
+
+
+def position_noise(q: np.ndarray, fs_hz: float, ls: LSSettings) -> tuple[float, float | None]:
+    """White position-noise std and quantisation step of a measured position.
+
+    ``r = q - lowpass(q)`` (the IDIM position filter, zero phase) holds the
+    noise above the cut-off; the motion of a drive below it is left out. With
+    the variance gain ``g`` of that high-pass (:func:`highpass_gain`) and a grid
+    step ``d`` (:func:`grid_step`, quantisation error ``d^2/12``):
+    ``std^2 = var(r)/g - d^2/12`` (at least 0). The first and last ``ls.trim``
+    samples (filter edges) are left out.
+
+    Parameters
+    ----------
+    q : ndarray
+        Measured position.
+    fs_hz : float
+        Sample rate.
+    ls : LSSettings
+        The IDIM position filter.
+
+    Returns
+    -------
+    (float, float or None)
+        Noise std (m) and grid step (m, ``None`` off a grid).
+    """
+    q = np.asarray(q, dtype=np.float64)
+    r = q - butter_lowpass_zero_phase(q, ls.cutoff_hz, fs_hz, ls.order, matlab=ls.matlab)
+    edge = max(ls.trim, 1)
+    r = r[edge:-edge]
+    var = float(np.mean((r - r.mean()) ** 2)) / highpass_gain(fs_hz, ls)
+    d = grid_step(q)
+    if d is not None:
+        var -= d * d / 12.0
+    return math.sqrt(max(var, 0.0)), d
+
+
+def disturbance_bandwidth(r: np.ndarray, fs_dec_hz: float) -> float:
+    """Corner frequency (Hz) of a second-order Butterworth noise with the lag-one autocorrelation of ``r``.
+
+    The autocorrelation of white noise through a second-order Butterworth
+    low-pass of corner ``fc`` is ``exp(-a t) (cos a t + sin a t)``,
+    ``a = sqrt(2) pi fc``; solved at one decimated period for the lag-one
+    autocorrelation of ``r``, within :data:`BANDWIDTH_RANGE`.
+
+    Parameters
+    ----------
+    r : ndarray
+        Decimated force residual (contiguous rows).
+    fs_dec_hz : float
+        Its rate.
+    """
+    from scipy.optimize import brentq  # deferred: scipy.optimize is slow to import
+
+    r = np.asarray(r, dtype=np.float64) - float(np.mean(r))
+    lo, hi = BANDWIDTH_RANGE[0], BANDWIDTH_RANGE[1] * fs_dec_hz
+    den = float(r @ r)
+    rho = float(r[1:] @ r[:-1]) / den if den > 0 else 0.0
+    T = 1.0 / fs_dec_hz
+
+    def acf(fc: float) -> float:
+        a = math.sqrt(2.0) * math.pi * fc * T
+        return math.exp(-a) * (math.cos(a) + math.sin(a))
+
+    if rho >= acf(lo):
+        return lo
+    if rho <= acf(hi):
+        return hi
+    return float(brentq(lambda fc: acf(fc) - rho, lo, hi, xtol=1e-6))
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """The log's residual noise, as the plant's effects (:meth:`effects`).
+
+    Attributes
+    ----------
+    q_std : float
+        White position noise (m).
+    resolution : float or None
+        Encoder quantisation step (m), ``None`` off a grid.
+    disturbance_std, bandwidth_hz : float
+        Band-limited force disturbance on the axis (N, Hz).
+    residual_rms : float
+        RMS of the recording's force residual it is sized to (N, decimated, the rows the replay compares).
+    """
+
+    q_std: float
+    resolution: float | None
+    disturbance_std: float
+    bandwidth_hz: float
+    residual_rms: float
+
+    def effects(self) -> dict[str, dict[str, float]]:
+        """The plant effects ``noise``, ``quantization`` and ``disturbance`` of this noise (those that are not zero)."""
+        out: dict[str, dict[str, float]] = {}
+        if self.q_std > 0:
+            out["noise"] = {"q_std": self.q_std, "tau_std": 0.0}
+        if self.resolution is not None:
+            out["quantization"] = {"resolution": self.resolution}
+        if self.disturbance_std > 0:
+            out["disturbance"] = {"std": self.disturbance_std, "bandwidth_hz": self.bandwidth_hz}
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "position_noise_std_m": self.q_std,
+            "quantization_step_m": self.resolution,
+            "disturbance_std_n": self.disturbance_std,
+            "disturbance_bandwidth_hz": self.bandwidth_hz,
+            "residual_rms_n": self.residual_rms,
+        }
+
+
+def compared_rows(log: RunLog, data: IDIMData, rows: np.ndarray) -> np.ndarray:
+    """Decimated samples of ``log`` the replay compares (those of its held-out blocks: from the first row used to the last)."""
+    t = np.asarray(log.t)
+    t_rows = data.t_dec[rows]
+    a, b = int(np.searchsorted(t, t_rows[0])), int(np.searchsorted(t, t_rows[-1], side="right"))
+    at = kept_indices(len(log), max(data.settings.decimation, 1))
+    return np.flatnonzero((at >= a) & (at < b))
+
+
+def disturbance_std(r_obs: np.ndarray, r_noise: np.ndarray, d_unit: np.ndarray) -> float:
+    """Std of the disturbance that brings the replay residual's mean square from ``r_noise``'s to ``r_obs``'s.
+
+    ``d_unit`` is the residual a disturbance of unit std adds (same noise
+    seed); the two parts are taken as uncorrelated:
+    ``S^2 = (ms(r_obs) - ms(r_noise)) / ms(d_unit)``, 0 when the position
+    noise alone leaves as much.
+
+    Parameters
+    ----------
+    r_obs, r_noise, d_unit : ndarray
+        Decimated force residuals (N) on the same rows.
+    """
+    ms = lambda x: float(np.mean(np.square(x)))  # noqa: E731
+    excess = ms(r_obs) - ms(r_noise)
+    return math.sqrt(excess / ms(d_unit)) if excess > 0 and ms(d_unit) > 0 else 0.0
+
+
+def _decimated_error(a: RunLog, b: RunLog, r: int, idx: np.ndarray) -> np.ndarray:
+    return decimate_matlab(np.asarray(a["tau"]) - np.asarray(b["tau"]), r)[idx]
+
+
+def estimate_noise(
+    log: RunLog, data: IDIMData, rows: np.ndarray, rigid: dict[str, float], effects: dict[str, Any], ls: LSSettings, seed: int = 0
+) -> NoiseModel:
+    """The residual noise model of ``log`` under the model ``(rigid, effects)``.
+
+    Position noise and quantisation from the recording (:func:`position_noise`),
+    corrected once so that the same estimate on a replay of the model with that
+    noise gives the recording's: in closed loop the controller feeds the noise
+    back into the motion above the cut-off (CTC corpus logs: 9-10 % too high
+    before, within 2 % after; PD logs of the EMPS reference: 1 % before). The
+    disturbance's bandwidth from the recorded replay residual
+    (:func:`disturbance_bandwidth`) and its std from replays of the model
+    (:func:`disturbance_std`): noise-free, with the position noise, and with it
+    and a disturbance of unit std (seed :func:`replicate_seed` ``(seed, 0)``).
+    The residual is the replayed force minus the logged one, decimated as the
+    IDIM system is, on the rows the replay compares (:func:`compared_rows`).
+
+    Parameters
+    ----------
+    log : RunLog
+        The recording.
+    data : IDIMData
+        Its IDIM system.
+    rows : ndarray of bool
+        Decimated rows used.
+    rigid, effects : dict
+        The model (plant parameters and effects), noise-free.
+    ls : LSSettings
+        The IDIM position filter and decimation.
+    seed : int
+        The run's seed.
+    """
+    q_std, res = position_noise(np.asarray(log["q"]), log.fs_hz, ls)
+    idx = compared_rows(log, data, rows)
+    r = max(data.settings.decimation, 1)
+    clean = replay(log, rigid, effects)
+    r_obs = _decimated_error(clean, log, r, idx)
+    rms = float(np.sqrt(np.mean(r_obs**2)))
+    fs_dec = log.fs_hz / r
+    bw = disturbance_bandwidth(r_obs, fs_dec)
+    s0 = replicate_seed(seed, 0)
+    noisy = replay(log, rigid, {**effects, **NoiseModel(q_std, res, 0.0, bw, rms).effects()}, seed=s0)
+    seen, _ = position_noise(np.asarray(noisy["q"]), log.fs_hz, ls)
+    if q_std > 0 and seen > 0:
+        q_std *= q_std / seen
+        noisy = replay(log, rigid, {**effects, **NoiseModel(q_std, res, 0.0, bw, rms).effects()}, seed=s0)
+    unit = replay(log, rigid, {**effects, **NoiseModel(q_std, res, 1.0, bw, rms).effects()}, seed=s0)
+    std = disturbance_std(r_obs, _decimated_error(clean, noisy, r, idx), _decimated_error(unit, noisy, r, idx))
+    return NoiseModel(q_std, res, std, bw, rms)
+
+
+# ---------------------------------------------------------------------------
+# replicates
+# ---------------------------------------------------------------------------
+SIMULATED_CHANNELS = ("q", "tau", "vir", "qd_plant", "qdd_plant")
+"""Channels of the recording a replicate replaces by the simulated ones (when the simulation has them); the rest is kept."""
+
+
+def synthetic_log(log: RunLog, rigid: dict[str, float], effects: dict[str, Any], noise: NoiseModel, seed: int) -> RunLog:
+    """One replicate: the model's closed loop on ``log``'s reference and controller, with ``noise``, as a log like ``log``.
+
+    The recording's channels and metadata, its measured ones
+    (:data:`SIMULATED_CHANNELS`) replaced by the simulation's; same seed,
+    bit-identical log.
+
+    Parameters
+    ----------
+    log : RunLog
+        The recording.
+    rigid, effects : dict
+        The model simulated (noise-free).
+    noise : NoiseModel
+        The noise added (:meth:`NoiseModel.effects`).
+    seed : int
+        Noise seed of the replicate (:func:`replicate_seed`).
+    """
+    sim = replay(log, rigid, {**effects, **noise.effects()}, seed=seed)
+    chans = {k: (sim[k] if k in SIMULATED_CHANNELS and k in sim else v) for k, v in log.channels.items()}
+    chans = {k: v for k, v in chans.items() if k not in SIMULATED_CHANNELS or k in sim}
+    meta = {**log.meta, "montecarlo_replicate": {"seed": int(seed), "noise": noise.to_dict()}}
+    return RunLog(chans, dict(log.units), meta)
+
+
+def reproposed(data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray) -> Step:
+    """``step``'s effect proposed again on ``data``: its nonlinear parameter searched as the selection does (grid, then refined).
+
+    Parameters
+    ----------
+    data : IDIMData
+        A replicate's IDIM system.
+    base : Model
+        Rigid structure.
+    kept : list of Step
+        The model so far (fixed).
+    step : Step
+        The candidate on the recording.
+    rows : ndarray of bool
+        Decimated rows used on ``data``.
+    """
+    eff = step.effect
+    if not eff.nonlinear:
+        return Step(eff, step.value)
+    W, y, _ = system(data, base, kept, rows)
+    searcher = Searcher(data, data.fs_hz, rows)
+    value = searcher.scan(eff, W, y)
+    value, _ = searcher.refine(eff, W, y, value)
+    return Step(eff, value)
+
+
+def dm_z(p: float | None) -> float:
+    """The Diebold-Mariano statistic ``z`` of its one-sided p-value (larger: a larger fall); NaN without one.
+
+    Parameters
+    ----------
+    p : float or None
+        One-sided p-value (:func:`ilic_cli.diagnosis.stats.diebold_mariano`).
+    """
+    from scipy.stats import norm
+
+    return math.nan if p is None else float(norm.isf(p))
+
+
+@dataclass
+class NullDistribution:
+    """The Monte-Carlo null of one candidate: the statistic on the recording and on each replicate.
+
+    Attributes
+    ----------
+    effect : str
+        The candidate.
+    t_obs : float
+        Diebold-Mariano ``z`` of the held-out replay errors on the recording.
+    t_null : ndarray
+        The same on each replicate (NaN: the replicate's model was no valid plant).
+    p_value : float
+        :func:`mc_p_value`.
+    noise : NoiseModel
+        The noise of the replicates.
+    dm_p_value : float
+        The asymptotic Diebold-Mariano p of the recording, for comparison.
+    """
+
+    effect: str
+    t_obs: float
+    t_null: np.ndarray
+    p_value: float
+    noise: NoiseModel
+    dm_p_value: float
+    values: list[Any] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        t = self.t_null[np.isfinite(self.t_null)]
+        qs = (0.05, 0.25, 0.5, 0.75, 0.95)
+        return {
+            "replicates": len(self.t_null),
+            "replicates_without_statistic": int(len(self.t_null) - len(t)),
+            "statistic": "Diebold-Mariano z of the held-out replayed force errors (larger: a larger fall)",
+            "t_obs": self.t_obs,
+            "t_null_quantiles": {f"q{int(100 * q):02d}": float(np.quantile(t, q)) for q in qs} if len(t) else None,
+            "t_null_max": float(t.max()) if len(t) else None,
+            "p_value": self.p_value,
+            "dm_p_value": self.dm_p_value,
+            "noise_model": self.noise.to_dict(),
+        }
+
+
+@dataclass(frozen=True)
+class MonteCarloNull:
+    """The hook :func:`~ilic_cli.diagnosis.decide.replay_decide` calls to judge a candidate (``--null montecarlo``).
+
+    Attributes
+    ----------
+    replicates : int
+        ``B``.
+    seed : int
+        The run's seed.
+    ls : LSSettings
+        IDIM filtering of the diagnosis.
+    prepare : callable
+        ``RunLog -> IDIMData``: the recording's preparation, applied to each replicate.
+    """
+
+    replicates: int
+    seed: int
+    ls: LSSettings
+    prepare: Callable[[RunLog], IDIMData]
+
+    @property
+    def test(self) -> str:
+        """Name of the test."""
+        return MC_TEST
+
+    def distribution(
+        self, log: RunLog, data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray, plant_of: PlantOf, folds: int, p_obs: float
+    ) -> NullDistribution:
+        """The null distribution of the replay statistic for ``step`` added to ``kept`` on ``log``, and its p-value.
+
+        Parameters
+        ----------
+        log : RunLog
+            The recording.
+        data : IDIMData
+            Its IDIM system.
+        base : Model
+            Rigid structure.
+        kept : list of Step
+            The model so far: the truth under the null.
+        step : Step
+            The candidate.
+        rows : ndarray of bool
+            Decimated rows used on the recording.
+        plant_of : callable
+            Plant parameters of a fit (as given to :func:`~ilic_cli.diagnosis.decide.replay_decide`).
+        folds : int
+            Held-out blocks.
+        p_obs : float
+            The recording's Diebold-Mariano p (its statistic is :func:`dm_z` of it).
+        """
+        W, y, names = system(data, base, kept, rows)
+        theta, _ = lstsq(W, y)
+        rigid, effects = plant_of(kept, names, theta)
+        noise = estimate_noise(log, data, rows, rigid, effects, self.ls, self.seed)
+        t_null = np.full(self.replicates, np.nan)
+        values = []
+        for b in range(1, self.replicates + 1):
+            try:
+                synth = synthetic_log(log, rigid, effects, noise, replicate_seed(self.seed, b))
+                data_b = self.prepare(synth)
+            except ParameterError:
+                continue
+            rows_b = moving_rows(data_b)
+            cand = reproposed(data_b, base, kept, step, rows_b)
+            values.append(cand.value)
+            _, verdicts = replay_decide(synth, data_b, base, kept, [cand], rows_b, plant_of, folds=folds, alpha=0.0)
+            t_null[b - 1] = dm_z(verdicts[0].p_value)
+        t_obs = dm_z(p_obs)
+        return NullDistribution(step.effect.id, t_obs, t_null, mc_p_value(t_obs, t_null), noise, p_obs, values)
