@@ -42,7 +42,7 @@ import numpy as np
 from ilic_cli.diagnosis.compare import replay
 from ilic_cli.diagnosis.decide import PlantOf, replay_decide
 from ilic_cli.diagnosis.select import Searcher, Step, moving_rows, system
-from ilic_cli.errors import ParameterError
+from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.filtering import butter_lowpass_zero_phase, decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import lstsq
@@ -562,12 +562,12 @@ class MonteCarloNull:
             try:
                 synth = synthetic_log(log, rigid, effects, noise, replicate_seed(self.seed, b))
                 data_b = self.prepare(synth)
-            except ParameterError:
+                rows_b = moving_rows(data_b)
+                cand = reproposed(data_b, base, kept, step, rows_b)
+                _, verdicts = replay_decide(synth, data_b, base, kept, [cand], rows_b, plant_of, folds=folds, alpha=0.0)
+            except IlicError:  # the replicate diverged, or left too little to fit: no statistic (counted as at least as extreme)
                 continue
-            rows_b = moving_rows(data_b)
-            cand = reproposed(data_b, base, kept, step, rows_b)
             values.append(cand.value)
-            _, verdicts = replay_decide(synth, data_b, base, kept, [cand], rows_b, plant_of, folds=folds, alpha=0.0)
             t_null[b - 1] = dm_z(verdicts[0].p_value)
         t_obs = dm_z(p_obs)
         return NullDistribution(step.effect.id, t_obs, t_null, mc_p_value(t_obs, t_null), noise, p_obs, values)

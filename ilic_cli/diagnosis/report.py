@@ -6,6 +6,8 @@ import json
 import math
 from typing import Any
 
+import numpy as np
+
 from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.diagnosis.locate import Region
 
@@ -134,9 +136,15 @@ def to_markdown(diag: Diagnosis) -> str:
         lines += [f"- {_region_words(r)}" for r in sorted(s_sig, key=lambda r: r.p_value)[:8]] or ["- nowhere (no significant region)"]
         lines.append("")
     if diag.decisions:
+        lines += ["## Proposed by the inverse model, decided by materiality and the replay", ""]
+        ns = diag.settings.null
+        if ns.kind == "montecarlo":
+            lines += [
+                f"The replay's test: a Monte-Carlo null, B = {ns.replicates} replicates of the kept model simulated in closed loop with the log's "
+                f"noise model (seed {ns.seed}); p = (1 + #{{T_b >= T_obs}}) / (B + 1), T the Diebold-Mariano z of the held-out errors.",
+                "",
+            ]
         lines += [
-            "## Proposed by the inverse model, decided by materiality and the replay",
-            "",
             "| effect | held-out simulated force | held-out simulated position | p | decision |",
             "| --- | --- | --- | --- | --- |",
         ]
@@ -144,6 +152,13 @@ def to_markdown(diag: Diagnosis) -> str:
             force = "" if v.force_before is None else f"{_pct(v.force_before)} -> {_pct(v.force_after)}"
             pos = "" if v.position_before is None else f"{v.position_before:.3g} % -> {v.position_after:.3g} %"
             p = "" if v.p_value is None else f"{v.p_value:.2g}"
+            if v.null is not None:
+                n = v.null.noise
+                p += (
+                    f" (Monte-Carlo, B = {len(v.null.t_null)}: T_obs {v.null.t_obs:.3g}, null median {np.nanmedian(v.null.t_null):.3g}, "
+                    f"max {np.nanmax(v.null.t_null):.3g}; noise: position {1e6 * n.q_std:.3g} um, disturbance {n.disturbance_std:.3g} N "
+                    f"at {n.bandwidth_hz:.3g} Hz)"
+                )
             lines.append(f"| {v.effect} | {force} | {pos} | {p} | {v.reason} |")
         lines.append("")
     lines += ["## Candidates tried", "", "| step | effect | F | p (adjusted) | held out before -> after | decision |", "| --- | --- | --- | --- | --- | --- |"]

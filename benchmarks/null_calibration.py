@@ -1,0 +1,151 @@
+"""Calibration and power of the replay's Monte-Carlo null (``ilic diagnose --null montecarlo``; issue #11 item 3).
+
+Calibration (``--clean``): on clean corpus logs (:data:`plant.corpus.CLEAN_CASES`,
+no physics beyond the rigid plant and its noise) every applicable catalogue
+effect is forced through the replay's decision as the first candidate (its
+nonlinear parameter searched on the log as the selection does,
+:func:`ilic_cli.diagnosis.null.reproposed`), whatever the inverse model's
+tests say of it. Each trial gives the asymptotic Diebold-Mariano p and the
+Monte-Carlo p with ``B`` replicates. Under the null, ``P(p_MC <= k/(B+1)) =
+k/(B+1)``: with ``B = 19``, 5 % of the trials should have ``p_MC <= 0.05``.
+
+Power (``--effects``): on concealed single-effect corpus logs the true effect
+is forced the same way; it should be accepted (``p_MC <= 1/(B+1)`` at ``B = 19``
+is the smallest p there is).
+
+Prints one Markdown row per trial and a summary; ``--json FILE`` keeps them.
+
+Usage: python benchmarks/null_calibration.py [--clean GLOB] [--effects GLOB] [--replicates 19] [--jobs 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from plant.corpus import CASES, CLEAN_CASES, EFFECT_CASES  # noqa: E402
+
+
+def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
+    """Force each effect of ``effects`` (default: every applicable one; a concealed case: its own) through the replay on case ``name``."""
+    import numpy as np
+
+    from ilic_cli.diagnosis.baseline import hold_s
+    from ilic_cli.diagnosis.compare import tau_sensor
+    from ilic_cli.diagnosis.core import _prepare, model_parameters
+    from ilic_cli.diagnosis.decide import replay_decide
+    from ilic_cli.diagnosis.null import MonteCarloNull, reproposed
+    from ilic_cli.diagnosis.select import Searcher, Step, at_edge, moving_rows, system
+    from ilic_cli.effects import EFFECTS, applicable
+    from ilic_cli.idim_ls import LSSettings
+    from ilic_cli.prepare import prepare_log
+    from ilic_cli.regressor import get_model
+    from plant.corpus import build_case
+
+    case = CASES[name]
+    log = prepare_log(build_case(case)).log
+    ls = LSSettings()
+    base = get_model("rigid-offset")
+    prep = lambda lg: _prepare(prepare_log(lg), base, ls)  # noqa: E731
+    data = prep(log)
+    rows = moving_rows(data)
+    hold = hold_s(tau_sensor(log), log.fs_hz)
+
+    def plant_of(steps, names, theta):  # type: ignore[no-untyped-def]
+        return model_parameters(steps, names, theta, np.zeros((len(theta), len(theta))), hold)
+
+    _, _, names = system(data, base, [], rows)
+    ids = effects or (tuple(case.effects) if case.effects else tuple(i for i in EFFECTS if EFFECTS[i].identifiable and applicable(EFFECTS[i], names)))
+    null = MonteCarloNull(replicates, seed, ls, prep)
+    out = []
+    for eid in ids:
+        t0 = time.perf_counter()
+        step = reproposed(data, base, [], Step(EFFECTS[eid]), rows)
+        edge = at_edge(step.effect, Searcher(data, data.fs_hz, rows).grid(step.effect)[0], step.value) if step.effect.nonlinear else None
+        _, (dm,) = replay_decide(log, data, base, [], [step], rows, plant_of, alpha=0.0)
+        row: dict[str, Any] = {"case": name, "effect": eid, "value": step.value, "edge": edge, "dm_p": dm.p_value}
+        row.update({"force_before": dm.force_before, "force_after": dm.force_after})
+        if dm.p_value is not None:
+            dist = null.distribution(log, data, base, [], step, rows, plant_of, 5, dm.p_value)
+            row.update({"mc_p": dist.p_value, "t_obs": dist.t_obs, "t_null": dist.t_null.tolist(), "noise": dist.noise.to_dict()})
+        row["wall_s"] = time.perf_counter() - t0
+        out.append(row)
+    return out
+
+
+def _job(args: tuple[str, int, int]) -> list[dict[str, Any]]:
+    try:
+        return forced_trials(*args)
+    except Exception as exc:  # one case's failure is a row, not the end of the run
+        return [{"case": args[0], "effect": "-", "value": None, "edge": None, "dm_p": None, "force_before": None, "error": repr(exc)}]
+
+
+def summary(rows: list[dict[str, Any]], replicates: int) -> dict[str, Any]:
+    """Rates: p_MC <= 0.05 and p_DM <= 0.05 / 0.01, and the trials without a p."""
+    with_mc = [r for r in rows if r.get("mc_p") is not None]
+    dm = [r["dm_p"] for r in rows if r["dm_p"] is not None]
+    return {
+        "trials": len(rows),
+        "replicates": replicates,
+        "mc_trials": len(with_mc),
+        "mc_p_le_0.05": sum(r["mc_p"] <= 0.05 + 1e-12 for r in with_mc),
+        "mc_p_le_0.10": sum(r["mc_p"] <= 0.10 + 1e-12 for r in with_mc),
+        "dm_p_le_0.05": sum(p <= 0.05 for p in dm),
+        "dm_p_le_0.01": sum(p <= 0.01 for p in dm),
+        "dm_p_median": sorted(dm)[len(dm) // 2] if dm else None,
+        "mc_p_median": sorted(r["mc_p"] for r in with_mc)[len(with_mc) // 2] if with_mc else None,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--clean", default=None, help="glob of clean case names (e.g. 'clean-*-s1')")
+    ap.add_argument("--effects", default=None, help="glob of concealed single-effect case names")
+    ap.add_argument("--replicates", type=int, default=19)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    names = [c.name for c in CLEAN_CASES if args.clean and fnmatch.fnmatch(c.name, args.clean)]
+    if args.effects:
+        names += [c.name for c in EFFECT_CASES if fnmatch.fnmatch(c.name, args.effects)]
+    jobs = [(n, args.replicates, args.seed) for n in names]
+    rows: list[dict[str, Any]] = []
+    if args.jobs > 1:
+        from multiprocessing import get_context
+
+        with get_context("spawn").Pool(args.jobs) as pool:
+            for rs in pool.imap(_job, jobs):
+                rows += rs
+                print(f"done {rs[0]['case'] if rs else ''}: {len(rows)} trials", file=sys.stderr, flush=True)
+    else:
+        for j in jobs:
+            rows += _job(j)
+            print(f"done {j[0]}: {len(rows)} trials", file=sys.stderr, flush=True)
+    print("| case | effect | edge | force before -> after % | DM p | MC p | T_obs | T_b max |\n|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        fb = "" if r["force_before"] is None else f"{r['force_before']:.3f} -> {r['force_after']:.3f}"
+        tmax = max((t for t in r.get("t_null", []) if t == t), default=float("nan"))
+        mc = r.get("mc_p")
+        print(
+            f"| {r['case']} | {r['effect']} | {'yes' if r['edge'] else ''} | {fb} | {r['dm_p'] if r['dm_p'] is None else format(r['dm_p'], '.3g')} | "
+            f"{'' if mc is None else format(mc, '.3g')} | {r.get('t_obs', float('nan')):.3g} | {tmax:.3g} |"
+        )
+    s = summary(rows, args.replicates)
+    print()
+    print(json.dumps(s))
+    if args.json is not None:
+        args.json.write_text(json.dumps({"rows": rows, "summary": s}, indent=1, default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
