@@ -156,7 +156,7 @@ def command(
     try:
         settings.null.check(replay_alpha_of(settings))
     except ParameterError as exc:
-        raise IlicError("--replicates", exc.problem) from None
+        raise IlicError("--replicates", f"{exc.problem}; or a larger --replay-alpha (B = 19 suffices for 0.05)") from None
     result = diagnose(run, settings=settings, model_doc=model_doc, against=sim, validate=other)
     for w in result.warnings:
         note(f"ilic: warning: {w}")

@@ -135,8 +135,7 @@ class NullSettings:
             raise ParameterError(
                 "replicates",
                 self.replicates,
-                f"at least {min_replicates(alpha)} for a Monte-Carlo test at level {alpha:g} (p cannot go below 1/(B+1)); "
-                f"or a larger --replay-alpha (B = 19 suffices for 0.05)",
+                f"at least {min_replicates(alpha)} for a Monte-Carlo test at level {alpha:g} (p cannot go below 1/(B+1))",
             )
 
     def to_dict(self) -> dict[str, Any]:
@@ -474,6 +473,8 @@ class NullDistribution:
         The noise of the replicates.
     dm_p_value : float
         The asymptotic Diebold-Mariano p of the recording, for comparison.
+    values : list
+        The candidate's nonlinear value found on each replicate that gave a statistic.
     """
 
     effect: str
@@ -520,11 +521,6 @@ class MonteCarloNull:
     seed: int
     ls: LSSettings
     prepare: Callable[[RunLog], IDIMData]
-
-    @property
-    def test(self) -> str:
-        """Name of the test."""
-        return MC_TEST
 
     def distribution(
         self, log: RunLog, data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray, plant_of: PlantOf, folds: int, p_obs: float
