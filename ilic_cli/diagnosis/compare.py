@@ -92,8 +92,12 @@ def compare_simulation(
     against: RunLog | None,
     ls: LSSettings,
     alpha: float,
+    after_sim: RunLog | None = None,
 ) -> SimulationComparison:
-    """Before (the rigid model, or ``against``) and after (the augmented model) replays against the recording."""
+    """Before (the rigid model, or ``against``) and after (the augmented model) replays against the recording.
+
+    ``after_sim``: the replay of ``after_params`` and ``after_effects`` when the caller has it (not replayed again).
+    """
     note = ""
     if against is not None:
         if len(against) != len(log):
@@ -107,7 +111,7 @@ def compare_simulation(
     after = None
     sim1 = None
     if after_effects is not None and "q_ref" in log:
-        sim1 = replay(log, after_params, after_effects)
+        sim1 = after_sim if after_sim is not None else replay(log, after_params, after_effects)
         after = relative_errors(log, sim1, ls)
     n = min(len(log), len(sim0))
     tau_s = np.asarray(sim0["tau"][:n])
