@@ -356,9 +356,12 @@ def closed_loop_refit(
 
         model = extended(base, model_steps, fs)
         try:
-            res = closed_loop_identify("didim", log, model, theta, effects=values_of(model_steps), ls_settings=ls, prepared=prepared, simulate=checked)
+            with np.errstate(over="ignore", invalid="ignore"):  # a diverging iteration ends below, not in warnings
+                res = closed_loop_identify("didim", log, model, theta, effects=values_of(model_steps), ls_settings=ls, prepared=prepared, simulate=checked)
         except IlicError as exc:
             return exc.problem
+        if not (np.all(np.isfinite(res.result.theta)) and math.isfinite(res.result.error_norm)):
+            return "DIDIM diverged"
         if problem := plant_problem(model_steps, model.names, res.result.theta):
             return f"its estimate is no plant of the effects named ({problem})"
         return res, sims
