@@ -294,8 +294,6 @@ def diagnose(
             std = refit.value_std.get(st.effect.id) if st_final.value != st.value else ev.value_std
             params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold)
             method = REFIT_METHOD
-        elif refit is not None:
-            notes.append(refit.reason)
         regs = sorted([r for r in located if r.kind in st.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
         findings.append(Finding(st.effect, params, plant, regs, ev, "; ".join(n for n in [note, *notes] if n), method, inverse))
     if refit is not None and refit.accepted and refit.theta is not None and refit.cov is not None:

@@ -105,8 +105,11 @@ def to_markdown(diag: Diagnosis) -> str:
             lines.append(f"On the validation log {diag.validation_source}: {_pct(v['before'])} -> {_pct(v['after'])}.")
         lines.append("")
     if diag.refit is not None:
-        how = "" if diag.refit.accepted else "the inverse model's (IDIM-LS); "
-        lines += [f"Estimates: {how}{diag.refit.reason} (closed-loop output error: the replayed force against the recorded, in the inverse model's band).", ""]
+        how = "the closed-loop refit's" if diag.refit.accepted else "the inverse model's (IDIM-LS)"
+        lines += [
+            f"Estimates: {how}; {diag.refit.reason}. The closed-loop output error is the replayed force against the recorded one, in the inverse model's band.",
+            "",
+        ]
     sim = diag.simulation
     if sim is not None and sim.before:
         after = f" -> {_pct(sim.after['force'])}" if sim.after else ""
