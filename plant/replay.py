@@ -46,6 +46,7 @@ def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
                 gtau=float(gtau),
                 vmax=float(ctl.get("vmax", 10.0)),
                 pulse_input=str(ctl.get("pulse_input", "held")),
+                delay_samples=float(ctl.get("delay_samples", 1.0)),
             )
         except (TypeError, ValueError):
             raise SimulationError(log.meta.get("source"), "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
