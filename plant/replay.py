@@ -28,7 +28,7 @@ def records_controller(log: RunLog) -> bool:
     return bool(log.meta.get("controller")) or "vir" in log
 
 
-def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
+def controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
     """The controller the log records (:func:`records_controller`); a log with none is refused."""
     if not records_controller(log):
         raise SimulationError(
@@ -108,7 +108,7 @@ def simulate_replay(
     else:
         params, eff = plant_model(params, effects)
     log.require("t", "q_ref")
-    ctl = controller or _controller_from_log(log)
+    ctl = controller or controller_from_log(log)
     fs = log.fs_hz
     q_ref = log["q_ref"]
     pulses = log["pulses"] if "pulses" in log else None
