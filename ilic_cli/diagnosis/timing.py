@@ -27,8 +27,8 @@ from ilic_cli.runlog import RunLog
 from plant.controllers import PDSettings
 from plant.replay import controller_from_log
 
-GRID = tuple(round(0.05 * i, 2) for i in range(20))
-"""Computation delays tried (control periods, 0 to 0.95): below one period, the command computed from the same sample."""
+GRID = tuple(round(0.1 * i, 1) for i in range(10))
+"""Computation delays tried (control periods, 0 to 0.9): below one period, the command computed from the same sample."""
 
 FOLLOWS_RATIO = 0.5
 """The recorded command follows one sample's law when its residual is below this share of the other's."""
