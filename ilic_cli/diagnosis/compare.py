@@ -18,6 +18,7 @@ from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import relative_error_pct
 from ilic_cli.runlog import RunLog
+from plant.controllers import PDSettings
 from plant.replay import simulate_replay
 
 
@@ -36,10 +37,10 @@ class SimulationComparison:
         return {"source": self.source, "before": self.before, "after": self.after, "located": [r.to_dict() for r in self.located], "note": self.note}
 
 
-def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None) -> RunLog:
+def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, *, controller: PDSettings | None = None) -> RunLog:
     """Replay ``log``'s reference (and pulses) through the plant (:func:`plant.simulate_replay`).
 
-    The controller is the log's (metadata); the force sensor is the one the
+    The controller is the log's (metadata) unless ``controller`` is given; the force sensor is the one the
     log was simulated with when it says so, else the benchmark's command
     (``tau = gtau * vir``). ``payload_change`` times are log times; the
     closed loop counts from the first sample.
@@ -47,7 +48,7 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
     effects = dict(effects or {})
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
-    return simulate_replay(log, params, effects, tau_sensor=tau_sensor(log))
+    return simulate_replay(log, params, effects, controller, tau_sensor=tau_sensor(log))
 
 
 def tau_sensor(log: RunLog) -> str | None:

@@ -20,8 +20,9 @@ from ilic_cli.diagnosis.refit import METHOD as REFIT_METHOD
 from ilic_cli.diagnosis.refit import Refit, closed_loop_refit
 from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
+from ilic_cli.diagnosis.timing import ControlTiming, control_timing
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
-from ilic_cli.errors import IdentificationError, ParameterError
+from ilic_cli.errors import IdentificationError, ParameterError, SimulationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
@@ -114,6 +115,7 @@ class Diagnosis:
     validation_source: str | None = None
     warnings: list[str] = field(default_factory=list)
     residual: dict[str, np.ndarray] = field(default_factory=dict)
+    timing: ControlTiming | None = None
 
     @property
     def conclusion(self) -> str:
@@ -142,6 +144,7 @@ class Diagnosis:
             "model_file": self.model_file,
             "settings": {"model": self.settings.model, "ls": self.settings.ls.to_dict(), "selection": self.settings.select.to_dict()},
             "warnings": list(self.warnings),
+            "timing": None if self.timing is None else self.timing.to_dict(),
         }
 
 
@@ -346,7 +349,20 @@ def diagnose(
             fit["simulation_force_relative_error_pct"] = {"before": diag.simulation.before.get("force"), "after": (diag.simulation.after or {}).get("force")}
             if diag.simulation.note:
                 warnings.append(diag.simulation.note)
+        if against is None:
+            diag.timing = _timing(log, doc, selection, settings.ls)
     return diag
+
+
+def _timing(log: RunLog, doc: dict[str, Any], selection: SelectionResult, ls: LSSettings) -> ControlTiming | None:
+    """The PD loop's timing (:func:`ilic_cli.diagnosis.timing.control_timing`) replayed with the diagnosed model."""
+    try:
+        timing = control_timing(log, doc["parameters"], doc["effects"], ls)
+    except (ParameterError, SimulationError):
+        return None
+    if timing is not None:
+        timing.negative_flexibility = any(ev.effect == "flexibility" and "negative mass" in ev.reason for step in selection.tried for ev in step)
+    return timing
 
 
 def _decide(

@@ -118,6 +118,9 @@ def to_markdown(diag: Diagnosis) -> str:
             f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}.",
             "",
         ]
+    timing = diag.timing.sentence() if diag.timing is not None else ""
+    if timing:
+        lines += [f"Control timing: {timing}.", ""]
     lines += [
         f"{diag.rows_used} of {diag.rows_total} decimated rows used (standstill, velocity reversals and the filter's edge left out).",
         "",
