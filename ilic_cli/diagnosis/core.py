@@ -20,7 +20,7 @@ from ilic_cli.diagnosis.refit import METHOD as REFIT_METHOD
 from ilic_cli.diagnosis.refit import Refit, closed_loop_refit
 from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
-from ilic_cli.diagnosis.timing import ControlTiming, control_timing
+from ilic_cli.diagnosis.timing import ControlTiming, control_timing, with_recorded_timing
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
 from ilic_cli.errors import IdentificationError, ParameterError, SimulationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
@@ -247,13 +247,21 @@ def diagnose(
     selection = forward_select(data, base, fs, sel_settings, validation=vdata, known=known)
     rows = moving_rows(data)
     hold = hold_s(tau_sensor(log), fs)
+    W0, y0, names0 = system(data, base, known, rows)
+    res0 = solve(W0, y0, names0, sigma=settings.ls.sigma)
+    before_params = dict(model_doc["parameters"]) if model_doc else {n: float(v) for n, v in zip(names0, res0.theta, strict=True) if n in PARAMETERS}
+    before_effects = dict(model_doc.get("effects", {})) if model_doc else {}
+    timing = None
+    if settings.simulate and against is None:  # the replays run the loop that ran: its timing read from the recording
+        timing = _timing(log, before_params, before_effects, settings.ls)
+        log = with_recorded_timing(log, timing)
+        if validate is not None:
+            validate = with_recorded_timing(validate, _timing(validate, before_params, before_effects, settings.ls))
     kept, verdicts = _decide(log, data, base, known, selection, rows, settings, hold, validate, against)
     steps = [*known, *kept]
-    W0, y0, names0 = system(data, base, known, rows)
     W1, y1, names1 = system(data, base, steps, rows)
     if not len(y0) > 4 * W1.shape[1]:
         raise IdentificationError(src, f"only {len(y0)} usable rows after leaving out standstill: too few to diagnose")
-    res0 = solve(W0, y0, names0, sigma=settings.ls.sigma)
     res1 = solve(W1, y1, names1, sigma=settings.ls.sigma)
     cov1 = gls_covariance(W1, y1, res1.theta)
     res1 = _with_std(res1, cov1)
@@ -326,9 +334,10 @@ def diagnose(
         warnings=warnings,
         residual={"t": td, "q": q_d, "qd": qd_d, "before": e0, "after": e1, "y": y0, "y_before": W0 @ res0.theta, "y_after": W1 @ res1.theta},
     )
+    if timing is not None:
+        timing.negative_flexibility = any(ev.effect == "flexibility" and "negative mass" in ev.reason for step in selection.tried for ev in step)
+    diag.timing = timing
     if settings.simulate or against is not None:
-        before_params = dict(model_doc["parameters"]) if model_doc else {n: float(v) for n, v in zip(names0, res0.theta, strict=True) if n in PARAMETERS}
-        before_effects = dict(model_doc.get("effects", {})) if model_doc else {}
         try:
             diag.simulation = compare_simulation(
                 log,
@@ -349,20 +358,15 @@ def diagnose(
             fit["simulation_force_relative_error_pct"] = {"before": diag.simulation.before.get("force"), "after": (diag.simulation.after or {}).get("force")}
             if diag.simulation.note:
                 warnings.append(diag.simulation.note)
-        if against is None:
-            diag.timing = _timing(log, doc, selection, settings.ls)
     return diag
 
 
-def _timing(log: RunLog, doc: dict[str, Any], selection: SelectionResult, ls: LSSettings) -> ControlTiming | None:
-    """The PD loop's timing (:func:`ilic_cli.diagnosis.timing.control_timing`) replayed with the diagnosed model."""
+def _timing(log: RunLog, params: dict[str, float], effects: dict[str, Any], ls: LSSettings) -> ControlTiming | None:
+    """The PD loop's timing (:func:`ilic_cli.diagnosis.timing.control_timing`) replayed with the starting model."""
     try:
-        timing = control_timing(log, doc["parameters"], doc["effects"], ls)
+        return control_timing(log, params, effects, ls)
     except (ParameterError, SimulationError):
         return None
-    if timing is not None:
-        timing.negative_flexibility = any(ev.effect == "flexibility" and "negative mass" in ev.reason for step in selection.tried for ev in step)
-    return timing
 
 
 def _decide(

@@ -10,7 +10,8 @@ follows the same sample, the documented loop holds each command one period too
 long, and :func:`control_timing` replays the log with the command acting a
 fraction of a period after its sample, keeping the fraction that minimises the
 replayed force error (an optimum at a bound of the range is reported as such,
-never as a measured lag).
+never as a measured lag). :func:`with_recorded_timing` gives the log whose
+controller carries that timing: the diagnosis replays the loop that ran.
 """
 
 from __future__ import annotations
@@ -167,8 +168,8 @@ class ControlTiming:
         return (
             f"The recorded command follows the PD law on the same sample's position ({law.same_pct:.2g} % of its RMS left, "
             f"{law.previous_pct:.2g} % on the previous sample's), so the drive acts within the sample, not one period later "
-            f"as the documented loop and this replay assume: replayed with the command {where}, the simulated force error is "
-            f"{f1:.2f} % instead of {f0:.2f} % (velocity {v1:.3g} % instead of {v0:.3g} %)"
+            f"as the documented loop assumes: every replay of this diagnosis runs the loop with the command {where} "
+            f"(the starting model's simulated force error {f1:.2f} % instead of {f0:.2f} %, velocity {v1:.3g} % instead of {v0:.3g} %)"
         ) + (
             "; a drive lag this short is what the flexibility candidate's negative mass shows (a rigid plant simulated with a 0.2 ms lag "
             "on the EMPS reference gives one too, README), not a two-mass axis"
@@ -240,3 +241,16 @@ def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any
     if not math.isfinite(out.refined["force"]):
         out.best = None
     return out
+
+
+def with_recorded_timing(log: RunLog, timing: ControlTiming | None) -> RunLog:
+    """``log`` whose PD controller acts with the timing read from it (``delay_samples`` = ``timing.best``).
+
+    Unchanged when the recording follows the replay's loop already (or tells
+    nothing). At a bound of the range the bound is used: the least replayed
+    error there, though only bounded as a lag (:attr:`ControlTiming.at_edge`).
+    """
+    if timing is None or not timing.mismatch or timing.best is None:
+        return log
+    controller = {**(log.meta.get("controller") or {}), "kind": "pd", "delay_samples": float(timing.best)}
+    return RunLog(dict(log.channels), dict(log.units), {**log.meta, "controller": controller})
