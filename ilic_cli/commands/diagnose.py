@@ -79,6 +79,7 @@ def command(
     kp: float | None,
     kv: float | None,
     drive_gain: float | None,
+    pd_timing: str,
     input_format: str | None,
     topic: str | None,
     ref_topic: str | None,
@@ -120,7 +121,9 @@ def command(
         run = with_controller(run, log, controller, kp, kv, drive_gain)
     sim = load(against, None, topic, ref_topic, joint, columns) if against is not None else None
     other = load(validate, None, topic, ref_topic, joint, columns) if validate is not None else None
-    settings = DiagnoseSettings(model=structure, select=SelectSettings(alpha=alpha, folds=folds, effects=chosen), simulate=not no_simulation)
+    settings = DiagnoseSettings(
+        model=structure, select=SelectSettings(alpha=alpha, folds=folds, effects=chosen), simulate=not no_simulation, pd_timing=pd_timing
+    )
     result = diagnose(run, settings=settings, model_doc=model_doc, against=sim, validate=other)
     for w in result.warnings:
         note(f"ilic: warning: {w}")

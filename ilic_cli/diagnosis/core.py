@@ -20,9 +20,9 @@ from ilic_cli.diagnosis.refit import METHOD as REFIT_METHOD
 from ilic_cli.diagnosis.refit import Refit, closed_loop_refit
 from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
-from ilic_cli.diagnosis.timing import ControlTiming, control_timing, with_recorded_timing
+from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
-from ilic_cli.errors import IdentificationError, ParameterError, SimulationError
+from ilic_cli.errors import IdentificationError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
@@ -46,12 +46,15 @@ class DiagnoseSettings:
         Statistics of the forward selection.
     simulate : bool
         Replay the recorded reference through the plant (before/after).
+    pd_timing : {"recorded", "documented"}
+        When a PD log's command acts in every replay (:data:`ilic_cli.parameters.PD_TIMINGS`).
     """
 
     model: str = "rigid-offset"
     ls: LSSettings = LSSettings()
     select: SelectSettings = field(default_factory=SelectSettings)
     simulate: bool = True
+    pd_timing: str = "recorded"
 
 
 @dataclass
@@ -142,7 +145,12 @@ class Diagnosis:
             "refit": None if self.refit is None else self.refit.to_dict(),
             "validation_source": self.validation_source,
             "model_file": self.model_file,
-            "settings": {"model": self.settings.model, "ls": self.settings.ls.to_dict(), "selection": self.settings.select.to_dict()},
+            "settings": {
+                "model": self.settings.model,
+                "ls": self.settings.ls.to_dict(),
+                "selection": self.settings.select.to_dict(),
+                "pd_timing": self.settings.pd_timing,
+            },
             "warnings": list(self.warnings),
             "timing": None if self.timing is None else self.timing.to_dict(),
         }
@@ -252,11 +260,10 @@ def diagnose(
     before_params = dict(model_doc["parameters"]) if model_doc else {n: float(v) for n, v in zip(names0, res0.theta, strict=True) if n in PARAMETERS}
     before_effects = dict(model_doc.get("effects", {})) if model_doc else {}
     timing = None
-    if settings.simulate and against is None:  # the replays run the loop that ran: its timing read from the recording
-        timing = _timing(log, before_params, before_effects, settings.ls)
-        log = with_recorded_timing(log, timing)
+    if settings.simulate and against is None and settings.pd_timing == "recorded":  # the replays run the loop that ran: its timing read from the recording
+        log, timing = recorded_loop(log, before_params, before_effects, settings.ls)
         if validate is not None:
-            validate = with_recorded_timing(validate, _timing(validate, before_params, before_effects, settings.ls))
+            validate, _ = recorded_loop(validate, before_params, before_effects, settings.ls)
     kept, verdicts = _decide(log, data, base, known, selection, rows, settings, hold, validate, against)
     steps = [*known, *kept]
     W1, y1, names1 = system(data, base, steps, rows)
@@ -359,14 +366,6 @@ def diagnose(
             if diag.simulation.note:
                 warnings.append(diag.simulation.note)
     return diag
-
-
-def _timing(log: RunLog, params: dict[str, float], effects: dict[str, Any], ls: LSSettings) -> ControlTiming | None:
-    """The PD loop's timing (:func:`ilic_cli.diagnosis.timing.control_timing`) replayed with the starting model."""
-    try:
-        return control_timing(log, params, effects, ls)
-    except (ParameterError, SimulationError):
-        return None
 
 
 def _decide(

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.compare import relative_errors, replay
+from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.runlog import RunLog
 from plant.controllers import PDSettings
@@ -168,7 +169,7 @@ class ControlTiming:
         return (
             f"The recorded command follows the PD law on the same sample's position ({law.same_pct:.2g} % of its RMS left, "
             f"{law.previous_pct:.2g} % on the previous sample's), so the drive acts within the sample, not one period later "
-            f"as the documented loop assumes: every replay of this diagnosis runs the loop with the command {where} "
+            f"as the documented loop assumes: the replays here run the loop with the command {where} "
             f"(the starting model's simulated force error {f1:.2f} % instead of {f0:.2f} %, velocity {v1:.3g} % instead of {v0:.3g} %)"
         ) + (
             "; a drive lag this short is what the flexibility candidate's negative mass shows (a rigid plant simulated with a 0.2 ms lag "
@@ -254,3 +255,16 @@ def with_recorded_timing(log: RunLog, timing: ControlTiming | None) -> RunLog:
         return log
     controller = {**(log.meta.get("controller") or {}), "kind": "pd", "delay_samples": float(timing.best)}
     return RunLog(dict(log.channels), dict(log.units), {**log.meta, "controller": controller})
+
+
+def recorded_loop(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, ls: LSSettings) -> tuple[RunLog, ControlTiming | None]:
+    """``log`` with the loop that ran (:func:`with_recorded_timing`), timed with the model ``params``/``effects``; and the timing read.
+
+    A log whose model cannot be simulated, or without a recorded PD command, is
+    returned as it is (timing ``None`` or without replays).
+    """
+    try:
+        timing = control_timing(log, params, dict(effects or {}), ls)
+    except (ParameterError, SimulationError):
+        return log, None
+    return with_recorded_timing(log, timing), timing
