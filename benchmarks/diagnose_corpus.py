@@ -16,7 +16,8 @@ the detection rate on effect cases (effects named; cases named exactly), the
 parameter error of the effects named (worst relative error of their main
 parameters; the lag of a ``delay`` is measured beyond the hold and compared
 with the concealed lag plus the current loop's time constant), whether the
-closed-loop simulated force error improved where something was accepted, and
+closed-loop simulated force error improved where something was accepted, how
+many of those kept the closed-loop refit's estimates (:mod:`ilic_cli.diagnosis.refit`), and
 the distribution of the first round's best p-value on clean cases.
 
 ``--design``: calibrate the effect cases anew (:func:`plant.corpus.design`) and
@@ -62,6 +63,7 @@ def run_case(name: str) -> dict[str, Any]:
         "findings": [{"effect": eid, "plant": plant} for eid, plant in findings],
         **score(case, findings),
         "first_round_min_p": min(first) if first else None,
+        "refit": None if diag.refit is None else {"accepted": diag.refit.accepted, "reason": diag.refit.reason},
         "fit": diag.fit,
         "cpu_s": {"simulate": t1 - t0, "diagnose": t2 - t1},
     }
@@ -110,6 +112,7 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "parameters_compared": len(errs),
         "accepted_cases": len(accepted),
         "accepted_sim_force_improved": sum(improved(r) for r in accepted),
+        "refit_accepted": sum(bool(r.get("refit") and r["refit"]["accepted"]) for r in accepted),
         "clean_first_round_min_p": {"min": ps[0] if ps else None, "q25": q(0.25), "median": q(0.5), "q75": q(0.75), "max": ps[-1] if ps else None},
     }
 
@@ -130,6 +133,8 @@ def render(rows: list[dict[str, Any]], summ: dict[str, Any]) -> str:
         f"named exactly (nothing else but offset): {s['effect_cases_exact']}; with a false alarm: {s['effect_cases_with_false_alarm']}",
         f"- parameters within 15 %: {s['parameters_within_15pct']}/{s['parameters_compared']} (median worst error {s['parameter_error_median']})",
         f"- closed-loop simulated force error improved: {s['accepted_sim_force_improved']}/{s['accepted_cases']} cases with an accepted effect",
+        f"- estimates refitted on the closed loop (DIDIM, nonlinear values searched): {s['refit_accepted']}/{s['accepted_cases']} "
+        "(the others keep the inverse model's: see each case's refit reason in --json)",
         f"- clean cases, first round's best p-value: {s['clean_first_round_min_p']}",
     ]
     return "\n".join(lines)

@@ -122,6 +122,12 @@ STD_SOURCE = {
 }
 """Where each method's standard deviations come from."""
 
+RESIDUAL = {
+    "DIDIM": "output error ||y - tau_s(theta)|| (the closed-loop simulated force)",
+    "IDIM-IV": "inverse-model residual ||y - W theta|| (the measured regressor)",
+}
+"""What each method's residual history measures: not the same quantity, so never one axis."""
+
 
 @dataclass(frozen=True)
 class ClosedLoopResult:
@@ -179,6 +185,7 @@ class ClosedLoopResult:
             "converged": self.converged,
             "iterations": self.n_iterations,
             "stop_reason": self.stop_reason,
+            "residual": RESIDUAL[self.method],
             "residual_history": [it.to_dict(names) for it in self.iterations],
             "closed_loop_error_pct": {k: finite_or_none(v) for k, v in self.closed_loop_error_pct.items()},
             "settings": {**self.settings.to_dict(), "idim": self.ls_settings.to_dict()},

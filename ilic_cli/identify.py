@@ -63,6 +63,8 @@ class IdentifyReport:
     iv: ClosedLoopResult | None = None
     method: str = "both"
     """The ``method`` asked for: its estimate goes to the model file (:meth:`primary`)."""
+    timing: Any = None
+    """The PD loop's timing read from the recording for DIDIM / IDIM-IV (:class:`ilic_cli.diagnosis.timing.ControlTiming`), if read."""
 
     def closed_loop(self) -> list[ClosedLoopResult]:
         """The DIDIM and IDIM-IV results that were run, in that order."""
@@ -95,6 +97,7 @@ class IdentifyReport:
             "didim": None if self.didim is None else self.didim.to_dict(),
             "iv": None if self.iv is None else self.iv.to_dict(),
             "validation": [v.to_dict() for v in self.validation],
+            "loop_timing": None if self.timing is None else self.timing.to_dict(),
             "warnings": list(self.warnings),
         }
 
@@ -198,6 +201,7 @@ def identify(
     ilic_settings: ILICSettings = ILICSettings(),
     validate: list[RunLog] | None = None,
     closed_loop_settings: Mapping[str, ClosedLoopSettings] | None = None,
+    pd_timing: str = "recorded",
 ) -> IdentifyReport:
     """Run IDIM-LS and/or IDIM-ILIC on ``log`` and validate on other logs.
 
@@ -220,6 +224,11 @@ def identify(
     closed_loop_settings : dict, optional
         ``didim``/``iv`` -> iteration settings (default: each method's own,
         :data:`ilic_cli.closed_loop_id.DEFAULT_SETTINGS`).
+    pd_timing : {"recorded", "documented"}
+        How DIDIM / IDIM-IV's replays time a PD log's command: as read from
+        the recording with the IDIM-LS estimate
+        (:func:`ilic_cli.diagnosis.timing.recorded_loop`), or as the log's
+        metadata states it.
     """
     prepared = prepare_log(log)
     log = prepared.log  # an irregularly sampled log is on a uniform grid now
@@ -251,10 +260,23 @@ def identify(
             raise IdentificationError(src, str(exc)) from None
         if not report.ls.result.full_rank:
             report.warnings.append("IDIM-LS: the observation matrix is rank-deficient; the trajectory does not excite every parameter")
+    timed = prepared
+    if closed:
+        from ilic_cli.diagnosis.timing import recorded_loop  # deferred: with the replay
+
+        if pd_timing not in parameters.PD_TIMINGS:
+            raise ParameterError("pd_timing", pd_timing, f"one of {', '.join(parameters.PD_TIMINGS)}")
+    if closed and pd_timing == "recorded":  # the loop that ran: its timing read with the IDIM-LS start
+        assert report.ls is not None
+        timed_log, report.timing = recorded_loop(log, *plant_of(model.names, report.ls.result.theta, effects), ls_settings)
+        timed = replace(prepared, log=timed_log)
+        sentence = report.timing.sentence() if report.timing is not None else ""
+        if sentence:
+            report.warnings.append(f"loop timing: {sentence}")
     for m in closed:
         assert report.ls is not None
         result = closed_loop_identify(
-            m, log, model, report.ls.result.theta, effects=effects, ls_settings=ls_settings, settings=(closed_loop_settings or {}).get(m), prepared=prepared
+            m, log, model, report.ls.result.theta, effects=effects, ls_settings=ls_settings, settings=(closed_loop_settings or {}).get(m), prepared=timed
         )
         setattr(report, m, result)
         if not result.converged:

@@ -64,10 +64,20 @@ def load_model_file(path: str | Path) -> dict[str, Any]:
 
 
 def model_document(
-    model: str, parameters: dict[str, float], *, method: str, effects: dict[str, Any] | None = None, source: str | None = None
+    model: str,
+    parameters: dict[str, float],
+    *,
+    method: str,
+    effects: dict[str, Any] | None = None,
+    source: str | None = None,
+    std: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Build the JSON document of a model file."""
-    return {
+    """Build the JSON document of a model file.
+
+    ``std``: standard deviations of the estimates, ``{"parameters": {...}, "effects": {id: {...}}}``
+    (written as ``"std"``, which readers other than people ignore).
+    """
+    doc = {
         "ilic_model": MODEL_FILE_VERSION,
         "model": model,
         "method": method,
@@ -75,3 +85,6 @@ def model_document(
         "effects": effects or {},
         "source": source,
     }
+    if std is not None:
+        doc["std"] = std
+    return doc

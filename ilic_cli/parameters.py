@@ -162,3 +162,10 @@ def from_plant(rigid: Mapping[str, float], asymmetric: Mapping[str, float] | Non
         raise ParameterError("structure", structure, "'asymmetric' for a plant with asymmetric friction")
     merged = {**rigid, **asymmetric}
     return {n: float(merged[n]) for n in names}
+
+
+PD_TIMINGS = ("recorded", "documented")
+"""How a replay times a PD log's command: ``recorded``, as read from the recording
+(:func:`ilic_cli.diagnosis.timing.recorded_loop`: the EMPS recordings' command follows
+the same sample's position); ``documented``, as the log's metadata states it (the
+benchmark's documented loop: one period late)."""

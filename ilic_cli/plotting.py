@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ilic_cli.closed_loop_id import RESIDUAL
 from ilic_cli.effects import unit_of
 from ilic_cli.io.atomic import atomic_path
 
@@ -37,8 +38,10 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
     ``parameters``: IDIM-ILIC estimates per window with ±σ bands and the
     IDIM-LS value as a line; ``force``: measured vs reconstructed (decimated)
     force with the error; ``tracking``: tracking error over time with the
-    per-window ratio ‖e_q‖/‖q − q̄‖; ``convergence`` (DIDIM / IDIM-IV): the
-    relative residual norm at each iteration, from the IDIM-LS start.
+    per-window ratio ‖e_q‖/‖q − q̄‖; ``convergence`` (DIDIM / IDIM-IV): each
+    method's residual norm at each iteration, from the IDIM-LS start, one
+    panel per method (:data:`ilic_cli.closed_loop_id.RESIDUAL`: DIDIM's is an
+    output error, IDIM-IV's an inverse-model residual).
     """
     plt = _pyplot()
     from matplotlib.ticker import MaxNLocator
@@ -92,22 +95,18 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         fig.suptitle(f"Measured vs reconstructed force (relative error {report.ls.result.relative_error_pct:.4f} %)")
         written.append(_save(fig, outdir / f"force.{image_format}"))
     if report.closed_loop():
-        fig, ax = plt.subplots(figsize=(7, 3.5))
-        for i, cl in enumerate(report.closed_loop()):
+        runs = report.closed_loop()
+        # DIDIM's residual is an output error, IDIM-IV's an inverse-model residual: one panel each
+        fig, axes = plt.subplots(len(runs), 1, figsize=(7, 2.6 * len(runs) + 0.6), squeeze=False)
+        for i, (cl, ax) in enumerate(zip(runs, axes[:, 0], strict=True)):
             ks = [it.k for it in cl.iterations]
-            ax.plot(
-                ks,
-                [it.relative_error_pct for it in cl.iterations],
-                "o-",
-                color=f"C{i + 4}",
-                label=f"{cl.method} ({'converged' if cl.converged else 'not converged'})",
-            )
-        ax.set_xlabel("iteration k (0: IDIM-LS start)")
-        ax.set_ylabel("‖ε_k‖/‖Y‖ (%)")
-        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        ax.set_title("Closed-loop identification: residual norm per iteration")
+            ax.plot(ks, [it.relative_error_pct for it in cl.iterations], "o-", color=f"C{i + 4}")
+            ax.set_title(f"{cl.method} ({'converged' if cl.converged else 'not converged'}): {RESIDUAL[cl.method]}", fontsize=9)
+            ax.set_ylabel("relative to ‖y‖ (%)")
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.grid(alpha=0.3)
+        axes[-1, 0].set_xlabel("iteration k (0: IDIM-LS start)")
+        fig.tight_layout()
         written.append(_save(fig, outdir / f"convergence.{image_format}"))
     if "q_ref" in log:
         fig, ax = plt.subplots(figsize=(9, 3))

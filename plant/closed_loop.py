@@ -20,7 +20,7 @@ from ilic_cli.idim_ilic import ILICSettings, estimate_window, update_parameters
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
 from plant.controllers import CTCSettings, PDSettings, chi_vector
-from plant.dynamics import STICK_VELOCITY, RigidParameters, drive_lag_s, plant_vector
+from plant.dynamics import P_LAG, STICK_VELOCITY, RigidParameters, drive_lag_s, plant_vector
 from plant.generic import kernel_for
 from plant.sensors import TAU_SENSORS, draw_disturbance, draw_noise, measured_force
 
@@ -106,8 +106,12 @@ def simulate_loop(
         )
     if isinstance(controller, PDSettings) and controller.pulse_input == "ramp" and "current_loop" in effects:
         raise ParameterError("current_loop", effects["current_loop"].to_dict(), 'left out with ramped pulses (pulse_input="ramp", the published setup)')
+    if isinstance(controller, PDSettings) and controller.pulse_input == "ramp" and controller.same_sample:
+        raise ParameterError("delay_samples", controller.delay_samples, '1 with ramped pulses (pulse_input="ramp", the published setup)')
     T = 1.0 / fs_hz
     p = plant_vector(params, effects)
+    if isinstance(controller, PDSettings) and controller.same_sample:  # the computation delay is a lag of the drive
+        p[P_LAG] += controller.delay_samples * T
     run_periods = kernel_for(effects).run_periods
     c = controller.vector()
     q_r, qd_r, qdd_r = (np.ascontiguousarray(a, dtype=np.float64) for a in (q_r, qd_r, qdd_r))

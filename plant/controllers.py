@@ -26,6 +26,13 @@ PD (``../shared/reference/emps-benchmark.md``), at sample k::
     vir(k) = sat(v(k-1), +-vmax) + pulses(k)      (one-sample delay, then saturation)
     force  = gtau*vir(k)
 
+``delay_samples`` (default 1, the documented loop above) is the computation
+delay in control periods. Below 1 the command is computed from the same
+sample's position and acts from ``t_k + delay_samples*T`` on (the plant's drive
+lag carries the fraction): ``vir(k) = sat(v(k), +-vmax) + pulses(k)``, logged at
+sample ``k`` as the EMPS recordings log it (their ``vir(k)`` follows the law on
+``qm(k)``, not ``qm(k-1)``: :mod:`ilic_cli.diagnosis.timing`).
+
 ``pulse_input="held"`` (default) holds ``vir(k)`` over the period, as the rig
 did (the recorded ``vir`` includes the pulses); ``"ramp"`` moves the pulse part
 linearly from ``pulses(k)`` to ``pulses(k+1)`` over the period, as the published
@@ -45,8 +52,8 @@ from ilic_cli import parameters
 from ilic_cli.errors import ParameterError
 
 # packed controller vector (read by the integrator)
-C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP = range(11)
-N_CTRL = 11
+C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP, C_PD_SAME = range(12)
+N_CTRL = 12
 PULSE_INPUTS = ("held", "ramp")
 VELOCITY_ESTIMATES = ("backward", "exact")
 KIND_CTC, KIND_PD = 0.0, 1.0
@@ -134,13 +141,15 @@ class CTCSettings:
 
 @dataclass
 class PDSettings:
-    """The benchmark PD loop (values of DATA_EMPS.mat by default); ``pulse_input``: ``held`` or ``ramp`` (module docstring)."""
+    """The benchmark PD loop (values of DATA_EMPS.mat by default); ``pulse_input``: ``held`` or ``ramp``;
+    ``delay_samples``: computation delay in periods, in [0, 1] (module docstring)."""
 
     kp: float = 160.18
     kv: float = 243.45
     gtau: float = 35.15065188
     vmax: float = 10.0
     pulse_input: str = "held"
+    delay_samples: float = 1.0
 
     kind = "pd"
 
@@ -148,14 +157,23 @@ class PDSettings:
         _positive(self, ("kp", "kv", "gtau", "vmax"))
         if self.pulse_input not in PULSE_INPUTS:
             raise ParameterError("pulse_input", self.pulse_input, f"one of {', '.join(PULSE_INPUTS)}")
+        if not (math.isfinite(self.delay_samples) and 0.0 <= self.delay_samples <= 1.0):
+            raise ParameterError("delay_samples", self.delay_samples, "a number of control periods in [0, 1]")
+
+    @property
+    def same_sample(self) -> bool:
+        """The command acts within the period of the position it is computed from (``delay_samples`` < 1)."""
+        return self.delay_samples < 1.0
 
     def to_dict(self) -> dict[str, Any]:
-        return {"kind": "pd", **asdict(self), "delay_samples": 1, "position_filter": [0.5, 0.5]}
+        d = self.delay_samples
+        return {"kind": "pd", **asdict(self), "delay_samples": 1 if d == 1.0 else d, "position_filter": [0.5, 0.5]}
 
     def vector(self) -> np.ndarray:
         c = np.zeros(N_CTRL)
         c[C_KIND], c[C_PD_KP], c[C_PD_KV], c[C_GTAU], c[C_VMAX] = KIND_PD, self.kp, self.kv, self.gtau, self.vmax
         c[C_PULSE_RAMP] = 1.0 if self.pulse_input == "ramp" else 0.0
+        c[C_PD_SAME] = 1.0 if self.same_sample else 0.0
         return c
 
 

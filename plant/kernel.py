@@ -41,7 +41,7 @@ import math
 import numpy as np
 from numba import njit
 
-from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PULSE_RAMP, C_VMAX
+from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PD_SAME, C_PULSE_RAMP, C_VMAX
 from plant.dynamics import (
     N_PLANT,
     P_CL_BW,
@@ -370,6 +370,7 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
     h = T / substeps
     x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
     pd = c[C_KIND] == 1.0
+    same = c[C_PD_SAME] == 1.0
     exact_vel = c[C_EXACT_VEL] == 1.0
     res = p[P_RES]
     fmax = p[P_FMAX]
@@ -410,7 +411,7 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
             qfm = 0.5 * qm + 0.5 * cs[0]
             qdm = (qfm - cs[1]) / T
             v = c[C_PD_KV] * (c[C_PD_KP] * (q_r[k] - qm) - qdm)
-            vd = cs[2]
+            vd = v if same else cs[2]  # same: computed from this sample, delayed by the drive lag (plant.controllers)
             if vd > c[C_VMAX]:
                 vd = c[C_VMAX]
             elif vd < -c[C_VMAX]:

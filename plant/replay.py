@@ -28,7 +28,7 @@ def records_controller(log: RunLog) -> bool:
     return bool(log.meta.get("controller")) or "vir" in log
 
 
-def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
+def controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
     """The controller the log records (:func:`records_controller`); a log with none is refused."""
     if not records_controller(log):
         raise SimulationError(
@@ -46,6 +46,7 @@ def _controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
                 gtau=float(gtau),
                 vmax=float(ctl.get("vmax", 10.0)),
                 pulse_input=str(ctl.get("pulse_input", "held")),
+                delay_samples=float(ctl.get("delay_samples", 1.0)),
             )
         except (TypeError, ValueError):
             raise SimulationError(log.meta.get("source"), "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
@@ -107,7 +108,7 @@ def simulate_replay(
     else:
         params, eff = plant_model(params, effects)
     log.require("t", "q_ref")
-    ctl = controller or _controller_from_log(log)
+    ctl = controller or controller_from_log(log)
     fs = log.fs_hz
     q_ref = log["q_ref"]
     pulses = log["pulses"] if "pulses" in log else None

@@ -12,7 +12,7 @@ import click
 
 from ilic_cli.errors import ChoiceError, IlicError, ParameterError
 from ilic_cli.io import Selection, read_log
-from ilic_cli.parameters import PARAMETERS
+from ilic_cli.parameters import PARAMETERS, PD_TIMINGS
 
 if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
@@ -250,7 +250,16 @@ def parse_effect_option(text: str) -> tuple[str, dict[str, float]]:
 
 
 def controller_options(func: F) -> F:
-    """Add ``--controller``, ``--kp``, ``--kv`` and ``--drive-gain`` (the loop of a log that records none)."""
+    """Add ``--controller``, ``--kp``, ``--kv`` and ``--drive-gain`` (the loop of a log that records none), and ``--pd-timing``."""
+    func = click.option(
+        "--pd-timing",
+        "pd_timing",
+        type=click.Choice(PD_TIMINGS),
+        default="recorded",
+        show_default=True,
+        help="When a PD log's command acts in the replays: as read from the recording (the EMPS recordings' command follows the same "
+        "sample's position), or as documented in its metadata (the benchmark's loop, one period late).",
+    )(func)
     func = click.option(
         "--drive-gain",
         "drive_gain",

@@ -109,6 +109,7 @@ def command(
     kp: float | None,
     kv: float | None,
     drive_gain: float | None,
+    pd_timing: str,
     input_format: str | None,
     topic: str | None,
     ref_topic: str | None,
@@ -117,13 +118,16 @@ def command(
 ) -> None:
     """Find and model the physics the rigid model leaves out of LOG.
 
-    Identifies the rigid model (IDIM-LS), locates where the force residual is
-    structured (velocity, position, time, frequency), adds effects of the
-    catalogue one at a time while each is significant (prewhitened F-test,
-    Bonferroni) and lowers the held-out error (blocked cross-validation),
-    and replays the recorded reference through the plant before and after.
-    "No significant mismatch" is a result. With --format json stdout holds
-    only the JSON document.
+    Identifies the rigid model (IDIM-LS) with the logged command's sample
+    hold, locates where the force residual is structured (velocity, position,
+    time, frequency), and lets the inverse model propose effects of the
+    catalogue one at a time (prewhitened F-test, Bonferroni; blocked
+    cross-validation). The replay decides: a proposed effect is kept only if
+    it is material and, replayed through the log's controller, lowers the
+    held-out closed-loop force error significantly without raising the
+    position error (nor, with --validate, the other log's error). The report
+    says why each candidate was kept or rejected. "No significant mismatch"
+    is a result. With --format json stdout holds only the JSON document.
 
     \b
     Examples:
@@ -151,6 +155,7 @@ def command(
         model=structure,
         select=SelectSettings(alpha=alpha, folds=folds, effects=chosen),
         simulate=not no_simulation,
+        pd_timing=pd_timing,
         null=NullSettings(null, replicates, seed, replay_alpha),
     )
     try:

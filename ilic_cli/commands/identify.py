@@ -165,6 +165,7 @@ def command(
     kp: float | None,
     kv: float | None,
     drive_gain: float | None,
+    pd_timing: str,
     out_format: str,
     out_dir: Path | None,
     plot_format: str,
@@ -247,6 +248,7 @@ def command(
             ilic_settings=ilic_settings,
             validate=others,
             closed_loop_settings=closed,
+            pd_timing=pd_timing,
         )
     for w in result.warnings:
         note(f"ilic: warning: {w}")

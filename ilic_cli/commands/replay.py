@@ -49,6 +49,7 @@ def command(
     kp: float | None,
     kv: float | None,
     drive_gain: float | None,
+    pd_timing: str,
     input_format: str | None,
     topic: str | None,
     ref_topic: str | None,
@@ -87,6 +88,12 @@ def command(
     run = prepared.log  # an irregularly sampled log is on a uniform grid now
     for w in prepared.warnings:
         note(f"ilic: warning: {w}")
+    if pd_timing == "recorded":  # the loop that ran: a PD log's timing read from the recording with this model
+        from ilic_cli.diagnosis.timing import recorded_loop  # deferred: with the replay
+
+        run, timing = recorded_loop(run, params, effects, LSSettings())
+        if timing is not None and timing.sentence():
+            note(f"ilic: loop timing: {timing.sentence()} (--pd-timing documented: the loop as its metadata states it)")
     sim = simulate_replay(run, params, effects, substeps=substeps, seed=seed)
     sim.meta["model_file"] = str(model_file)
     write_log(sim, output, out_format, inputs=(log,))

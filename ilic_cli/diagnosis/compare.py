@@ -18,6 +18,7 @@ from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import relative_error_pct
 from ilic_cli.runlog import RunLog
+from plant.controllers import PDSettings
 from plant.replay import simulate_replay
 
 
@@ -36,10 +37,10 @@ class SimulationComparison:
         return {"source": self.source, "before": self.before, "after": self.after, "located": [r.to_dict() for r in self.located], "note": self.note}
 
 
-def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, *, seed: int = 0) -> RunLog:
+def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, *, controller: PDSettings | None = None, seed: int = 0) -> RunLog:
     """Replay ``log``'s reference (and pulses) through the plant (:func:`plant.simulate_replay`).
 
-    The controller is the log's (metadata); the force sensor is the one the
+    The controller is the log's (metadata) unless ``controller`` is given; the force sensor is the one the
     log was simulated with when it says so, else the benchmark's command
     (``tau = gtau * vir``). ``payload_change`` times are log times; the
     closed loop counts from the first sample. ``seed``: of the noise effects
@@ -48,7 +49,7 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
     effects = dict(effects or {})
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
-    return simulate_replay(log, params, effects, tau_sensor=tau_sensor(log), seed=seed)
+    return simulate_replay(log, params, effects, controller, tau_sensor=tau_sensor(log), seed=seed)
 
 
 def tau_sensor(log: RunLog) -> str | None:
@@ -93,8 +94,12 @@ def compare_simulation(
     against: RunLog | None,
     ls: LSSettings,
     alpha: float,
+    after_sim: RunLog | None = None,
 ) -> SimulationComparison:
-    """Before (the rigid model, or ``against``) and after (the augmented model) replays against the recording."""
+    """Before (the rigid model, or ``against``) and after (the augmented model) replays against the recording.
+
+    ``after_sim``: the replay of ``after_params`` and ``after_effects`` when the caller has it (not replayed again).
+    """
     note = ""
     if against is not None:
         if len(against) != len(log):
@@ -108,7 +113,7 @@ def compare_simulation(
     after = None
     sim1 = None
     if after_effects is not None and "q_ref" in log:
-        sim1 = replay(log, after_params, after_effects)
+        sim1 = after_sim if after_sim is not None else replay(log, after_params, after_effects)
         after = relative_errors(log, sim1, ls)
     n = min(len(log), len(sim0))
     tau_s = np.asarray(sim0["tau"][:n])

@@ -17,8 +17,11 @@ from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation,
 from ilic_cli.diagnosis.decide import ReplayVerdict, effect_force_rms, immaterial, replay_decide
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
+from ilic_cli.diagnosis.refit import METHOD as REFIT_METHOD
+from ilic_cli.diagnosis.refit import Refit, closed_loop_refit
 from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
+from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
 from ilic_cli.errors import IdentificationError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
@@ -46,6 +49,8 @@ class DiagnoseSettings:
         Replay the recorded reference through the plant (before/after).
     null : NullSettings
         The test that decides the replay (default: Diebold-Mariano; or a Monte-Carlo null).
+    pd_timing : {"recorded", "documented"}
+        When a PD log's command acts in every replay (:data:`ilic_cli.parameters.PD_TIMINGS`).
     """
 
     model: str = "rigid-offset"
@@ -53,11 +58,18 @@ class DiagnoseSettings:
     select: SelectSettings = field(default_factory=SelectSettings)
     simulate: bool = True
     null: NullSettings = NullSettings()
+    pd_timing: str = "recorded"
 
 
 @dataclass
 class Finding:
-    """One effect the model left out, with its estimate and the evidence."""
+    """One effect the model left out, with its estimate and the evidence.
+
+    ``parameters`` and ``plant_effect`` are the estimates of ``method``: the
+    closed-loop refit's (:mod:`ilic_cli.diagnosis.refit`) when it was
+    accepted, else the inverse model's (IDIM-LS); ``inverse_parameters`` are
+    the inverse model's, side by side.
+    """
 
     effect: Effect
     parameters: dict[str, Estimate]
@@ -65,6 +77,8 @@ class Finding:
     located: list[Region]
     evidence: Evaluation
     note: str = ""
+    method: str = "IDIM-LS"
+    inverse_parameters: dict[str, Estimate] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         ev = self.evidence.to_dict()
@@ -75,7 +89,9 @@ class Finding:
             "explanation": self.effect.explanation,
             "form": self.effect.form,
             "signature": self.effect.signature,
+            "method": self.method,
             "parameters": {k: v.to_dict() for k, v in self.parameters.items()},
+            "inverse_model_parameters": {k: v.to_dict() for k, v in (self.inverse_parameters or self.parameters).items()},
             "plant_effect": self.plant_effect,
             "located": [r.to_dict() for r in self.located],
             "evidence": ev,
@@ -102,9 +118,11 @@ class Diagnosis:
     model_file: dict[str, Any]
     settings: DiagnoseSettings
     simulation: SimulationComparison | None = None
+    refit: Refit | None = None
     validation_source: str | None = None
     warnings: list[str] = field(default_factory=list)
     residual: dict[str, np.ndarray] = field(default_factory=dict)
+    timing: ControlTiming | None = None
 
     @property
     def conclusion(self) -> str:
@@ -128,6 +146,7 @@ class Diagnosis:
             "selection": [[e.to_dict() for e in step] for step in self.tried],
             "decisions": [v.to_dict() for v in self.decisions],
             "simulation": None if self.simulation is None else self.simulation.to_dict(),
+            "refit": None if self.refit is None else self.refit.to_dict(),
             "validation_source": self.validation_source,
             "model_file": self.model_file,
             "settings": {
@@ -135,8 +154,10 @@ class Diagnosis:
                 "ls": self.settings.ls.to_dict(),
                 "selection": self.settings.select.to_dict(),
                 "replay_test": self.settings.null.to_dict(),
+                "pd_timing": self.settings.pd_timing,
             },
             "warnings": list(self.warnings),
+            "timing": None if self.timing is None else self.timing.to_dict(),
         }
 
 
@@ -240,13 +261,20 @@ def diagnose(
     selection = forward_select(data, base, fs, sel_settings, validation=vdata, known=known)
     rows = moving_rows(data)
     hold = hold_s(tau_sensor(log), fs)
+    W0, y0, names0 = system(data, base, known, rows)
+    res0 = solve(W0, y0, names0, sigma=settings.ls.sigma)
+    before_params = dict(model_doc["parameters"]) if model_doc else {n: float(v) for n, v in zip(names0, res0.theta, strict=True) if n in PARAMETERS}
+    before_effects = dict(model_doc.get("effects", {})) if model_doc else {}
+    timing = None
+    if settings.simulate and against is None and settings.pd_timing == "recorded":  # the replays run the loop that ran: its timing read from the recording
+        log, timing = recorded_loop(log, before_params, before_effects, settings.ls)
+        if validate is not None:
+            validate, _ = recorded_loop(validate, before_params, before_effects, settings.ls)
     kept, verdicts = _decide(log, data, base, known, selection, rows, settings, hold, validate, against)
     steps = [*known, *kept]
-    W0, y0, names0 = system(data, base, known, rows)
     W1, y1, names1 = system(data, base, steps, rows)
     if not len(y0) > 4 * W1.shape[1]:
         raise IdentificationError(src, f"only {len(y0)} usable rows after leaving out standstill: too few to diagnose")
-    res0 = solve(W0, y0, names0, sigma=settings.ls.sigma)
     res1 = solve(W1, y1, names1, sigma=settings.ls.sigma)
     cov1 = gls_covariance(W1, y1, res1.theta)
     res1 = _with_std(res1, cov1)
@@ -275,13 +303,30 @@ def diagnose(
     located.append(force_lag(data.tau, full, fs))
     findings = []
     accepted = {ev.effect: ev for ev in selection.accepted}
-    for st in kept:
+    refit = None
+    if kept and settings.simulate and against is None and "q_ref" in log:
+        grids = {s.effect.id: s.effect.scan.grid(data.kin, fs) for s in kept if s.effect.scan is not None}
+        refit = closed_loop_refit(log, prepared, base, known, kept, res1.theta, grids, ls=settings.ls)
+    final = refit.steps if refit is not None and refit.accepted else kept
+    for st, st_final in zip(kept, final, strict=True):
         ev = accepted[st.effect.id]
         params, plant, note = effect_fit(st, names1, res1.theta, cov1, ev.value_std, hold)
+        inverse = params
+        method = "IDIM-LS"
+        notes = [s.reason for s in (refit.searches if refit is not None else []) if s.effect == st.effect.id]
+        if refit is not None and refit.accepted and refit.theta is not None and refit.cov is not None:
+            std = refit.value_std.get(st.effect.id) if st_final.value != st.value else ev.value_std
+            params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold)
+            method = REFIT_METHOD
         regs = sorted([r for r in located if r.kind in st.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
-        findings.append(Finding(st.effect, params, plant, regs, ev, note))
-    rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold)
-    doc = model_document(base.name, rigid, method="IDIM-LS + ilic diagnose", effects=effects_doc, source=src or None)
+        findings.append(Finding(st.effect, params, plant, regs, ev, "; ".join(n for n in [note, *notes] if n), method, inverse))
+    if refit is not None and refit.accepted and refit.theta is not None and refit.cov is not None:
+        rigid, effects_doc = model_parameters([*known, *final], refit.names, refit.theta, refit.cov, hold)
+        std_doc = model_std([*known, *final], refit.names, refit.theta, refit.cov, hold, refit.value_std)
+        doc = model_document(base.name, rigid, method=f"{REFIT_METHOD} + ilic diagnose", effects=effects_doc, source=src or None, std=std_doc)
+    else:
+        rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold)
+        doc = model_document(base.name, rigid, method="IDIM-LS + ilic diagnose", effects=effects_doc, source=src or None)
     diag = Diagnosis(
         source=src,
         model=base.name,
@@ -297,13 +342,15 @@ def diagnose(
         decisions=verdicts,
         model_file=doc,
         settings=settings,
+        refit=refit,
         validation_source=None if validate is None else str(validate.meta.get("source", "")),
         warnings=warnings,
         residual={"t": td, "q": q_d, "qd": qd_d, "before": e0, "after": e1, "y": y0, "y_before": W0 @ res0.theta, "y_after": W1 @ res1.theta},
     )
+    if timing is not None:
+        timing.negative_flexibility = any(ev.effect == "flexibility" and "negative mass" in ev.reason for step in selection.tried for ev in step)
+    diag.timing = timing
     if settings.simulate or against is not None:
-        before_params = dict(model_doc["parameters"]) if model_doc else {n: float(v) for n, v in zip(names0, res0.theta, strict=True) if n in PARAMETERS}
-        before_effects = dict(model_doc.get("effects", {})) if model_doc else {}
         try:
             diag.simulation = compare_simulation(
                 log,
@@ -316,6 +363,7 @@ def diagnose(
                 against=against,
                 ls=settings.ls,
                 alpha=alpha,
+                after_sim=None if refit is None else refit.simulated,  # the replay of the model file's plant, when the refit made it
             )
         except ParameterError as exc:
             warnings.append(f"no simulation comparison: the fitted model is not a valid plant ({exc.problem})")
@@ -410,3 +458,20 @@ def model_parameters(
         if st.effect.plant and plant is not None:
             effects[st.effect.id] = {k: float(v) for k, v in plant.items()}
     return rigid, effects
+
+
+def model_std(
+    steps: list[Step], names: tuple[str, ...], values: np.ndarray, cov: np.ndarray, hold_s: float, value_std: dict[str, float | None]
+) -> dict[str, Any]:
+    """Standard deviations of the model file's values (rigid parameters, and each effect's plant parameters that have one).
+
+    ``value_std``: effect id -> standard deviation of its nonlinear value.
+    """
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    rigid = {n: float(s) for n, s in zip(names, std, strict=True) if n in PARAMETERS}
+    effects: dict[str, Any] = {}
+    for st in steps:
+        est, plant, _ = effect_fit(st, names, values, cov, value_std.get(st.effect.id), hold_s)
+        if st.effect.plant and plant is not None:
+            effects[st.effect.id] = {k: est[k].std for k in plant if k in est and est[k].std is not None}
+    return {"parameters": rigid, "effects": effects}

@@ -274,51 +274,8 @@ def replay_decide(
                 True,
                 (f"the replay agrees: held-out simulated force error {fb:.3g} % -> {fa:.3g} % ({p_text}), position {pb:.3g} % -> {pa:.3g} %"),
             )
-        if ok and st.effect.shift and st.value:
-            refined = _refined_shift(log, data, base, kept, st, rows, plant_of, tau_dec, step_dec)
-            if refined.value != st.value:
-                why += f"; the lag refined on the closed loop: {1e3 * st.value:.3g} ms -> {1e3 * refined.value:.3g} ms"
-                st = refined
         verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why, mc))
         if ok:
             kept.append(st)
             current = after
     return kept, verdicts
-
-
-SHIFT_SEARCH = (0.25, 1.5)
-"""Range of the closed-loop search of a time shift, as multiples of the inverse model's estimate."""
-
-
-def _refined_shift(
-    log: RunLog, data: IDIMData, base: Model, kept: list[Step], st: Step, rows: np.ndarray, plant_of: PlantOf, tau_dec: np.ndarray, step_dec: int
-) -> Step:
-    """A time shift (``delay``) refined on the closed loop: the value that minimises the replay's force error.
-
-    The inverse model's estimate of a lag is biased on closed-loop data: the
-    command answers the position noise that the regressor's filtered
-    kinematics carry, which reads as extra lag (measured on the corpus: drive
-    lags 30-43 % too long; the replay's optimum within 4 %). The linear
-    parameters are refitted by the inverse model at each value; the error is
-    the decimated force error over the whole log. A minimum on the edge of
-    :data:`SHIFT_SEARCH` keeps the inverse model's value.
-    """
-    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import
-
-    edge = int(0.05 * len(tau_dec))
-    ref = np.linalg.norm(tau_dec[edge:-edge])
-
-    def error(value: float) -> float:
-        steps = [*kept, Step(st.effect, value)]
-        sim = _replayed(log, plant_of, steps, *_fit(data, base, steps, rows, None))
-        if sim is None or len(sim) != len(log):
-            return np.inf
-        e = decimate_matlab(np.asarray(sim["tau"]) - np.asarray(log["tau"]), step_dec)
-        return float(np.linalg.norm(e[edge:-edge]) / ref)
-
-    lo, hi = sorted(f * st.value for f in SHIFT_SEARCH)
-    res = minimize_scalar(error, bounds=(lo, hi), method="bounded", options={"xatol": 0.02 / data.fs_hz})
-    best = float(res.x)
-    if not np.isfinite(res.fun) or min(best - lo, hi - best) < 0.01 * (hi - lo) or not res.fun < error(st.value):
-        return st
-    return Step(st.effect, best)

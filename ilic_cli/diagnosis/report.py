@@ -10,6 +10,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.diagnosis.locate import Region
+from ilic_cli.effects import Estimate
 
 
 def to_json(diag: Diagnosis) -> str:
@@ -53,6 +54,27 @@ def _where(label: str) -> str:
     return f"while {label}" if label in ("accelerating", "decelerating", "at constant velocity", "constant velocity") else f"at {label}"
 
 
+def _std(est: Estimate) -> str:
+    return "" if est.std is None or not math.isfinite(est.std) else f"{est.std:.3g}"
+
+
+def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], method: str) -> list[str]:
+    """The finding's estimates: the method's, and the inverse model's beside them when the method is another."""
+    if method == "IDIM-LS" or not inverse:
+        lines = ["Estimated by the inverse model (IDIM-LS).", "", "| parameter | value | std |", "| --- | --- | --- |"]
+        return lines + [f"| {n} | {_num(e.value, e.unit)} | {_std(e)} |" for n, e in params.items()] + [""]
+    lines = [
+        f"Estimated by the {method} (the inverse model's estimate beside it).",
+        "",
+        "| parameter | closed loop | std | inverse model | std |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for n, e in params.items():
+        i = inverse.get(n)
+        lines.append(f"| {n} | {_num(e.value, e.unit)} | {_std(e)} | {'' if i is None else _num(i.value, i.unit)} | {'' if i is None else _std(i)} |")
+    return [*lines, ""]
+
+
 def to_markdown(diag: Diagnosis) -> str:
     """A report in plain words, then the tables."""
     fit = diag.fit
@@ -84,6 +106,12 @@ def to_markdown(diag: Diagnosis) -> str:
         if v.get("before") is not None:
             lines.append(f"On the validation log {diag.validation_source}: {_pct(v['before'])} -> {_pct(v['after'])}.")
         lines.append("")
+    if diag.refit is not None:
+        how = "the closed-loop refit's" if diag.refit.accepted else "the inverse model's (IDIM-LS)"
+        lines += [
+            f"Estimates: {how}; {diag.refit.reason}. The closed-loop output error is the replayed force against the recorded one, in the inverse model's band.",
+            "",
+        ]
     sim = diag.simulation
     if sim is not None and sim.before:
         after = f" -> {_pct(sim.after['force'])}" if sim.after else ""
@@ -92,6 +120,9 @@ def to_markdown(diag: Diagnosis) -> str:
             f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}.",
             "",
         ]
+    timing = diag.timing.sentence() if diag.timing is not None else ""
+    if timing:
+        lines += [f"Control timing: {timing}.", ""]
     lines += [
         f"{diag.rows_used} of {diag.rows_total} decimated rows used (standstill, velocity reversals and the filter's edge left out).",
         "",
@@ -109,14 +140,9 @@ def to_markdown(diag: Diagnosis) -> str:
             "",
             f"Form: {f.effect.form}. Signature: {f.effect.signature}.",
             "",
-            "| parameter | value | std |",
-            "| --- | --- | --- |",
         ]
-        for name, est in f.parameters.items():
-            std = "" if est.std is None or not math.isfinite(est.std) else f"{est.std:.3g}"
-            lines.append(f"| {name} | {_num(est.value, est.unit)} | {std} |")
+        lines += _estimates_table(f.parameters, f.inverse_parameters, f.method)
         lines += [
-            "",
             f"Evidence: F = {ev.test.F:.4g} ({ev.test.df1}, {ev.test.df2} dof, AR({ev.test.ar_order})-prewhitened), "
             f"p = {ev.test.p_value:.3g}, Bonferroni x{ev.test.trials} -> {ev.test.p_adjusted:.3g}; "
             f"held-out error {_pct(ev.heldout_before_pct)} -> {_pct(ev.heldout_after_pct)} (Diebold-Mariano p = {ev.heldout_p_value:.3g}).",

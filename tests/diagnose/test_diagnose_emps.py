@@ -60,12 +60,22 @@ def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> 
     assert doc["findings"][0]["evidence"]["relative_error_pct"] == pytest.approx(2.76, abs=0.005)  # asymmetric friction alone
     assert fit["relative_error_pct"]["after"] == pytest.approx(2.58, abs=0.005)
     sim = fit["simulation_force_relative_error_pct"]
-    assert sim["before"] == pytest.approx(5.86, abs=0.005)  # published 5.848 % (variable-step solver)
-    assert sim["after"] == pytest.approx(5.05, abs=0.005)
+    # the replays run the loop that ran: the recorded command follows the same sample, acting at once (the 0 bound)
+    timing = doc["timing"]
+    assert timing["law"]["follows"] == "same" and timing["best_delay_samples"] == 0.0 and "bounded, not measured" in timing["at_edge"]
+    assert timing["documented"]["force"] == pytest.approx(5.86, abs=0.005)  # the documented loop: published 5.848 % (variable-step solver)
+    assert sim["before"] == pytest.approx(4.55, abs=0.005) and sim["before"] == timing["refined"]["force"]
+    assert sim["after"] == pytest.approx(3.42, abs=0.005)
     effects = doc["model_file"]["effects"]
     # friction below Coulomb at low speed (Fs = -6.3 N) is seen and not named Stribeck
     assert "stribeck" not in effects and "static friction below Coulomb (Fs = -6.3" in r.stdout and "is not Stribeck friction" in r.stdout
     assert "delay" not in effects
+    # the closed-loop refit (DIDIM with the kept effects' columns) does not lower the closed-loop output error here
+    # (3.38 % -> 3.47 %: its step's sensitivity, the regressor of the simulated states, is not the loop's answer):
+    # the findings and the model file keep the inverse model's estimates, and say so
+    refit = doc["refit"]
+    assert not refit["accepted"] and "DIDIM does not lower the closed-loop output error (3.38 % -> 3.47 %" in refit["reason"]
+    assert doc["model_file"]["method"] == "IDIM-LS + ilic diagnose" and all(f["method"] == "IDIM-LS" for f in doc["findings"])
     decisions = {v["effect"]: v for v in doc["decisions"]}
     for eid in ("asymmetric_friction", "position_ripple"):  # each kept effect lowered the held-out replay error
         ho = decisions[eid]["heldout_simulated_force_relative_error_pct"]
@@ -96,4 +106,5 @@ def test_emps_every_kept_effect_lowers_the_replay_error_on_pulses(emps_mat: Path
     for v in kept:
         assert v.validation_before is not None and v.validation_after < v.validation_before, v
         assert v.force_after < v.force_before
-    assert kept[0].validation_before == pytest.approx(8.70, abs=0.005) and kept[-1].validation_after == pytest.approx(8.28, abs=0.005)
+    # each log replayed with its own recorded loop timing (the pulse run's command acts 0.19 ms after its sample)
+    assert kept[0].validation_before == pytest.approx(5.24, abs=0.005) and kept[-1].validation_after == pytest.approx(4.52, abs=0.005)

@@ -18,18 +18,19 @@ from tests.clirun import run_cli
 from tests.conftest import require_shared
 
 ESTIMATES = {
-    # README "Closed-loop identification": rigid-offset on DATA_EMPS.mat
+    # README "Closed-loop identification": rigid-offset on DATA_EMPS.mat (DIDIM / IV replay the loop that ran: the
+    # command from the same sample, acting at once; with the documented loop, one period late, DIDIM gave M = 93.72)
     "ls": {"M": "95.11", "Fv": "203.5", "Fc": "20.39", "offset": "-3.165"},
-    "didim": {"M": "93.72", "Fv": "208.0", "Fc": "20.08", "offset": "-3.174"},
-    "iv": {"M": "95.14", "Fv": "203.2", "Fc": "20.42", "offset": "-3.165"},
+    "didim": {"M": "94.93", "Fv": "207.9", "Fc": "20.08", "offset": "-3.169"},
+    "iv": {"M": "95.14", "Fv": "203.6", "Fc": "20.39", "offset": "-3.165"},
 }
 HELD_OUT = {
-    # (structure, method): closed-loop force error % on PULSES, open-loop RMSE mm, fit %
-    ("rigid-offset", "ls"): ("8.71", "8.38", "89.9"),
-    ("rigid-offset", "didim"): ("8.36", "7.68", "90.7"),
-    ("rigid-offset", "iv"): ("8.72", "8.41", "89.8"),
-    ("asymmetric", "ls"): ("8.29", "13.07", "84.2"),
-    ("asymmetric", "didim"): ("7.92", "12.66", "84.7"),
+    # (structure, method): closed-loop force error % on PULSES (its recorded loop timing), open-loop RMSE mm, fit %
+    ("rigid-offset", "ls"): ("5.27", "8.38", "89.9"),
+    ("rigid-offset", "didim"): ("5.16", "7.75", "90.6"),
+    ("rigid-offset", "iv"): ("5.28", "8.38", "89.9"),
+    ("asymmetric", "ls"): ("4.57", "13.07", "84.2"),
+    ("asymmetric", "didim"): ("4.43", "12.38", "85.0"),
 }
 
 
@@ -59,7 +60,7 @@ def test_estimates_beside_idim_ls(rigid_doc: dict) -> None:
         for name, text in table.items():
             value = got[name]["value"]
             assert as_printed(value, text) == text, (method, name, value, text)
-    assert rigid_doc["didim"]["converged"] and rigid_doc["didim"]["iterations"] == 3
+    assert rigid_doc["didim"]["converged"] and rigid_doc["didim"]["iterations"] == 2
     assert rigid_doc["iv"]["converged"] and rigid_doc["iv"]["iterations"] == 1
 
 
@@ -73,7 +74,7 @@ def test_held_out_pulses(emps: Path, tmp_path: Path, structure: str, method: str
     pulses = str(emps / "DATA_EMPS_PULSES.mat")
     closed = run_cli("replay", pulses, "--model", str(out / "model.json"), "-o", str(tmp_path / "closed.mcap"))
     assert closed.status == 0, closed.stderr
-    m = re.search(r"force error ([0-9.]+) %", closed.stderr)
+    m = re.search(r"against the recording .*force error ([0-9.]+) %", closed.stderr)
     assert m is not None, closed.stderr
     assert as_printed(float(m.group(1)), force) == force, (m.group(1), force)
     opened = run_cli("replay", pulses, "--model", str(out / "model.json"), "-o", str(tmp_path / "open.mcap"), "--open-loop")

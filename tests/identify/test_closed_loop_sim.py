@@ -86,6 +86,8 @@ def test_convergence_fields_in_json(pd_doc: dict) -> None:
         assert d["std_source"] and all(v["std"] > 0 for v in d["parameters"].values())
         assert set(d["closed_loop_error_pct"]) == {"position", "velocity", "force"}
     assert pd_doc["didim"]["relative_error_pct"] == pytest.approx(pd_doc["didim"]["residual_history"][-1]["relative_error_pct"])
+    # the two histories measure different things, and say which
+    assert "output error" in pd_doc["didim"]["residual"] and "inverse-model" in pd_doc["iv"]["residual"]
 
 
 def test_same_args_bit_identical(pd_path: Path, pd_doc: dict) -> None:
@@ -171,6 +173,8 @@ def test_out_folder_has_the_convergence_plot_and_the_asked_estimate(pd_path: Pat
     res = run_cli("identify", str(pd_path), "--method", "iv", "--out", str(tmp_path / "r"), "--plots", "svg")
     assert res.status == 0, res.stderr
     assert (tmp_path / "r" / "convergence.svg").stat().st_size > 0 and (tmp_path / "r" / "force.svg").is_file()
+    # IV's panel is titled with its own criterion (not DIDIM's output error on a shared axis)
+    assert "inverse-model residual" in (tmp_path / "r" / "convergence.svg").read_text()
     model = json.loads((tmp_path / "r" / "model.json").read_text())
     report = json.loads((tmp_path / "r" / "report.json").read_text())
     assert model["method"] == "IDIM-IV"

@@ -1,0 +1,270 @@
+"""When does the recorded command act? The PD loop's timing, read from the recording.
+
+The EMPS benchmark documents its PD loop with one period of computation delay
+(the command computed from ``qm(k-1)`` acts over ``[kT, (k+1)T)``), and the
+replay runs it so (:class:`plant.controllers.PDSettings`, ``delay_samples = 1``).
+A recording that logs the command (``vir``) beside the position tells which
+sample the command was computed from: :func:`pd_law_residuals` evaluates the
+law on the same sample's position and on the previous one's. When the command
+follows the same sample, the documented loop holds each command one period too
+long, and :func:`control_timing` replays the log with the command acting a
+fraction of a period after its sample, keeping the fraction that minimises the
+replayed force error (an optimum at a bound of the range is reported as such,
+never as a measured lag). :func:`with_recorded_timing` gives the log whose
+controller carries that timing: the diagnosis replays the loop that ran.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.diagnosis.compare import relative_errors, replay
+from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.idim_ls import LSSettings
+from ilic_cli.runlog import RunLog
+from plant.controllers import PDSettings
+from plant.replay import controller_from_log
+
+GRID = tuple(round(0.1 * i, 1) for i in range(10))
+"""Computation delays tried (control periods, 0 to 0.9): below one period, the command computed from the same sample."""
+
+FOLLOWS_RATIO = 0.5
+"""The recorded command follows one sample's law when its residual is below this share of the other's."""
+
+
+@dataclass(frozen=True)
+class LawResiduals:
+    """RMS of the recorded command minus the PD law, in % of the command's RMS.
+
+    Attributes
+    ----------
+    same_pct : float
+        Law on the same sample's position: ``vir(k) = sat(v(k)) + pulses(k)``.
+    previous_pct : float
+        Law on the previous sample's position (the documented one-period delay):
+        ``vir(k) = sat(v(k-1)) + pulses(k)``.
+    """
+
+    same_pct: float
+    previous_pct: float
+
+    @property
+    def follows(self) -> str | None:
+        """``"same"``, ``"previous"``, or ``None`` when neither residual is clearly the smaller."""
+        if self.same_pct < FOLLOWS_RATIO * self.previous_pct:
+            return "same"
+        if self.previous_pct < FOLLOWS_RATIO * self.same_pct:
+            return "previous"
+        return None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"same_sample_pct": self.same_pct, "previous_sample_pct": self.previous_pct, "follows": self.follows}
+
+
+def pd_law_residuals(
+    q: np.ndarray, q_ref: np.ndarray, vir: np.ndarray, pulses: np.ndarray | None, kp: float, kv: float, vmax: float, dt_s: float
+) -> LawResiduals:
+    """How well the recorded command follows the benchmark PD law on the same and on the previous sample.
+
+    ``v(k) = kv*(kp*(q_ref(k) - q(k)) - (q(k) - q(k-2))/(2 dt))`` (the
+    position averaged over two samples, then differenced); the first three
+    samples and those where either reading saturates (``|v| >= vmax``) are
+    left out, and the pulses enter with the gain that fits best (one least-squares
+    factor per reading).
+
+    Parameters
+    ----------
+    q, q_ref, vir : ndarray
+        Measured position, reference and recorded command (V), equally long.
+    pulses : ndarray or None
+        Signal added to the saturated command (the pulse run's), else none.
+    kp, kv, vmax, dt_s : float
+        Position gain (1/s), velocity gain (V/(m/s)), saturation (V), period (s).
+
+    Returns
+    -------
+    LawResiduals
+    """
+    q, q_ref, vir = (np.asarray(a, dtype=np.float64) for a in (q, q_ref, vir))
+    add = np.zeros_like(vir) if pulses is None else np.asarray(pulses, dtype=np.float64)
+    v = np.empty_like(q)
+    v[2:] = kv * (kp * (q_ref[2:] - q[2:]) - (q[2:] - q[:-2]) / (2.0 * dt_s))
+    v[:2] = v[2]
+    inside = np.abs(v) < vmax
+    keep = inside[3:] & inside[2:-1]  # off the saturation on both readings (where the rig's clipping may differ)
+    scale = float(np.sqrt(np.mean(vir[3:][keep] ** 2))) or 1.0
+
+    a = add[3:][keep]
+
+    def rms_pct(e: np.ndarray) -> float:
+        e = e[keep]
+        if np.any(a):  # the pulses' size as the command holds it (the pulse run's is 1.4 % above its pulses_N)
+            e = e - a * (float(a @ e) / float(a @ a))
+        return 100.0 * float(np.sqrt(np.mean(e**2))) / scale
+
+    return LawResiduals(rms_pct(vir[3:] - v[3:] - add[3:]), rms_pct(vir[3:] - v[2:-1] - add[3:]))
+
+
+def vertex(x: np.ndarray, y: np.ndarray, i: int) -> float:
+    """Abscissa of the minimum of the parabola through points ``i-1, i, i+1`` (``x[i]`` when they are not convex)."""
+    x0, x1, x2 = x[i - 1 : i + 2]
+    y0, y1, y2 = y[i - 1 : i + 2]
+    den = (x0 - x1) * (x0 - x2) * (x1 - x2)
+    a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
+    b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
+    if not a > 0:
+        return float(x1)
+    return float(min(max(-b / (2 * a), x0), x2))
+
+
+@dataclass
+class ControlTiming:
+    """The loop's timing read from the recording and, when it differs from the replay's, the replayed errors at the best one.
+
+    Attributes
+    ----------
+    law : LawResiduals
+        Which sample the recorded command follows.
+    negative_flexibility : bool
+        The diagnosis rejected a flexibility for its negative mass (the sentence then says what it is).
+    period_s : float
+        Control period.
+    tried : list of (float, float)
+        ``(delay in periods, replayed force error %)`` at the delays of :data:`GRID` replayed (up to the first rise).
+    best : float or None
+        Computation delay (periods) of the least replayed force error.
+    at_edge : str or None
+        Why ``best`` is a bound of the range, not a measured lag.
+    documented, refined : dict
+        Replay errors (position, velocity, force, %) with one period of delay and with ``best``.
+    """
+
+    law: LawResiduals
+    period_s: float
+    tried: list[tuple[float, float]] = field(default_factory=list)
+    best: float | None = None
+    at_edge: str | None = None
+    documented: dict[str, float] = field(default_factory=dict)
+    refined: dict[str, float] = field(default_factory=dict)
+    negative_flexibility: bool = False
+
+    @property
+    def mismatch(self) -> bool:
+        """The command follows the same sample while the replay delays it by a period."""
+        return self.law.follows == "same" and bool(self.tried)
+
+    def sentence(self) -> str:
+        """One sentence for reports (empty when the replay's timing is the recording's)."""
+        if not self.mismatch or self.best is None:
+            return ""
+        law = self.law
+        f0, f1 = self.documented["force"], self.refined["force"]
+        v0, v1 = self.documented["velocity"], self.refined["velocity"]
+        ms = self.best * self.period_s * 1e3
+        where = f"acting {ms:.2g} ms after its sample" if self.at_edge is None else f"acting {ms:.2g} ms after its sample ({self.at_edge})"
+        return (
+            f"The recorded command follows the PD law on the same sample's position ({law.same_pct:.2g} % of its RMS left, "
+            f"{law.previous_pct:.2g} % on the previous sample's), so the drive acts within the sample, not one period later "
+            f"as the documented loop assumes: the replays here run the loop with the command {where} "
+            f"(the starting model's simulated force error {f1:.2f} % instead of {f0:.2f} %, velocity {v1:.3g} % instead of {v0:.3g} %)"
+        ) + (
+            "; a drive lag this short is what the flexibility candidate's negative mass shows (a rigid plant simulated with a 0.2 ms lag "
+            "on the EMPS reference gives one too, README), not a two-mass axis"
+            if self.negative_flexibility
+            else ""
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "law": self.law.to_dict(),
+            "period_s": self.period_s,
+            "tried": [{"delay_samples": d, "force_pct": f} for d, f in self.tried],
+            "best_delay_samples": self.best,
+            "best_delay_s": None if self.best is None else self.best * self.period_s,
+            "at_edge": self.at_edge,
+            "documented": self.documented,
+            "refined": self.refined,
+            "sentence": self.sentence(),
+        }
+
+
+def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, ls: LSSettings) -> ControlTiming | None:
+    """The timing of ``log``'s PD loop; ``None`` for a log without a recorded PD command (``vir``, ``q_ref``, the loop's gains).
+
+    When the command follows the same sample and the replay's loop delays it
+    by a period, the log is replayed with ``params``/``effects`` at the delays
+    of :data:`GRID` in turn until the force error rises (it is unimodal in the
+    lag), and the least one is refined by a parabola (a minimum at 0 or at the
+    top of the grid is a bound: ``at_edge``).
+    """
+    if "vir" not in log or "q_ref" not in log or "q" not in log:
+        return None
+    try:
+        ctl = controller_from_log(log)
+    except Exception:  # noqa: BLE001 - no recorded controller: nothing to read the timing of
+        return None
+    if not isinstance(ctl, PDSettings) or ctl.kind != "pd" or ctl.pulse_input != "held":
+        return None
+    pulses = log["pulses"] if "pulses" in log else None
+    law = pd_law_residuals(log["q"], log["q_ref"], log["vir"], pulses, ctl.kp, ctl.kv, ctl.vmax, log.dt_s)
+    out = ControlTiming(law, log.dt_s)
+    if law.follows != "same" or ctl.same_sample:
+        return out
+
+    cache: dict[float, dict[str, float]] = {}
+
+    def errors(delay: float) -> dict[str, float]:
+        if delay not in cache:
+            cache[delay] = relative_errors(log, replay(log, params, effects, controller=replace(ctl, delay_samples=delay)), ls)
+        return cache[delay]
+
+    out.documented = errors(1.0)
+    # walk up the grid while the force error falls (it is unimodal in the lag: measured on both EMPS runs),
+    # so a minimum at 0 costs two replays instead of the whole grid
+    for d in GRID:
+        out.tried.append((d, errors(d)["force"]))
+        if len(out.tried) >= 2 and out.tried[-1][1] > out.tried[-2][1]:
+            break
+    x = np.array([d for d, _ in out.tried])
+    y = np.array([f for _, f in out.tried])
+    i = int(np.argmin(y))
+    if i == 0:
+        out.best, out.at_edge = 0.0, "the lower bound of the range: a command cannot act before its sample, so the lag is bounded, not measured"
+    elif i == len(GRID) - 1:
+        out.best, out.at_edge = float(x[i]), "the upper end of the range, next to a whole period: not a measured lag"
+    else:
+        out.best = vertex(x, y, i)
+    out.refined = errors(out.best)
+    if not math.isfinite(out.refined["force"]):
+        out.best = None
+    return out
+
+
+def with_recorded_timing(log: RunLog, timing: ControlTiming | None) -> RunLog:
+    """``log`` whose PD controller acts with the timing read from it (``delay_samples`` = ``timing.best``).
+
+    Unchanged when the recording follows the replay's loop already (or tells
+    nothing). At a bound of the range the bound is used: the least replayed
+    error there, though only bounded as a lag (:attr:`ControlTiming.at_edge`).
+    """
+    if timing is None or not timing.mismatch or timing.best is None:
+        return log
+    controller = {**(log.meta.get("controller") or {}), "kind": "pd", "delay_samples": float(timing.best)}
+    return RunLog(dict(log.channels), dict(log.units), {**log.meta, "controller": controller})
+
+
+def recorded_loop(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, ls: LSSettings) -> tuple[RunLog, ControlTiming | None]:
+    """``log`` with the loop that ran (:func:`with_recorded_timing`), timed with the model ``params``/``effects``; and the timing read.
+
+    A log whose model cannot be simulated, or without a recorded PD command, is
+    returned as it is (timing ``None`` or without replays).
+    """
+    try:
+        timing = control_timing(log, params, dict(effects or {}), ls)
+    except (ParameterError, SimulationError):
+        return log, None
+    return with_recorded_timing(log, timing), timing
