@@ -205,7 +205,7 @@ def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any
         return None
     try:
         ctl = controller_from_log(log)
-    except Exception:  # noqa: BLE001 - no recorded controller: nothing to read the timing of
+    except (SimulationError, ParameterError):  # no recorded controller (or an invalid one): nothing to read the timing of
         return None
     if not isinstance(ctl, PDSettings) or ctl.kind != "pd" or ctl.pulse_input != "held":
         return None
