@@ -169,8 +169,8 @@ class ControlTiming:
         return (
             f"The recorded command follows the PD law on the same sample's position ({law.same_pct:.2g} % of its RMS left, "
             f"{law.previous_pct:.2g} % on the previous sample's), so the drive acts within the sample, not one period later "
-            f"as the documented loop assumes: the replays here run the loop with the command {where} "
-            f"(the starting model's simulated force error {f1:.2f} % instead of {f0:.2f} %, velocity {v1:.3g} % instead of {v0:.3g} %)"
+            f"as the documented loop assumes: the replays here run the loop with the command {where}; "
+            f"the starting model's simulated force error is {f1:.2f} % so, {f0:.2f} % with the documented loop (velocity {v1:.3g} %, {v0:.3g} %)"
         ) + (
             "; a drive lag this short is what the flexibility candidate's negative mass shows (a rigid plant simulated with a 0.2 ms lag "
             "on the EMPS reference gives one too, README), not a two-mass axis"
