@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,6 +25,9 @@ from ilic_cli.lsq import LSResult
 from ilic_cli.prepare import prepare_log
 from ilic_cli.regressor import Model, get_model
 from ilic_cli.runlog import RunLog
+
+if TYPE_CHECKING:
+    from ilic_cli.diagnosis.timing import ControlTiming
 
 
 @dataclass(frozen=True)
@@ -63,8 +66,8 @@ class IdentifyReport:
     iv: ClosedLoopResult | None = None
     method: str = "both"
     """The ``method`` asked for: its estimate goes to the model file (:meth:`primary`)."""
-    timing: Any = None
-    """The PD loop's timing read from the recording for DIDIM / IDIM-IV (:class:`ilic_cli.diagnosis.timing.ControlTiming`), if read."""
+    timing: ControlTiming | None = None
+    """The PD loop's timing read from the recording for DIDIM / IDIM-IV, if read."""
 
     def closed_loop(self) -> list[ClosedLoopResult]:
         """The DIDIM and IDIM-IV results that were run, in that order."""
@@ -239,6 +242,8 @@ def identify(
         raise ParameterError("method", method, f"one of {', '.join(IDENTIFY_METHODS)}")
     if effects and method not in ("ls", "didim", "iv"):
         raise ParameterError("method", method, "'ls', 'didim' or 'iv' with effect columns (IDIM-ILIC windows identify the structure's own parameters)")
+    if pd_timing not in parameters.PD_TIMINGS:
+        raise ParameterError("pd_timing", pd_timing, f"one of {', '.join(parameters.PD_TIMINGS)}")
     report = IdentifyReport(
         source=src,
         model=structure,
@@ -261,12 +266,9 @@ def identify(
         if not report.ls.result.full_rank:
             report.warnings.append("IDIM-LS: the observation matrix is rank-deficient; the trajectory does not excite every parameter")
     timed = prepared
-    if closed:
+    if closed and pd_timing == "recorded":  # the loop that ran: its timing read with the IDIM-LS start
         from ilic_cli.diagnosis.timing import recorded_loop  # deferred: with the replay
 
-        if pd_timing not in parameters.PD_TIMINGS:
-            raise ParameterError("pd_timing", pd_timing, f"one of {', '.join(parameters.PD_TIMINGS)}")
-    if closed and pd_timing == "recorded":  # the loop that ran: its timing read with the IDIM-LS start
         assert report.ls is not None
         timed_log, report.timing = recorded_loop(log, *plant_of(model.names, report.ls.result.theta, effects), ls_settings)
         timed = replace(prepared, log=timed_log)

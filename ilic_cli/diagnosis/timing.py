@@ -207,7 +207,7 @@ def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any
         ctl = controller_from_log(log)
     except (SimulationError, ParameterError):  # no recorded controller (or an invalid one): nothing to read the timing of
         return None
-    if not isinstance(ctl, PDSettings) or ctl.kind != "pd" or ctl.pulse_input != "held":
+    if not isinstance(ctl, PDSettings) or ctl.pulse_input != "held":
         return None
     pulses = log["pulses"] if "pulses" in log else None
     law = pd_law_residuals(log["q"], log["q_ref"], log["vir"], pulses, ctl.kp, ctl.kv, ctl.vmax, log.dt_s)
@@ -264,7 +264,7 @@ def recorded_loop(log: RunLog, params: dict[str, float], effects: dict[str, Any]
     returned as it is (timing ``None`` or without replays).
     """
     try:
-        timing = control_timing(log, params, dict(effects or {}), ls)
+        timing = control_timing(log, params, effects, ls)
     except (ParameterError, SimulationError):
         return log, None
     return with_recorded_timing(log, timing), timing

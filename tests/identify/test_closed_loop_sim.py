@@ -195,3 +195,12 @@ def test_irregular_log_is_identified_on_its_uniform_grid() -> None:
     got = dict(zip(res.result.names, res.result.theta, strict=True))
     errs = {n: 100.0 * abs(got[n] - PUBLISHED_RIGID[n]) / PUBLISHED_RIGID[n] for n in RIGID}
     assert max(errs.values()) < 3.0, errs
+
+
+def test_unknown_pd_timing_is_refused_before_any_work() -> None:
+    t = np.arange(200) / 1000.0
+    log = RunLog({"t": t, "q": 0.01 * np.sin(t), "tau": np.cos(t)})
+    from ilic_cli.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="pd_timing"):
+        identify(log, method="ls", pd_timing="late")  # checked for every method, not only where a replay would use it
