@@ -103,6 +103,7 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
             ax.plot(ks, [it.relative_error_pct for it in cl.iterations], "o-", color=f"C{i + 4}")
             ax.set_title(f"{cl.method} ({'converged' if cl.converged else 'not converged'}): {RESIDUAL[cl.method]}", fontsize=9)
             ax.set_ylabel("relative to ‖y‖ (%)")
+            ax.ticklabel_format(axis="y", useOffset=False)  # IV moves in the 5th digit: an offset label would hide the level
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             ax.grid(alpha=0.3)
         axes[-1, 0].set_xlabel("iteration k (0: IDIM-LS start)")
