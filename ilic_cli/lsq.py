@@ -94,6 +94,15 @@ def pinv(W: np.ndarray) -> np.ndarray:
     return np.linalg.pinv(W, rcond=max(W.shape) * RANK_EPS)
 
 
+def column_basis(W: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the column space of ``W`` (left singular vectors, rank rule of :func:`rank_tolerance`)."""
+    W = np.asarray(W, dtype=np.float64)
+    U, s, _ = np.linalg.svd(W, full_matrices=False)
+    if s.size == 0:
+        return U
+    return U[:, s > rank_tolerance(s[0], *W.shape)]
+
+
 def lstsq(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     """Least-squares estimate (minimum-norm when rank-deficient, same rank rule) and residual sum of squares.
 

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.stats import effective_size, lag1_autocorrelation
+from ilic_cli.diagnosis.stats import chi2_sf, effective_size, f_sf, lag1_autocorrelation, normal_sf
+from ilic_cli.filtering import local_maxima, welch_psd
 from ilic_cli.lsq import lstsq
 
 
@@ -72,8 +73,6 @@ class Region:
 
 
 def _bins(kind: str, e: np.ndarray, x: np.ndarray, edges: list[tuple[float, float]], unit: str, alpha: float, rho: float) -> list[Region]:
-    from scipy import stats
-
     out = []
     sd = float(np.std(e, ddof=1)) if len(e) > 1 else float("nan")
     fam = max(len(edges), 1)
@@ -85,7 +84,7 @@ def _bins(kind: str, e: np.ndarray, x: np.ndarray, edges: list[tuple[float, floa
         mean = float(e[m].mean())
         se = sd / np.sqrt(effective_size(n, rho))
         z = mean / se if se > 0 else 0.0
-        p = min(1.0, 2.0 * float(stats.norm.sf(abs(z))) * fam)
+        p = min(1.0, 2.0 * float(normal_sf(abs(z))) * fam)
         out.append(Region(kind, f"{kind} in [{a:.4g}, {b:.4g}] {unit}", (float(a), float(b)), n, mean, float(se), float(z), p, p < alpha))
     return out
 
@@ -151,8 +150,6 @@ def reversal_windows(e: np.ndarray, t: np.ndarray, qd: np.ndarray, half_width_s:
 
 def time_segments(e: np.ndarray, t: np.ndarray, W: np.ndarray, n: int = 8, alpha: float = 0.001) -> list[Region]:
     """Per time segment: mean residual, and a drift test (residual regressed on the model's columns, F-test)."""
-    from scipy import stats
-
     rho = lag1_autocorrelation(e)
     edges = np.linspace(float(t[0]), float(t[-1]), n + 1)
     out = _bins("time", e, t, list(zip(edges[:-1], edges[1:], strict=True)), "s", alpha, rho)
@@ -166,7 +163,7 @@ def time_segments(e: np.ndarray, t: np.ndarray, W: np.ndarray, n: int = 8, alpha
         ss = float(e[m] @ e[m]) - rss
         neff = effective_size(int(m.sum()), rho)
         F = (ss / k) / sd2 * (neff / m.sum()) if sd2 > 0 else 0.0
-        p = min(1.0, float(stats.f.sf(F, k, max(neff - k, 1))) * n)
+        p = min(1.0, float(f_sf(F, k, max(neff - k, 1))) * n)
         out.append(
             Region(
                 "drift",
@@ -185,20 +182,19 @@ def time_segments(e: np.ndarray, t: np.ndarray, W: np.ndarray, n: int = 8, alpha
 
 def spectrum_peaks(e: np.ndarray, fs_hz: float, alpha: float = 0.001, max_peaks: int = 3) -> list[Region]:
     """Spectral peaks of the residual above a smooth background (Welch, chi-square test, Bonferroni over bins)."""
-    from scipy import signal, stats
     from scipy.ndimage import median_filter
 
     nper = int(min(len(e), max(64, 2 ** int(np.log2(fs_hz * 2)))))
-    f, P = signal.welch(e - np.mean(e), fs=fs_hz, nperseg=nper)
+    f, P = welch_psd(e - np.mean(e), fs_hz, nper)
     if len(P) < 8:
         return []
     segments = max(1, 2 * len(e) // nper - 1)
     background = median_filter(P, size=max(5, len(P) // 16), mode="nearest")
     ratio = np.where(background > 0, P / background, 0.0)
     dof = 2 * segments
-    pv = stats.chi2.sf(ratio * dof, dof) * len(P)
+    pv = chi2_sf(ratio * dof, dof) * len(P)
     out = []
-    peak_idx, _ = signal.find_peaks(ratio)
+    peak_idx = local_maxima(ratio)
     for i in peak_idx[np.argsort(pv[peak_idx])][:max_peaks]:
         p = min(1.0, float(pv[i]))
         df = f[1] - f[0]
@@ -223,8 +219,6 @@ def force_lag(y: np.ndarray, y_hat: np.ndarray, fs_hz: float, max_lag_s: float =
 
     Positive: the logged force lags the model (the plant's ``delay``).
     """
-    from scipy import stats
-
     a = y - y.mean()
     b = y_hat - y_hat.mean()
     L = int(round(max_lag_s * fs_hz))
@@ -241,7 +235,7 @@ def force_lag(y: np.ndarray, y_hat: np.ndarray, fs_hz: float, max_lag_s: float =
     # is the peak away from zero? compare the correlation at the peak and at zero lag (Fisher z, effective n)
     neff = effective_size(n, lag1_autocorrelation(a - b))
     z = (np.arctanh(min(c[i], 0.999999)) - np.arctanh(min(c[L], 0.999999))) * np.sqrt(max(neff - 3, 1))
-    p = float(stats.norm.sf(z)) * len(lags)
+    p = float(normal_sf(z)) * len(lags)
     p = min(1.0, p)
     return Region(
         "lag",

@@ -42,6 +42,7 @@ import numpy as np
 from ilic_cli.diagnosis.compare import replay
 from ilic_cli.diagnosis.decide import PlantOf, replay_decide
 from ilic_cli.diagnosis.select import Searcher, Step, moving_rows, system
+from ilic_cli.diagnosis.stats import normal_isf
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.filtering import butter_lowpass_zero_phase, decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
@@ -450,9 +451,7 @@ def dm_z(p: float | None) -> float:
     p : float or None
         One-sided p-value (:func:`ilic_cli.diagnosis.stats.diebold_mariano`).
     """
-    from scipy.stats import norm
-
-    return math.nan if p is None else float(norm.isf(p))
+    return math.nan if p is None else float(normal_isf(p))
 
 
 @dataclass

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ilic_cli.diagnosis.core import Diagnosis
+from ilic_cli.filtering import welch_psd
 from ilic_cli.io.atomic import atomic_path
 from ilic_cli.plotting import edge_rows, mark_edges, scale_y
 
@@ -18,7 +19,6 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from scipy import signal
 
     r = diag.residual
     written: list[Path] = []
@@ -49,7 +49,7 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     fig, ax = plt.subplots(figsize=(10, 4))
     for key, label in (("before", "rigid model"), ("after", "augmented model")):
         e = r[key]
-        f, P = signal.welch(e - e.mean(), fs=fs, nperseg=min(len(e), 256))
+        f, P = welch_psd(e - e.mean(), fs, min(len(e), 256))
         ax.loglog(f[1:], P[1:], label=label)
     for g in sig:
         if g.kind == "frequency":

@@ -216,7 +216,7 @@ class Searcher:
         self._cache: dict[str, tuple[np.ndarray, np.ndarray, bool]] = {}
 
     def grid(self, effect: Effect) -> tuple[np.ndarray, np.ndarray, bool]:
-        """``(values, X, exact)``: X is ``(G, n, m)`` columns or, for a shift, ``(n, G)`` forces."""
+        """``(values, X, exact)``: X is ``(n, G, m)`` columns or, for a shift, ``(n, G)`` forces."""
         if effect.id in self._cache:
             return self._cache[effect.id]
         assert effect.scan is not None
@@ -229,10 +229,9 @@ class Searcher:
         elif len(values) <= EXACT_GRID_MAX:
             full = np.concatenate([effect.matrix(self.data.kin, v, self.fs) for v in values], axis=1)
             m = full.shape[1] // len(values)
-            X = self.data.decimate(full)[self.keep].reshape(-1, len(values), m).transpose(1, 0, 2)
-            out = (values, np.ascontiguousarray(X), True)
+            out = (values, self.data.decimate(full)[self.keep].reshape(-1, len(values), m), True)
         else:
-            X = np.stack([effect.matrix(self.kin_dec, v, self.fs)[self.keep] for v in values], axis=0)
+            X = np.stack([effect.matrix(self.kin_dec, v, self.fs)[self.keep] for v in values], axis=1)
             out = (values, X, False)
         self._cache[effect.id] = out
         return out
@@ -259,7 +258,7 @@ class Searcher:
         if effect.shift:
             r = shifted_rss(W0[rows], X[rows])
         else:
-            r = batched_rss(W0[rows], y[rows], X[:, rows])
+            r = batched_rss(W0[rows], y[rows], X[rows])
         if exact:
             return float(values[int(np.argmin(r))])
         # local minima, best first, re-evaluated with exact columns

@@ -52,9 +52,9 @@ def test_batched_rss_matches_loop() -> None:
     rng = np.random.default_rng(2)
     W0 = rng.standard_normal((200, 3))
     y = rng.standard_normal(200)
-    X = rng.standard_normal((5, 200, 2))
+    X = rng.standard_normal((200, 5, 2))
     got = batched_rss(W0, y, X)
-    want = [lstsq(np.hstack([W0, X[g]]), y)[1] for g in range(5)]
+    want = [lstsq(np.hstack([W0, X[:, g]]), y)[1] for g in range(5)]
     assert np.allclose(got, want)
 
 

@@ -12,12 +12,16 @@ from ilic_cli.diagnosis.stats import (
     ar_fit,
     batched_rss,
     blocked_folds,
+    chi2_sf,
     diebold_mariano,
     effective_size,
+    f_sf,
     gls_covariance,
     heldout_errors,
     lag1_autocorrelation,
     nested_f_test,
+    normal_isf,
+    normal_sf,
     shifted_rss,
     whiten,
 )
@@ -155,8 +159,8 @@ def test_batched_and_shifted_rss_match_single_fits() -> None:
     Y = rng.standard_normal((80, 6))
     np.testing.assert_allclose(shifted_rss(W0, Y), [lstsq(W0, Y[:, g])[1] for g in range(6)], rtol=1e-9)
     y = rng.standard_normal(80)
-    X = rng.standard_normal((4, 80, 1))
-    np.testing.assert_allclose(batched_rss(W0, y, X), [lstsq(np.hstack([W0, X[g]]), y)[1] for g in range(4)], rtol=1e-6)
+    X = rng.standard_normal((80, 4, 1))
+    np.testing.assert_allclose(batched_rss(W0, y, X), [lstsq(np.hstack([W0, X[:, g]]), y)[1] for g in range(4)], rtol=1e-6)
 
 
 def test_heldout_errors_of_an_exact_model_vanish_and_a_wrong_one_do_not() -> None:
@@ -289,3 +293,22 @@ def test_gls_covariance_one_degree_of_freedom_and_default_folds() -> None:
     assert len(folds) == 5
     train, test = folds[2]
     assert (test[0], test[-1]) == (80, 119) and 69 in train and 70 not in train and 129 not in train and 130 in train  # 10 rows guard
+
+
+def test_batched_rss_with_rank_deficient_base() -> None:
+    # a repeated column: the base's span is what counts, under the one rank rule of ilic_cli.lsq
+    rng = np.random.default_rng(5)
+    w = rng.standard_normal((120, 2))
+    W0 = np.hstack([w, w[:, :1]])
+    y = rng.standard_normal(120)
+    X = rng.standard_normal((120, 3, 2))
+    np.testing.assert_allclose(batched_rss(W0, y, X), [lstsq(np.hstack([W0, X[:, g]]), y)[1] for g in range(3)], rtol=1e-9)
+
+
+def test_tail_probabilities_match_scipy_stats() -> None:
+    x = np.array([0.0, 0.3, 1.7, 4.2, 11.0, 40.0])
+    np.testing.assert_array_equal(normal_sf(x), stats.norm.sf(x))
+    np.testing.assert_array_equal(f_sf(x, 3, 250), stats.f.sf(x, 3, 250))
+    np.testing.assert_array_equal(chi2_sf(x, 8), stats.chi2.sf(x, 8))
+    p = np.array([1e-12, 0.01, 0.5, 0.9])
+    np.testing.assert_allclose(normal_isf(p), stats.norm.isf(p), rtol=1e-15)
