@@ -46,12 +46,16 @@ from plant.corpus import CASES, PARAM_TOLERANCE, build_case, score  # noqa: E402
 def run_case(name: str) -> dict[str, Any]:
     """Build one case's log and diagnose it (a worker of the pool)."""
     from ilic_cli.diagnosis.core import diagnose
+    from ilic_cli.errors import IlicError
 
     case = CASES[name]
     t0 = time.process_time()
     log = build_case(case)
     t1 = time.process_time()
-    diag = diagnose(log)
+    try:
+        diag = diagnose(log)
+    except IlicError as exc:
+        raise RuntimeError(f"{name}: {exc}") from exc
     t2 = time.process_time()
     findings = [(f.effect.id, f.plant_effect) for f in diag.findings]
     first = [e.test.p_value for e in diag.tried[0]] if diag.tried else []

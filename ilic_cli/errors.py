@@ -26,6 +26,14 @@ class IlicError(Exception):
         self.problem = problem
         super().__init__(self.message())
 
+    def __reduce__(self) -> tuple[object, ...]:
+        """Pickle by the arguments and the state (an error raised in a worker process reaches the parent whole)."""
+        return (Exception.__new__, (type(self),), self.__dict__)
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        Exception.__init__(self, self.message())
+
     def message(self) -> str:
         """Return the one-line message without the ``ilic: error:`` prefix."""
         text = " ".join(self.problem.split())

@@ -17,7 +17,6 @@ from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation,
 from ilic_cli.diagnosis.decide import ReplayVerdict, effect_force_rms, immaterial, replay_decide
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
-from ilic_cli.diagnosis.refit import METHOD as REFIT_METHOD
 from ilic_cli.diagnosis.refit import Refit, closed_loop_refit
 from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
@@ -25,7 +24,7 @@ from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
 from ilic_cli.errors import IdentificationError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
-from ilic_cli.lsq import LSResult, relative_error_pct, solve
+from ilic_cli.lsq import LSResult, lstsq, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, structure_of
 from ilic_cli.prepare import PreparedLog, prepare_log
@@ -189,6 +188,13 @@ def steps_from_effects(effects: dict[str, Any], M: float) -> list[Step]:
     return out
 
 
+def _inverse_fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarray) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """The inverse model's fit of ``base + steps`` on ``rows``: names, estimate, autocorrelation-aware covariance."""
+    W, y, names = system(data, base, steps, rows)
+    theta, _ = lstsq(W, y)
+    return names, theta, gls_covariance(W, y, theta)
+
+
 def _prepare(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMData:
     """The IDIM system of ``prepared``, its regressor evaluated like the logged force (:func:`ilic_cli.diagnosis.baseline.held`)."""
     log = prepared.log
@@ -306,7 +312,7 @@ def diagnose(
     refit = None
     if kept and settings.simulate and against is None and "q_ref" in log:
         grids = {s.effect.id: s.effect.scan.grid(data.kin, fs) for s in kept if s.effect.scan is not None}
-        refit = closed_loop_refit(log, prepared, base, known, kept, res1.theta, grids, ls=settings.ls)
+        refit = closed_loop_refit(log, prepared, base, known, kept, res1.theta, grids, ls=settings.ls, inverse_fit=lambda s: _inverse_fit(data, base, s, rows))
     final = refit.steps if refit is not None and refit.accepted else kept
     for st, st_final in zip(kept, final, strict=True):
         ev = accepted[st.effect.id]
@@ -317,13 +323,13 @@ def diagnose(
         if refit is not None and refit.accepted and refit.theta is not None and refit.cov is not None:
             std = refit.value_std.get(st.effect.id) if st_final.value != st.value else ev.value_std
             params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold)
-            method = REFIT_METHOD
+            method = refit.method
         regs = sorted([r for r in located if r.kind in st.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
         findings.append(Finding(st.effect, params, plant, regs, ev, "; ".join(n for n in [note, *notes] if n), method, inverse))
     if refit is not None and refit.accepted and refit.theta is not None and refit.cov is not None:
         rigid, effects_doc = model_parameters([*known, *final], refit.names, refit.theta, refit.cov, hold)
         std_doc = model_std([*known, *final], refit.names, refit.theta, refit.cov, hold, refit.value_std)
-        doc = model_document(base.name, rigid, method=f"{REFIT_METHOD} + ilic diagnose", effects=effects_doc, source=src or None, std=std_doc)
+        doc = model_document(base.name, rigid, method=f"{refit.method} + ilic diagnose", effects=effects_doc, source=src or None, std=std_doc)
     else:
         rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold)
         doc = model_document(base.name, rigid, method="IDIM-LS + ilic diagnose", effects=effects_doc, source=src or None)

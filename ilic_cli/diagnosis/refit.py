@@ -37,6 +37,12 @@ effects' columns) is refitted so:
 3. **DIDIM at the values found**, kept when its output error is below that of
    step 1 (else step 1's estimate, at the inverse model's values).
 
+When DIDIM does not lower the output error (step 1), the values the inverse
+model is known to bias (:data:`SEARCH_STEPS`: Stribeck ``vs``, a delay) are
+still searched on the closed loop, the linear parameters then the inverse
+model's fit at each value (one replay per value; :data:`INVERSE_METHOD`), and
+that estimate is kept when it lowers the output error.
+
 The estimate is **accepted** only when every effect stays a valid plant of
 the physics it is named (a load fraction in (0, 1), a Stribeck level above 0
 and above ``-Fc``, ...) and DIDIM did not fail; otherwise the inverse model's
@@ -72,6 +78,13 @@ from ilic_cli.runlog import RunLog
 
 METHOD = "DIDIM closed-loop refit"
 """The method the findings and the model file name when the refit is accepted."""
+
+INVERSE_METHOD = "IDIM-LS, nonlinear values searched on the closed loop"
+"""The method named when DIDIM does not lower the output error but the closed-loop search of the nonlinear values does
+(the linear parameters are then the inverse model's at the values found)."""
+
+InverseFit = Callable[[list[Step]], tuple[tuple[str, ...], np.ndarray, np.ndarray]]
+"""``steps -> (names, theta, cov)``: the inverse model's fit (and covariance) of ``base + steps``."""
 
 SEARCH_STEPS: dict[str, int] = {"stribeck": 10, "delay": 4}
 """Half-width of the closed-loop search, in steps of the effect's own grid around the inverse model's value (default :data:`DEFAULT_STEPS`).
@@ -178,9 +191,11 @@ class Refit:
     error_inverse_pct, error_pct : float or None
         Closed-loop output error (%, the decimated force, DIDIM's criterion) of the inverse model's estimate and of the refit.
     didim : ClosedLoopResult or None
-        The final DIDIM run (iterations, stop reason).
+        The final DIDIM run (iterations, stop reason); ``None`` for :data:`INVERSE_METHOD`.
     simulated : RunLog or None
         The replay of the refitted model (the final DIDIM iteration's).
+    method : str
+        :data:`METHOD`, or :data:`INVERSE_METHOD` when DIDIM was not kept but the search of the nonlinear values was.
     """
 
     accepted: bool
@@ -195,10 +210,11 @@ class Refit:
     error_pct: float | None = None
     didim: ClosedLoopResult | None = None
     simulated: RunLog | None = field(default=None, repr=False)
+    method: str = METHOD
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "method": METHOD,
+            "method": self.method,
             "accepted": self.accepted,
             "reason": self.reason,
             "closed_loop_error_pct": {
@@ -261,7 +277,7 @@ def plant_problem(steps: list[Step] | tuple[Step, ...], names: tuple[str, ...], 
     return None
 
 
-def _search_grid(effect: Effect, grid: np.ndarray, value: float) -> np.ndarray:
+def search_range(effect: Effect, grid: np.ndarray, value: float) -> np.ndarray:
     """The part of ``effect``'s grid the closed loop searches: :data:`SEARCH_STEPS` steps either side of ``value``."""
     k = SEARCH_STEPS.get(effect.id, DEFAULT_STEPS)
     i = int(np.argmin(np.abs(grid - value)))
@@ -283,6 +299,7 @@ def closed_loop_refit(
     *,
     ls: LSSettings = LSSettings(),
     simulate: Callable[[dict[str, float], dict[str, Any]], RunLog] | None = None,
+    inverse_fit: InverseFit | None = None,
 ) -> Refit:
     """Refit ``base + known + kept`` on the closed-loop output error: the kept effects' nonlinear values searched, then DIDIM.
 
@@ -306,6 +323,10 @@ def closed_loop_refit(
         Filtering and decimation (as the inverse model).
     simulate : callable, optional
         ``(rigid parameters, effects) -> simulated log``; default the replay of ``log`` (:func:`ilic_cli.diagnosis.compare.replay`).
+    inverse_fit : callable, optional
+        The inverse model's fit of ``base + steps`` (:data:`InverseFit`). When DIDIM does not lower the
+        output error, the nonlinear values are still searched on the closed loop, the linear parameters
+        refitted by it at each value (:data:`INVERSE_METHOD`); without it, the inverse model's estimates stand.
 
     Returns
     -------
@@ -386,29 +407,48 @@ def closed_loop_refit(
     if not error0 < error_inverse:
         out.reason = (
             f"DIDIM does not lower the closed-loop output error ({error_inverse:.3g} % -> {error0:.3g} %; its step takes the regressor of the "
-            "simulated states for the sensitivity of the simulated force, which the loop's answer to these effects does not follow): "
-            "the inverse model's estimates are kept"
+            "simulated states for the sensitivity of the simulated force, which the loop's answer to these effects does not follow)"
+        )
+        if inverse_fit is None:
+            out.reason += ": the inverse model's estimates are kept"
+            return out
+
+        def profile_inverse(model_steps: list[Step], anchor: np.ndarray) -> _Point:
+            """The inverse model's fit at ``model_steps``' values, replayed (one replay); ``anchor`` is not used."""
+            names, theta, _ = inverse_fit(model_steps)
+            if plant_problem(model_steps, names, theta):
+                return _Point(math.inf, theta, math.inf, 0.0, theta)
+            try:
+                sim = sim_of(*plant_of(names, theta, values_of(model_steps)))
+            except IlicError:
+                return _Point(math.inf, theta, math.inf, 0.0, theta)
+            replays[0] += 1
+            if len(sim) != len(log):
+                return _Point(math.inf, theta, math.inf, 0.0, theta)
+            r = y - prepare(t, sim["q"], tau, fs, base, ls, valid=prepared.valid).decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
+            e = 100.0 * float(np.linalg.norm(r)) / y_norm
+            return _Point(e, theta, e, lag1_autocorrelation(r), theta)
+
+        start0 = profile_inverse(steps, np.asarray(theta0, dtype=np.float64))
+        biased = {k: g for k, g in grids.items() if k in SEARCH_STEPS}  # the values the inverse model is known to bias; the others are within a grid step
+        searches, found_steps, end = _search_all(known, steps, biased, start0, profile_inverse, replays, len(y))
+        out.searches = searches
+        if not any(s.accepted for s in searches) or not end.error < start0.error:
+            out.reason += ", and no closed-loop search of its nonlinear values lowers it: the inverse model's estimates are kept"
+            return out
+        names, theta, cov = inverse_fit(found_steps)
+        out.accepted, out.steps, out.names, out.theta, out.cov, out.method = True, found_steps[len(known) :], names, theta, cov, INVERSE_METHOD
+        out.simulated = sim_of(*plant_of(names, theta, values_of(found_steps)))
+        out.error_pct, out.didim = end.error, None
+        out.value_std = {s.effect: s.std for s in searches if s.accepted and s.primary}
+        searched = ", ".join(f"{s.parameter} of {s.effect}" for s in searches if s.accepted)
+        out.reason += (
+            f"; {searched} searched on the closed loop instead ({INVERSE_METHOD}): closed-loop output error {error_inverse:.3g} % -> {end.error:.3g} %"
         )
         return out
     # 2. each nonlinear value searched on the closed loop, from DIDIM's estimate (its last replay is at that estimate)
     inverse_steps = list(steps)
-    start = point(steps, res0.result.theta, sims0[-1])
-    searches: list[ValueSearch] = []
-    for j in range(len(known), len(steps)):
-        st = steps[j]
-        scan = st.effect.scan
-        if scan is None or st.effect.id not in grids:
-            continue
-        params = [(scan.name, scan.unit, 0)]
-        if scan.secondary is not None and isinstance(st.value, tuple):
-            params.append((scan.secondary[0], scan.secondary[1], 1))
-        for pname, unit, slot in params:
-            if searches and searches[-1].accepted:  # the next search starts from the last optimum's estimate (one replay)
-                start = profile(steps, start.theta)
-            found, start = _search(steps, j, slot, pname, unit, grids[st.effect.id], start, profile, replays, len(y) - len(start.theta))
-            searches.append(found)
-            if found.accepted:
-                steps[j] = Step(st.effect, _with_slot(steps[j].value, slot, found.value) if isinstance(steps[j].value, tuple) else found.value)
+    searches, steps, start = _search_all(known, steps, grids, point(steps, res0.result.theta, sims0[-1]), profile, replays, len(y), restart=True)
     chosen, error, sim = inverse_steps, error0, sims0[-1]
     if any(s.accepted for s in searches):
         # 3. DIDIM at the values found; kept only when it does better than DIDIM at the inverse model's values
@@ -446,6 +486,43 @@ def closed_loop_refit(
     return out
 
 
+def _search_all(
+    known: list[Step],
+    steps: list[Step],
+    grids: Mapping[str, np.ndarray],
+    start: _Point,
+    profile: Callable[[list[Step], np.ndarray], _Point],
+    replays: list[int],
+    n_rows: int,
+    *,
+    restart: bool = False,
+) -> tuple[list[ValueSearch], list[Step], _Point]:
+    """Each nonlinear parameter of ``steps`` (not ``known``'s) searched in turn on ``profile``: the searches, the steps at the values found, the last point.
+
+    Each search goes on from the previous one's optimum; ``restart``: from a
+    new profile point at its estimate (one replay: a DIDIM step from there).
+    """
+    steps = list(steps)
+    searches: list[ValueSearch] = []
+    point = start
+    for j in range(len(known), len(steps)):
+        st = steps[j]
+        scan = st.effect.scan
+        if scan is None or st.effect.id not in grids:
+            continue
+        slots = [(scan.name, scan.unit, 0)]
+        if scan.secondary is not None and isinstance(st.value, tuple):
+            slots.append((scan.secondary[0], scan.secondary[1], 1))
+        for pname, unit, slot in slots:
+            if restart and searches and searches[-1].accepted:
+                point = profile(steps, point.theta)
+            found, point = _search(steps, j, slot, pname, unit, grids[st.effect.id], point, profile, replays, n_rows - len(point.theta))
+            searches.append(found)
+            if found.accepted:
+                steps[j] = Step(st.effect, _with_slot(steps[j].value, slot, found.value) if isinstance(steps[j].value, tuple) else found.value)
+    return searches, steps, point
+
+
 def _with_slot(value: Any, slot: int, new: float) -> Any:
     v = list(value) if isinstance(value, tuple) else [value]
     v[slot] = new
@@ -476,7 +553,7 @@ def _search(
     value = st.value
     v0 = float(value[slot]) if isinstance(value, tuple) else float(value)
     if slot == 0:
-        sub = _search_grid(st.effect, np.asarray(grid, dtype=np.float64), v0)
+        sub = search_range(st.effect, np.asarray(grid, dtype=np.float64), v0)
         lo, hi = float(sub[0]), float(sub[-1])
         log_scale = scan.log and lo > 0
         fwd, inv = _scale(log_scale)
