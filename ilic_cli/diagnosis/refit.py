@@ -409,7 +409,8 @@ def closed_loop_refit(
             f"DIDIM does not lower the closed-loop output error ({error_inverse:.3g} % -> {error0:.3g} %; its step takes the regressor of the "
             "simulated states for the sensitivity of the simulated force, which the loop's answer to these effects does not follow)"
         )
-        if inverse_fit is None:
+        biased = {k: g for k, g in grids.items() if k in SEARCH_STEPS}  # the values the inverse model is known to bias; the others are within a grid step
+        if inverse_fit is None or not biased:
             out.reason += ": the inverse model's estimates are kept"
             return out
 
@@ -430,7 +431,6 @@ def closed_loop_refit(
             return _Point(e, theta, e, lag1_autocorrelation(r), theta)
 
         start0 = profile_inverse(steps, np.asarray(theta0, dtype=np.float64))
-        biased = {k: g for k, g in grids.items() if k in SEARCH_STEPS}  # the values the inverse model is known to bias; the others are within a grid step
         searches, found_steps, end = _search_all(known, steps, biased, start0, profile_inverse, replays, len(y))
         out.searches = searches
         if not any(s.accepted for s in searches) or not end.error < start0.error:
