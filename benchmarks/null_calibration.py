@@ -16,6 +16,15 @@ is the smallest p there is).
 Prints one Markdown row per trial and a summary; ``--json FILE`` keeps them.
 
 ``--replicates 0``: the Diebold-Mariano p alone (no Monte-Carlo null).
+``--more-seeds K``: clean logs of seeds 3 .. K + 2 too (every trajectory under
+every noise model), built as the corpus builds its own.
+
+Each trial also records whether the diagnosis would judge it at all: the
+gates before any replay (materiality, an estimate outside the effect's
+physics or on the edge of its search) and whether the corpus's scoring counts
+the forced finding as right (a delay of a current loop's size). The summary's
+``judged_spurious`` rates are over the rest: the candidates the replay's test
+alone must reject.
 
 Usage: python benchmarks/null_calibration.py [--clean GLOB] [--effects GLOB] [--replicates 19] [--jobs 1]
 """
@@ -33,7 +42,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from plant.corpus import CASES, CLEAN_CASES, EFFECT_CASES  # noqa: E402
+from plant.corpus import CASES, CLEAN_CASES, EFFECT_CASES, NOISE_MODELS, TRAJECTORY_KINDS, Case  # noqa: E402
 
 
 def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
@@ -43,16 +52,17 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
     from ilic_cli.diagnosis.baseline import hold_s
     from ilic_cli.diagnosis.compare import tau_sensor
     from ilic_cli.diagnosis.core import _prepare, model_parameters
-    from ilic_cli.diagnosis.decide import replay_decide
+    from ilic_cli.diagnosis.decide import effect_force_rms, immaterial, replay_decide
     from ilic_cli.diagnosis.null import MonteCarloNull, reproposed
     from ilic_cli.diagnosis.select import Searcher, Step, at_edge, moving_rows, system
     from ilic_cli.effects import EFFECTS, applicable
     from ilic_cli.idim_ls import LSSettings
+    from ilic_cli.lsq import lstsq
     from ilic_cli.prepare import prepare_log
     from ilic_cli.regressor import get_model
-    from plant.corpus import build_case
+    from plant.corpus import build_case, score
 
-    case = CASES[name]
+    case = CASES[name] if name in CASES else extra_clean_case(name)
     log = prepare_log(build_case(case)).log
     ls = LSSettings()
     base = get_model("rigid-offset")
@@ -72,8 +82,17 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         t0 = time.perf_counter()
         step = reproposed(data, base, [], Step(EFFECTS[eid]), rows)
         edge = at_edge(step.effect, Searcher(data, data.fs_hz, rows).grid(step.effect)[0], step.value) if step.effect.nonlinear else None
+        # the gates the diagnosis applies before any replay (select.forward_select, decide.immaterial): a gated candidate is never judged
+        W0, _, _ = system(data, base, [], rows)
+        W1, y1, names1 = system(data, base, [step], rows)
+        theta1, _ = lstsq(W1, y1)
+        impossible = step.effect.impossible(theta1[W0.shape[1] :], step.value) if step.effect.impossible is not None else None
+        small = immaterial(step, *effect_force_rms(data, base, [], step, rows), data.fs_hz)
+        # a forced finding the corpus's scoring counts as right (a delay of a current loop's size is physics)
+        right = score(case, [(eid, plant_of([step], names1, theta1)[1].get(eid))])["false_alarms"] == 0
         _, (dm,) = replay_decide(log, data, base, [], [step], rows, plant_of, alpha=0.0)
         row: dict[str, Any] = {"case": name, "effect": eid, "value": step.value, "edge": edge, "dm_p": dm.p_value}
+        row.update({"gated": edge or impossible or small, "right": right})
         row.update({"force_before": dm.force_before, "force_after": dm.force_after})
         if dm.p_value is not None and replicates > 0:
             dist = null.distribution(log, data, base, [], step, rows, plant_of, 5, dm.p_value)
@@ -81,6 +100,12 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         row["wall_s"] = time.perf_counter() - t0
         out.append(row)
     return out
+
+
+def extra_clean_case(name: str) -> Case:
+    """A clean case beyond the corpus's two seeds, named as they are (``clean-TRAJECTORY-NOISE-sSEED``)."""
+    _, traj, noise, seed = name.split("-")
+    return Case(name, traj, noise, int(seed[1:]))
 
 
 def _job(args: tuple[str, int, int]) -> list[dict[str, Any]]:
@@ -93,6 +118,7 @@ def _job(args: tuple[str, int, int]) -> list[dict[str, Any]]:
 def summary(rows: list[dict[str, Any]], replicates: int) -> dict[str, Any]:
     """Rates: p_MC <= 0.05 and p_DM <= 0.05 / 0.01, and the trials without a p."""
     with_mc = [r for r in rows if r.get("mc_p") is not None]
+    judged = [r for r in rows if r["dm_p"] is not None and not r.get("gated") and not r.get("right")]
     dm = [r["dm_p"] for r in rows if r["dm_p"] is not None]
     return {
         "trials": len(rows),
@@ -102,6 +128,10 @@ def summary(rows: list[dict[str, Any]], replicates: int) -> dict[str, Any]:
         "mc_p_le_0.10": sum(r["mc_p"] <= 0.10 + 1e-12 for r in with_mc),
         "dm_p_le_0.05": sum(p <= 0.05 for p in dm),
         "dm_p_le_0.01": sum(p <= 0.01 for p in dm),
+        # what the diagnosis would judge: not gated before the replay, and not a finding the scoring counts as right
+        "judged_spurious": len(judged),
+        "judged_spurious_dm_p_le_0.01": sum(r["dm_p"] <= 0.01 for r in judged),
+        "judged_spurious_mc_p_le_0.05": sum(r["mc_p"] <= 0.05 + 1e-12 for r in judged if r.get("mc_p") is not None),
         "dm_p_median": sorted(dm)[len(dm) // 2] if dm else None,
         "mc_p_median": sorted(r["mc_p"] for r in with_mc)[len(with_mc) // 2] if with_mc else None,
     }
@@ -112,11 +142,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--clean", default=None, help="glob of clean case names (e.g. 'clean-*-s1')")
     ap.add_argument("--effects", default=None, help="glob of concealed single-effect case names")
     ap.add_argument("--replicates", type=int, default=19)
+    ap.add_argument("--more-seeds", type=int, default=0, help="clean logs of this many further seeds (3, 4, ...) beside the corpus's two")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
-    names = [c.name for c in CLEAN_CASES if args.clean and fnmatch.fnmatch(c.name, args.clean)]
+    clean = [c.name for c in CLEAN_CASES] + [f"clean-{tr}-{nz}-s{sd}" for sd in range(3, 3 + args.more_seeds) for tr in TRAJECTORY_KINDS for nz in NOISE_MODELS]
+    names = [n for n in clean if args.clean and fnmatch.fnmatch(n, args.clean)]
     if args.effects:
         names += [c.name for c in EFFECT_CASES if fnmatch.fnmatch(c.name, args.effects)]
     jobs = [(n, args.replicates, args.seed) for n in names]

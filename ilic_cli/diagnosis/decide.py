@@ -329,7 +329,7 @@ def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error:
 
     The inverse model's estimate of some effects is off by several steps of
     its grid on closed-loop data (:data:`ilic_cli.diagnosis.refit.SEARCH_STEPS`:
-    a drive lag 30-43 % too long), which can hide a real effect from the
+    a drive lag 30-66 % too long), which can hide a real effect from the
     replay. Within that range of ``grid`` around the inverse value, the value
     is searched on the simulated force error of the fold's training blocks
     (the linear parameters refitted by the inverse model at each value), so

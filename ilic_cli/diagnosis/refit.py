@@ -4,7 +4,7 @@ The inverse model (:mod:`ilic_cli.diagnosis.select`) fits an effect on the
 filtered kinematics of the measured position. On closed-loop data that is
 biased: the command answers the position noise and the disturbance the
 filtered kinematics carry, so an effect whose column correlates with them
-comes out off (measured on the corpus: a drive lag 30-43 % too long, a
+comes out off (measured on the corpus: a drive lag 30-66 % too long, a
 Stribeck level 46 % and 163 % off on the EMPS reference). The closed-loop
 output error has no such bias: the recorded reference is replayed through the
 log's controller and the plant of the estimate, and the simulated force is
