@@ -94,7 +94,8 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         row: dict[str, Any] = {"case": name, "effect": eid, "value": step.value, "edge": edge, "dm_p": dm.p_value}
         row.update({"gated": edge or impossible or small, "right": right})
         row.update({"force_before": dm.force_before, "force_after": dm.force_after})
-        if dm.p_value is not None and replicates > 0:
+        # the Monte-Carlo null only where the replay's test decides: not for a gated candidate, nor for a clean log's finding that is right
+        if dm.p_value is not None and replicates > 0 and not row["gated"] and not (case.clean and right):
             dist = null.distribution(log, data, base, [], step, rows, plant_of, 5, dm.p_value)
             row.update({"mc_p": dist.p_value, "t_obs": dist.t_obs, "t_null": dist.t_null.tolist(), "noise": dist.noise.to_dict()})
         row["wall_s"] = time.perf_counter() - t0
