@@ -79,7 +79,7 @@ from ilic_cli.runlog import RunLog
 METHOD = "DIDIM closed-loop refit"
 """The method the findings and the model file name when the refit is accepted."""
 
-INVERSE_METHOD = "IDIM-LS, nonlinear values searched on the closed loop"
+INVERSE_METHOD = "closed-loop value search with IDIM-LS"
 """The method named when DIDIM does not lower the output error but the closed-loop search of the nonlinear values does
 (the linear parameters are then the inverse model's at the values found)."""
 
@@ -443,7 +443,8 @@ def closed_loop_refit(
         out.value_std = {s.effect: s.std for s in searches if s.accepted and s.primary}
         searched = ", ".join(f"{s.parameter} of {s.effect}" for s in searches if s.accepted)
         out.reason += (
-            f"; {searched} searched on the closed loop instead ({INVERSE_METHOD}): closed-loop output error {error_inverse:.3g} % -> {end.error:.3g} %"
+            f"; {searched} searched on the closed loop instead, the linear parameters IDIM-LS's at each value: "
+            f"closed-loop output error {error_inverse:.3g} % -> {end.error:.3g} %"
         )
         return out
     # 2. each nonlinear value searched on the closed loop, from DIDIM's estimate (its last replay is at that estimate)
