@@ -12,9 +12,10 @@ model: the error decimated as the IDIM system is). A value the inverse model
 is known to bias (a drive lag, Stribeck ``vs``) is first searched on each
 fold's training blocks in closed loop (:func:`fold_value`), so the replay
 judges the effect at a value the held-out block did not shape. The effect is
-kept when the held-out simulated force error falls (one-sided Diebold-Mariano on the held-out errors
-at the decimated rows, Newey-West variance), the held-out position error does
-not rise, and, with a validation log, its replay error does not rise either.
+kept when the held-out simulated force error falls (one-sided
+Diebold-Mariano on the held-out errors at the decimated rows, Newey-West
+variance), the held-out position error does not rise, and, with a validation
+log, its replay error does not rise either.
 A rejected effect is left out and the next one is tried against the model
 kept so far.
 
@@ -84,6 +85,8 @@ class ReplayVerdict:
     accepted: bool
     reason: str
     null: NullDistribution | None = None
+    searched: tuple[float, ...] | None = None
+    """The value used in each fold when it was searched on the fold's training blocks (:func:`fold_value`)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -94,6 +97,7 @@ class ReplayVerdict:
             "validation_simulated_force_relative_error_pct": None
             if self.validation_before is None
             else {"before": self.validation_before, "after": self.validation_after},
+            "fold_values": None if self.searched is None else list(self.searched),
             "accepted": self.accepted,
             "reason": self.reason,
         }
@@ -224,14 +228,15 @@ def replay_decide(
     in_block = [(at >= a) & (at < b) for a, b in blocks]
     tau_dec = decimate_matlab(tau, step_dec)
 
+    others_of = [np.any([sel for j, sel in enumerate(in_block) if j != fold], axis=0) for fold in range(len(in_block))]
+
     def training_error(steps: list[Step], train: np.ndarray, fold: int) -> float:
         """Simulated force error (sum of squares, decimated) on the blocks other than ``fold``, the model fitted on ``train``."""
         names, theta = _fit(data, base, steps, rows, train)
         sim = _replayed(log, plant_of, steps, names, theta)
         if sim is None or len(sim) != n:
             return np.inf
-        others = np.any([sel for j, sel in enumerate(in_block) if j != fold], axis=0)
-        e = decimate_matlab(np.asarray(sim["tau"]) - tau, step_dec)[others]
+        e = decimate_matlab(np.asarray(sim["tau"]) - tau, step_dec)[others_of[fold]]
         return float(e @ e)
 
     def heldout(steps: list[Step], search: bool = False) -> tuple[np.ndarray, np.ndarray, list[Any]] | None:
@@ -312,7 +317,8 @@ def replay_decide(
                 True,
                 (f"the replay agrees: held-out simulated force error {fb:.3g} % -> {fa:.3g} % ({p_text}), position {pb:.3g} % -> {pa:.3g} %"),
             )
-        verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc))
+        fold_values = tuple(float(v) for v in after[2]) if search else None
+        verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc, fold_values))
         if ok:
             kept.append(st)
             current = after
