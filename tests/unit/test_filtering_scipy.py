@@ -218,19 +218,3 @@ def test_a_rows_result_does_not_depend_on_the_rows_beside_it() -> None:
         np.testing.assert_array_equal(decimate_matlab(x[i], 10), together[i])
     windows = lowpass_decimate(x, 80, 5.0, 1000.0)
     np.testing.assert_array_equal(lowpass_decimate(x[2:3], 80, 5.0, 1000.0), windows[2:3])
-
-
-@pytest.mark.parametrize(("n", "nperseg"), [(64, 64), (777, 777), (1000, 255), (2456, 2048), (5000, 256)])
-def test_welch_is_scipys(n: int, nperseg: int) -> None:
-    x = _walk(n, seed=n) + np.random.default_rng(n).standard_normal(n)
-    f, P = filtering.welch_psd(x - x.mean(), 200.0, nperseg)
-    want_f, want_P = signal.welch(x - x.mean(), fs=200.0, nperseg=nperseg)
-    np.testing.assert_array_equal(f, want_f)
-    _assert_close(P, want_P, want_P, 1e-13)
-
-
-def test_local_maxima_are_find_peaks() -> None:
-    rng = np.random.default_rng(7)
-    for _ in range(500):  # small integers: many flat tops and ties at the ends
-        x = rng.integers(0, 4, size=int(rng.integers(0, 30))).astype(float)
-        np.testing.assert_array_equal(filtering.local_maxima(x), signal.find_peaks(x)[0])
