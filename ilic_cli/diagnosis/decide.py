@@ -33,8 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.diagnosis.compare import relative_errors, replay
-from ilic_cli.diagnosis.refit import SEARCH_STEPS, search_range
-from ilic_cli.diagnosis.select import Step, at_edge, system
+from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, search_range, system
 from ilic_cli.diagnosis.stats import blocked_folds, diebold_mariano
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
@@ -334,7 +333,7 @@ def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error:
     """``step`` with its nonlinear value searched on one fold's closed-loop training error (``prefix`` kept before it).
 
     The inverse model's estimate of some effects is off by several steps of
-    its grid on closed-loop data (:data:`ilic_cli.diagnosis.refit.SEARCH_STEPS`:
+    its grid on closed-loop data (:data:`ilic_cli.diagnosis.select.SEARCH_STEPS`:
     a drive lag 30-66 % too long), which can hide a real effect from the
     replay. Within that range of ``grid`` around the inverse value, the value
     is searched on the simulated force error of the fold's training blocks

@@ -66,9 +66,9 @@ import numpy as np
 
 from ilic_cli.closed_loop_id import ClosedLoopResult, closed_loop_identify, plant_of
 from ilic_cli.diagnosis.compare import replay
-from ilic_cli.diagnosis.select import Step, at_edge, extended
+from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, extended, search_range
 from ilic_cli.diagnosis.stats import gls_covariance, lag1_autocorrelation
-from ilic_cli.effects import Effect, Fit
+from ilic_cli.effects import Fit
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.idim_ls import LSSettings, prepare
 from ilic_cli.lsq import finite_or_none, lstsq
@@ -85,18 +85,6 @@ INVERSE_METHOD = "closed-loop value search with IDIM-LS"
 
 InverseFit = Callable[[list[Step]], tuple[tuple[str, ...], np.ndarray, np.ndarray]]
 """``steps -> (names, theta, cov)``: the inverse model's fit (and covariance) of ``base + steps``."""
-
-SEARCH_STEPS: dict[str, int] = {"stribeck": 10, "delay": 4}
-"""Half-width of the closed-loop search, in steps of the effect's own grid around the inverse model's value (default :data:`DEFAULT_STEPS`).
-
-Origin (corpus, inverse model against truth): Stribeck ``vs`` off by a factor up to 2.6
-(0.0211 for 0.008 m/s; the grid steps by a factor 1.126, so 10 steps reach a factor 3.3);
-drive lags 0.3-0.6 ms too long (grid step 0.5 ms). Ripple periods and resonances were within
-about a grid step; a payload's change time up to 4 steps off (11.64 s for 11.18 s), which 3 steps
-bring to 11.32 s. A wider range lets the search wander into the aliases of a periodic ripple."""
-
-DEFAULT_STEPS = 3
-"""Half-width of the search for the effects not in :data:`SEARCH_STEPS` (grid steps)."""
 
 XATOL_STEPS = 0.05
 """Tolerance of the bounded search on the value, in grid steps (on the grid's own scale)."""
@@ -275,13 +263,6 @@ def plant_problem(steps: list[Step] | tuple[Step, ...], names: tuple[str, ...], 
         except ParameterError as exc:
             return f"{e.id}: {exc.problem}"
     return None
-
-
-def search_range(effect: Effect, grid: np.ndarray, value: float) -> np.ndarray:
-    """The part of ``effect``'s grid the closed loop searches: :data:`SEARCH_STEPS` steps either side of ``value``."""
-    k = SEARCH_STEPS.get(effect.id, DEFAULT_STEPS)
-    i = int(np.argmin(np.abs(grid - value)))
-    return grid[max(i - k, 0) : i + k + 1]
 
 
 def _scale(log_scale: bool) -> tuple[Callable[[float], float], Callable[[float], float]]:

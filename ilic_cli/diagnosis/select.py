@@ -345,6 +345,29 @@ def at_edge(effect: Effect, grid: np.ndarray, value: Any) -> str | None:
     return None
 
 
+SEARCH_STEPS: dict[str, int] = {"stribeck": 10, "delay": 4}
+"""The effects whose nonlinear value the inverse model biases on closed-loop data, and the half-width of its closed-loop search.
+
+In steps of the effect's own grid around the inverse model's value (default :data:`DEFAULT_STEPS`); used by
+:mod:`ilic_cli.diagnosis.decide` (per fold) and :mod:`ilic_cli.diagnosis.refit`.
+
+Origin (corpus, inverse model against truth): Stribeck ``vs`` off by a factor up to 2.6
+(0.0211 for 0.008 m/s; the grid steps by a factor 1.126, so 10 steps reach a factor 3.3);
+drive lags 0.3-0.7 ms too long (grid step 0.5 ms). Ripple periods and resonances were within
+about a grid step; a payload's change time up to 4 steps off (11.64 s for 11.18 s), which 3 steps
+bring to 11.32 s. A wider range lets the search wander into the aliases of a periodic ripple."""
+
+DEFAULT_STEPS = 3
+"""Half-width of the search for the effects not in :data:`SEARCH_STEPS` (grid steps)."""
+
+
+def search_range(effect: Effect, grid: np.ndarray, value: float) -> np.ndarray:
+    """The part of ``effect``'s grid the closed loop searches: :data:`SEARCH_STEPS` steps either side of ``value``."""
+    k = SEARCH_STEPS.get(effect.id, DEFAULT_STEPS)
+    i = int(np.argmin(np.abs(grid - value)))
+    return grid[max(i - k, 0) : i + k + 1]
+
+
 def _minimise(f: Any, lo: float, hi: float, use_log: bool) -> float:
     """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``)."""
     from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import

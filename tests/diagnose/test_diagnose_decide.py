@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis.decide import fold_value
-from ilic_cli.diagnosis.refit import SEARCH_STEPS
-from ilic_cli.diagnosis.select import Step
+from ilic_cli.diagnosis.select import SEARCH_STEPS, Step
 from ilic_cli.effects import EFFECTS
 
 DELAY = EFFECTS["delay"]

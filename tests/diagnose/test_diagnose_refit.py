@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis.core import _prepare, diagnose
-from ilic_cli.diagnosis.refit import INVERSE_METHOD, METHOD, SEARCH_STEPS, closed_loop_refit, plant_problem
-from ilic_cli.diagnosis.select import Step, moving_rows, system
+from ilic_cli.diagnosis.refit import INVERSE_METHOD, METHOD, closed_loop_refit, plant_problem
+from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, moving_rows, system
 from ilic_cli.effects import EFFECTS
 from ilic_cli.errors import ParameterError
 from ilic_cli.idim_ls import LSSettings
