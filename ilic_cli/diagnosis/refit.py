@@ -318,7 +318,8 @@ def closed_loop_refit(
     steps = [*known, *kept]
     names0 = extended(base, steps, prepared.fs_hz).names
     t, tau, fs = log.t, np.asarray(log["tau"], dtype=np.float64), prepared.fs_hz
-    y = prepare(t, log["q"], tau, fs, base, ls, valid=prepared.valid).y
+    recorded = prepare(t, log["q"], tau, fs, base, ls, valid=prepared.valid)
+    y = recorded.y
     y_norm = float(np.linalg.norm(y))
     if problem := plant_problem(steps, names0, theta0):
         return Refit(False, f"no closed-loop refit: the inverse model's estimate is no plant ({problem})", list(kept), names0)
@@ -338,19 +339,21 @@ def closed_loop_refit(
             return _Point(math.inf, anchor, at_anchor, 0.0, anchor)
         return _Point(100.0 * math.sqrt(rss) / y_norm, anchor + delta, at_anchor, lag1_autocorrelation(r - d.W @ delta), anchor)
 
+    def replayed(model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> RunLog | None:
+        """The replay of the estimate (one replay), ``None`` when it is no plant or does not simulate the whole log."""
+        if plant_problem(model_steps, names, theta):
+            return None
+        try:
+            sim = sim_of(*plant_of(names, theta, values_of(model_steps)))
+        except IlicError:
+            return None
+        replays[0] += 1
+        return sim if len(sim) == len(log) else None
+
     def profile(model_steps: list[Step], anchor: np.ndarray) -> _Point:
         """One DIDIM step from ``anchor`` with ``model_steps`` (one replay); infinite errors when either estimate is no plant."""
-        names = extended(base, model_steps, fs).names
-        if plant_problem(model_steps, names, anchor):
-            return _Point(math.inf, anchor, math.inf, 0.0, anchor)
-        try:
-            sim = sim_of(*plant_of(names, anchor, values_of(model_steps)))
-        except IlicError:
-            return _Point(math.inf, anchor, math.inf, 0.0, anchor)
-        replays[0] += 1
-        if len(sim) != len(log):
-            return _Point(math.inf, anchor, math.inf, 0.0, anchor)
-        return point(model_steps, anchor, sim)
+        sim = replayed(model_steps, extended(base, model_steps, fs).names, anchor)
+        return _Point(math.inf, anchor, math.inf, 0.0, anchor) if sim is None else point(model_steps, anchor, sim)
 
     def didim(model_steps: list[Step], theta: np.ndarray) -> tuple[ClosedLoopResult, list[RunLog]] | str:
         """DIDIM of the model with ``model_steps`` from ``theta``, and its replays (first and last); or why it failed."""
@@ -398,16 +401,10 @@ def closed_loop_refit(
         def profile_inverse(model_steps: list[Step], anchor: np.ndarray) -> _Point:
             """The inverse model's fit at ``model_steps``' values, replayed (one replay); ``anchor`` is not used."""
             names, theta, _ = inverse_fit(model_steps)
-            if plant_problem(model_steps, names, theta):
+            sim = replayed(model_steps, names, theta)
+            if sim is None:
                 return _Point(math.inf, theta, math.inf, 0.0, theta)
-            try:
-                sim = sim_of(*plant_of(names, theta, values_of(model_steps)))
-            except IlicError:
-                return _Point(math.inf, theta, math.inf, 0.0, theta)
-            replays[0] += 1
-            if len(sim) != len(log):
-                return _Point(math.inf, theta, math.inf, 0.0, theta)
-            r = y - prepare(t, sim["q"], tau, fs, base, ls, valid=prepared.valid).decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
+            r = y - recorded.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
             e = 100.0 * float(np.linalg.norm(r)) / y_norm
             return _Point(e, theta, e, lag1_autocorrelation(r), theta)
 
