@@ -415,9 +415,12 @@ def closed_loop_refit(
             out.reason += ", and no closed-loop search of its nonlinear values lowers it: the inverse model's estimates are kept"
             return out
         names, theta, cov = inverse_fit(found_steps)
+        final = replayed(found_steps, names, theta)  # the search's last point, replayed for the comparison and the plots
+        if final is None:
+            out.reason += ", and the estimate at the values found does not replay: the inverse model's estimates are kept"
+            return out
         out.accepted, out.steps, out.names, out.theta, out.cov, out.method = True, found_steps[len(known) :], names, theta, cov, INVERSE_METHOD
-        out.simulated = sim_of(*plant_of(names, theta, values_of(found_steps)))
-        out.error_pct, out.didim = end.error, None
+        out.simulated, out.error_pct, out.didim = final, end.error, None
         out.value_std = {s.effect: s.std for s in searches if s.accepted and s.primary}
         searched = ", ".join(f"{s.parameter} of {s.effect}" for s in searches if s.accepted)
         out.reason += (
