@@ -133,6 +133,8 @@ def summary(rows: list[dict[str, Any]], replicates: int) -> dict[str, Any]:
         "judged_spurious": len(judged),
         "judged_spurious_dm_p_le_0.01": sum(r["dm_p"] <= 0.01 for r in judged),
         "judged_spurious_mc_p_le_0.05": sum(r["mc_p"] <= 0.05 + 1e-12 for r in judged if r.get("mc_p") is not None),
+        # the rule of `--null montecarlo`: the Diebold-Mariano p and the Monte-Carlo p both at most the level
+        "judged_spurious_both_le_0.05": sum(r["dm_p"] <= 0.05 and r["mc_p"] <= 0.05 + 1e-12 for r in judged if r.get("mc_p") is not None),
         "dm_p_median": sorted(dm)[len(dm) // 2] if dm else None,
         "mc_p_median": sorted(r["mc_p"] for r in with_mc)[len(with_mc) // 2] if with_mc else None,
     }

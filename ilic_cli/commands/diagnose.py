@@ -68,7 +68,8 @@ from ilic_cli.modelfile import load_model_file
     default="dm",
     show_default=True,
     help="Test that decides the replay: dm (Diebold-Mariano, asymptotic) or montecarlo "
-    "(the kept model simulated in closed loop with the log's own noise model, --replicates times).",
+    "(the kept model simulated in closed loop with the log's own noise model, --replicates times; "
+    "a candidate must pass both it and the Diebold-Mariano test).",
 )
 @click.option(
     "--replicates",

@@ -26,6 +26,14 @@ the truth:
    ``B`` under exchangeability; a decision at level ``alpha`` needs
    ``B >= 1/alpha - 1`` (:func:`min_replicates`), else it could never reject.
 
+The replay runs the null only for a candidate the Diebold-Mariano test finds
+significant, and keeps it only when this p is at most ``alpha`` too. Measured
+(``benchmarks/null_calibration.py``, 104 spurious candidates that pass the gates
+before the replay, on 128 clean plant logs, ``B = 19``): the Monte-Carlo p
+alone is <= 0.05 on 23 (its noise model is rough: on logs with a force
+disturbance the replicates' statistic sits near -1 where the recording's sits
+near +1), the Diebold-Mariano p alone on 10, both on 5.
+
 The noise uses the plant's own effects (``noise``, ``quantization``,
 ``disturbance``: :mod:`plant.sensors`), as the corpus builds its noisy logs.
 """
@@ -471,7 +479,7 @@ class NullDistribution:
     noise : NoiseModel
         The noise of the replicates.
     dm_p_value : float
-        The asymptotic Diebold-Mariano p of the recording, for comparison.
+        The asymptotic Diebold-Mariano p of the recording (the replay keeps a candidate only when both are significant).
     values : list
         The candidate's nonlinear value found on each replicate that gave a statistic.
     """

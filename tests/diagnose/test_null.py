@@ -183,6 +183,20 @@ def test_a_forced_spurious_candidate_on_a_clean_log_is_not_accepted() -> None:
     assert v.null.dm_p_value < 0.01  # the asymptotic test would have kept it
     assert v.p_value > 0.05 and not v.accepted, v.reason
     assert "Monte-Carlo p" in v.reason and v.to_dict()["test"]["replicates"] == 19
+    assert v.to_dict()["test"]["diebold_mariano_p_value"] == v.null.dm_p_value
+
+
+def test_the_null_runs_only_where_the_diebold_mariano_test_passes() -> None:
+    """A drive lag forced on a clean multisine log with a disturbance: the held-out error falls a little (2.926 % -> 2.921 %).
+
+    The Monte-Carlo p alone was 0.05 there (T_obs 1.16; the replicates' statistic median -1.00, largest 0.49: the
+    null's disturbance is rougher than the log's), the Diebold-Mariano p 0.12. Both must be significant: rejected,
+    and no replicate is simulated.
+    """
+    v = _Prepared("clean-multisine-combined-s1").forced("delay", 19, 0.05)
+    assert v.force_after < v.force_before and v.null is None
+    assert v.p_value is not None and v.p_value > 0.05 and not v.accepted and "not significantly" in v.reason, v.reason
+    assert v.to_dict()["test"]["test"].startswith("Diebold-Mariano")
 
 
 def test_a_concealed_effect_is_accepted() -> None:
