@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from ilic_cli.lsq import evaluate, solve, solve_batch
+from ilic_cli.lsq import column_basis, evaluate, solve, solve_batch
 
 X = np.array([0.0, 1.0, 2.0, 3.0])
 W_LINE = np.c_[np.ones(4), X]
@@ -184,3 +184,15 @@ def test_rank_deficient_noisy_system_is_the_minimum_norm_solution() -> None:
     reduced = solve(np.c_[x, np.cos(3 * x)], y, ("ab", "c"))
     sig_ratio = math.sqrt((50 - 2) / (50 - 3))  # eq. 8 divides by r - b with b = 3 columns
     assert r.std[2] == pytest.approx(reduced.std[1] * sig_ratio, rel=1e-9)
+
+
+def test_column_basis_spans_the_columns_under_the_rank_rule() -> None:
+    rng = np.random.default_rng(11)
+    w = rng.standard_normal((50, 3))
+    W = np.hstack([w, w[:, :1] + w[:, 1:2], 1e-18 * rng.standard_normal((50, 1))])  # rank 3: a sum, and a column below the rule
+    U = column_basis(W)
+    assert U.shape == (50, 3)
+    np.testing.assert_allclose(U.T @ U, np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(U @ (U.T @ w), w, atol=1e-12)  # the span of the columns, nothing lost
+    assert column_basis(np.zeros((4, 2))).shape == (4, 0)
+    assert column_basis(np.zeros((4, 0))).shape[1] == 0
