@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from ilic_cli.lsq import column_basis, evaluate, solve, solve_batch
+from ilic_cli.lsq import column_basis, evaluate, lstsq, solve, solve_batch
 
 X = np.array([0.0, 1.0, 2.0, 3.0])
 W_LINE = np.c_[np.ones(4), X]
@@ -196,3 +196,16 @@ def test_column_basis_spans_the_columns_under_the_rank_rule() -> None:
     np.testing.assert_allclose(U @ (U.T @ w), w, atol=1e-12)  # the span of the columns, nothing lost
     assert column_basis(np.zeros((4, 2))).shape == (4, 0)
     assert column_basis(np.zeros((4, 0))).shape[1] == 0
+
+
+def test_lstsq_gives_the_estimate_and_its_residual_sum_of_squares() -> None:
+    rng = np.random.default_rng(12)
+    W = rng.standard_normal((40, 3))
+    y = W @ np.array([1.0, -2.0, 0.5]) + 0.1 * rng.standard_normal(40)
+    theta, rss = lstsq(W, y)
+    np.testing.assert_allclose(theta, np.linalg.lstsq(W, y, rcond=None)[0], rtol=1e-12)
+    assert rss == pytest.approx(float(np.sum((y - W @ theta) ** 2)), rel=1e-12) and 0 < rss < 1.0
+    # rank-deficient: the minimum-norm estimate under the rank rule (a duplicated column shares its weight)
+    theta2, rss2 = lstsq(np.hstack([W[:, :1], W[:, :1]]), 2.0 * W[:, 0])
+    np.testing.assert_allclose(theta2, [1.0, 1.0], rtol=1e-10)
+    assert rss2 == pytest.approx(0.0, abs=1e-20)
