@@ -27,7 +27,7 @@ class IlicError(Exception):
         super().__init__(self.message())
 
     def __reduce__(self) -> tuple[object, ...]:
-        """Pickle by the arguments and the state (an error raised in a worker process reaches the parent whole)."""
+        """Pickle by the state, whatever the subclass's arguments (an error raised in a worker process reaches the parent whole)."""
         return (Exception.__new__, (type(self),), self.__dict__)
 
     def __setstate__(self, state: dict[str, object]) -> None:
