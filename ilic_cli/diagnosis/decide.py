@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.diagnosis.compare import relative_errors, replay
-from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, search_range, system
+from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, minimise, search_range, system
 from ilic_cli.diagnosis.stats import blocked_folds, diebold_mariano
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
@@ -235,14 +235,35 @@ def replay_decide(
 
     others_of = [np.any([sel for j, sel in enumerate(in_block) if j != fold], axis=0) for fold in range(len(in_block))]
 
-    def training_error(steps: list[Step], train: np.ndarray, fold: int) -> float:
-        """Simulated force error (sum of squares, decimated) on the blocks other than ``fold``, the model fitted on ``train``."""
+    def fold_replay(steps: list[Step], train: np.ndarray) -> RunLog | None:
+        """The replay of the model fitted on ``train``, or ``None`` when it is no valid plant."""
         names, theta = _fit(data, base, steps, rows, train)
         sim = _replayed(log, plant_of, steps, names, theta)
-        if sim is None or len(sim) != n:
-            return np.inf
-        e = decimate_matlab(np.asarray(sim["tau"]) - tau, step_dec)[others_of[fold]]
-        return float(e @ e)
+        return sim if sim is not None and len(sim) == n else None
+
+    def force_error(sim: RunLog) -> np.ndarray:
+        """Simulated minus recorded force, decimated as the IDIM system is (all the log's decimated samples)."""
+        return decimate_matlab(np.asarray(sim["tau"]) - tau, step_dec)
+
+    def searched_fold(given: list[Step], grid: np.ndarray, train: np.ndarray, fold: int) -> tuple[list[Step], RunLog | None]:
+        """``given`` with its last step's value searched on the fold's training blocks (:func:`fold_value`), and its replay (the search's own)."""
+        sims: dict[float, RunLog | None] = {}
+
+        def replay_at(steps: list[Step]) -> RunLog | None:
+            v = float(steps[-1].value)
+            if v not in sims:
+                sims[v] = fold_replay(steps, train)
+            return sims[v]
+
+        def training_error(steps: list[Step]) -> float:
+            sim = replay_at(steps)
+            if sim is None:
+                return np.inf
+            e = force_error(sim)[others_of[fold]]
+            return float(e @ e)
+
+        steps = [*given[:-1], fold_value(given[:-1], given[-1], grid, training_error)]
+        return steps, replay_at(steps)
 
     def heldout(steps: list[Step], search: bool = False) -> tuple[np.ndarray, np.ndarray, list[Any]] | None:
         """Held-out simulated force (decimated) and position errors (blocks concatenated), or ``None`` when a fold is no valid plant.
@@ -254,14 +275,11 @@ def replay_decide(
         given = list(steps)
         grid = given[-1].effect.scan.grid(data.kin, data.fs_hz) if search and given[-1].effect.scan is not None else None
         for i, ((a, b), train, sel) in enumerate(zip(blocks, trains, in_block, strict=True)):
-            if grid is not None:
-                steps = [*given[:-1], fold_value(given[:-1], given[-1], grid, lambda s, tr=train, f=i: training_error(s, tr, f))]  # type: ignore[misc]
+            steps, sim = searched_fold(given, grid, train, i) if grid is not None else (given, fold_replay(given, train))
             used.append(steps[-1].value if steps else None)
-            names, theta = _fit(data, base, steps, rows, train)
-            sim = _replayed(log, plant_of, steps, names, theta)
-            if sim is None or len(sim) != n:
+            if sim is None:
                 return None
-            ef.append(decimate_matlab(np.asarray(sim["tau"]) - tau, step_dec)[sel])
+            ef.append(force_error(sim)[sel])
             eq.append(np.asarray(sim["q"][a:b]) - q[a:b])
         return np.concatenate(ef), np.concatenate(eq), used
 
@@ -351,8 +369,6 @@ def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error:
     the edge of the range, or one that does not lower the training error,
     keeps the inverse value.
     """
-    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import
-
     scan = step.effect.scan
     assert scan is not None
     v0 = float(step.value)
@@ -360,8 +376,6 @@ def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error:
     lo, hi = float(sub[0]), float(sub[-1])
     if not hi > lo:
         return step
-    log_scale = scan.log and lo > 0
-    fwd, inv = (np.log, np.exp) if log_scale else (lambda v: v, lambda u: u)
     memo: dict[float, float] = {}
 
     def err(v: float) -> float:
@@ -369,9 +383,7 @@ def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error:
             memo[v] = training_error([*prefix, Step(step.effect, v)])
         return memo[v]
 
-    step_u = (fwd(hi) - fwd(lo)) / max(len(sub) - 1, 1)
-    res = minimize_scalar(lambda u: err(float(inv(u))), bounds=(fwd(lo), fwd(hi)), method="bounded", options={"xatol": FOLD_XATOL_STEPS * step_u})
-    best = float(inv(res.x))
+    best = minimise(err, lo, hi, scan.log and lo > 0, rel_tol=FOLD_XATOL_STEPS / max(len(sub) - 1, 1))
     if at_edge(step.effect, sub, best) or not err(best) < err(v0):
         return step
     return Step(step.effect, best)

@@ -288,10 +288,10 @@ class Searcher:
         use_log = effect.scan.log and lo > 0
         other = None if sec is None else sec[4]
         pack = (lambda v: v) if sec is None else (lambda v: (v, other))  # noqa: E731
-        best = _minimise(lambda v: self.rss(effect, W0, y, pack(v), sel), lo, hi, use_log)
+        best = minimise(lambda v: self.rss(effect, W0, y, pack(v), sel), lo, hi, use_log)
         if sec is not None:
-            other = _minimise(lambda z: self.rss(effect, W0, y, (best, z), sel), sec[2], sec[3], True)
-            best = _minimise(lambda v: self.rss(effect, W0, y, (v, other), sel), lo, hi, use_log)
+            other = minimise(lambda z: self.rss(effect, W0, y, (best, z), sel), sec[2], sec[3], True)
+            best = minimise(lambda v: self.rss(effect, W0, y, (v, other), sel), lo, hi, use_log)
         if rows is not None:
             return pack(best), None
         # curvature of the profile RSS at the optimum, in the parameter's own unit
@@ -368,14 +368,14 @@ def search_range(effect: Effect, grid: np.ndarray, value: float) -> np.ndarray:
     return grid[max(i - k, 0) : i + k + 1]
 
 
-def _minimise(f: Any, lo: float, hi: float, use_log: bool) -> float:
-    """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``)."""
+def minimise(f: Any, lo: float, hi: float, use_log: bool, rel_tol: float = 1e-4) -> float:
+    """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``), to ``rel_tol`` of the range on that scale."""
     from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import
 
     fwd = math.log if use_log else (lambda v: v)
     inv = math.exp if use_log else (lambda u: u)
     a, b = fwd(lo), fwd(hi)
-    res = minimize_scalar(lambda u: f(inv(u)), bounds=(a, b), method="bounded", options={"xatol": 1e-4 * abs(b - a) + 1e-12})
+    res = minimize_scalar(lambda u: f(inv(u)), bounds=(a, b), method="bounded", options={"xatol": rel_tol * abs(b - a) + 1e-12})
     return float(inv(res.x))
 
 
