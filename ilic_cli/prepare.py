@@ -13,8 +13,11 @@ each. The rules:
   (IDIM-LS stacks their rows, IDIM-ILIC drops the windows a gap cuts);
   ``diagnose`` and ``replay`` refuse such a log (a closed-loop replay cannot
   span a gap);
-* **irregular sampling** (:func:`ilic_cli.quality.sampling_kind`): stamps
-  that only jitter around a fixed rate are kept as they are; a log sampled
+* **irregular sampling** (:func:`ilic_cli.quality.sampling_kind`): the
+  samples of a fixed-rate loop whose stamps only jitter are kept, and the
+  stamps are put back on the loop's grid (:func:`restamped`): the samples
+  were taken on time, so time-based work (a delay's shift, the sample hold,
+  a replay) must not read the jitter as timing; a log sampled
   irregularly is interpolated linearly onto a uniform grid at its mean rate,
   within each part between gaps (:func:`to_uniform_grid`), and a warning
   says so and states the rule (:data:`ilic_cli.quality.SAMPLING_RULE`);
@@ -137,6 +140,38 @@ def resample(log: RunLog, rate_hz: float) -> RunLog:
     return out
 
 
+RESTAMP_TOLERANCE = 1e-3
+"""Stamps within this share of a period of the uniform grid are left as they are: rounding of the stamps, far below any timing
+the numerics resolve (DATA_EMPS.mat's stamps are within 3.2e-5 periods of its 1 kHz grid; the delay search steps by 0.05 periods)."""
+
+
+def restamped(log: RunLog) -> tuple[RunLog, float]:
+    """A fixed-rate loop's log with its stamps on the uniform grid of its nominal rate, within each part between gaps.
+
+    Returns the log (``log`` itself when its stamps are within
+    :data:`RESTAMP_TOLERANCE` of the grid, or it has no nominal rate) and the
+    stamps' jitter: their largest deviation from a straight line through each
+    part, in periods (0 when left as it is). The samples are not touched.
+    """
+    t = log.t
+    rate = nominal_rate_hz(t)
+    if not rate:
+        return log, 0.0
+    grid = np.empty_like(t)
+    jitter = 0.0
+    for a, b in segments(t, rate):
+        k = np.arange(b - a, dtype=np.float64)
+        grid[a:b] = t[a] + k / rate
+        if b - a > 1:
+            line = np.polynomial.polynomial.Polynomial.fit(k, t[a:b], 1)
+            jitter = max(jitter, float(np.max(np.abs(t[a:b] - line(k)))) * rate)
+    if float(np.max(np.abs(t - grid))) * rate <= RESTAMP_TOLERANCE:
+        return log, 0.0
+    meta = {**log.meta, "sample_rate_hz": float(rate)}
+    meta["resampled"] = {"method": "restamped (stamp jitter of a fixed-rate loop)", "from_samples": len(log), "rate_hz": float(rate)}
+    return RunLog({**log.channels, "t": grid}, dict(log.units), meta), jitter
+
+
 def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
     """Assess ``log`` once: rate, quality warnings (``prefix: ...``) and the usable samples.
 
@@ -154,6 +189,10 @@ def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
             f"{prefix}: irregular sampling: {before} samples interpolated linearly onto a uniform {rate:g} Hz grid ({len(log)} samples, "
             f"{len(parts)} part(s)); rule: {SAMPLING_RULE}",
         )
+    elif len(log) > 2 and "resampled" not in log.meta:
+        log, jitter = restamped(log)
+        if jitter:
+            notes = (f"{prefix}: stamp jitter of a fixed-rate loop (up to {100 * jitter:.3g} % of a period): samples kept, restamped on its uniform grid",)
     quality = assess_log(log)
     warnings = notes + tuple(f"{prefix}: {message}" for message in quality.warnings())
     valid = None

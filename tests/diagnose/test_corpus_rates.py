@@ -93,3 +93,19 @@ def test_a_one_ms_lag_the_inverse_model_overestimates_is_judged_at_its_closed_lo
     assert verdict.to_dict()["fold_values"] == list(verdict.searched)
     (ev,) = [e for e in diag.tried[0] if e.effect == "delay"]
     assert abs(ev.value) > 1.4e-3  # the inverse model's value the replay no longer judges
+
+
+def test_stamp_jitter_is_not_read_as_timing() -> None:
+    """The 1 ms lag's log with its stamps jittered by +-0.2 ms (20 % of a period): the samples were taken on time.
+
+    Measured: on the jittered stamps as they were, the delay's shift read the jitter as timing and the lag was
+    missed (F = 0, "no significant mismatch"); restamped on the 1 kHz grid it is named at 0.96 ms, as on the clean stamps.
+    """
+    case = CASES["delay-multisine-sensor-s250"]
+    log = build_case(case)
+    t = log.t + np.random.default_rng(0).uniform(-0.2e-3, 0.2e-3, len(log))
+    diag = diagnose(RunLog({**log.channels, "t": t}, dict(log.units), dict(log.meta)))
+    findings = [(f.effect.id, f.plant_effect) for f in diag.findings]
+    s = score(case, findings)
+    assert {eid for eid, _ in findings} - {"offset"} == {"delay"} and s["parameter_error"]["delay"] <= PARAM_TOLERANCE, findings
+    assert any("stamp jitter" in w and "restamped" in w for w in diag.warnings), diag.warnings

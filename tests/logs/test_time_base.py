@@ -299,3 +299,27 @@ def test_an_irregular_log_is_simulated_open_loop_on_its_uniform_grid(emps_pulses
         assert res.status == 0, res.stderr
         figures.append(float(res.stderr.split("RMSE ")[1].split(" mm")[0]))
     assert figures[0] == pytest.approx(8.38, abs=0.005) and abs(figures[1] - figures[0]) < 0.3, figures
+
+
+def test_a_fixed_rate_loop_with_stamp_jitter_is_restamped_on_its_grid() -> None:
+    """The samples are kept; the stamps go back on the 1 kHz grid, part by part across a gap; stamps within rounding are left alone."""
+    from ilic_cli.prepare import RESTAMP_TOLERANCE, prepare_log, restamped
+
+    n = 4000
+    t = np.arange(n) / 1000.0
+    t[2000:] += 0.5  # a gap of 0.5 s
+    jitter = np.random.default_rng(3).uniform(-0.2e-3, 0.2e-3, n)
+    q = np.sin(t)
+    log = RunLog({"t": t + jitter, "q": q, "tau": q}, {"t": "s", "q": "m", "tau": "N"}, {})
+    out, found = restamped(log)
+    assert 0.15 < found < 0.25  # the jitter, in periods (from a line fitted through the jittered stamps)
+    np.testing.assert_array_equal(out["q"], q)  # samples kept
+    for a, b in ((0, 2000), (2000, n)):
+        np.testing.assert_allclose(np.diff(out.t[a:b]), 1e-3, rtol=1e-9)
+        assert abs(out.t[a] - (t + jitter)[a]) == 0.0
+    assert out.meta["resampled"]["method"].startswith("restamped") and out.fs_hz == 1000.0
+    prepared = prepare_log(log)
+    assert any("stamp jitter" in w and "restamped" in w for w in prepared.warnings), prepared.warnings
+    # stamps within rounding of the grid: the same log, no warning
+    exact = RunLog({"t": t + 0.5 * RESTAMP_TOLERANCE * 1e-3, "q": q, "tau": q}, dict(log.units), {})
+    assert restamped(exact) == (exact, 0.0) and not any("stamp jitter" in w for w in prepare_log(exact).warnings)
