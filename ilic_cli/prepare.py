@@ -157,16 +157,18 @@ def restamped(log: RunLog) -> tuple[RunLog, float]:
     rate = nominal_rate_hz(t)
     if not rate:
         return log, 0.0
+    parts = segments(t, rate)
     grid = np.empty_like(t)
-    jitter = 0.0
-    for a, b in segments(t, rate):
-        k = np.arange(b - a, dtype=np.float64)
-        grid[a:b] = t[a] + k / rate
-        if b - a > 1:
-            line = np.polynomial.polynomial.Polynomial.fit(k, t[a:b], 1)
-            jitter = max(jitter, float(np.max(np.abs(t[a:b] - line(k)))) * rate)
+    for a, b in parts:
+        grid[a:b] = t[a] + np.arange(b - a, dtype=np.float64) / rate
     if float(np.max(np.abs(t - grid))) * rate <= RESTAMP_TOLERANCE:
         return log, 0.0
+    jitter = 0.0
+    for a, b in parts:
+        if b - a > 1:
+            k = np.arange(b - a, dtype=np.float64)
+            line = np.polynomial.polynomial.Polynomial.fit(k, t[a:b], 1)
+            jitter = max(jitter, float(np.max(np.abs(t[a:b] - line(k)))) * rate)
     meta = {**log.meta, "sample_rate_hz": float(rate)}
     meta["resampled"] = {"method": "restamped (stamp jitter of a fixed-rate loop)", "from_samples": len(log), "rate_hz": float(rate)}
     return RunLog({**log.channels, "t": grid}, dict(log.units), meta), jitter
