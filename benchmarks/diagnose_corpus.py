@@ -121,6 +121,10 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def _pct(x: float | None) -> str:
+    return "-" if x is None else f"{x:.0%}"
+
+
 def render(rows: list[dict[str, Any]], summ: dict[str, Any]) -> str:
     lines = ["| case | size (pts) | truth | findings | verdicts | missed | param err |", "|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -132,7 +136,7 @@ def render(rows: list[dict[str, Any]], summ: dict[str, Any]) -> str:
     s = summ
     lines += [
         "",
-        f"- clean cases without a false alarm: {s['clean_without_false_alarm']}/{s['clean_cases']} (false-alarm rate {s['false_alarm_rate']:.0%})",
+        f"- clean cases without a false alarm: {s['clean_without_false_alarm']}/{s['clean_cases']} (false-alarm rate {_pct(s['false_alarm_rate'])})",
         f"- effects named: {s['effects_named']}/{s['effects_total']} in {s['effect_cases']} effect cases; "
         f"named exactly (nothing else but offset): {s['effect_cases_exact']}; with a false alarm: {s['effect_cases_with_false_alarm']}",
         f"- parameters within 15 %: {s['parameters_within_15pct']}/{s['parameters_compared']} (median worst error {s['parameter_error_median']})",

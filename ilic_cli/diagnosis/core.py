@@ -50,6 +50,8 @@ class DiagnoseSettings:
         The test that decides the replay (default: Diebold-Mariano; or a Monte-Carlo null).
     pd_timing : {"recorded", "documented"}
         When a PD log's command acts in every replay (:data:`ilic_cli.parameters.PD_TIMINGS`).
+    replay_noise : bool
+        The replays that decide carry the recording's position noise (:mod:`ilic_cli.diagnosis.sensor`); ``False``: noise-free.
     """
 
     model: str = "rigid-offset"
@@ -58,6 +60,7 @@ class DiagnoseSettings:
     simulate: bool = True
     null: NullSettings = NullSettings()
     pd_timing: str = "recorded"
+    replay_noise: bool = True
 
 
 @dataclass
@@ -417,9 +420,20 @@ def _decide(
         ns = settings.null
         null = None
         if ns.kind == "montecarlo":
-            null = MonteCarloNull(ns.replicates, ns.seed, settings.ls, lambda lg: _prepare(prepare_log(lg), base, settings.ls))
+            null = MonteCarloNull(ns.replicates, ns.seed, settings.ls, lambda lg: _prepare(prepare_log(lg), base, settings.ls), settings.replay_noise)
         kept, judged = replay_decide(
-            log, data, base, known, material, rows, plant_of, folds=settings.select.folds, alpha=replay_alpha(settings), validate=v, null=null
+            log,
+            data,
+            base,
+            known,
+            material,
+            rows,
+            plant_of,
+            folds=settings.select.folds,
+            alpha=replay_alpha(settings),
+            validate=v,
+            null=null,
+            sensor_noise=settings.replay_noise,
         )
         verdicts += judged
         kept = kept[len(known) :]

@@ -50,9 +50,10 @@ import numpy as np
 from ilic_cli.diagnosis.compare import replay
 from ilic_cli.diagnosis.decide import PlantOf, replay_decide
 from ilic_cli.diagnosis.select import Searcher, Step, moving_rows, system
+from ilic_cli.diagnosis.sensor import position_noise, sensor_effects
 from ilic_cli.diagnosis.stats import normal_isf
 from ilic_cli.errors import IlicError, ParameterError
-from ilic_cli.filtering import butter_lowpass_zero_phase, decimate_matlab, kept_indices
+from ilic_cli.filtering import decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import lstsq
 from ilic_cli.regressor import Model
@@ -62,9 +63,6 @@ NULL_KINDS = ("dm", "montecarlo")
 """``dm``: the asymptotic Diebold-Mariano test (default); ``montecarlo``: this module's null."""
 
 MC_TEST = "Monte-Carlo null: the kept model simulated in closed loop with the log's noise model, the candidate proposed again on each replicate"
-
-GRID_TOLERANCE = 0.01
-"""A position lies on a grid of step ``d`` when every ``(q - q[0]) / d`` is within this many steps of an integer."""
 
 BANDWIDTH_RANGE = (0.5, 0.4)
 """The disturbance's corner frequency is kept within [0.5 Hz, 0.4 times the decimated rate]."""
@@ -154,86 +152,6 @@ class NullSettings:
 # ---------------------------------------------------------------------------
 # the log's own noise model
 # ---------------------------------------------------------------------------
-def grid_step(q: np.ndarray) -> float | None:
-    """The step of the grid ``q`` lies on (an encoder's count), else ``None``.
-
-    Rule: ``d`` is the smallest difference between two distinct values of
-    ``q``; ``q`` is on the grid when every ``(q - q[0]) / d`` is within
-    :data:`GRID_TOLERANCE` of an integer (DATA_EMPS.mat: 5e-8 m, within 0.003
-    steps; the corpus logs: their 2e-7 m, within 5e-5).
-
-    Parameters
-    ----------
-    q : ndarray
-        Measured position.
-    """
-    q = np.asarray(q, dtype=np.float64)
-    values = np.unique(q)
-    if len(values) < 3:
-        return None
-    d = float(np.min(np.diff(values)))
-    if not d > 0:
-        return None
-    r = (q - q[0]) / d
-    return d if float(np.max(np.abs(r - np.round(r)))) <= GRID_TOLERANCE else None
-
-
-def highpass_gain(fs_hz: float, ls: LSSettings, n: int = 4001) -> float:
-    """Variance gain of ``x - lowpass(x)`` for white ``x`` (the zero-phase low-pass of the IDIM position filter).
-
-    Exact for the linear operator away from the record's edges: the energy of
-    its response to a unit impulse in the middle of a record of ``n`` samples.
-
-    Parameters
-    ----------
-    fs_hz : float
-        Sample rate.
-    ls : LSSettings
-        The IDIM position filter (cut-off, order, MATLAB padding).
-    n : int
-        Length of the impulse record (odd).
-    """
-    x = np.zeros(n)
-    x[n // 2] = 1.0
-    h = x - butter_lowpass_zero_phase(x, ls.cutoff_hz, fs_hz, ls.order, matlab=ls.matlab)
-    return float(h @ h)
-
-
-def position_noise(q: np.ndarray, fs_hz: float, ls: LSSettings) -> tuple[float, float | None]:
-    """White position-noise std and quantisation step of a measured position.
-
-    ``r = q - lowpass(q)`` (the IDIM position filter, zero phase) holds the
-    noise above the cut-off; the motion of a drive below it is left out. With
-    the variance gain ``g`` of that high-pass (:func:`highpass_gain`) and a grid
-    step ``d`` (:func:`grid_step`, quantisation error ``d^2/12``):
-    ``std^2 = var(r)/g - d^2/12`` (at least 0). The first and last ``ls.trim``
-    samples (filter edges) are left out.
-
-    Parameters
-    ----------
-    q : ndarray
-        Measured position.
-    fs_hz : float
-        Sample rate.
-    ls : LSSettings
-        The IDIM position filter.
-
-    Returns
-    -------
-    (float, float or None)
-        Noise std (m) and grid step (m, ``None`` off a grid).
-    """
-    q = np.asarray(q, dtype=np.float64)
-    r = q - butter_lowpass_zero_phase(q, ls.cutoff_hz, fs_hz, ls.order, matlab=ls.matlab)
-    edge = max(ls.trim, 1)
-    r = r[edge:-edge]
-    var = float(np.mean((r - r.mean()) ** 2)) / highpass_gain(fs_hz, ls)
-    d = grid_step(q)
-    if d is not None:
-        var -= d * d / 12.0
-    return math.sqrt(max(var, 0.0)), d
-
-
 def disturbance_bandwidth(r: np.ndarray, fs_dec_hz: float) -> float:
     """Corner frequency (Hz) of a second-order Butterworth noise with the lag-one autocorrelation of ``r``.
 
@@ -292,11 +210,7 @@ class NoiseModel:
 
     def effects(self) -> dict[str, dict[str, float]]:
         """The plant effects ``noise``, ``quantization`` and ``disturbance`` of this noise (those that are not zero)."""
-        out: dict[str, dict[str, float]] = {}
-        if self.q_std > 0:
-            out["noise"] = {"q_std": self.q_std, "tau_std": 0.0}
-        if self.resolution is not None:
-            out["quantization"] = {"resolution": self.resolution}
+        out = sensor_effects(self.q_std, self.resolution)
         if self.disturbance_std > 0:
             out["disturbance"] = {"std": self.disturbance_std, "bandwidth_hz": self.bandwidth_hz}
         return out
@@ -522,12 +436,15 @@ class MonteCarloNull:
         IDIM filtering of the diagnosis.
     prepare : callable
         ``RunLog -> IDIMData``: the recording's preparation, applied to each replicate.
+    sensor_noise : bool
+        Each replicate's replays carry its own estimated sensor noise, as the recording's do (``replay_decide``'s ``sensor_noise``).
     """
 
     replicates: int
     seed: int
     ls: LSSettings
     prepare: Callable[[RunLog], IDIMData]
+    sensor_noise: bool = True
 
     def distribution(
         self, log: RunLog, data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray, plant_of: PlantOf, folds: int, p_obs: float
@@ -567,7 +484,7 @@ class MonteCarloNull:
                 data_b = self.prepare(synth)
                 rows_b = moving_rows(data_b)
                 cand = reproposed(data_b, base, kept, step, rows_b)
-                _, verdicts = replay_decide(synth, data_b, base, kept, [cand], rows_b, plant_of, folds=folds, alpha=0.0)
+                _, verdicts = replay_decide(synth, data_b, base, kept, [cand], rows_b, plant_of, folds=folds, alpha=0.0, sensor_noise=self.sensor_noise)
             except IlicError:  # the replicate diverged, or left too little to fit: no statistic (counted as at least as extreme)
                 continue
             values.append(cand.value)
