@@ -127,12 +127,8 @@ def resample(log: RunLog, rate_hz: float) -> RunLog:
     t = log.t
     nominal = nominal_rate_hz(t)
     kind = sampling_kind(t)
-    if nominal and kind == "fixed-rate" and abs(nominal - rate_hz) <= 5e-4 * rate_hz and len(segments(t, nominal)) == 1:
-        meta = dict(log.meta)
-        meta["sample_rate_hz"] = float(rate_hz)
-        meta["resampled"] = {"method": "restamped (stamp jitter of a fixed-rate loop)", "from_samples": len(log), "rate_hz": float(rate_hz)}
-        grid = t[0] + np.arange(len(t), dtype=np.float64) / rate_hz
-        return RunLog({**log.channels, "t": grid}, dict(log.units), meta)
+    if nominal and kind == "fixed-rate" and abs(nominal - rate_hz) <= 5e-4 * rate_hz and len(parts := segments(t, nominal)) == 1:
+        return _on_grid(log, _grid_stamps(t, rate_hz, parts), rate_hz)
     parts = irregular_grid(t)[1] if kind == "irregular" else segments(t, nominal or rate_hz)
     out = to_uniform_grid(log, rate_hz, parts, "requested rate")
     if len(out) < 2:
@@ -158,9 +154,7 @@ def restamped(log: RunLog) -> tuple[RunLog, float]:
     if not rate:
         return log, 0.0
     parts = segments(t, rate)
-    grid = np.empty_like(t)
-    for a, b in parts:
-        grid[a:b] = t[a] + np.arange(b - a, dtype=np.float64) / rate
+    grid = _grid_stamps(t, rate, parts)
     if float(np.max(np.abs(t - grid))) * rate <= RESTAMP_TOLERANCE:
         return log, 0.0
     jitter = 0.0
@@ -169,9 +163,22 @@ def restamped(log: RunLog) -> tuple[RunLog, float]:
             k = np.arange(b - a, dtype=np.float64)
             line = np.polynomial.polynomial.Polynomial.fit(k, t[a:b], 1)
             jitter = max(jitter, float(np.max(np.abs(t[a:b] - line(k)))) * rate)
-    meta = {**log.meta, "sample_rate_hz": float(rate)}
-    meta["resampled"] = {"method": "restamped (stamp jitter of a fixed-rate loop)", "from_samples": len(log), "rate_hz": float(rate)}
-    return RunLog({**log.channels, "t": grid}, dict(log.units), meta), jitter
+    return _on_grid(log, grid, rate), jitter
+
+
+def _grid_stamps(t: np.ndarray, rate_hz: float, parts: tuple[tuple[int, int], ...]) -> np.ndarray:
+    """Stamps on the uniform grid of ``rate_hz`` from each part's first stamp (one stamp per sample)."""
+    grid = np.empty_like(t)
+    for a, b in parts:
+        grid[a:b] = t[a] + np.arange(b - a, dtype=np.float64) / rate_hz
+    return grid
+
+
+def _on_grid(log: RunLog, grid: np.ndarray, rate_hz: float) -> RunLog:
+    """``log`` with the stamps ``grid`` (its samples kept), and metadata saying it was restamped."""
+    meta = {**log.meta, "sample_rate_hz": float(rate_hz)}
+    meta["resampled"] = {"method": "restamped (stamp jitter of a fixed-rate loop)", "from_samples": len(log), "rate_hz": float(rate_hz)}
+    return RunLog({**log.channels, "t": grid}, dict(log.units), meta)
 
 
 def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
