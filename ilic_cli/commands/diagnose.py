@@ -62,6 +62,13 @@ from ilic_cli.modelfile import load_model_file
     "--no-simulation", "no_simulation", is_flag=True, help="Skip the replay through the plant (the comparison, and its decision on the proposed effects)."
 )
 @click.option(
+    "--replay-noise/--no-replay-noise",
+    "replay_noise",
+    default=True,
+    show_default=True,
+    help="The replays that decide carry the recording's own sensor noise (position noise and encoder step, estimated from its position).",
+)
+@click.option(
     "--null",
     "null",
     type=click.Choice(NULL_KINDS),
@@ -100,6 +107,7 @@ def command(
     folds: int,
     effects: str | None,
     no_simulation: bool,
+    replay_noise: bool,
     null: str,
     replicates: int,
     seed: int,
@@ -158,6 +166,7 @@ def command(
         simulate=not no_simulation,
         pd_timing=pd_timing,
         null=NullSettings(null, replicates, seed, replay_alpha),
+        replay_noise=replay_noise,
     )
     try:
         settings.null.check(replay_alpha_of(settings))

@@ -19,6 +19,7 @@ from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
 from ilic_cli.diagnosis.refit import Refit, closed_loop_refit
 from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
+from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
@@ -125,6 +126,8 @@ class Diagnosis:
     warnings: list[str] = field(default_factory=list)
     residual: dict[str, np.ndarray] = field(default_factory=dict)
     timing: ControlTiming | None = None
+    replay_sensor: dict[str, Any] | None = None
+    """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.sensor.recorded_sensor`); ``None``: none replayed, or noise-free."""
 
     @property
     def conclusion(self) -> str:
@@ -157,7 +160,9 @@ class Diagnosis:
                 "selection": self.settings.select.to_dict(),
                 "replay_test": self.settings.null.to_dict(),
                 "pd_timing": self.settings.pd_timing,
+                "replay_noise": self.settings.replay_noise,
             },
+            "replay_sensor_noise": self.replay_sensor,
             "warnings": list(self.warnings),
             "timing": None if self.timing is None else self.timing.to_dict(),
         }
@@ -359,6 +364,8 @@ def diagnose(
     if timing is not None:
         timing.negative_flexibility = any(ev.effect == "flexibility" and "negative mass" in ev.reason for step in selection.tried for ev in step)
     diag.timing = timing
+    if settings.replay_noise and any(v.force_before is not None for v in verdicts):
+        diag.replay_sensor = recorded_sensor(log, settings.ls)
     if settings.simulate or against is not None:
         try:
             diag.simulation = compare_simulation(

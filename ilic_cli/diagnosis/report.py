@@ -170,6 +170,8 @@ def to_markdown(diag: Diagnosis) -> str:
                 f"noise model (seed {ns.seed}); p = (1 + #{{T_b >= T_obs}}) / (B + 1), T the Diebold-Mariano z of the held-out errors.",
                 "",
             ]
+        if diag.replay_sensor is not None:
+            lines += [f"Every replay here carries the recording's sensor noise, estimated from its position: {_sensor_words(diag.replay_sensor)}.", ""]
         lines += [
             "| effect | held-out simulated force | held-out simulated position | p | decision |",
             "| --- | --- | --- | --- | --- |",
@@ -196,3 +198,14 @@ def to_markdown(diag: Diagnosis) -> str:
     if diag.warnings:
         lines += ["## Warnings", ""] + [f"- {w}" for w in diag.warnings] + [""]
     return "\n".join(lines)
+
+
+def _sensor_words(sensor: dict[str, Any]) -> str:
+    """The sensor noise of a replay in words (:func:`ilic_cli.diagnosis.sensor.sensor_effects`)."""
+    parts = []
+    if "noise" in sensor:
+        parts.append(f"white position noise {1e6 * sensor['noise']['q_std']:.3g} um")
+    if "quantization" in sensor:
+        parts.append(f"encoder step {1e6 * sensor['quantization']['resolution']:.3g} um")
+    words = ", ".join(parts) or "none (no noise above the position filter's cut-off, no grid)"
+    return f"{words} (one realisation, the same in every replay)"

@@ -37,6 +37,7 @@ def test_json_stdout_only_and_model_file_round_trip(ripple_log: Path, tmp_path: 
     assert f["parameters"]["L"]["value"] == pytest.approx(0.012, rel=0.15)
     assert {"value", "std"} <= set(f["parameters"]["A"])
     assert f["evidence"]["p_adjusted"] < 1e-3
+    assert doc["replay_sensor_noise"] is None  # nothing was replayed
     model = load_model_file(out / "model.json")
     assert set(model["effects"]) == {"position_ripple"}
     assert model["effects"]["position_ripple"]["A"] == pytest.approx(1.5, rel=0.15)
@@ -51,6 +52,20 @@ def test_markdown_in_plain_words(ripple_log: Path) -> None:
     assert r.status == 0, r.stderr
     assert "Left out: position-dependent force ripple" in r.stdout
     assert "Relative force error" in r.stdout
+
+
+def test_the_replays_sensor_noise_is_stated(ripple_log: Path) -> None:
+    """The log is quantised on 0.05 um (the EMPS encoder's step): the replays that decide carry it, and the report says so."""
+    r = run_cli("diagnose", str(ripple_log), "--format", "json")
+    assert r.status == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert doc["settings"]["replay_noise"] is True and doc["decisions"]
+    assert doc["replay_sensor_noise"]["quantization"]["resolution"] == pytest.approx(5e-8, rel=1e-6)
+    md = run_cli("diagnose", str(ripple_log))
+    assert "Every replay here carries the recording's sensor noise, estimated from its position" in md.stdout and "encoder step 0.05 um" in md.stdout
+    off = json.loads(run_cli("diagnose", str(ripple_log), "--format", "json", "--no-replay-noise").stdout)
+    assert off["settings"]["replay_noise"] is False and off["replay_sensor_noise"] is None
+    assert [f["effect"] for f in off["findings"]] == ["position_ripple"]
 
 
 def test_against_a_simulated_log(ripple_log: Path, tmp_path: Path) -> None:
