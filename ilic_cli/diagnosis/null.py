@@ -4,8 +4,9 @@ The replay (:func:`ilic_cli.diagnosis.decide.replay_decide`) keeps a proposed
 effect when its held-out simulated force error falls significantly. By default
 significance is a one-sided Diebold-Mariano test, whose level is asymptotic and
 assumes what closed-loop errors are not (measured on the 104 forced spurious
-candidates that reach the replay on 128 clean plant logs: p <= 0.01 on 9,
-where an artefact present all along lowers the error). Here (``ilic diagnose
+candidates that reach the replay on 128 clean plant logs: p <= 0.01 on none,
+<= 0.05 on 1, with the replays carrying the recording's sensor noise; on 9 at
+0.01 with noise-free replays). Here (``ilic diagnose
 --null montecarlo``) the statistic is also compared with its own distribution
 under the null hypothesis that the model kept so far is the truth:
 
@@ -29,10 +30,9 @@ under the null hypothesis that the model kept so far is the truth:
 The replay runs the null only for a candidate the Diebold-Mariano test finds
 significant, and keeps it only when this p is at most ``alpha`` too. Measured
 (``benchmarks/null_calibration.py``, 104 spurious candidates that pass the gates
-before the replay, on 128 clean plant logs, ``B = 19``): the Monte-Carlo p
-alone is <= 0.05 on 23 (its noise model is rough: on logs with a force
-disturbance the replicates' statistic sits near -1 where the recording's sits
-near +1), the Diebold-Mariano p alone on 10, both on 5.
+before the replay, on 128 clean plant logs, ``B = 19``, every replay with the
+sensor noise of :mod:`ilic_cli.diagnosis.sensor`): the Monte-Carlo p alone is
+<= 0.05 on 3, both on 1 (noise-free replays: 23 and 5).
 
 The noise uses the plant's own effects (``noise``, ``quantization``,
 ``disturbance``: :mod:`plant.sensors`), as the corpus builds its noisy logs.
