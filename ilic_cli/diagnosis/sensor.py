@@ -5,7 +5,7 @@ moves the axis: at low speed and at rest it dithers the friction (stick-slip
 creep at a dwell, where the force is the controller's answer to the noise).
 A noise-free replay of such a log cannot reproduce that force, whatever the
 model (clean CTC trapezoid, seed 1: held-out-band force error 1.91 % noise-free,
-1.01 % with an independent realisation of the estimated noise). The replay
+1.02 % with an independent realisation of the estimated noise). The replay
 that decides (:func:`ilic_cli.diagnosis.decide.replay_decide`) therefore runs
 with the noise estimated here (:func:`recorded_sensor`), the Monte-Carlo null
 (:mod:`ilic_cli.diagnosis.null`) builds its noise model on it.
