@@ -245,6 +245,7 @@ def replay_decide(
     tau_dec = decimate_matlab(tau, step_dec)
 
     sensor = recorded_sensor(log, data.settings) if sensor_noise else {}
+    vsensor = recorded_sensor(validate[0], validate[1]) if sensor_noise and validate is not None else {}
     others_of = [np.any([sel for j, sel in enumerate(in_block) if j != fold], axis=0) for fold in range(len(in_block))]
 
     def fold_replay(steps: list[Step], train: np.ndarray, noise: dict[str, Any] = sensor) -> RunLog | None:
@@ -341,7 +342,6 @@ def replay_decide(
         vb = va = None
         if validate is not None:
             vlog, vls = validate
-            vsensor = recorded_sensor(vlog, vls) if sensor_noise else {}
             sims = [_replayed(vlog, plant_of, s, *_fit(data, base, s, rows, None), vsensor) for s in (kept, [*kept, judged])]
             if sims[0] is not None and sims[1] is not None:
                 vb, va = (relative_errors(vlog, s, vls)["force"] for s in sims)
