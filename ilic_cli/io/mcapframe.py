@@ -275,6 +275,18 @@ class BulkWriter:
             self.pool.shutdown()
             self.pool = None
 
+    def abort(self) -> None:
+        """Drop the chunks still compressing and stop the threads (after an error or a signal; the file is left as it is).
+
+        Without it a signal that lands while the pool starts a thread can leave a worker the
+        pool never registered: nothing would wake it at exit, and the process would hang there.
+        ``shutdown`` posts the wake-up that every worker passes on to the next.
+        """
+        self.pending.clear()
+        if self.pool is not None:
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            self.pool = None
+
     def _write_chunk(self, chunk: _Pending) -> None:
         """Write a chunk record and its message indexes (once its compression is done)."""
         from mcap.records import Chunk, ChunkIndex

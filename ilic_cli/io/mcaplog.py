@@ -139,9 +139,13 @@ def write_columns(stream: Any, columns: rosencode.Columns, compression: str, *, 
             schema_ids[spec.msgtype] = writer.register_schema(name=spec.msgtype, encoding="ros2msg", data=text.encode("utf-8"))
         channel_ids[spec.topic] = writer.register_channel(topic=spec.topic, message_encoding="cdr", schema_id=schema_ids[spec.msgtype])
     ns = columns.log_ns
-    writer.add_message(channel_ids[rosschema.TOPIC_METADATA], int(ns[0]), columns.metadata, int(ns[0]), 0)
-    add_samples(writer, columns, channel_ids)
-    writer.finish()
+    try:
+        writer.add_message(channel_ids[rosschema.TOPIC_METADATA], int(ns[0]), columns.metadata, int(ns[0]), 0)
+        add_samples(writer, columns, channel_ids)
+        writer.finish()
+    except BaseException:
+        writer.abort()
+        raise
 
 
 def add_samples(writer: Any, columns: rosencode.Columns, channel_ids: dict[str, int]) -> None:

@@ -153,9 +153,15 @@ class BulkMcapStorage:
         try:
             self.writer.add_metadata("rosbag2", {"serialized_metadata": metadata})
             self.writer.finish()
+        except BaseException:
+            self.writer.abort()
+            raise
         finally:
             self.stream.close()
 
     def abort(self) -> None:
-        """Close the file as it is (``write_log`` removes the temporary folder)."""
-        self.stream.close()
+        """Stop the compressing threads; close the file as it is (``write_log`` removes the temporary folder)."""
+        try:
+            self.writer.abort()
+        finally:
+            self.stream.close()

@@ -374,3 +374,33 @@ def test_bag_folder_over_existing_file_is_refused(tmp_path: Path) -> None:
     assert result.status == 2
     assert_one_line_error(result.stderr, "plainfile", ("is a folder",))
     assert (tmp_path / "plainfile").read_text() == "x"
+
+
+@pytest.mark.parametrize("target", ["out.mcap", "out_bag"])
+def test_interrupted_bulk_write_stops_its_threads(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, target: str) -> None:
+    # A signal inside the bulk MCAP writer (also the ROS 2 bag's storage) must stop the chunk-compressing
+    # threads: a worker the pool never registered would otherwise keep the process alive at exit.
+    import threading
+
+    import ilic_cli.io.mcapframe as mcapframe
+    import ilic_cli.io.mcaplog as mcaplog
+
+    real = mcaplog.add_samples
+
+    def interrupted(writer: mcapframe.BulkWriter, *args: object) -> None:
+        real(writer, *args)  # type: ignore[arg-type]
+        writer._finish_chunk()  # a chunk in the pool for certain
+        assert writer.pool is not None
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(mcaplog, "add_samples", interrupted)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    with pytest.raises(KeyboardInterrupt) as caught:  # held, as the CLI holds it while it reports
+        write_log(make_synthetic_log(samples=5000), out_dir / target, options=WriteOptions(storage="mcap"))
+    for thread in threading.enumerate():
+        if thread.name.startswith("mcap-chunk"):
+            thread.join(timeout=5)
+    assert not [t.name for t in threading.enumerate() if t.name.startswith("mcap-chunk")]
+    assert _listing(out_dir) == []
+    assert caught.traceback
