@@ -14,18 +14,17 @@ import numpy as np
 
 from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
-from ilic_cli.diagnosis.decide import ReplayVerdict, effect_force_rms, immaterial, replay_decide
+from ilic_cli.diagnosis.decide import ReplayVerdict, decision_sensor, effect_force_rms, immaterial, replay_decide
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
 from ilic_cli.diagnosis.refit import Refit, closed_loop_refit
-from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, forward_select, moving_rows, system, validation_error
-from ilic_cli.diagnosis.sensor import recorded_sensor
+from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, fit_system, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit
 from ilic_cli.errors import IdentificationError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
-from ilic_cli.lsq import LSResult, lstsq, relative_error_pct, solve
+from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, structure_of
 from ilic_cli.prepare import PreparedLog, prepare_log
@@ -127,7 +126,7 @@ class Diagnosis:
     residual: dict[str, np.ndarray] = field(default_factory=dict)
     timing: ControlTiming | None = None
     replay_sensor: dict[str, Any] | None = None
-    """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.sensor.recorded_sensor`); ``None``: none replayed, or noise-free."""
+    """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.decide.decision_sensor`); ``None``: none replayed, or noise-free."""
 
     @property
     def conclusion(self) -> str:
@@ -198,9 +197,8 @@ def steps_from_effects(effects: dict[str, Any], M: float) -> list[Step]:
 
 def _inverse_fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarray) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     """The inverse model's fit of ``base + steps`` on ``rows``: names, estimate, autocorrelation-aware covariance."""
-    W, y, names = system(data, base, steps, rows)
-    theta, _ = lstsq(W, y)
-    return names, theta, gls_covariance(W, y, theta)
+    fit = fit_system(data, base, steps, rows)
+    return fit.names, fit.theta, gls_covariance(fit.W, fit.y, fit.theta)
 
 
 def _prepare(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMData:
@@ -284,7 +282,7 @@ def diagnose(
         log, timing = recorded_loop(log, before_params, before_effects, settings.ls)
         if validate is not None:
             validate, _ = recorded_loop(validate, before_params, before_effects, settings.ls)
-    kept, verdicts = _decide(log, data, base, known, selection, rows, settings, hold, validate, against)
+    kept, verdicts, replay_sensor = _decide(log, data, base, known, selection, rows, settings, hold, validate, against)
     steps = [*known, *kept]
     W1, y1, names1 = system(data, base, steps, rows)
     if not len(y0) > 4 * W1.shape[1]:
@@ -364,8 +362,8 @@ def diagnose(
     if timing is not None:
         timing.negative_flexibility = any(ev.effect == "flexibility" and "negative mass" in ev.reason for step in selection.tried for ev in step)
     diag.timing = timing
-    if settings.replay_noise and any(v.force_before is not None for v in verdicts):
-        diag.replay_sensor = recorded_sensor(log, settings.ls)
+    if any(v.force_before is not None for v in verdicts):
+        diag.replay_sensor = replay_sensor
     if settings.simulate or against is not None:
         try:
             diag.simulation = compare_simulation(
@@ -401,13 +399,16 @@ def _decide(
     hold: float,
     validate: RunLog | None,
     against: RunLog | None,
-) -> tuple[list[Step], list[ReplayVerdict]]:
+) -> tuple[list[Step], list[ReplayVerdict], dict[str, Any] | None]:
     """The proposed steps that are material and, when the log can be replayed, that the replay keeps (:mod:`ilic_cli.diagnosis.decide`).
 
     Every evaluation the inverse model accepted gets the verdict as its decision
-    (``selection.tried`` is updated in place).
+    (``selection.tried`` is updated in place). Also returned: the sensor noise the
+    replays carried (:func:`~ilic_cli.diagnosis.decide.decision_sensor`), ``None``
+    when none ran or they were noise-free.
     """
     material: list[Step] = []
+    sensor = None
     verdicts: list[ReplayVerdict] = []
     kept_so_far = list(known)
     for st in selection.steps:
@@ -428,6 +429,8 @@ def _decide(
         null = None
         if ns.kind == "montecarlo":
             null = MonteCarloNull(ns.replicates, ns.seed, settings.ls, lambda lg: _prepare(prepare_log(lg), base, settings.ls), settings.replay_noise)
+        if settings.replay_noise:
+            sensor = decision_sensor(log, settings.ls, data, base, known, rows, plant_of)
         kept, judged = replay_decide(
             log,
             data,
@@ -441,6 +444,7 @@ def _decide(
             validate=v,
             null=null,
             sensor_noise=settings.replay_noise,
+            sensor=sensor,
         )
         verdicts += judged
         kept = kept[len(known) :]
@@ -455,7 +459,7 @@ def _decide(
                 step[i] = replace(ev, reason=f"{ev.reason}; {by_effect[ev.effect].reason}")
     order = [s.effect.id for s in selection.steps]
     verdicts.sort(key=lambda v: order.index(v.effect))
-    return kept, verdicts
+    return kept, verdicts, sensor
 
 
 def replay_alpha(settings: DiagnoseSettings) -> float:

@@ -7,7 +7,8 @@ same recording share them. Here each proposed effect, in the order accepted,
 is refitted without each of ``k`` contiguous time blocks, the recorded
 reference is replayed through the plant (:func:`ilic_cli.diagnosis.compare.replay`)
 with and without it (with the recording's own position noise and
-quantisation, one realisation shared by every replay: :mod:`ilic_cli.diagnosis.sensor`),
+quantisation, corrected for the loop on the baseline's replay, one realisation
+shared by every replay: :func:`decision_sensor`),
 and the simulated force and position are compared with
 the recording on the block left out (the force in the band of the inverse
 model: the error decimated as the IDIM system is). A value the inverse model
@@ -35,13 +36,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.diagnosis.compare import relative_errors, replay
-from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, minimise, search_range, system
+from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, SystemFit, at_edge, fit_system, minimise, search_range, system
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import blocked_folds, diebold_mariano
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
-from ilic_cli.lsq import lstsq, relative_error_pct
+from ilic_cli.lsq import relative_error_pct
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 
@@ -147,8 +148,8 @@ def immaterial(step: Step, force_rms: float, total_rms: float, fs_hz: float) -> 
 
 def effect_force_rms(data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray) -> tuple[float, float]:
     """RMS of the force ``step`` adds to the model ``base + kept`` (fitted on ``rows``), and of the force there (N)."""
-    W, y, _ = system(data, base, [*kept, step], rows)
-    theta, _ = lstsq(W, y)
+    fit = fit_system(data, base, [*kept, step], rows)
+    W, y, theta = fit.W, fit.y, fit.theta
     if step.effect.shift:
         W0, y0, _ = system(data, base, kept, rows)
         added = y - y0
@@ -158,19 +159,23 @@ def effect_force_rms(data: IDIMData, base: Model, kept: list[Step], step: Step, 
     return float(np.sqrt(np.mean(added**2))), float(np.sqrt(np.mean(y**2)))
 
 
-def _fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarray, train: np.ndarray | None) -> tuple[tuple[str, ...], np.ndarray]:
-    W, y, names = system(data, base, steps, rows)
-    sel = slice(None) if train is None else train
-    theta, _ = lstsq(W[sel], y[sel])
-    return names, theta
-
-
-def _replayed(log: RunLog, plant_of: PlantOf, steps: list[Step], names: tuple[str, ...], theta: np.ndarray, sensor: dict[str, Any]) -> RunLog | None:
-    rigid, effects = plant_of(steps, names, theta)
+def _replayed(log: RunLog, plant_of: PlantOf, steps: list[Step], fit: SystemFit, sensor: dict[str, Any]) -> RunLog | None:
+    rigid, effects = plant_of(steps, fit.names, fit.theta)
     try:
         return replay(log, rigid, {**sensor, **effects}, seed=REPLAY_SEED)
     except ParameterError:
         return None
+
+
+def decision_sensor(log: RunLog, ls: LSSettings, data: IDIMData, base: Model, known: list[Step], rows: np.ndarray, plant_of: PlantOf) -> dict[str, Any]:
+    """The sensor effects the deciding replays on ``log`` carry: :func:`~ilic_cli.diagnosis.sensor.recorded_sensor`, loop-corrected on the baseline.
+
+    The baseline is ``base + known`` fitted on ``data``'s ``rows``, replayed on
+    ``log`` (seed :data:`REPLAY_SEED`), as every deciding replay is. ``log`` is
+    the recording of ``data``, or a validation log (with its own ``ls``).
+    """
+    baseline = fit_system(data, base, known, rows)
+    return recorded_sensor(log, ls, lambda sensor: _replayed(log, plant_of, known, baseline, sensor))
 
 
 def replay_decide(
@@ -187,6 +192,7 @@ def replay_decide(
     validate: tuple[RunLog, LSSettings] | None = None,
     null: MonteCarloNull | None = None,
     sensor_noise: bool = True,
+    sensor: dict[str, Any] | None = None,
 ) -> tuple[list[Step], list[ReplayVerdict]]:
     """Keep the proposed steps that lower the held-out closed-loop output error, in order.
 
@@ -219,6 +225,9 @@ def replay_decide(
     sensor_noise : bool
         Replay with the recording's position noise and quantisation (:func:`ilic_cli.diagnosis.sensor.recorded_sensor`,
         one realisation, seed :data:`REPLAY_SEED`, shared by every replay); ``False``: noise-free replays.
+        The noise is loop-corrected on the baseline (:func:`decision_sensor`), the validation log's too.
+    sensor : dict, optional
+        ``log``'s :func:`decision_sensor` when the caller has it already (used when ``sensor_noise``).
 
     Returns
     -------
@@ -244,14 +253,16 @@ def replay_decide(
     in_block = [(at >= a) & (at < b) for a, b in blocks]
     tau_dec = decimate_matlab(tau, step_dec)
 
-    sensor = recorded_sensor(log, data.settings) if sensor_noise else {}
-    vsensor = recorded_sensor(validate[0], validate[1]) if sensor_noise and validate is not None else {}
+    if not sensor_noise:
+        sensor = {}
+    elif sensor is None:
+        sensor = decision_sensor(log, data.settings, data, base, known, rows, plant_of)
+    vsensor = decision_sensor(*validate, data, base, known, rows, plant_of) if sensor_noise and validate is not None else {}
     others_of = [np.any([sel for j, sel in enumerate(in_block) if j != fold], axis=0) for fold in range(len(in_block))]
 
     def fold_replay(steps: list[Step], train: np.ndarray, noise: dict[str, Any] = sensor) -> RunLog | None:
         """The replay of the model fitted on ``train`` (with the sensor ``noise``), or ``None`` when it is no valid plant."""
-        names, theta = _fit(data, base, steps, rows, train)
-        sim = _replayed(log, plant_of, steps, names, theta, noise)
+        sim = _replayed(log, plant_of, steps, fit_system(data, base, steps, rows, train), noise)
         return sim if sim is not None and len(sim) == n else None
 
     def force_error(sim: RunLog) -> np.ndarray:
@@ -342,7 +353,7 @@ def replay_decide(
         vb = va = None
         if validate is not None:
             vlog, vls = validate
-            sims = [_replayed(vlog, plant_of, s, *_fit(data, base, s, rows, None), vsensor) for s in (kept, [*kept, judged])]
+            sims = [_replayed(vlog, plant_of, s, fit_system(data, base, s, rows), vsensor) for s in (kept, [*kept, judged])]
             if sims[0] is not None and sims[1] is not None:
                 vb, va = (relative_errors(vlog, s, vls)["force"] for s in sims)
         if not fa < fb:

@@ -171,7 +171,8 @@ def to_markdown(diag: Diagnosis) -> str:
                 "",
             ]
         if diag.replay_sensor is not None:
-            lines += [f"Every replay here carries the recording's sensor noise, estimated from its position: {_sensor_words(diag.replay_sensor)}.", ""]
+            noise = _sensor_words(diag.replay_sensor)
+            lines += [f"Every replay here carries the recording's sensor noise, estimated from its position (less what the loop adds to it): {noise}.", ""]
         lines += [
             "| effect | held-out simulated force | held-out simulated position | p | decision |",
             "| --- | --- | --- | --- | --- |",

@@ -158,6 +158,29 @@ def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], ro
 
 
 @dataclass(frozen=True)
+class SystemFit:
+    """The least-squares fit of :func:`system` ``(data, base, steps, rows)``: the system and its estimate."""
+
+    names: tuple[str, ...]
+    theta: np.ndarray
+    W: np.ndarray
+    y: np.ndarray
+
+
+def fit_system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], rows: np.ndarray | None = None, train: np.ndarray | None = None) -> SystemFit:
+    """Fit ``base + steps`` on ``data``'s ``rows`` (default :func:`moving_rows`) by least squares, on ``train`` of them when given.
+
+    The one inverse-model fit of the diagnosis (the IDIM estimate, eq. (8) of the
+    paper, with the effect columns beside the rigid ones); ``W`` and ``y`` are
+    the whole selected system, ``train`` or not.
+    """
+    W, y, names = system(data, base, steps, rows)
+    sel = slice(None) if train is None else train
+    theta, _ = lstsq(W[sel], y[sel])
+    return SystemFit(names, theta, W, y)
+
+
+@dataclass(frozen=True)
 class Evaluation:
     """One candidate effect tried at one step of the selection."""
 
@@ -516,7 +539,6 @@ def _heldout_candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.nda
 
 def validation_error(data: IDIMData, validation: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...]) -> float:
     """Relative error (%) on ``validation`` of the model ``base + steps`` fitted on ``data``."""
-    W, y, _ = system(data, base, steps)
-    theta, _ = lstsq(W, y)
+    theta = fit_system(data, base, steps).theta
     Wv, yv, _ = system(validation, base, steps)
     return relative_error_pct(yv, Wv @ theta)

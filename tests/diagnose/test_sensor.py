@@ -5,8 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ilic_cli.diagnosis.sensor import grid_step, position_noise, recorded_sensor, sensor_effects
+from ilic_cli.diagnosis.decide import decision_sensor
+from ilic_cli.diagnosis.sensor import grid_step, loop_corrected, position_noise, recorded_sensor, sensor_effects
 from ilic_cli.idim_ls import LSSettings
+from ilic_cli.regressor import get_model
+from ilic_cli.runlog import RunLog
 from tests.conftest import import_or_skip
 
 LS = LSSettings()
@@ -68,12 +71,34 @@ def trapezoid():  # type: ignore[no-untyped-def]
     return _Prepared("clean-trapezoid-sensor-s1")
 
 
-def test_the_recorded_sensor_is_the_corpus_noise(trapezoid) -> None:  # type: ignore[no-untyped-def]
-    """Truth: 0.5 um of white position noise on a 0.2 um grid. The estimate is not corrected for the loop's feedback
-    (:func:`ilic_cli.diagnosis.null.estimate_noise` is): measured 0.550 um, 10 % high."""
-    s = recorded_sensor(trapezoid.log, LS)
-    assert s["quantization"]["resolution"] == pytest.approx(2e-7, rel=1e-6)
-    assert s["noise"]["q_std"] == pytest.approx(5e-7, rel=0.15) and s["noise"]["tau_std"] == 0.0
+BASE = get_model("rigid-offset")
+
+
+def test_the_recorded_sensor_is_the_corpus_noise_once_corrected_for_the_loop(trapezoid) -> None:  # type: ignore[no-untyped-def]
+    """Truth: 0.5 um of white position noise on a 0.2 um grid. On the recording the estimate is 0.550 um, 10 % high:
+    the CTC loop feeds the noise back into the motion above the IDIM cut-off. Corrected on a replay of the rigid
+    fit that carries it (:func:`decision_sensor`, as the deciding replays use it): 0.499 um."""
+    raw = recorded_sensor(trapezoid.log, LS)
+    assert raw["quantization"]["resolution"] == pytest.approx(2e-7, rel=1e-6)
+    assert raw["noise"]["q_std"] == pytest.approx(5.5e-7, rel=0.02) and raw["noise"]["tau_std"] == 0.0
+    s = decision_sensor(trapezoid.log, LS, trapezoid.data, BASE, [], trapezoid.rows, trapezoid.plant_of)
+    assert s["quantization"] == raw["quantization"]
+    assert s["noise"]["q_std"] == pytest.approx(5e-7, rel=0.02)
+
+
+def test_loop_correction_scales_by_what_the_replay_adds() -> None:
+    """``q_std**2 / seen``: a replay that shows 1.1 times the noise it carries brings 1.1 um down to 1 um; no noise or no replay, no change."""
+    fs = 1000.0
+    t = np.arange(20000) / fs
+    rng = np.random.default_rng(7)
+
+    def replay_with(sensor: dict) -> RunLog:
+        q_std = sensor["noise"]["q_std"]
+        return RunLog({"t": t, "q": 0.05 * np.sin(2 * np.pi * 0.7 * t) + 1.1 * q_std * rng.standard_normal(len(t))})
+
+    assert loop_corrected(1.1e-6, None, fs, LS, replay_with) == pytest.approx(1e-6, rel=0.02)
+    assert loop_corrected(0.0, None, fs, LS, replay_with) == 0.0
+    assert loop_corrected(1.1e-6, None, fs, LS, lambda sensor: None) == 1.1e-6
 
 
 def test_the_replay_with_the_recordings_noise_rejects_a_spring_the_noise_free_replay_accepts(trapezoid) -> None:  # type: ignore[no-untyped-def]
@@ -82,8 +107,8 @@ def test_the_replay_with_the_recordings_noise_rejects_a_spring_the_noise_free_re
     Noise-free, the held-out replay force error is 1.906 % and the spring lowers it to 1.878 % (Diebold-Mariano
     p = 2.7e-12: accepted, a false alarm): at the dwells the recorded force is the controller's answer to the
     position noise (stick-slip creep), which no noise-free replay has, and the spring's force there absorbs some of
-    it. With the recording's noise in every replay (one realisation, shared) the error is 1.016 % and the spring
-    raises it to 1.028 %: rejected. On 32 clean trapezoid logs (seeds 1-8) the noise-free replay accepted 6 such
+    it. With the recording's noise in every replay (loop-corrected, one realisation, shared) the error is 0.904 % and
+    the spring raises it to 0.917 %: rejected. On 32 clean trapezoid logs (seeds 1-8) the noise-free replay accepted 6 such
     springs at p <= 0.01, the noisy one none (``benchmarks/null_calibration.py``).
     """
     free = trapezoid.forced("spring", 0, 0.01, sensor_noise=False)
