@@ -87,7 +87,7 @@ def test_the_recorded_sensor_is_the_corpus_noise_once_corrected_for_the_loop(tra
 
 
 def test_loop_correction_scales_by_what_the_replay_adds() -> None:
-    """``q_std**2 / seen``: a replay that shows 1.1 times the noise it carries brings 1.1 um down to 1 um; no noise or no replay, no change."""
+    """``q_std**2 / seen``: a replay that shows 1.1 times the noise it carries brings 1.1 um down to 1 um; no noise, no replay or none seen: no change."""
     fs = 1000.0
     t = np.arange(20000) / fs
     rng = np.random.default_rng(7)
@@ -99,6 +99,7 @@ def test_loop_correction_scales_by_what_the_replay_adds() -> None:
     assert loop_corrected(1.1e-6, None, fs, LS, replay_with) == pytest.approx(1e-6, rel=0.02)
     assert loop_corrected(0.0, None, fs, LS, replay_with) == 0.0
     assert loop_corrected(1.1e-6, None, fs, LS, lambda sensor: None) == 1.1e-6
+    assert loop_corrected(1.1e-6, None, fs, LS, lambda sensor: RunLog({"t": t, "q": np.zeros(len(t))})) == 1.1e-6  # a replay that shows none
 
 
 def test_the_replay_with_the_recordings_noise_rejects_a_spring_the_noise_free_replay_accepts(trapezoid) -> None:  # type: ignore[no-untyped-def]
