@@ -54,10 +54,9 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
     from ilic_cli.diagnosis.core import _prepare, model_parameters
     from ilic_cli.diagnosis.decide import effect_force_rms, immaterial, replay_decide
     from ilic_cli.diagnosis.null import MonteCarloNull, reproposed
-    from ilic_cli.diagnosis.select import Searcher, Step, at_edge, moving_rows, system
+    from ilic_cli.diagnosis.select import Searcher, Step, at_edge, fit_system, moving_rows, system
     from ilic_cli.effects import EFFECTS, applicable
     from ilic_cli.idim_ls import LSSettings
-    from ilic_cli.lsq import lstsq
     from ilic_cli.prepare import prepare_log
     from ilic_cli.regressor import get_model
     from plant.corpus import build_case, score
@@ -83,10 +82,9 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         step = reproposed(data, base, [], Step(EFFECTS[eid]), rows)
         edge = at_edge(step.effect, Searcher(data, data.fs_hz, rows).grid(step.effect)[0], step.value) if step.effect.nonlinear else None
         # the gates the diagnosis applies before any replay (select.forward_select, decide.immaterial): a gated candidate is never judged
-        W0, _, _ = system(data, base, [], rows)
-        W1, y1, names1 = system(data, base, [step], rows)
-        theta1, _ = lstsq(W1, y1)
-        impossible = step.effect.impossible(theta1[W0.shape[1] :], step.value) if step.effect.impossible is not None else None
+        fit = fit_system(data, base, [step], rows)
+        names1, theta1 = fit.names, fit.theta
+        impossible = step.effect.impossible(theta1[data.W.shape[1] :], step.value) if step.effect.impossible is not None else None
         small = immaterial(step, *effect_force_rms(data, base, [], step, rows), data.fs_hz)
         # a forced finding the corpus's scoring counts as right (a delay of a current loop's size is physics)
         right = score(case, [(eid, plant_of([step], names1, theta1)[1].get(eid))])["false_alarms"] == 0
