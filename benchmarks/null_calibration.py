@@ -13,6 +13,11 @@ Power (``--effects``): on concealed single-effect corpus logs the true effect
 is forced the same way; it should be accepted (``p_MC <= 1/(B+1)`` at ``B = 19``
 is the smallest p there is).
 
+On a log whose reference dwells, the closed loop's own Stribeck proposal
+(:mod:`ilic_cli.diagnosis.dwell`) is one more trial, ``stribeck (dwells)``,
+judged as the diagnosis judges it (its level and ``vs`` searched per fold; too
+few folds with an estimate inside the grid is a gate; Diebold-Mariano only).
+
 Prints one Markdown row per trial and a summary; ``--json FILE`` keeps them.
 
 ``--replicates 0``: the Diebold-Mariano p alone (no Monte-Carlo null).
@@ -49,10 +54,11 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
     """Force each effect of ``effects`` (default: every applicable one; a concealed case: its own) through the replay on case ``name``."""
     import numpy as np
 
+    from ilic_cli.diagnosis import dwell
     from ilic_cli.diagnosis.baseline import hold_s
     from ilic_cli.diagnosis.compare import tau_sensor
     from ilic_cli.diagnosis.core import _prepare, model_parameters
-    from ilic_cli.diagnosis.decide import effect_force_rms, immaterial, replay_decide
+    from ilic_cli.diagnosis.decide import materiality, replay_decide
     from ilic_cli.diagnosis.null import MonteCarloNull, reproposed
     from ilic_cli.diagnosis.select import Searcher, Step, at_edge, fit_system, moving_rows, system
     from ilic_cli.effects import EFFECTS, applicable
@@ -81,11 +87,11 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         t0 = time.perf_counter()
         step = reproposed(data, base, [], Step(EFFECTS[eid]), rows)
         edge = at_edge(step.effect, Searcher(data, data.fs_hz, rows).grid(step.effect)[0], step.value) if step.effect.nonlinear else None
-        # the gates the diagnosis applies before any replay (select.forward_select, decide.immaterial): a gated candidate is never judged
+        # the gates the diagnosis applies before any replay (select.forward_select, decide.materiality): a gated candidate is never judged
         fit = fit_system(data, base, [step], rows)
         names1, theta1 = fit.names, fit.theta
         impossible = step.effect.impossible(theta1[data.W.shape[1] :], step.value) if step.effect.impossible is not None else None
-        small = immaterial(step, *effect_force_rms(data, base, [], step, rows), data.fs_hz)
+        small = materiality(data, base, [], step, rows)
         # a forced finding the corpus's scoring counts as right (a delay of a current loop's size is physics)
         right = score(case, [(eid, plant_of([step], names1, theta1)[1].get(eid))])["false_alarms"] == 0
         _, (dm,) = replay_decide(log, data, base, [], [step], rows, plant_of, alpha=0.0)
@@ -97,6 +103,18 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
             dist = null.distribution(log, data, base, [], step, rows, plant_of, 5, dm.p_value)
             row.update({"mc_p": dist.p_value, "t_obs": dist.t_obs, "t_null": dist.t_null.tolist(), "noise": dist.noise.to_dict()})
         row["wall_s"] = time.perf_counter() - t0
+        out.append(row)
+    if "stribeck" in ids and dwell.reference_dwells(np.asarray(log["q_ref"]), log.fs_hz) >= dwell.DWELL_MIN_COUNT:
+        # the closed loop's own proposal on a log whose reference dwells (diagnosis.dwell), judged as the diagnosis judges it
+        t0 = time.perf_counter()
+        fit = fit_system(data, base, [], rows)
+        step = dwell.proposal(EFFECTS["stribeck"].scan.grid(data.kin, data.fs_hz), dwell.coulomb_N(fit.names, fit.theta) or 0.0)
+        kept, (dm,) = replay_decide(log, data, base, [], [step], rows, plant_of, alpha=0.0)
+        found = kept[-1] if kept else None
+        right = found is not None and score(case, [("stribeck", plant_of([found], fit.names, fit.theta)[1].get("stribeck"))])["false_alarms"] == 0
+        row = {"case": name, "effect": "stribeck (dwells)", "value": None if found is None else [found.value, *(found.level or ())], "edge": None}
+        row.update({"dm_p": dm.p_value, "gated": None if dm.p_value is not None else dm.reason, "right": right})
+        row.update({"force_before": dm.force_before, "force_after": dm.force_after, "wall_s": time.perf_counter() - t0})
         out.append(row)
     return out
 

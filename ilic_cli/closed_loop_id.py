@@ -199,20 +199,24 @@ class ClosedLoopResult:
         return pd.DataFrame({"parameter": r.names, "value": r.theta, "std": r.std, "rel_std_pct": r.rel_std_pct})
 
 
-def plant_of(names: tuple[str, ...], theta: np.ndarray, effects: Mapping[str, Any] | None = None) -> tuple[dict[str, float], dict[str, dict[str, float]]]:
+def plant_of(
+    names: tuple[str, ...], theta: np.ndarray, effects: Mapping[str, Any] | None = None, hold_s: float = 0.0
+) -> tuple[dict[str, float], dict[str, dict[str, float]]]:
     """The plant an estimate describes: rigid parameters and effects (:meth:`ilic_cli.effects.Effect.fit_to_plant`).
 
     ``effects``: effect id -> its nonlinear value (``None`` for a linear
-    effect), as the columns of the model were built with.
+    effect), as the columns of the model were built with. ``hold_s``: half a
+    sample period when the logged force is the held command
+    (:meth:`ilic_cli.effects.Effect.plant_entries`).
     """
     theta = np.asarray(theta, dtype=np.float64)
     rigid = {n: float(v) for n, v in zip(names, theta, strict=True) if n in PARAMETERS}
     out: dict[str, dict[str, float]] = {}
     for eid, value in (effects or {}).items():
         effect = EFFECTS[eid]
-        _, plant, _ = effect.fit_to_plant(Fit(tuple(names), theta, np.zeros((len(theta), len(theta))), value))
+        _, plant, _ = effect.fit_to_plant(Fit(tuple(names), theta, np.zeros((len(theta), len(theta))), value, hold_s=hold_s))
         if effect.plant and plant is not None:
-            out[eid] = {k: float(v) for k, v in plant.items()}
+            out.update(effect.plant_entries(plant, hold_s))
     return rigid, out
 
 
@@ -249,6 +253,7 @@ def closed_loop_identify(
     settings: ClosedLoopSettings | None = None,
     prepared: PreparedLog | None = None,
     simulate: Simulator | None = None,
+    hold_s: float = 0.0,
 ) -> ClosedLoopResult:
     """DIDIM (``method="didim"``) or IDIM-IV (``"iv"``) of ``model`` on ``log``, from ``theta0``.
 
@@ -269,6 +274,8 @@ def closed_loop_identify(
         Effect id -> nonlinear value of the effect columns in ``model``.
     ls_settings : LSSettings
         Filtering and decimation (as IDIM-LS).
+    hold_s : float
+        Half a sample period when the logged force is the held command (:func:`plant_of`).
     settings : ClosedLoopSettings, optional
         Default :data:`DEFAULT_SETTINGS` of the method.
     prepared : PreparedLog, optional
@@ -303,7 +310,7 @@ def closed_loop_identify(
     def replay_at(theta: np.ndarray, k: int) -> tuple[RunLog, np.ndarray, np.ndarray]:
         """The replay with ``theta``, its regressor ``W_s`` and its force, filtered and decimated as ``y``."""
         try:
-            sim = simulate(*plant_of(names, theta, effects))
+            sim = simulate(*plant_of(names, theta, effects, hold_s))
         except IlicError as exc:
             raise IdentificationError(src, f"{name} iteration {k}: the estimate cannot be simulated: {exc.problem}") from None
         data = prepare(t, sim["q"], tau, fs, model, ls_settings, valid=prepared.valid)

@@ -281,6 +281,7 @@ def closed_loop_refit(
     ls: LSSettings = LSSettings(),
     simulate: Callable[[dict[str, float], dict[str, Any]], RunLog] | None = None,
     inverse_fit: InverseFit | None = None,
+    hold_s: float = 0.0,
 ) -> Refit:
     """Refit ``base + known + kept`` on the closed-loop output error: the kept effects' nonlinear values searched, then DIDIM.
 
@@ -308,6 +309,9 @@ def closed_loop_refit(
         The inverse model's fit of ``base + steps`` (:data:`InverseFit`). When DIDIM does not lower the
         output error, the nonlinear values are still searched on the closed loop, the linear parameters
         refitted by it at each value (:data:`INVERSE_METHOD`); without it, the inverse model's estimates stand.
+    hold_s : float
+        Half a sample period when the logged force is the held command (how an effect is realised in the plant,
+        :meth:`ilic_cli.effects.Effect.plant_entries`).
 
     Returns
     -------
@@ -344,7 +348,7 @@ def closed_loop_refit(
         if plant_problem(model_steps, names, theta):
             return None
         try:
-            sim = sim_of(*plant_of(names, theta, values_of(model_steps)))
+            sim = sim_of(*plant_of(names, theta, values_of(model_steps), hold_s))
         except IlicError:
             return None
         replays[0] += 1
@@ -358,11 +362,11 @@ def closed_loop_refit(
     def didim(model_steps: list[Step], theta: np.ndarray) -> tuple[ClosedLoopResult, list[RunLog]] | str:
         """DIDIM of the model with ``model_steps`` from ``theta``, and its replays (first and last); or why it failed."""
         sims: list[RunLog] = []
-        expected = {s.effect.id for s in model_steps if s.effect.plant}
+        expected = [s.effect.id for s in model_steps if s.effect.plant]
 
         def checked(params: dict[str, float], effects: dict[str, Any]) -> RunLog:
-            if set(effects) != expected:
-                raise ParameterError("effects", sorted(expected - set(effects)), "plants of the effects named (an iterate left one outside its physics)")
+            if len(effects) != len(expected):  # one plant entry per effect (a drive lag may be realised as the current loop)
+                raise ParameterError("effects", expected, "plants of the effects named (an iterate left one outside its physics)")
             sim = sim_of(params, effects)
             replays[0] += 1
             sims[1:] = [sim]  # the first and the last
@@ -371,7 +375,9 @@ def closed_loop_refit(
         model = extended(base, model_steps, fs)
         try:
             with np.errstate(over="ignore", invalid="ignore"):  # a diverging iteration ends below, not in warnings
-                res = closed_loop_identify("didim", log, model, theta, effects=values_of(model_steps), ls_settings=ls, prepared=prepared, simulate=checked)
+                res = closed_loop_identify(
+                    "didim", log, model, theta, effects=values_of(model_steps), ls_settings=ls, prepared=prepared, simulate=checked, hold_s=hold_s
+                )
         except IlicError as exc:
             return exc.problem
         if not (np.all(np.isfinite(res.result.theta)) and math.isfinite(res.result.error_norm)):

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.diagnosis import dwell
 from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.diagnosis.locate import Region
 from ilic_cli.effects import Estimate
@@ -61,7 +62,8 @@ def _std(est: Estimate) -> str:
 def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], method: str) -> list[str]:
     """The finding's estimates: the method's, and the inverse model's beside them when the method is another."""
     if method == "IDIM-LS" or not inverse:
-        lines = ["Estimated by the inverse model (IDIM-LS).", "", "| parameter | value | std |", "| --- | --- | --- |"]
+        by = "the inverse model (IDIM-LS)" if method == "IDIM-LS" else f"the {method} (the inverse model has no estimate of it inside its physics)"
+        lines = [f"Estimated by {by}.", "", "| parameter | value | std |", "| --- | --- | --- |"]
         return lines + [f"| {n} | {_num(e.value, e.unit)} | {_std(e)} |" for n, e in params.items()] + [""]
     lines = [
         f"Estimated by the {method} (the inverse model's estimate beside it).",
@@ -142,6 +144,16 @@ def to_markdown(diag: Diagnosis) -> str:
             "",
         ]
         lines += _estimates_table(f.parameters, f.inverse_parameters, f.method)
+        if f.method == dwell.METHOD:
+            verdict = next((v.reason for v in diag.decisions if v.effect == f.effect.id), "")
+            lines += [
+                "Evidence: proposed on the closed loop at the reference's dwells, where the inverse model cannot see it (its level there is "
+                f"outside the effect's physics: see the candidates tried); {verdict}.",
+                "",
+            ]
+            lines += ["Located:", ""] + [f"- {_region_words(r)}" for r in f.located[:5]] + [""] if f.located else []
+            lines += [f"Note: {f.note}.", ""] if f.note else []
+            continue
         lines += [
             f"Evidence: F = {ev.test.F:.4g} ({ev.test.df1}, {ev.test.df2} dof, AR({ev.test.ar_order})-prewhitened), "
             f"p = {ev.test.p_value:.3g}, Bonferroni x{ev.test.trials} -> {ev.test.p_adjusted:.3g}; "

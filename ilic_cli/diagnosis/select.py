@@ -73,10 +73,19 @@ class SelectSettings:
 
 @dataclass(frozen=True)
 class Step:
-    """An effect in the model with its nonlinear parameter fixed."""
+    """An effect in the model with its nonlinear parameter fixed.
+
+    ``level``: the effect's linear coefficients (its columns' order), held at
+    these values instead of fitted: a closed-loop estimate the inverse model
+    cannot make (:mod:`ilic_cli.diagnosis.dwell`); its columns' force is then
+    taken off the fitted force (:func:`system`). ``level_std``: their standard
+    deviations, when known.
+    """
 
     effect: Effect
     value: Any = None
+    level: tuple[float, ...] | None = None
+    level_std: tuple[float, ...] | None = None
 
 
 STANDSTILL_FRACTION = 0.01
@@ -130,8 +139,8 @@ def effect_columns(data: IDIMData, effect: Effect, value: Any = None, *, remembe
 
 
 def extended(base: Model, steps: list[Step] | tuple[Step, ...], fs_hz: float) -> Model:
-    """The regressor of ``base`` plus the columns of ``steps`` (a time shift adds none)."""
-    columns = [c for s in steps for c in s.effect.regressor_columns(s.value, fs_hz)]
+    """The regressor of ``base`` plus the columns of ``steps`` (a time shift adds none, nor a step whose level is held)."""
+    columns = [c for s in steps if s.level is None for c in s.effect.regressor_columns(s.value, fs_hz)]
     return base.extend(*columns, name=base.name + "".join(f"+{s.effect.id}" for s in steps)) if columns else base
 
 
@@ -142,6 +151,7 @@ def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], ro
     columns, decimated once); each step's columns are decimated once on
     ``data`` (:func:`effect_columns`) and join them in the order of the
     extended model. ``rows`` (default :func:`moving_rows`) selects the rows.
+    A step whose ``level`` is held adds no column: its force is taken off ``y``.
     """
     model = extended(base, steps, data.fs_hz)
     y = data.y
@@ -149,7 +159,10 @@ def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], ro
     for s in steps:
         if s.effect.shift:
             y = shifted_force(data, float(s.value or 0.0))
-        else:
+    for s in steps:
+        if s.level is not None:
+            y = y - effect_columns(data, s.effect, s.value) @ np.asarray(s.level, dtype=np.float64)
+        elif not s.effect.shift:
             cols.append(effect_columns(data, s.effect, s.value))
     keep = moving_rows(data) if rows is None else rows
     W = np.hstack(cols)

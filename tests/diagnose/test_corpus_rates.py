@@ -4,8 +4,9 @@ The whole corpus (32 clean, 32 concealed-effect logs) is run by
 ``python benchmarks/diagnose_corpus.py``; its figures are in the README. Here,
 within the suite's time budget: the 16 clean logs of seed 1 (every trajectory
 under every noise model) must give no finding other than ``offset`` (the
-issue's rate is >= 95 %; measured 32 of 32, so none is allowed here), and one
-concealed-effect log per effect must name that effect, alone, within 15 %.
+issue's rate is >= 95 %; measured 32 of 32, so none is allowed here; a current
+loop's lag is physics), and one concealed-effect log per effect must name that
+effect, alone but for such a lag, within 15 %.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import pytest
 
 from ilic_cli.diagnosis.core import diagnose
 from ilic_cli.runlog import RunLog
-from plant.corpus import CASES, CLEAN_CASES, PARAM_TOLERANCE, build_case, score
+from plant.corpus import CASES, CLEAN_CASES, DELAY_SIZE_TOLERANCE, NOISE_MODELS, PARAM_TOLERANCE, build_case, expected_delay_s, score
 from tests.conftest import require_shared
 
 CLEAN_SEED_1 = [c.name for c in CLEAN_CASES if c.name.endswith("-s1")]
@@ -46,15 +47,31 @@ def test_the_clean_subset_is_every_trajectory_under_every_noise_model() -> None:
 
 @pytest.mark.parametrize("name", CLEAN_SEED_1)
 def test_a_clean_log_has_no_false_alarm(name: str) -> None:
+    """No finding but ``offset`` and, with a current loop, the loop's lag (0.23 ms) as a drive lag.
+
+    The lag is shorter than a sample; the replay judges it like any other effect (realised as the first-order
+    current loop) and keeps it on every log with the loop and the paper, trapezoid or EMPS reference, on none
+    without. Measured beyond the hold: 0.22-0.23 ms on the paper and EMPS references, 0.28-0.30 ms on the
+    trapezoids (a pure lag fitted to a first-order loop's answer to the ramps' corners); right within
+    :data:`plant.corpus.DELAY_SIZE_TOLERANCE` (50 %) of the loop's 0.227 ms. On the multisine (below 1.2 Hz) the
+    lag moves the replay too little to be kept, and it is not asserted there.
+    """
     s, findings = _scored(name)
     assert s["false_alarms"] == 0, findings
+    case = CASES[name]
+    lags = [-plant["delay"] for eid, plant in findings if eid == "delay" and plant is not None]
+    if "current_loop" not in NOISE_MODELS[case.noise]:
+        assert not lags, findings
+    elif case.trajectory != "multisine":
+        assert len(lags) == 1 and abs(lags[0] - expected_delay_s(case)) <= DELAY_SIZE_TOLERANCE * expected_delay_s(case), findings
 
 
 @pytest.mark.parametrize("name", ONE_PER_EFFECT)
 def test_a_concealed_effect_is_named_alone(name: str) -> None:
+    """The concealed effect is named, and nothing else but ``offset`` and a current loop's lag (:func:`plant.corpus.score`)."""
     s, findings = _scored(name)
     truth = set(CASES[name].effects)
-    assert {eid for eid, _ in findings} - {"offset"} == truth and not s["missed"] and s["false_alarms"] == 0, findings
+    assert truth <= {eid for eid, _ in findings} and not s["missed"] and s["false_alarms"] == 0, findings
     # the delay measured beyond the hold, refined on the closed loop (the inverse model's lag was 38 % too long here)
     assert all(err <= PARAM_TOLERANCE for err in s["parameter_error"].values()), s
 

@@ -53,26 +53,58 @@ def test_the_refit_recovers_a_stribeck_level_the_inverse_model_biases() -> None:
 
 
 def test_when_didim_is_not_kept_a_biased_value_is_still_searched_on_the_closed_loop() -> None:
-    """Stribeck + flexibility on the EMPS reference (current loop): DIDIM raises the output error (1.70 % -> 2.14 %).
+    """Payload change on a trapezoid with the 700 Hz current loop: DIDIM does not lower the output error (1.42 % -> 1.42 %).
 
-    The inverse model put vs at 21.1 mm/s and Fs at 1.90 N (truth 8 mm/s, 3.53 N: 163 % off). Searched on the
-    closed loop with the inverse model's linear parameters at each value, measured: vs = 7.9 mm/s, Fs = 3.37 N
-    (5 %), the flexibility within 12 %.
+    The lag the loop adds (the inverse model: 0.248 ms beyond the hold) is still searched on the closed loop, the
+    linear parameters the inverse model's at each value. Measured: 0.241 ms (the loop's time constant: 0.227 ms);
+    the payload within 0.5 %.
+    """
+    case = CASES["payload_change-trapezoid-current_loop-s242"]
+    diag = diagnose(build_case(case))
+    refit = diag.refit
+    assert refit is not None and refit.accepted and refit.method == INVERSE_METHOD and refit.didim is None, refit.reason if refit else None
+    assert "DIDIM does not lower the closed-loop output error" in refit.reason
+    (lag,) = [s for s in refit.searches if s.effect == "delay"]
+    assert lag.accepted and lag.value != lag.inverse and abs(-lag.value - 0.000227) < abs(-lag.inverse - 0.000227)
+    assert all(s.effect in SEARCH_STEPS for s in refit.searches)  # only the values the inverse model is known to bias
+    s = score(case, [(f.effect.id, f.plant_effect) for f in diag.findings])
+    assert s["false_alarms"] == 0 and s["parameter_error"]["payload_change"] <= 0.05, s
+    assert diag.model_file["method"].startswith(INVERSE_METHOD) and set(diag.model_file["effects"]) == {"payload_change", "current_loop"}
+
+
+def test_a_refit_the_noisy_replay_does_not_confirm_keeps_the_inverse_estimates() -> None:
+    """Spring on a trapezoid with a force disturbance and the current loop.
+
+    Measured: DIDIM lowers the noise-free output error 2.74 % -> 2.65 % with the spring at 54.9 N/m (truth 69.3:
+    21 % off); replayed with the recording's sensor noise, as the decisions are, 2.25 % -> 2.33 %: the inverse
+    model's 69.8 N/m (0.7 %) is kept.
+    """
+    case = CASES["spring-trapezoid-combined-s233"]
+    diag = diagnose(build_case(case))
+    refit = diag.refit
+    assert refit is not None and not refit.accepted and "replayed with the recording's sensor noise" in refit.reason, refit.reason if refit else None
+    (f,) = [f for f in diag.findings if f.effect.id == "spring"]
+    assert f.method == "IDIM-LS" and abs(f.parameters["k"].value - 69.3) / 69.3 < 0.05
+    assert diag.model_file["method"].startswith("IDIM-LS")
+
+
+def test_the_refit_of_stribeck_and_a_flexibility_with_the_current_loop() -> None:
+    """Stribeck + flexibility on the EMPS reference with the current loop, whose lag (0.27 ms) is kept with them.
+
+    The inverse model put vs at 21.1 mm/s and Fs at 0.75 N (truth 8 mm/s, 3.53 N). With the loop's lag in the
+    model DIDIM lowers the output error (1.05 % -> 0.762 %, with the noise too); measured: vs 8.46 mm/s (6 %),
+    Fs 2.98 N (16 %), the flexibility within 10 %.
     """
     require_shared()  # the EMPS reference trajectory is DATA_EMPS.mat's
     case = CASES["stribeck+flexibility-emps-current_loop-s303"]
     diag = diagnose(build_case(case))
     refit = diag.refit
-    assert refit is not None and refit.accepted and refit.method == INVERSE_METHOD and refit.didim is None, refit.reason if refit else None
-    assert "DIDIM does not lower the closed-loop output error" in refit.reason
-    assert refit.error_pct is not None and refit.error_inverse_pct is not None and refit.error_pct < refit.error_inverse_pct
-    (vs,) = [s for s in refit.searches if s.effect == "stribeck"]
-    assert vs.accepted and abs(vs.value - 0.008) / 0.008 < 0.15 and abs(vs.inverse - 0.008) / 0.008 > 1.0, vs
-    assert all(s.effect in SEARCH_STEPS for s in refit.searches)  # only the values the inverse model is known to bias
-    errors = score(case, [(f.effect.id, f.plant_effect) for f in diag.findings])["parameter_error"]
-    assert set(errors) == {"stribeck", "flexibility"} and max(errors.values()) <= 0.15, errors
+    assert refit is not None and refit.accepted and refit.method == METHOD, refit.reason if refit else None
     (f,) = [f for f in diag.findings if f.effect.id == "stribeck"]
-    assert f.method == INVERSE_METHOD and diag.model_file["method"].startswith(INVERSE_METHOD)
+    assert abs(f.inverse_parameters["vs"].value - 0.008) / 0.008 > 1.0 and abs(f.parameters["vs"].value - 0.008) / 0.008 < 0.1
+    assert abs(f.parameters["Fs"].value - 3.53) / 3.53 < 0.2
+    errors = score(case, [(x.effect.id, x.plant_effect) for x in diag.findings])["parameter_error"]
+    assert set(errors) == {"stribeck", "flexibility"} and errors["flexibility"] <= 0.15, errors
 
 
 @pytest.fixture(scope="module")
