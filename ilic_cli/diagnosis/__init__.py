@@ -8,6 +8,7 @@ the model left out, model it, and show the fit improve.
 - :mod:`~ilic_cli.diagnosis.select`: forward selection on the IDIM least squares;
 - :mod:`~ilic_cli.diagnosis.compare`: replay through the plant, simulation against recording;
 - :mod:`~ilic_cli.diagnosis.decide`: materiality, and the replay decides which proposed effects are findings;
+- :mod:`~ilic_cli.diagnosis.dwell`: Stribeck friction at a reference's dwells, which the closed loop proposes;
 - :mod:`~ilic_cli.diagnosis.core`: :func:`diagnose` -> :class:`Diagnosis`;
 - :mod:`~ilic_cli.diagnosis.report`, :mod:`~ilic_cli.diagnosis.plots`: rendering.
 """

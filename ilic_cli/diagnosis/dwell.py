@@ -5,8 +5,8 @@ the Stribeck band only in the few milliseconds before a stop and after a
 break-away, where the axis sticks and the IDIM filters smear the kinematics:
 there the inverse model fits friction *below* Coulomb (a Stribeck level of
 -3.9 N on a clean trapezoid; a concealed +2.5 N only lessens it), outside the
-effect's physics, and never proposes it (README, "Why Stribeck is missed on
-the trapezoids"). The closed loop sees it: the replay of the recorded
+effect's physics, and never proposes it (README, "Stribeck friction at
+dwells: the closed loop proposes"). The closed loop sees it: the replay of the recorded
 reference sticks and breaks away as the axis does, and with the recording's
 own sensor noise it creeps at the dwells as the axis does.
 
@@ -22,12 +22,13 @@ estimate as for any candidate. A fold whose optimum is on the edge of the grid
 training error, keeps the model without it; fewer than :data:`MIN_FOLDS` folds
 with an estimate is no finding.
 
-Measured (prototype, rigid parameters fixed, first half searched, second half
-judged, the 700 Hz current loop in the replay where the log has it): held-out
-error -36 % on the Stribeck trapezoid without a loop (p = 2.5e-7, at Fs = 3.0 N,
-vs = 8 mm/s; truth 2.47 N, 8 mm/s), -4.1 % on the one with the loop and a
-force disturbance (p = 3.6e-4; truth 1.14 N, 20 mm/s); on the eight clean
-trapezoids the optimum was the least level tried, or none.
+Measured on the corpus (``plant/corpus.py``): the Stribeck trapezoid without a
+current loop, held-out replay force error 1.35 % -> 0.914 % (p = 5e-14, 5 of 5
+folds; Fs 2.55 N, vs 9.9 mm/s for 2.47 N, 8 mm/s); the one with the loop and a
+force disturbance, 2.20 % -> 2.16 % (p = 0.0014, 3 of 5 folds; 1.08 N, 17.5
+mm/s for 1.14 N, 20 mm/s); no fold found an estimate on any of the 8 clean
+trapezoids, once the current loop's lag is realised as the loop it is
+(:meth:`ilic_cli.effects.Effect.plant_entries`).
 """
 
 from __future__ import annotations

@@ -1,0 +1,101 @@
+"""Stribeck friction at a trajectory's dwells (``ilic_cli/diagnosis/dwell.py``) and a lag within the sample as the current loop: the pure parts."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ilic_cli.closed_loop_id import plant_of
+from ilic_cli.diagnosis import dwell
+from ilic_cli.diagnosis.core import model_parameters
+from ilic_cli.diagnosis.select import Step
+from ilic_cli.effects import EFFECTS, Fit
+
+STRIBECK = EFFECTS["stribeck"]
+
+
+def test_reference_dwells_counts_rests_of_the_reference() -> None:
+    fs = 1000.0
+    t = np.arange(0, 4.0, 1 / fs)
+    moving = np.sin(2 * np.pi * 0.5 * t)
+    assert dwell.reference_dwells(moving, fs) == 0
+    steps = np.floor(t / 0.5) * 0.01  # a staircase: at rest 0.5 s at a time, 8 rests (the jumps between them are moves)
+    assert dwell.reference_dwells(steps, fs) == 8
+    short = np.floor(t / 0.04) * 0.01  # rests of 40 ms: shorter than a dwell
+    assert dwell.reference_dwells(short, fs) == 0
+    assert dwell.reference_dwells(np.zeros(1), fs) == 0
+
+
+def _surface(v0: float, f0: float):  # type: ignore[no-untyped-def]
+    """A training error with its least at ``(v0, f0)``, quadratic in the logs."""
+    calls: list[tuple[float, float]] = []
+
+    def error(st: Step) -> float:
+        assert st.level is not None
+        calls.append((float(st.value), st.level[0]))
+        return 1.0 + (math.log(float(st.value) / v0)) ** 2 + (math.log(st.level[0] / f0)) ** 2
+
+    return error, calls
+
+
+def test_search_finds_an_interior_optimum_between_the_grid_points() -> None:
+    vs = np.geomspace(0.002, 0.08, 8)
+    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    error, calls = _surface(0.011, 1.7)
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0)
+    assert found is not None and found.level is not None
+    assert found.value == pytest.approx(0.011, rel=1e-6) and found.level[0] == pytest.approx(1.7, rel=1e-6)  # exact on a log-quadratic
+    assert len(set(calls)) <= len(vs) + len(fs) + len(vs)  # a coordinate search, not the whole grid
+
+
+@pytest.mark.parametrize(
+    ("v0", "f0", "baseline", "why"),
+    [
+        (0.011, 0.2, 2.0, "the least level tried: no measured level"),
+        (0.011, 40.0, 2.0, "the largest level tried"),
+        (0.0005, 1.7, 2.0, "below the vs grid"),
+        (0.5, 1.7, 2.0, "above the vs grid"),
+        (0.011, 1.7, 0.5, "does not beat the model without it"),
+    ],
+)
+def test_search_finds_nothing_on_an_edge_or_without_a_fall(v0: float, f0: float, baseline: float, why: str) -> None:
+    vs = np.geomspace(0.002, 0.08, 8)
+    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    error, _ = _surface(v0, f0)
+    assert dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=baseline) is None, why
+
+
+def test_judged_needs_a_majority_of_folds() -> None:
+    est = [Step(STRIBECK, v, level=(f,)) for v, f in [(0.008, 2.4), (0.010, 2.6), (0.012, 2.5)]]
+    step, text = dwell.judged([*est, None, None])
+    assert step is not None and step.value == pytest.approx(0.010) and step.level == (pytest.approx(2.5),)
+    assert step.level_std is not None and step.level_std[0] == pytest.approx(0.1)
+    assert "3 of 5 folds" in text
+    none, why = dwell.judged([est[0], None, None, est[1], None])
+    assert none is None and "2 of 5 folds" in why
+    assert dwell.fold_values([est[0], None]) == [(0.008, 2.4), None]
+
+
+def test_a_held_level_enters_the_plant_and_the_model_file() -> None:
+    names = ("M", "Fv", "Fc", "offset")
+    theta = np.array([95.0, 200.0, 20.0, 0.0])
+    step = Step(STRIBECK, 0.009, level=(2.5,), level_std=(0.1,))
+    rigid, effects = model_parameters([step], names, theta, np.zeros((4, 4)))
+    assert rigid["Fc"] == 20.0 and effects == {"stribeck": {"Fs": 2.5, "vs": 0.009}}
+
+
+def test_a_lag_within_the_sample_is_realised_as_the_current_loop() -> None:
+    """Beyond the hold (half a sample), a lag shorter than the sample is the current loop's; a longer one a delay."""
+    names = ("M", "Fv", "Fc", "offset")
+    theta = np.array([95.0, 200.0, 20.0, 0.0])
+    delay = EFFECTS["delay"]
+    _, loop = model_parameters([Step(delay, -0.00024)], names, theta, np.zeros((4, 4)), 0.0005)
+    assert set(loop) == {"current_loop"} and loop["current_loop"]["bandwidth_hz"] == pytest.approx(1 / (2 * math.pi * 0.00024))
+    _, longer = model_parameters([Step(delay, -0.0013)], names, theta, np.zeros((4, 4)), 0.0005)
+    assert longer == {"delay": {"delay": -0.0013}}
+    _, unheld = model_parameters([Step(delay, -0.00024)], names, theta, np.zeros((4, 4)), 0.0)  # no held command: no sample bounds it
+    assert unheld == {"delay": {"delay": -0.00024}}
+    assert plant_of(names, theta, {"delay": -0.00024}, 0.0005)[1] == loop  # the closed-loop refit's plant: the same
+    assert "current loop" in delay.fit_to_plant(Fit(names, theta, np.zeros((4, 4)), -0.00024, None, 0.0005))[2]
