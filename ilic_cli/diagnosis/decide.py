@@ -293,6 +293,25 @@ def replay_decide(
         """Simulated minus recorded force, decimated as the IDIM system is (all the log's decimated samples)."""
         return band_force_error(log, sim, step_dec)
 
+    def fold_search(train: np.ndarray, fold: int, noise: dict[str, Any]) -> tuple[Callable[[list[Step]], RunLog | None], Callable[[list[Step]], float]]:
+        """A fold's replay of a model fitted on ``train`` with the sensor ``noise`` (each model once), and its training error."""
+        sims: dict[Any, RunLog | None] = {}
+
+        def replay_of(steps: list[Step]) -> RunLog | None:
+            key = (len(steps), steps[-1].value, steps[-1].level) if steps else None
+            if key not in sims:
+                sims[key] = fold_replay(steps, train, noise)
+            return sims[key]
+
+        def training_error(steps: list[Step]) -> float:
+            sim = replay_of(steps)
+            if sim is None:
+                return np.inf
+            e = force_error(sim)[others_of[fold]]
+            return float(e @ e)
+
+        return replay_of, training_error
+
     def searched_fold(given: list[Step], grid: np.ndarray, train: np.ndarray, fold: int) -> tuple[list[Step], RunLog | None]:
         """``given`` with its last step's value searched on the fold's training blocks (:func:`fold_value`), and its replay.
 
@@ -300,21 +319,7 @@ def replay_decide(
         which the recording does not share, would pull it (a 1.0 ms drive lag: searched at 0.71-0.84 ms with the
         noise, 0.94-1.0 ms without). The replay returned, which the held-out block judges, has the noise.
         """
-        sims: dict[float, RunLog | None] = {}
-
-        def replay_at(steps: list[Step]) -> RunLog | None:
-            v = float(steps[-1].value)
-            if v not in sims:
-                sims[v] = fold_replay(steps, train, {})
-            return sims[v]
-
-        def training_error(steps: list[Step]) -> float:
-            sim = replay_at(steps)
-            if sim is None:
-                return np.inf
-            e = force_error(sim)[others_of[fold]]
-            return float(e @ e)
-
+        replay_at, training_error = fold_search(train, fold, {})
         steps = [*given[:-1], fold_value(given[:-1], given[-1], grid, training_error)]
         return steps, fold_replay(steps, train) if sensor else replay_at(steps)
 
@@ -325,21 +330,7 @@ def replay_decide(
         the fold keeps the model without the step.
         """
         prefix, step = given[:-1], given[-1]
-        sims: dict[Any, RunLog | None] = {}
-
-        def replay_of(steps: list[Step]) -> RunLog | None:
-            key = (steps[-1].value, steps[-1].level) if len(steps) > len(prefix) else None
-            if key not in sims:
-                sims[key] = fold_replay(steps, train)
-            return sims[key]
-
-        def training_error(steps: list[Step]) -> float:
-            sim = replay_of(steps)
-            if sim is None:
-                return np.inf
-            e = force_error(sim)[others_of[fold]]
-            return float(e @ e)
-
+        replay_of, training_error = fold_search(train, fold, sensor)
         rigid = fit_system(data, base, prefix, rows, train)
         fc = dwell.coulomb_N(rigid.names, rigid.theta) or 0.0
         vs, fs = dwell.grids(step.effect.scan.grid(data.kin, data.fs_hz) if step.effect.scan is not None else np.array([]), fc)
