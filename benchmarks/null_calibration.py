@@ -14,9 +14,10 @@ is forced the same way; it should be accepted (``p_MC <= 1/(B+1)`` at ``B = 19``
 is the smallest p there is).
 
 On a log whose reference dwells, the closed loop's own Stribeck proposal
-(:mod:`ilic_cli.diagnosis.dwell`) is one more trial, ``stribeck (dwells)``,
-judged as the diagnosis judges it (its level and ``vs`` searched per fold; too
-few folds with an estimate inside the grid is a gate; Diebold-Mariano only).
+(:mod:`ilic_cli.diagnosis.dwell`) is one more trial, ``stribeck (dwells)``:
+the diagnosis of the log, where the replay judges it after the effects it kept
+(its level and ``vs`` searched per fold; too few folds with an estimate inside
+the grid is a gate; Diebold-Mariano only).
 
 Prints one Markdown row per trial and a summary; ``--json FILE`` keeps them.
 
@@ -57,7 +58,7 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
     from ilic_cli.diagnosis import dwell
     from ilic_cli.diagnosis.baseline import hold_s
     from ilic_cli.diagnosis.compare import tau_sensor
-    from ilic_cli.diagnosis.core import _prepare, model_parameters
+    from ilic_cli.diagnosis.core import _prepare, diagnose, effect_fit, model_parameters
     from ilic_cli.diagnosis.decide import materiality, replay_decide
     from ilic_cli.diagnosis.null import MonteCarloNull, reproposed
     from ilic_cli.diagnosis.select import Searcher, Step, at_edge, fit_system, moving_rows, system
@@ -92,8 +93,9 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         names1, theta1 = fit.names, fit.theta
         impossible = step.effect.impossible(theta1[data.W.shape[1] :], step.value) if step.effect.impossible is not None else None
         small = materiality(data, base, [], step, rows)
-        # a forced finding the corpus's scoring counts as right (a delay of a current loop's size is physics)
-        right = score(case, [(eid, plant_of([step], names1, theta1)[1].get(eid))])["false_alarms"] == 0
+        # a forced finding the corpus's scoring counts as right (a delay of a current loop's size is physics),
+        # in the effect's own vocabulary (a lag within the sample is realised in the plant as the current loop)
+        right = score(case, [(eid, effect_fit(step, names1, theta1, np.zeros((len(theta1),) * 2), None, hold)[1])])["false_alarms"] == 0
         _, (dm,) = replay_decide(log, data, base, [], [step], rows, plant_of, alpha=0.0)
         row: dict[str, Any] = {"case": name, "effect": eid, "value": step.value, "edge": edge, "dm_p": dm.p_value}
         row.update({"gated": edge or impossible or small, "right": right})
@@ -105,15 +107,14 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         row["wall_s"] = time.perf_counter() - t0
         out.append(row)
     if "stribeck" in ids and dwell.reference_dwells(np.asarray(log["q_ref"]), log.fs_hz) >= dwell.DWELL_MIN_COUNT:
-        # the closed loop's own proposal on a log whose reference dwells (diagnosis.dwell), judged as the diagnosis judges it
+        # the closed loop's own proposal on a log whose reference dwells (diagnosis.dwell), judged where the diagnosis
+        # judges it: after the effects the replay kept on that log (on a current-loop log, the loop's lag)
         t0 = time.perf_counter()
-        fit = fit_system(data, base, [], rows)
-        step = dwell.proposal(EFFECTS["stribeck"].scan.grid(data.kin, data.fs_hz), dwell.coulomb_N(fit.names, fit.theta) or 0.0)
-        kept, (dm,) = replay_decide(log, data, base, [], [step], rows, plant_of, alpha=0.0)
-        found = kept[-1] if kept else None
-        right = found is not None and score(case, [("stribeck", plant_of([found], fit.names, fit.theta)[1].get("stribeck"))])["false_alarms"] == 0
-        row = {"case": name, "effect": "stribeck (dwells)", "value": None if found is None else [found.value, *(found.level or ())], "edge": None}
-        row.update({"dm_p": dm.p_value, "gated": None if dm.p_value is not None else dm.reason, "right": right})
+        diag = diagnose(log)
+        (dm,) = [v for v in diag.decisions if v.effect == "stribeck" and ("at the dwells" in v.reason or "(noisy replays)" in v.reason)]
+        found = [(f.effect.id, f.plant_effect) for f in diag.findings if f.effect.id == "stribeck"]
+        row = {"case": name, "effect": "stribeck (dwells)", "value": found[0][1] if found else None, "edge": None, "dm_p": dm.p_value}
+        row.update({"gated": None if dm.p_value is not None else dm.reason, "right": bool(found) and score(case, found)["false_alarms"] == 0})
         row.update({"force_before": dm.force_before, "force_after": dm.force_after, "wall_s": time.perf_counter() - t0})
         out.append(row)
     return out
