@@ -438,7 +438,10 @@ def replay_decide(
         verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc, fold_values))
         if ok:
             kept.append(judged if proposed_here else st)
-            current = after
+            # the next candidate is judged against the model as kept: ``after`` replayed each fold at the value searched
+            # there, the kept step has one value (measured: on a clean current-loop trapezoid the kept lag's own value
+            # gave a held-out error of 0.869 %, the per-fold values 0.892 %, a fall a next candidate would be credited with)
+            current = heldout(kept) if search and st is not proposed[-1] else after
     return kept, verdicts
 
 
