@@ -23,7 +23,7 @@ def test_stribeck_on_a_trapezoid_is_named_by_the_closed_loop() -> None:
     truth = case.effects["stribeck"]
     assert abs(f.parameters["Fs"].value - truth["Fs"]) / truth["Fs"] < 0.1
     assert abs(f.parameters["vs"].value - truth["vs"]) / truth["vs"] < 0.3
-    assert f.parameters["Fs"].std is not None and f.parameters["Fs"].std > 0  # the folds' spread
+    assert f.parameters["Fs"].std is not None and f.parameters["Fs"].std > 0 and f.parameters["vs"].std is None  # the folds' spread; vs: none of its own
     (verdict,) = diag.decisions
     assert verdict.accepted and verdict.p_value is not None and verdict.p_value < 1e-6 and "5 of 5 folds" in verdict.reason
     assert verdict.force_after is not None and verdict.force_before is not None and verdict.force_after < 0.75 * verdict.force_before
