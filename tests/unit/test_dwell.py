@@ -99,3 +99,80 @@ def test_a_lag_within_the_sample_is_realised_as_the_current_loop() -> None:
     assert unheld == {"delay": {"delay": -0.00024}}
     assert plant_of(names, theta, {"delay": -0.00024}, 0.0005)[1] == loop  # the closed-loop refit's plant: the same
     assert "current loop" in delay.fit_to_plant(Fit(names, theta, np.zeros((4, 4)), -0.00024, None, 0.0005))[2]
+
+
+def test_a_dwell_is_a_rest_of_at_least_fifty_ms_of_a_still_reference() -> None:
+    fs = 1000.0
+    n_rest = int(dwell.DWELL_MIN_S * fs)  # n samples at the level the move ended on: n differences of zero
+
+    def staircase(creep_m: float, n: int = n_rest) -> np.ndarray:
+        """Four rests of ``n`` samples between moves of 0.1 m, each rest creeping ``creep_m`` a sample."""
+        parts = [np.linspace(0.0, 0.1, 200)]
+        for _ in range(4):
+            end = parts[-1][-1]
+            parts += [end + creep_m * np.arange(1, n + 1)]
+            end = parts[-1][-1]
+            parts += [np.linspace(end, end + 0.1, 200)[1:]]
+        return np.concatenate(parts)
+
+    q = staircase(0.0)
+    assert dwell.reference_dwells(q, fs) == 4  # rests of exactly DWELL_MIN_S
+    assert dwell.reference_dwells(staircase(0.0, n_rest - 1), fs) == 0  # one sample short
+    span = 0.5
+    assert dwell.reference_dwells(staircase(0.5e-9 * span), fs) == 4  # creeping by 0.5e-9 of the stroke a sample: still at rest
+    assert dwell.reference_dwells(staircase(2e-9 * span), fs) == 0  # 2e-9 of the stroke a sample is motion
+    assert (
+        dwell.reference_dwells(np.zeros(2), fs) == 0
+        and dwell.reference_dwells(np.zeros(n_rest + 1), fs) == 1
+        and dwell.reference_dwells(np.zeros(n_rest), fs) == 0
+    )
+
+
+def test_the_coulomb_level_and_the_grids() -> None:
+    assert dwell.coulomb_N(("M", "Fv", "Fc", "offset"), np.array([95.0, 200.0, 20.0, 1.0])) == 20.0
+    assert dwell.coulomb_N(("M", "Fv_pos", "Fv_neg", "Fc_pos", "Fc_neg"), np.array([95.0, 200.0, 210.0, 19.0, 21.0])) == 20.0
+    assert dwell.coulomb_N(("M", "Fv"), np.array([95.0, 200.0])) is None
+    vs_grid = np.geomspace(0.001, 0.04, 32)
+    vs, fs = dwell.grids(vs_grid, -20.0)
+    assert np.array_equal(vs, vs_grid[:: dwell.VS_EVERY]) and len(vs) == 8
+    assert fs.tolist() == pytest.approx([0.625, 1.25, 2.5, 5.0, 10.0])
+    first = dwell.proposal(vs_grid, -20.0)
+    assert first.effect is STRIBECK and first.value == vs_grid[16] and first.level == (2.5,)
+
+
+def test_search_follows_a_level_that_moves_the_best_vs() -> None:
+    """A surface whose best ``vs`` depends on the level: the ``vs`` profile is taken again at the best level."""
+    vs = np.geomspace(0.002, 0.08, 8)
+    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    v0, f0 = float(vs[3]), float(fs[1])
+
+    def error(st: Step) -> float:
+        assert st.level is not None
+        dv, df = math.log(float(st.value) / v0), math.log(st.level[0] / f0)
+        return 1.0 + (dv + 0.5 * df) ** 2 + df**2  # at the middle level the best vs is vs[2]; at the best level, vs[3]
+
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=5.0)
+    assert found is not None and found.level is not None
+    assert found.value == pytest.approx(v0) and found.level == (pytest.approx(f0),)
+
+
+@pytest.mark.parametrize("i", [1, 6])
+def test_search_takes_an_optimum_next_to_the_edges(i: int) -> None:
+    vs = np.geomspace(0.002, 0.08, 8)
+    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    for j in (1, 3):
+        error, _ = _surface(float(vs[i]), float(fs[j]))
+        found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0)
+        assert found is not None and found.value == pytest.approx(vs[i]) and found.level == (pytest.approx(fs[j]),)
+    error, _ = _surface(float(vs[3]), float(fs[2]))
+    assert dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=1.0) is None  # equal to the model without it: no fall
+
+
+def test_judged_text_gives_the_folds_ranges() -> None:
+    est = [Step(STRIBECK, v, level=(f,)) for v, f in [(0.008, 2.4), (0.010, 2.6), (0.012, 2.5)]]
+    _, text = dwell.judged(est)
+    assert text == (
+        "Fs and vs searched on the closed loop of each fold's training blocks (noisy replays): estimates in 3 of 3 folds, Fs 2.4 to 2.6 N, vs 8 to 12 mm/s"
+    )
+    _, why = dwell.judged([None, None, None])
+    assert why == "its closed-loop search at the dwells finds an estimate inside its grid in 0 of 3 folds (fewer than 3)"
