@@ -100,9 +100,16 @@ def to_markdown(diag: Diagnosis) -> str:
                     f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
                 )
             lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
+        at_dwells = any(f.method == dwell.METHOD for f in diag.findings)
         lines += [
             "",
-            f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} (held out: {_pct(ho['before'])} -> {_pct(ho['after'])}).",
+            f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} (held out: {_pct(ho['before'])} -> {_pct(ho['after'])})"
+            + (
+                ": the inverse model's figures, which Stribeck friction at the dwells need not lower, since its filtered kinematics "
+                "do not resolve the stick and break-away there (why the closed loop proposes it; the replay decides)."
+                if at_dwells
+                else "."
+            ),
         ]
         v = fit.get("validation_relative_error_pct") or {}
         if v.get("before") is not None:
@@ -110,6 +117,8 @@ def to_markdown(diag: Diagnosis) -> str:
         lines.append("")
     if diag.refit is not None:
         how = "the closed-loop refit's" if diag.refit.accepted else "the inverse model's (IDIM-LS)"
+        if not diag.refit.accepted and any(f.method == dwell.METHOD for f in diag.findings):
+            how = f"Stribeck friction's from the {dwell.METHOD}, the rest the inverse model's (IDIM-LS)"
         lines += [
             f"Estimates: {how}; {diag.refit.reason}. The closed-loop output error is the replayed force against the recorded one, in the inverse model's band.",
             "",
@@ -119,7 +128,13 @@ def to_markdown(diag: Diagnosis) -> str:
         after = f" -> {_pct(sim.after['force'])}" if sim.after else ""
         lines += [
             f"Simulation against recording ({sim.source}): force error {_pct(sim.before['force'])}{after}, "
-            f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}.",
+            f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}."
+            + (
+                " This replay is noise-free, and Stribeck friction at the dwells shows in the creep the sensor noise drives there: "
+                "the replays that decided carry that noise (their figures below)."
+                if any(f.method == dwell.METHOD for f in diag.findings)
+                else ""
+            ),
             "",
         ]
     timing = diag.timing.sentence() if diag.timing is not None else ""
