@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ilic_cli.diagnosis.core import _prepare, diagnose
+from ilic_cli.diagnosis.core import _prepare
 from ilic_cli.diagnosis.refit import INVERSE_METHOD, METHOD, closed_loop_refit, plant_problem
 from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, moving_rows, system
 from ilic_cli.effects import EFFECTS
@@ -26,13 +26,14 @@ from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
 from plant.corpus import CASES, build_case, score
 from tests.conftest import require_shared
+from tests.diagnose.corpus_cache import diagnosed
 
 
 def test_the_refit_recovers_a_stribeck_level_the_inverse_model_biases() -> None:
     """Measured: inverse model Fs = 3.35 N, vs = 16.0 mm/s (46 % off); closed loop Fs = 6.34 N, vs = 11.6 mm/s (3 %); truth 6.18 N, 12 mm/s."""
     require_shared()  # the EMPS reference trajectory is DATA_EMPS.mat's
     case = CASES["stribeck-emps-disturbance-s211"]
-    diag = diagnose(build_case(case))
+    diag = diagnosed(case.name)
     (f,) = [f for f in diag.findings if f.effect.id == "stribeck"]
     truth = case.effects["stribeck"]
     assert f.method == METHOD and diag.refit is not None and diag.refit.accepted
@@ -60,7 +61,7 @@ def test_when_didim_is_not_kept_a_biased_value_is_still_searched_on_the_closed_l
     the payload within 0.5 %.
     """
     case = CASES["payload_change-trapezoid-current_loop-s242"]
-    diag = diagnose(build_case(case))
+    diag = diagnosed(case.name)
     refit = diag.refit
     assert refit is not None and refit.accepted and refit.method == INVERSE_METHOD and refit.didim is None, refit.reason if refit else None
     assert "DIDIM does not lower the closed-loop output error" in refit.reason
@@ -80,7 +81,7 @@ def test_a_refit_the_noisy_replay_does_not_confirm_keeps_the_inverse_estimates()
     model's 69.8 N/m (0.7 %) is kept.
     """
     case = CASES["spring-trapezoid-combined-s233"]
-    diag = diagnose(build_case(case))
+    diag = diagnosed(case.name)
     refit = diag.refit
     assert refit is not None and not refit.accepted and "replayed with the recording's sensor noise" in refit.reason, refit.reason if refit else None
     (f,) = [f for f in diag.findings if f.effect.id == "spring"]
@@ -97,7 +98,7 @@ def test_the_refit_of_stribeck_and_a_flexibility_with_the_current_loop() -> None
     """
     require_shared()  # the EMPS reference trajectory is DATA_EMPS.mat's
     case = CASES["stribeck+flexibility-emps-current_loop-s303"]
-    diag = diagnose(build_case(case))
+    diag = diagnosed(case.name)
     refit = diag.refit
     assert refit is not None and refit.accepted and refit.method == METHOD, refit.reason if refit else None
     (f,) = [f for f in diag.findings if f.effect.id == "stribeck"]

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from ilic_cli.diagnosis import dwell
-from ilic_cli.diagnosis.core import diagnose
 from ilic_cli.diagnosis.report import to_markdown
-from plant.corpus import CASES, build_case, score
+from plant.corpus import CASES, score
+from tests.diagnose.corpus_cache import diagnosed
 
 
 def test_stribeck_on_a_trapezoid_is_named_by_the_closed_loop() -> None:
@@ -17,7 +17,7 @@ def test_stribeck_on_a_trapezoid_is_named_by_the_closed_loop() -> None:
     (truth 2.47: 3 %), vs = 9.9 mm/s (truth 8: 23 %; the folds spread over 8.6-11.6 mm/s).
     """
     case = CASES["stribeck-trapezoid-sensor-s210"]
-    diag = diagnose(build_case(case))
+    diag = diagnosed(case.name)
     (f,) = diag.findings
     assert f.effect.id == "stribeck" and f.method == dwell.METHOD
     truth = case.effects["stribeck"]
@@ -43,10 +43,10 @@ def test_stribeck_on_a_trapezoid_is_named_by_the_closed_loop() -> None:
 def test_no_stribeck_at_the_dwells_of_a_clean_current_loop_trapezoid() -> None:
     """With the current loop realised as a first-order lag, the dwells show no Stribeck friction (as a pure 0.24 ms delay, they did).
 
-    Measured: no fold's search found a level inside its grid; the loop's lag is named (0.29 ms beyond the hold).
+    Measured: no fold's search found a level inside its grid; the loop's lag is named (0.24 ms beyond the hold: a 664 Hz loop in the model file).
     """
-    case = CASES["clean-trapezoid-current_loop-s2"]
-    diag = diagnose(build_case(case))
+    case = CASES["clean-trapezoid-current_loop-s1"]  # also one of the clean logs of test_corpus_rates: diagnosed once
+    diag = diagnosed(case.name)
     assert [f.effect.id for f in diag.findings] == ["delay"]
     (verdict,) = [v for v in diag.decisions if v.effect == "stribeck"]
     assert not verdict.accepted and "0 of 5 folds" in verdict.reason

@@ -1,0 +1,14 @@
+"""One diagnosis per corpus case for the whole test session (several test modules assert on the same log)."""
+
+from __future__ import annotations
+
+from functools import cache
+
+from ilic_cli.diagnosis.core import Diagnosis, diagnose
+from plant.corpus import CASES, build_case
+
+
+@cache
+def diagnosed(name: str) -> Diagnosis:
+    """``diagnose`` of corpus case ``name`` with the default settings, computed once (read it, do not change it)."""
+    return diagnose(build_case(CASES[name]))
