@@ -348,7 +348,7 @@ def diagnose(
         ev = accepted[st.effect.id]
         # a closed-loop proposal's vs is the folds' median: the inverse model's standard deviation is not its own
         params, plant, note = effect_fit(st, names1, res1.theta, cov1, None if st.level is not None else ev.value_std, hold)
-        inverse = params
+        inverse = {} if st.level is not None else params  # a level held at a closed-loop estimate is no inverse-model estimate
         method = dwell.METHOD if st.level is not None else "IDIM-LS"
         notes = [s.reason for s in (refit.searches if refit is not None else []) if s.effect == st.effect.id]
         if refit is not None and refit.accepted and refit.theta is not None and refit.cov is not None:
@@ -356,7 +356,6 @@ def diagnose(
             params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold)
             method = refit.method
         regs = sorted([r for r in located if r.kind in st.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
-        inverse = {} if st.level is not None else inverse
         findings.append(Finding(st.effect, params, plant, regs, ev, "; ".join(n for n in [note, *notes] if n), method, inverse))
     if refit is not None and refit.accepted and refit.theta is not None and refit.cov is not None:
         rigid, effects_doc = model_parameters([*known, *final], refit.names, refit.theta, refit.cov, hold)

@@ -83,6 +83,7 @@ def to_markdown(diag: Diagnosis) -> str:
     lines = [f"# Diagnosis of {diag.source or 'the log'}", ""]
     rel = fit["relative_error_pct"]
     ho = fit["heldout_relative_error_pct"]
+    at_dwells = any(f.method == dwell.METHOD for f in diag.findings)  # Stribeck found by the closed loop at the dwells
     if not diag.findings:
         judged = f" ({len(diag.decisions)} proposed, none material or kept by the replay: see below)" if diag.decisions else ""
         lines += [
@@ -100,7 +101,6 @@ def to_markdown(diag: Diagnosis) -> str:
                     f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
                 )
             lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
-        at_dwells = any(f.method == dwell.METHOD for f in diag.findings)
         lines += [
             "",
             f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} (held out: {_pct(ho['before'])} -> {_pct(ho['after'])})"
@@ -117,7 +117,7 @@ def to_markdown(diag: Diagnosis) -> str:
         lines.append("")
     if diag.refit is not None:
         how = "the closed-loop refit's" if diag.refit.accepted else "the inverse model's (IDIM-LS)"
-        if not diag.refit.accepted and any(f.method == dwell.METHOD for f in diag.findings):
+        if not diag.refit.accepted and at_dwells:
             how = f"Stribeck friction's from the {dwell.METHOD}, the rest the inverse model's (IDIM-LS)"
         lines += [
             f"Estimates: {how}; {diag.refit.reason}. The closed-loop output error is the replayed force against the recorded one, in the inverse model's band.",
@@ -132,7 +132,7 @@ def to_markdown(diag: Diagnosis) -> str:
             + (
                 " This replay is noise-free, and Stribeck friction at the dwells shows in the creep the sensor noise drives there: "
                 "the replays that decided carry that noise (their figures below)."
-                if any(f.method == dwell.METHOD for f in diag.findings)
+                if at_dwells
                 else ""
             ),
             "",
