@@ -48,12 +48,12 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.compare import replay
-from ilic_cli.diagnosis.decide import PlantOf, replay_decide
+from ilic_cli.diagnosis.decide import PlantOf, band_force_error, replay_decide
 from ilic_cli.diagnosis.select import Searcher, Step, fit_system, moving_rows, system
 from ilic_cli.diagnosis.sensor import loop_corrected, position_noise, sensor_effects
 from ilic_cli.diagnosis.stats import normal_isf
 from ilic_cli.errors import IlicError, ParameterError
-from ilic_cli.filtering import decimate_matlab, kept_indices
+from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
@@ -251,10 +251,6 @@ def disturbance_std(r_obs: np.ndarray, r_noise: np.ndarray, d_unit: np.ndarray) 
     return math.sqrt(excess / ms(d_unit)) if excess > 0 and ms(d_unit) > 0 else 0.0
 
 
-def _decimated_error(a: RunLog, b: RunLog, r: int, idx: np.ndarray) -> np.ndarray:
-    return decimate_matlab(np.asarray(a["tau"]) - np.asarray(b["tau"]), r)[idx]
-
-
 def estimate_noise(
     log: RunLog, data: IDIMData, rows: np.ndarray, rigid: dict[str, float], effects: dict[str, Any], ls: LSSettings, seed: int = 0
 ) -> NoiseModel:
@@ -288,7 +284,7 @@ def estimate_noise(
     idx = compared_rows(log, data, rows)
     r = max(data.settings.decimation, 1)
     clean = replay(log, rigid, effects)
-    r_obs = _decimated_error(clean, log, r, idx)
+    r_obs = band_force_error(log, clean, r)[idx]
     rms = float(np.sqrt(np.mean(r_obs**2)))
     fs_dec = log.fs_hz / r
     bw = disturbance_bandwidth(r_obs, fs_dec)
@@ -296,7 +292,7 @@ def estimate_noise(
     q_std = loop_corrected(q_std, res, log.fs_hz, ls, lambda sensor: replay(log, rigid, {**effects, **sensor}, seed=s0))
     noisy = replay(log, rigid, {**effects, **NoiseModel(q_std, res, 0.0, bw, rms).effects()}, seed=s0)
     unit = replay(log, rigid, {**effects, **NoiseModel(q_std, res, 1.0, bw, rms).effects()}, seed=s0)
-    std = disturbance_std(r_obs, _decimated_error(clean, noisy, r, idx), _decimated_error(unit, noisy, r, idx))
+    std = disturbance_std(r_obs, band_force_error(noisy, clean, r)[idx], band_force_error(noisy, unit, r)[idx])
     return NoiseModel(q_std, res, std, bw, rms)
 
 
