@@ -106,7 +106,7 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
             row.update({"mc_p": dist.p_value, "t_obs": dist.t_obs, "t_null": dist.t_null.tolist(), "noise": dist.noise.to_dict()})
         row["wall_s"] = time.perf_counter() - t0
         out.append(row)
-    if "stribeck" in ids and dwell.reference_dwells(np.asarray(log["q_ref"]), log.fs_hz) >= dwell.DWELL_MIN_COUNT:
+    if "stribeck" in ids and dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz):
         # the closed loop's own proposal on a log whose reference dwells (diagnosis.dwell), judged where the diagnosis
         # judges it: after the effects the replay kept on that log (on a current-loop log, the loop's lag)
         t0 = time.perf_counter()

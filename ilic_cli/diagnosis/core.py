@@ -536,7 +536,7 @@ def _dwell_proposal(log: RunLog, data: IDIMData, base: Model, proposed: list[Ste
     effect = EFFECTS["stribeck"]
     if effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in proposed):
         return None
-    if dwell.reference_dwells(np.asarray(log["q_ref"]), log.fs_hz) < dwell.DWELL_MIN_COUNT:
+    if not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz):
         return None
     fit = fit_system(data, base, [], rows)  # the rigid Coulomb level: the scale of the levels searched (each fold's own, there)
     fc = dwell.coulomb_N(fit.names, fit.theta)

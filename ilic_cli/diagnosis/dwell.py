@@ -73,6 +73,11 @@ def reference_dwells(q_ref: np.ndarray, fs_hz: float) -> int:
     return int(np.sum((ends - starts) >= DWELL_MIN_S * fs_hz))
 
 
+def dwells(q_ref: np.ndarray, fs_hz: float) -> bool:
+    """Whether the reference rests often enough for the search (at least :data:`DWELL_MIN_COUNT` dwells)."""
+    return reference_dwells(q_ref, fs_hz) >= DWELL_MIN_COUNT
+
+
 def coulomb_N(names: tuple[str, ...], theta: np.ndarray) -> float | None:
     """The fitted Coulomb level (the mean of ``Fc_pos`` and ``Fc_neg`` for an asymmetric model), ``None`` without one."""
     fc = [float(v) for n, v in zip(names, theta, strict=True) if n in ("Fc", "Fc_pos", "Fc_neg")]
