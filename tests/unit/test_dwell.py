@@ -126,6 +126,7 @@ def test_a_dwell_is_a_rest_of_at_least_fifty_ms_of_a_still_reference() -> None:
         and dwell.reference_dwells(np.zeros(n_rest + 1), fs) == 1
         and dwell.reference_dwells(np.zeros(n_rest), fs) == 0
     )
+    assert dwell.dwells(q, fs) and not dwell.dwells(staircase(0.0, n_rest - 1), fs)  # the search's rule: 4 dwells
 
 
 def test_the_coulomb_level_and_the_grids() -> None:
