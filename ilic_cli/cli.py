@@ -19,6 +19,7 @@ import click
 
 from ilic_cli import __version__
 from ilic_cli.errors import IlicError
+from ilic_cli.parallel import threads
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("ilic_cli.commands.simulate", "Simulate the EMPS axis in closed loop and write a log."),
@@ -84,6 +85,7 @@ def main(argv: list[str] | None = None) -> None:
         pass
     status = 0
     try:
+        threads()  # a bad $ILIC_THREADS is refused before any work
         cli.main(args=args, prog_name="ilic", standalone_mode=False)
     except IlicError as exc:
         if debug:

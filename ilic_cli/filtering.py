@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+
+from ilic_cli.parallel import threads
 
 
 # ---------------------------------------------------------------------------
@@ -276,7 +277,7 @@ def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: i
     per_row = int(np.prod(moved.shape[1:]))
     rows = max(1, CHUNK_ELEMENTS // max(per_row, 1))
     blocks = [moved[i : i + rows] for i in range(0, moved.shape[0], rows)]
-    workers = min(os.cpu_count() or 1, 8, len(blocks))
+    workers = min(threads(), 8, len(blocks))
     if per_row > CHUNK_ELEMENTS:
         workers = 1  # rows longer than a block: one at a time, memory over speed
     if workers < 2 or moved.size < PARALLEL_MIN_SIZE:

@@ -76,7 +76,7 @@ HAS_GENERIC = _GENERIC is not None
 CACHE = not HAS_GENERIC  # only the built-in kernel is cached on disk
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _no_generic_force(g, q, qd):  # pragma: no cover - compiled away (HAS_GENERIC is False)
     return 0.0
 
@@ -87,7 +87,7 @@ TWO_PI = 2.0 * math.pi
 TWO_OVER_PI = 2.0 / math.pi
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _nonfriction(p, u, x0, x1, x2, x3, flex):
     """Net force on the motor side without friction, and the coupling force on the load."""
     f = u - p[P_OFFSET]
@@ -104,7 +104,7 @@ def _nonfriction(p, u, x0, x1, x2, x3, flex):
     return f, fc
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex):
     f, fc = _nonfriction(p, u, x0, x1, x2, x3, flex)
     al = fc / ml if flex else 0.0
@@ -120,7 +120,7 @@ def _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex):
     return x1, (f - fr) / mm, x3, al
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _rk4(p, s, u, x0, x1, x2, x3, h, mm, ml, flex):
     a0, a1, a2, a3 = _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex)
     hh = 0.5 * h
@@ -136,7 +136,7 @@ def _rk4(p, s, u, x0, x1, x2, x3, h, mm, ml, flex):
     )
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _direction(p, u, x0, x1, x2, x3, flex):
     """Friction direction for the next step (sliding sign, or the Karnopp stick/slip decision)."""
     if x1 > p[P_VEPS]:
@@ -151,7 +151,7 @@ def _direction(p, u, x0, x1, x2, x3, flex):
     return 0
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _masses(p, t, flex):
     """Motor-side and load-side mass at time ``t`` (the payload change lands on the load; rigid: load mass unused)."""
     dm = p[P_DM] if t >= p[P_TCH] - 1e-12 else 0.0
@@ -160,7 +160,7 @@ def _masses(p, t, flex):
     return p[P_M] + dm, 1.0
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex):
     """Motor-side acceleration of the state under force ``u`` (0 when the axis sticks)."""
     s = _direction(p, u, x0, x1, x2, x3, flex)
@@ -169,7 +169,7 @@ def _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex):
     return _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex)[1]
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _step(p, u, x0, x1, x2, x3, h, mm, ml, flex):
     s = _direction(p, u, x0, x1, x2, x3, flex)
     if s == 0:
@@ -190,7 +190,7 @@ def _step(p, u, x0, x1, x2, x3, h, mm, ml, flex):
     return y0, y1, y2, y3
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _rk4_linear(x0, v0, g, k, h):
     """One RK4 step of ``x' = v, v' = g - k*v``, its four stages summed in closed form.
 
@@ -210,7 +210,7 @@ L_FC, L_INVM, L_K, L_HA, L_HB, L_P1, L_P2, L_P3 = range(8)
 """Layout of the last axis of :func:`_linear_coefficients`."""
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _linear_coefficients(p, h, substeps):
     """Step coefficients of the linear (rigid, no smooth effect) axis, ``cf[r, d, :]``.
 
@@ -251,7 +251,7 @@ def _linear_coefficients(p, h, substeps):
     return cf
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _linear_period(x0, x1, f, s_rest, tk, h, substeps, tch, veps, cf):
     """The substeps of one period on the rigid axis without smooth effects (``_step`` specialised).
 
@@ -308,13 +308,13 @@ def _linear_period(x0, x1, f, s_rest, tk, h, substeps, tch, veps, cf):
     return x0, x1
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _rest(f, static_pos, static_neg):
     """Stick/slip decision at rest under the net force ``f`` (constant over a period)."""
     return 1 if f > static_pos else (-1 if f < static_neg else 0)
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _linear_acceleration(p, f, x1, tk, static_pos, static_neg, veps, cf):
     """:func:`_acceleration` of the rigid axis without smooth effects (net force ``f``), from the step coefficients."""
     s = 1 if x1 > veps else (-1 if x1 < -veps else _rest(f, static_pos, static_neg))
@@ -324,7 +324,7 @@ def _linear_acceleration(p, f, x1, tk, static_pos, static_neg, veps, cf):
     return (f - cf[r, d, L_FC]) * cf[r, d, L_INVM] - cf[r, d, L_K] * x1
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _substeps(p, u, x0, x1, x2, x3, tk, h, nsub, flex):
     """``nsub`` steps of ``h`` from ``tk`` under the constant force ``u`` (general path, :func:`_step`)."""
     for j in range(nsub):
@@ -333,7 +333,7 @@ def _substeps(p, u, x0, x1, x2, x3, tk, h, nsub, flex):
     return x0, x1, x2, x3
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def _current_loop_substeps(p, c, y, d, x0, x1, x2, x3, tk, h, nsub, flex, tau_i):
     """``nsub`` steps of ``h`` from ``tk`` with the applied force ``y`` following the command ``c`` as a first-order lag.
 
@@ -350,7 +350,7 @@ def _current_loop_substeps(p, c, y, d, x0, x1, x2, x3, tk, h, nsub, flex, tau_i)
     return x0, x1, x2, x3, y
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, nogil=True)
 def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd, dist=None):
     """Advance the closed loop over periods ``k0 <= k < k1``.
 

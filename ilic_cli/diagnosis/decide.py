@@ -47,6 +47,7 @@ from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import relative_error_pct
+from ilic_cli.parallel import ordered_map
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 
@@ -77,6 +78,10 @@ PlantOf = Callable[[list[Step], tuple[str, ...], np.ndarray], tuple[dict[str, fl
 """``(steps, names, theta) -> (rigid parameters, plant effects)``."""
 
 
+PROPOSED_BY_INVERSE = "inverse model"
+"""``ReplayVerdict.proposed_by`` of a candidate the inverse model proposed (:mod:`ilic_cli.diagnosis.select`)."""
+
+
 @dataclass(frozen=True)
 class ReplayVerdict:
     """The closed-loop replay's judgement of one proposed effect (held-out relative errors, %)."""
@@ -95,6 +100,8 @@ class ReplayVerdict:
     searched: tuple[Any, ...] | None = None
     """The value used in each fold when it was searched on the fold's training blocks (:func:`fold_value`);
     a closed-loop proposal's ``(vs, Fs)`` per fold, ``None`` where a fold found none (:mod:`ilic_cli.diagnosis.dwell`)."""
+    proposed_by: str = PROPOSED_BY_INVERSE
+    """Who proposed the effect: the inverse model, or the closed loop (:data:`ilic_cli.diagnosis.dwell.METHOD`)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -106,6 +113,7 @@ class ReplayVerdict:
             if self.validation_before is None
             else {"before": self.validation_before, "after": self.validation_after},
             "fold_values": None if self.searched is None else list(self.searched),
+            "proposed_by": self.proposed_by,
             "accepted": self.accepted,
             "reason": self.reason,
         }
@@ -344,22 +352,24 @@ def replay_decide(
         ``search``: the last step's nonlinear value is searched on each fold's training blocks first (:func:`fold_value`);
         the third item lists the values used, one per fold.
         """
-        ef, eq, used = [], [], []
         given = list(steps)
         level = search and given[-1].level is not None
         grid = given[-1].effect.scan.grid(data.kin, data.fs_hz) if search and not level and given[-1].effect.scan is not None else None
-        for i, ((a, b), train, sel) in enumerate(zip(blocks, trains, in_block, strict=True)):
+
+        def fold(i: int) -> tuple[np.ndarray, np.ndarray, Any] | None:
+            (a, b), train, sel = blocks[i], trains[i], in_block[i]
             if level:
-                steps, sim, found = dwell_fold(given, train, i)
-                used.append(found)
+                fold_steps, sim, used = dwell_fold(given, train, i)
             else:
-                steps, sim = searched_fold(given, grid, train, i) if grid is not None else (given, fold_replay(given, train))
-                used.append(steps[-1].value if steps else None)
-            if sim is None:
-                return None
-            ef.append(force_error(sim)[sel])
-            eq.append(np.asarray(sim["q"][a:b]) - q[a:b])
-        return np.concatenate(ef), np.concatenate(eq), used
+                fold_steps, sim = searched_fold(given, grid, train, i) if grid is not None else (given, fold_replay(given, train))
+                used = fold_steps[-1].value if fold_steps else None
+            return None if sim is None else (force_error(sim)[sel], np.asarray(sim["q"][a:b]) - q[a:b], used)
+
+        out = ordered_map(fold, range(len(blocks)))  # the folds are independent: side by side
+        if any(r is None for r in out):
+            return None
+        done = [r for r in out if r is not None]
+        return np.concatenate([r[0] for r in done]), np.concatenate([r[1] for r in done]), [r[2] for r in done]
 
     idx_tau = np.concatenate([np.flatnonzero(sel) for sel in in_block])
     idx_q = np.concatenate([np.arange(a, b) for a, b in blocks])
@@ -384,7 +394,9 @@ def replay_decide(
         if proposed_here:
             judged_step, searched_text = dwell.judged(after[2])
             if judged_step is None:
-                verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, None, None, None, False, f"rejected by the replay: {searched_text}"))
+                verdicts.append(
+                    ReplayVerdict(st.effect.id, fb, fa, pb, pa, None, None, None, False, f"rejected by the replay: {searched_text}", proposed_by=dwell.METHOD)
+                )
                 continue
         if null is not None and significant and fa < fb and not proposed_here:
             # both tests must agree: the Monte-Carlo null catches what is present all along (its replicates have it too),
@@ -435,7 +447,8 @@ def replay_decide(
                 (f"the replay agrees: held-out simulated force error {fb:.3g} % -> {fa:.3g} % ({p_text}), position {pb:.3g} % -> {pa:.3g} %"),
             )
         fold_values = tuple(float(v) for v in after[2]) if search and not proposed_here else tuple(dwell.fold_values(after[2])) if proposed_here else None
-        verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc, fold_values))
+        by = dwell.METHOD if proposed_here else PROPOSED_BY_INVERSE
+        verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc, fold_values, by))
         if ok:
             kept.append(judged if proposed_here else st)
             # the next candidate is judged against the model as kept: ``after`` replayed each fold at the value searched

