@@ -111,7 +111,7 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         # judges it: after the effects the replay kept on that log (on a current-loop log, the loop's lag)
         t0 = time.perf_counter()
         diag = diagnose(log)
-        (dm,) = [v for v in diag.decisions if v.effect == "stribeck" and ("at the dwells" in v.reason or "(noisy replays)" in v.reason)]
+        (dm,) = [v for v in diag.decisions if v.effect == "stribeck" and v.proposed_by == dwell.METHOD]
         found = [(f.effect.id, f.plant_effect) for f in diag.findings if f.effect.id == "stribeck"]
         row = {"case": name, "effect": "stribeck (dwells)", "value": found[0][1] if found else None, "edge": None, "dm_p": dm.p_value}
         row.update({"gated": None if dm.p_value is not None else dm.reason, "right": bool(found) and score(case, found)["false_alarms"] == 0})

@@ -346,8 +346,8 @@ def diagnose(
     final = refit.steps if refit is not None and refit.accepted else kept
     for st, st_final in zip(kept, final, strict=True):
         ev = accepted[st.effect.id]
-        # a closed-loop proposal's vs is the folds' median: the inverse model's standard deviation is not its own
-        params, plant, note = effect_fit(st, names1, res1.theta, cov1, None if st.level is not None else ev.value_std, hold)
+        # a closed-loop proposal's vs is the folds' median, its spread theirs: the inverse model's standard deviation is not its own
+        params, plant, note = effect_fit(st, names1, res1.theta, cov1, st.value_std if st.level is not None else ev.value_std, hold)
         inverse = {} if st.level is not None else params  # a level held at a closed-loop estimate is no inverse-model estimate
         method = dwell.METHOD if st.level is not None else "IDIM-LS"
         notes = [s.reason for s in (refit.searches if refit is not None else []) if s.effect == st.effect.id]

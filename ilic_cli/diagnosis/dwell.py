@@ -144,14 +144,28 @@ def search(step: Step, vs: np.ndarray, fs: np.ndarray, training_error: Callable[
     return Step(step.effect, float(np.exp(v)), level=(float(np.exp(f)),))
 
 
+def jackknife_std(values: np.ndarray) -> float:
+    """Delete-a-block jackknife standard deviation of estimates each made without one block: ``sqrt((k-1)/k sum (x_i - mean)^2)``.
+
+    The folds' training sets share all but one block each, so their estimates
+    spread ``k - 1`` times less than independent ones would (Efron and Tibshirani,
+    *An Introduction to the Bootstrap*, ch. 11): their plain standard deviation
+    understates the estimate's (on the Stribeck trapezoid: ``vs`` 1.3 mm/s
+    plain, 2.3 mm/s jackknife, for an estimate 1.9 mm/s off).
+    """
+    x = np.asarray(values, dtype=np.float64)
+    k = len(x)
+    return float(np.sqrt((k - 1) / k * np.sum((x - x.mean()) ** 2))) if k > 1 else float("nan")
+
+
 def judged(found: list[Step | None]) -> tuple[Step | None, str]:
-    """The step the folds' estimates give (medians; the spread of ``Fs`` its standard deviation), and a sentence; ``None`` when too few."""
+    """The step the folds' estimates give (medians; their :func:`jackknife_std` the standard deviations), and a sentence; ``None`` when too few."""
     ok = [s for s in found if s is not None and s.level is not None]
     if len(ok) < MIN_FOLDS:
         return None, f"its closed-loop search at the dwells finds an estimate inside its grid in {len(ok)} of {len(found)} folds (fewer than {MIN_FOLDS})"
     vs = np.array([float(s.value) for s in ok])
     fs = np.array([s.level[0] for s in ok if s.level is not None])
-    step = Step(ok[0].effect, float(np.median(vs)), level=(float(np.median(fs)),), level_std=(float(np.std(fs, ddof=1)),))
+    step = Step(ok[0].effect, float(np.median(vs)), level=(float(np.median(fs)),), level_std=(jackknife_std(fs),), value_std=jackknife_std(vs))
     text = (
         f"Fs and vs searched on the closed loop of each fold's training blocks (noisy replays): estimates in {len(ok)} of {len(found)} folds, "
         f"Fs {fs.min():.3g} to {fs.max():.3g} N, vs {vs.min() * 1e3:.3g} to {vs.max() * 1e3:.3g} mm/s"

@@ -79,13 +79,15 @@ class Step:
     these values instead of fitted: a closed-loop estimate the inverse model
     cannot make (:mod:`ilic_cli.diagnosis.dwell`); its columns' force is then
     taken off the fitted force (:func:`system`). ``level_std``: their standard
-    deviations, when known.
+    deviations, when known; ``value_std``: the nonlinear value's, when it was
+    estimated with the level.
     """
 
     effect: Effect
     value: Any = None
     level: tuple[float, ...] | None = None
     level_std: tuple[float, ...] | None = None
+    value_std: float | None = None
 
 
 STANDSTILL_FRACTION = 0.01

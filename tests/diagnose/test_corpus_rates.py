@@ -107,7 +107,7 @@ def test_a_one_ms_lag_the_inverse_model_overestimates_is_judged_at_its_closed_lo
     (verdict,) = [v for v in diag.decisions if v.effect == "delay"]
     assert verdict.accepted and "searched on the closed loop of each fold's training blocks" in verdict.reason, verdict.reason
     assert verdict.searched is not None and len(verdict.searched) == 5 and all(0.8e-3 < -v < 1.2e-3 for v in verdict.searched), verdict.searched
-    assert verdict.to_dict()["fold_values"] == list(verdict.searched)
+    assert verdict.to_dict()["fold_values"] == list(verdict.searched) and verdict.to_dict()["proposed_by"] == "inverse model"
     (ev,) = [e for e in diag.tried[0] if e.effect == "delay"]
     assert abs(ev.value) > 1.4e-3  # the inverse model's value the replay no longer judges
 

@@ -71,11 +71,18 @@ def test_judged_needs_a_majority_of_folds() -> None:
     est = [Step(STRIBECK, v, level=(f,)) for v, f in [(0.008, 2.4), (0.010, 2.6), (0.012, 2.5)]]
     step, text = dwell.judged([*est, None, None])
     assert step is not None and step.value == pytest.approx(0.010) and step.level == (pytest.approx(2.5),)
-    assert step.level_std is not None and step.level_std[0] == pytest.approx(0.1)
+    # the delete-a-block jackknife: sqrt((k - 1) / k * sum of squares), not the plain spread (0.1 N, 2 mm/s)
+    assert step.level_std is not None and step.level_std[0] == pytest.approx(math.sqrt(2 / 3 * 0.02))
+    assert step.value_std == pytest.approx(math.sqrt(2 / 3 * 8e-6))
     assert "3 of 5 folds" in text
     none, why = dwell.judged([est[0], None, None, est[1], None])
     assert none is None and "2 of 5 folds" in why
     assert dwell.fold_values([est[0], None]) == [(0.008, 2.4), None]
+
+
+def test_jackknife_std() -> None:
+    assert dwell.jackknife_std(np.array([1.0, 2.0, 3.0, 6.0])) == pytest.approx(math.sqrt(3 / 4 * 14.0))
+    assert math.isnan(dwell.jackknife_std(np.array([1.0])))
 
 
 def test_a_held_level_enters_the_plant_and_the_model_file() -> None:
