@@ -11,6 +11,7 @@ number of threads or their timing.
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable, Sequence
 from typing import TypeVar
 
@@ -42,18 +43,24 @@ def threads() -> int:
         return max(os.cpu_count() or 1, 1)
 
 
+PREFIX = "ilic-worker"
+"""Name prefix of :func:`ordered_map`'s threads."""
+
+
 def ordered_map(fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
     """``[fn(x) for x in items]``, computed in up to :func:`threads` threads, in the items' order.
 
-    An exception in any item is raised here (the first in order); items not yet
-    started are then cancelled.
+    Only the outermost call shares work out: called from one of its own
+    threads (the folds of each Monte-Carlo replicate, say), it runs in that
+    thread. An exception in any item is raised here (the first in order);
+    items not yet started are then cancelled.
     """
     n = min(threads(), len(items))
-    if n <= 1:
+    if n <= 1 or threading.current_thread().name.startswith(PREFIX):
         return [fn(x) for x in items]
     from concurrent.futures import ThreadPoolExecutor  # deferred: only where work is shared out
 
-    ex = ThreadPoolExecutor(max_workers=n, thread_name_prefix="ilic")
+    ex = ThreadPoolExecutor(max_workers=n, thread_name_prefix=PREFIX)
     try:
         futures = [ex.submit(fn, x) for x in items]
         return [f.result() for f in futures]

@@ -24,9 +24,9 @@ with an estimate is no finding.
 
 Measured on the corpus (``plant/corpus.py``): the Stribeck trapezoid without a
 current loop, held-out replay force error 1.35 % -> 0.914 % (p = 5e-14, 5 of 5
-folds; Fs 2.55 N, vs 9.9 mm/s for 2.47 N, 8 mm/s); the one with the loop and a
-force disturbance, 2.21 % -> 2.16 % (p = 0.0019, 3 of 5 folds; 1.08 N, 17.5
-mm/s for 1.14 N, 20 mm/s); no fold found an estimate on any of the 8 clean
+folds; Fs 2.55 +- 0.12 N, vs 9.9 +- 2.3 mm/s for 2.47 N, 8 mm/s); the one with
+the loop and a force disturbance, 2.21 % -> 2.16 % (p = 0.0019, 3 of 5 folds;
+1.08 +- 0.46 N, 17.5 +- 15 mm/s for 1.14 N, 20 mm/s); no fold found an estimate on any of the 8 clean
 trapezoids, once the current loop's lag is realised as the loop it is
 (:meth:`ilic_cli.effects.Effect.plant_entries`).
 """

@@ -55,6 +55,7 @@ from ilic_cli.diagnosis.stats import normal_isf
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
+from ilic_cli.parallel import ordered_map
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 
@@ -464,18 +465,21 @@ class MonteCarloNull:
         fit = fit_system(data, base, kept, rows)
         rigid, effects = plant_of(kept, fit.names, fit.theta)
         noise = estimate_noise(log, data, rows, rigid, effects, self.ls, self.seed)
-        t_null = np.full(self.replicates, np.nan)
-        values = []
-        for b in range(1, self.replicates + 1):
+
+        def replicate(b: int) -> tuple[Any, float] | None:
+            """Replicate ``b``'s re-proposed value and statistic; ``None`` when it diverged or left too little to fit."""
             try:
                 synth = synthetic_log(log, rigid, effects, noise, replicate_seed(self.seed, b))
                 data_b = self.prepare(synth)
                 rows_b = moving_rows(data_b)
                 cand = reproposed(data_b, base, kept, step, rows_b)
                 _, verdicts = replay_decide(synth, data_b, base, kept, [cand], rows_b, plant_of, folds=folds, alpha=0.0, sensor_noise=self.sensor_noise)
-            except IlicError:  # the replicate diverged, or left too little to fit: no statistic (counted as at least as extreme)
-                continue
-            values.append(cand.value)
-            t_null[b - 1] = dm_z(verdicts[0].p_value)
+            except IlicError:
+                return None
+            return cand.value, dm_z(verdicts[0].p_value)
+
+        done = ordered_map(replicate, range(1, self.replicates + 1))  # each replicate its own seed: side by side
+        t_null = np.array([np.nan if r is None else r[1] for r in done])  # no statistic: counted as at least as extreme
+        values = [r[0] for r in done if r is not None]
         t_obs = dm_z(p_obs)
         return NullDistribution(step.effect.id, t_obs, t_null, mc_p_value(t_obs, t_null), noise, p_obs, values)

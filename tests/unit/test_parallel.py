@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.errors import ParameterError
-from ilic_cli.parallel import THREADS_ENV, ordered_map, threads
+from ilic_cli.parallel import PREFIX, THREADS_ENV, ordered_map, threads
 
 
 def test_results_come_back_in_order_from_threads(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -21,7 +21,17 @@ def test_results_come_back_in_order_from_threads(monkeypatch: pytest.MonkeyPatch
         return x * x
 
     assert ordered_map(slow_square, range(5)) == [0, 1, 4, 9, 16]
-    assert names and all(n.startswith("ilic") for n in names)
+    assert names and all(n.startswith(PREFIX) for n in names)
+
+
+def test_only_the_outermost_call_shares_work_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(THREADS_ENV, "2")
+
+    def inner(_: int) -> list[str]:
+        return ordered_map(lambda _: threading.current_thread().name, range(3))
+
+    outer = ordered_map(inner, range(2))
+    assert all(len(set(names)) == 1 and names[0].startswith(PREFIX) for names in outer)  # each inner call in its own thread
 
 
 def test_one_thread_runs_in_the_caller(monkeypatch: pytest.MonkeyPatch) -> None:
