@@ -60,6 +60,9 @@ MIN_FOLDS = 3
 METHOD = "closed-loop search at the dwells"
 """How a finding proposed here is estimated (its ``Finding.method``)."""
 
+SPREAD = "the folds' delete-a-block jackknife"
+"""Where its standard deviations come from (:func:`jackknife_std`), as the report says it."""
+
 
 def reference_dwells(q_ref: np.ndarray, fs_hz: float) -> int:
     """How many times the reference rests (does not move) for at least :data:`DWELL_MIN_S`."""

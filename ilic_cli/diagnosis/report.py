@@ -63,6 +63,8 @@ def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], 
     """The finding's estimates: the method's, and the inverse model's beside them when the method is another."""
     if method == "IDIM-LS" or not inverse:
         by = "the inverse model (IDIM-LS)" if method == "IDIM-LS" else f"the {method} (the inverse model has no estimate of it inside its physics)"
+        if method == dwell.METHOD:
+            by += f"; std: {dwell.SPREAD}"
         lines = [f"Estimated by {by}.", "", "| parameter | value | std |", "| --- | --- | --- |"]
         return lines + [f"| {n} | {_num(e.value, e.unit)} | {_std(e)} |" for n, e in params.items()] + [""]
     lines = [

@@ -40,6 +40,7 @@ def test_stribeck_on_a_trapezoid_is_named_by_the_closed_loop() -> None:
         "Estimates: Stribeck friction's from the closed-loop search at the dwells, the rest the inverse model's" in text and "This replay is noise-free" in text
     )
     assert "do not resolve the stick and break-away there" in text  # the inverse model's error need not fall
+    assert "(the inverse model has no estimate of it inside its physics); std: the folds' delete-a-block jackknife." in text
     (ev,) = [e for step in diag.tried for e in step if e.effect == "stribeck"][-1:]
     assert "outside the catalogue" in ev.reason and "proposed on the closed loop at the dwells instead" in ev.reason
 
