@@ -53,6 +53,32 @@ def test_the_first_error_in_order_is_raised(monkeypatch: pytest.MonkeyPatch) -> 
     assert err.value.args == (1,)
 
 
+def test_an_error_does_not_wait_for_the_rest(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The items not yet started are cancelled, and the running ones are not waited for (a Ctrl-C returns at once)."""
+    monkeypatch.setenv(THREADS_ENV, "2")
+    ran: list[int] = []
+    release = threading.Event()
+
+    def work(x: int) -> int:
+        if x == 0:
+            raise KeyError(x)
+        if x == 1:
+            release.wait(5.0)  # busy until the test releases it
+        else:
+            threading.Event().wait(0.05)
+        ran.append(x)
+        return x
+
+    with pytest.raises(KeyError):
+        ordered_map(work, range(12))
+    try:
+        assert 1 not in ran  # returned while item 1 still ran
+        threading.Event().wait(0.8)  # time for items 2-11 to run, had they not been cancelled
+        assert len(ran) <= 3, ran  # at most those a free thread had started
+    finally:
+        release.set()
+
+
 @pytest.mark.parametrize("value", ["0", "-2", "two", "1.5"])
 def test_a_bad_thread_count_is_refused(monkeypatch: pytest.MonkeyPatch, value: str) -> None:
     monkeypatch.setenv(THREADS_ENV, value)
