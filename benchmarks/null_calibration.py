@@ -22,6 +22,9 @@ the grid is a gate; Diebold-Mariano only).
 Prints one Markdown row per trial and a summary; ``--json FILE`` keeps them.
 
 ``--replicates 0``: the Diebold-Mariano p alone (no Monte-Carlo null).
+``--mc-below P``: the Monte-Carlo null only for trials whose Diebold-Mariano p
+is at most ``P`` (the rule of both, ``--null montecarlo``, can only reject
+there; the Monte-Carlo p alone is then measured on those trials only).
 ``--more-seeds K``: clean logs of seeds 3 .. K + 2 too (every trajectory under
 every noise model), built as the corpus builds its own.
 
@@ -51,7 +54,7 @@ sys.path.insert(0, str(ROOT))
 from plant.corpus import CASES, CLEAN_CASES, EFFECT_CASES, NOISE_MODELS, TRAJECTORY_KINDS, Case  # noqa: E402
 
 
-def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
+def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str, ...] | None = None, mc_below: float = 1.0) -> list[dict[str, Any]]:
     """Force each effect of ``effects`` (default: every applicable one; a concealed case: its own) through the replay on case ``name``."""
     import numpy as np
 
@@ -101,7 +104,7 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         row.update({"gated": edge or impossible or small, "right": right})
         row.update({"force_before": dm.force_before, "force_after": dm.force_after})
         # the Monte-Carlo null only where the replay's test decides: not for a gated candidate, nor for a clean log's finding that is right
-        if dm.p_value is not None and replicates > 0 and not row["gated"] and not (case.clean and right):
+        if dm.p_value is not None and dm.p_value <= mc_below and replicates > 0 and not row["gated"] and not (case.clean and right):
             dist = null.distribution(log, data, base, [], step, rows, plant_of, 5, dm.p_value)
             row.update({"mc_p": dist.p_value, "t_obs": dist.t_obs, "t_null": dist.t_null.tolist(), "noise": dist.noise.to_dict()})
         row["wall_s"] = time.perf_counter() - t0
@@ -126,9 +129,10 @@ def extra_clean_case(name: str) -> Case:
     return Case(name, traj, noise, int(seed[1:]))
 
 
-def _job(args: tuple[str, int, int]) -> list[dict[str, Any]]:
+def _job(args: tuple[str, int, int, float]) -> list[dict[str, Any]]:
     try:
-        return forced_trials(*args)
+        name, replicates, seed, mc_below = args
+        return forced_trials(name, replicates, seed, mc_below=mc_below)
     except Exception as exc:  # one case's failure is a row, not the end of the run
         return [{"case": args[0], "effect": "-", "value": None, "edge": None, "dm_p": None, "force_before": None, "error": repr(exc)}]
 
@@ -166,12 +170,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument(
+        "--mc-below",
+        type=float,
+        default=1.0,
+        help="the Monte-Carlo null only where the Diebold-Mariano p is at most this (the rule of both can only bite there; default: everywhere)",
+    )
     args = ap.parse_args(argv)
     clean = [c.name for c in CLEAN_CASES] + [f"clean-{tr}-{nz}-s{sd}" for sd in range(3, 3 + args.more_seeds) for tr in TRAJECTORY_KINDS for nz in NOISE_MODELS]
     names = [n for n in clean if args.clean and fnmatch.fnmatch(n, args.clean)]
     if args.effects:
         names += [c.name for c in EFFECT_CASES if fnmatch.fnmatch(c.name, args.effects)]
-    jobs = [(n, args.replicates, args.seed) for n in names]
+    jobs = [(n, args.replicates, args.seed, args.mc_below) for n in names]
     rows: list[dict[str, Any]] = []
     if args.jobs > 1:
         from multiprocessing import get_context
