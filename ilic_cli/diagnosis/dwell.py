@@ -26,8 +26,8 @@ Measured on the corpus (``plant/corpus.py``): the Stribeck trapezoid without a
 current loop, held-out replay force error 1.35 % -> 0.914 % (p = 5e-14, 5 of 5
 folds; Fs 2.55 +- 0.12 N, vs 9.9 +- 2.3 mm/s for 2.47 N, 8 mm/s); the one with
 the loop and a force disturbance, 2.21 % -> 2.16 % (p = 0.0019, 3 of 5 folds;
-1.08 +- 0.46 N, 17.5 +- 15 mm/s for 1.14 N, 20 mm/s); no fold found an estimate on any of the 8 clean
-trapezoids, once the current loop's lag is realised as the loop it is
+1.08 +- 0.46 N, 17.5 +- 15 mm/s for 1.14 N, 20 mm/s); no fold found an
+estimate on any of the 8 clean trapezoids, once the current loop's lag is realised as the loop it is
 (:meth:`ilic_cli.effects.Effect.plant_entries`).
 """
 
@@ -151,10 +151,11 @@ def jackknife_std(values: np.ndarray) -> float:
     """Delete-a-block jackknife standard deviation of estimates each made without one block: ``sqrt((k-1)/k sum (x_i - mean)^2)``.
 
     The folds' training sets share all but one block each, so their estimates
-    spread ``k - 1`` times less than independent ones would (Efron and Tibshirani,
-    *An Introduction to the Bootstrap*, ch. 11): their plain standard deviation
-    understates the estimate's (on the Stribeck trapezoid: ``vs`` 1.3 mm/s
-    plain, 2.3 mm/s jackknife, for an estimate 1.9 mm/s off).
+    scatter less than the estimate itself would over independent recordings:
+    their plain standard deviation understates its by about ``(k - 1)/sqrt(k)``,
+    1.8 for 5 folds (Efron and Tibshirani, *An Introduction to the Bootstrap*,
+    ch. 11; on the Stribeck trapezoid: ``vs`` 1.3 mm/s plain, 2.3 mm/s
+    jackknife, for an estimate 1.9 mm/s off).
     """
     x = np.asarray(values, dtype=np.float64)
     k = len(x)
