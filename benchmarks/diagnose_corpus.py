@@ -32,6 +32,7 @@ import argparse
 import fnmatch
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -167,6 +168,9 @@ def _pool(jobs: int) -> Any:
         return _Serial()
     from multiprocessing import get_context
 
+    from ilic_cli.parallel import THREADS_ENV
+
+    os.environ[THREADS_ENV] = "1"  # one log per process: no threads within (the workers inherit it)
     return get_context("spawn").Pool(jobs)
 
 

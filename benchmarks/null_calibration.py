@@ -43,6 +43,7 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -185,6 +186,10 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict[str, Any]] = []
     if args.jobs > 1:
         from multiprocessing import get_context
+
+        from ilic_cli.parallel import THREADS_ENV
+
+        os.environ[THREADS_ENV] = "1"  # one log per process: no threads within (the workers inherit it)
 
         with get_context("spawn").Pool(args.jobs) as pool:
             for rs in pool.imap(_job, jobs):
