@@ -382,10 +382,13 @@ def replay_decide(
     verdicts: list[ReplayVerdict] = []
     for st in proposed:
         proposed_here = st.level is not None  # a closed-loop proposal (:mod:`ilic_cli.diagnosis.dwell`): its level and value searched per fold
+        by = dwell.METHOD if proposed_here else PROPOSED_BY_INVERSE
         search = proposed_here or (st.effect.id in SEARCH_STEPS and st.effect.scan is not None and not isinstance(st.value, tuple))
         after = heldout([*kept, st], search) if current is not None else None
         if current is None or after is None:
-            verdicts.append(ReplayVerdict(st.effect.id, None, None, None, None, None, None, None, False, "the fitted model is not a valid plant: no replay"))
+            verdicts.append(
+                ReplayVerdict(st.effect.id, None, None, None, None, None, None, None, False, "the fitted model is not a valid plant: no replay", proposed_by=by)
+            )
             continue
         fb, fa = rel(current[0], tau_dec, idx_tau), rel(after[0], tau_dec, idx_tau)
         pb, pa = rel(current[1], q, idx_q), rel(after[1], q, idx_q)
@@ -395,7 +398,7 @@ def replay_decide(
             judged_step, searched_text = dwell.judged(after[2])
             if judged_step is None:
                 verdicts.append(
-                    ReplayVerdict(st.effect.id, fb, fa, pb, pa, None, None, None, False, f"rejected by the replay: {searched_text}", proposed_by=dwell.METHOD)
+                    ReplayVerdict(st.effect.id, fb, fa, pb, pa, None, None, None, False, f"rejected by the replay: {searched_text}", proposed_by=by)
                 )
                 continue
         if null is not None and significant and fa < fb and not proposed_here:
@@ -447,7 +450,6 @@ def replay_decide(
                 (f"the replay agrees: held-out simulated force error {fb:.3g} % -> {fa:.3g} % ({p_text}), position {pb:.3g} % -> {pa:.3g} %"),
             )
         fold_values = tuple(float(v) for v in after[2]) if search and not proposed_here else tuple(dwell.fold_values(after[2])) if proposed_here else None
-        by = dwell.METHOD if proposed_here else PROPOSED_BY_INVERSE
         verdicts.append(ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc, fold_values, by))
         if ok:
             kept.append(judged if proposed_here else st)
