@@ -70,6 +70,10 @@ def cli(debug: bool) -> None:
     """
 
 
+HELP_ASKED = frozenset({"-h", "--help", "--version"})
+"""Arguments that only ask for help or the version: answered whatever the environment says."""
+
+
 def _on_sigterm(signum: int, frame: Any) -> None:
     raise Terminated()
 
@@ -85,7 +89,8 @@ def main(argv: list[str] | None = None) -> None:
         pass
     status = 0
     try:
-        threads()  # a bad $ILIC_THREADS is refused before any work
+        if not HELP_ASKED.intersection(args):
+            threads()  # a bad $ILIC_THREADS is refused before any work (help is no work)
         cli.main(args=args, prog_name="ilic", standalone_mode=False)
     except IlicError as exc:
         if debug:

@@ -505,3 +505,6 @@ def test_a_bad_thread_count_is_one_line_exit_2(monkeypatch: pytest.MonkeyPatch) 
     res = run_cli("info", "x.mcap")
     assert res.status == 2 and res.stdout == "", res
     assert res.stderr == "ilic: error: ILIC_THREADS = 'many' must be a whole number of threads, at least 1\n"
+    for asked in (["--help"], ["diagnose", "-h"], ["--version"]):  # help is no work: answered all the same
+        res = run_cli(*asked)
+        assert res.status == 0 and res.stderr == "" and ("Usage: ilic" in res.stdout or "ilic, version" in res.stdout), (asked, res)
