@@ -20,10 +20,14 @@ closed-loop simulated force error improved where something was accepted, how
 many of those kept the closed-loop refit's estimates (:mod:`ilic_cli.diagnosis.refit`), and
 the distribution of the first round's best p-value on clean cases.
 
+``--reseed N``: each chosen effect case is run again with ``N`` other seeds
+(its seed plus 1000, 2000, ...; named ``case@sSEED``), the effects and their
+sizes as they are: how an estimate scatters over recordings, not over one.
+
 ``--design``: calibrate the effect cases anew (:func:`plant.corpus.design`) and
 print them as the literal of ``plant/corpus.py`` (about two minutes).
 
-Usage: python benchmarks/diagnose_corpus.py [--jobs 2] [--cases GLOB] [--json FILE] [--design]
+Usage: python benchmarks/diagnose_corpus.py [--jobs 2] [--cases GLOB] [--json FILE] [--reseed N] [--design]
 """
 
 from __future__ import annotations
@@ -35,13 +39,25 @@ import math
 import os
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from plant.corpus import CASES, PARAM_TOLERANCE, build_case, score  # noqa: E402
+from plant.corpus import CASES, PARAM_TOLERANCE, Case, build_case, score  # noqa: E402
+
+
+RESEED_STEP = 1000
+"""``--reseed``: the ``k``-th other seed of a case is its seed plus ``k`` times this."""
+
+
+def case_of(name: str) -> Case:
+    """The case ``name``, or ``name@sSEED``: that case with another seed (its effects and sizes as they are)."""
+    base, _, seed = name.partition("@s")
+    case = CASES[base]
+    return replace(case, name=name, seed=int(seed)) if seed else case
 
 
 def run_case(name: str) -> dict[str, Any]:
@@ -49,7 +65,7 @@ def run_case(name: str) -> dict[str, Any]:
     from ilic_cli.diagnosis.core import diagnose
     from ilic_cli.errors import IlicError
 
-    case = CASES[name]
+    case = case_of(name)
     t0 = time.process_time()
     log = build_case(case)
     t1 = time.process_time()
@@ -149,6 +165,24 @@ def render(rows: list[dict[str, Any]], summ: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def over_seeds(rows: list[dict[str, Any]]) -> str:
+    """``--reseed``: one Markdown row per effect case over its seeds (named, named exactly, worst parameter errors)."""
+    by: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        if not r["clean"]:
+            by.setdefault(r["case"].partition("@s")[0], []).append(r)
+    lines = ["| case | seeds | effects named | named exactly | within 15 % | worst parameter error over the seeds |", "|---|---|---|---|---|---|"]
+    for name, rs in by.items():
+        errs = [max(r["parameter_error"].values()) for r in rs if r["parameter_error"]]
+        params = [e for r in rs for e in r["parameter_error"].values()]
+        lines.append(
+            f"| {name} | {len(rs)} | {sum(len(r['truth']) - len(r['missed']) for r in rs)}/{sum(len(r['truth']) for r in rs)} | "
+            f"{sum(not r['missed'] and r['false_alarms'] == 0 for r in rs)}/{len(rs)} | {sum(e <= PARAM_TOLERANCE for e in params)}/{len(params)} | "
+            f"{', '.join(f'{e:.0%}' for e in errs) or '-'} |"
+        )
+    return "\n".join(lines)
+
+
 class _Serial:
     """A stand-in for a pool of one process."""
 
@@ -179,6 +213,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--cases", default="*", help="glob of case names (default all)")
     ap.add_argument("--json", type=Path, default=None, help="also write every row and the summary as JSON")
+    ap.add_argument("--reseed", type=int, default=0, metavar="N", help="run each chosen effect case again with N other seeds (the same effects and sizes)")
     ap.add_argument("--design", action="store_true", help="calibrate the effect cases anew and print them")
     args = ap.parse_args(argv)
     if args.design:
@@ -192,10 +227,13 @@ def main(argv: list[str] | None = None) -> int:
     if not names:
         print(f"no case matches {args.cases!r}", file=sys.stderr)
         return 2
+    names += [f"{n}@s{CASES[n].seed + RESEED_STEP * k}" for n in names if not CASES[n].clean for k in range(1, args.reseed + 1)]
     with _pool(args.jobs) as pool:
         rows = pool.map(run_case, names, chunksize=1)
     summ = summary(rows)
     print(render(rows, summ))
+    if args.reseed:
+        print("\n" + over_seeds(rows))
     if args.json is not None:
         args.json.write_text(json.dumps({"rows": rows, "summary": summ}, indent=1, default=str))
     return 0
