@@ -48,7 +48,6 @@ sys.path.insert(0, str(ROOT))
 
 from plant.corpus import CASES, PARAM_TOLERANCE, Case, build_case, score  # noqa: E402
 
-
 RESEED_STEP = 1000
 """``--reseed``: the ``k``-th other seed of a case is its seed plus ``k`` times this."""
 
