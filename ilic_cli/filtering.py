@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ilic_cli.parallel import threads
+from ilic_cli.parallel import ordered_map
 
 
 # ---------------------------------------------------------------------------
@@ -277,16 +277,9 @@ def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: i
     per_row = int(np.prod(moved.shape[1:]))
     rows = max(1, CHUNK_ELEMENTS // max(per_row, 1))
     blocks = [moved[i : i + rows] for i in range(0, moved.shape[0], rows)]
-    workers = min(threads(), 8, len(blocks))
-    if per_row > CHUNK_ELEMENTS:
-        workers = 1  # rows longer than a block: one at a time, memory over speed
-    if workers < 2 or moved.size < PARALLEL_MIN_SIZE:
-        parts = [run(block) for block in blocks]
-    else:
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(workers) as pool:
-            parts = list(pool.map(run, blocks))
+    # at most 8 threads; rows longer than a block: one at a time, memory over speed (in a worker of ordered_map: in that thread)
+    workers = 1 if per_row > CHUNK_ELEMENTS or moved.size < PARALLEL_MIN_SIZE else 8
+    parts = ordered_map(run, blocks, most=workers)
     return np.moveaxis(np.concatenate(parts, axis=0), -1, axis)
 
 

@@ -47,15 +47,15 @@ PREFIX = "ilic-worker"
 """Name prefix of :func:`ordered_map`'s threads."""
 
 
-def ordered_map(fn: Callable[[T], R], items: Sequence[T]) -> list[R]:
-    """``[fn(x) for x in items]``, computed in up to :func:`threads` threads, in the items' order.
+def ordered_map(fn: Callable[[T], R], items: Sequence[T], most: int | None = None) -> list[R]:
+    """``[fn(x) for x in items]``, computed in up to :func:`threads` threads (and ``most``), in the items' order.
 
     Only the outermost call shares work out: called from one of its own
     threads (the folds of each Monte-Carlo replicate, say), it runs in that
     thread. An exception in any item is raised here (the first in order);
     items not yet started are then cancelled.
     """
-    n = min(threads(), len(items))
+    n = min(threads(), len(items), most or len(items))
     if n <= 1 or threading.current_thread().name.startswith(PREFIX):
         return [fn(x) for x in items]
     from concurrent.futures import ThreadPoolExecutor  # deferred: only where work is shared out

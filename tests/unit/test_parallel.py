@@ -40,6 +40,14 @@ def test_one_thread_runs_in_the_caller(monkeypatch: pytest.MonkeyPatch) -> None:
     assert ordered_map(lambda _: threading.current_thread() is threading.main_thread(), range(3)) == [True] * 3
 
 
+def test_a_cap_of_one_runs_in_the_caller_and_a_cap_above_shares_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``most``: the caller's own bound on the threads (the filters' 8; 1 for rows that must go one at a time)."""
+    monkeypatch.setenv(THREADS_ENV, "3")
+    in_caller = lambda _: threading.current_thread() is threading.main_thread()  # noqa: E731
+    assert ordered_map(in_caller, range(3), most=1) == [True] * 3
+    assert ordered_map(in_caller, range(3), most=2) == [False] * 3
+
+
 def test_the_first_error_in_order_is_raised(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(THREADS_ENV, "2")
 
