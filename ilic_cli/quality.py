@@ -41,6 +41,11 @@ IRREGULAR_JITTER = 0.01
 STAMP_JITTER = 0.5
 """A fixed-rate loop's stamps: every step between gaps within this share of a period of the mean step (:func:`sampling_kind`)."""
 
+CLOCK_JITTER = 0.4
+"""Stamps within this share of a period of one straight clock are a fixed-rate loop whatever their steps (:func:`jittered_clock`):
+a margin below the half period beyond which a stamp could be the next tick's (a sample dropped in the middle of a log leaves the
+stamps within 0.4999 periods of a slightly faster clock)."""
+
 FREQUENT_GAPS = 0.01
 """Gaps on more than this share of the steps are the sampling pattern, not dropped messages (:func:`sampling_kind`)."""
 
@@ -182,14 +187,35 @@ def nominal_rate_hz(t: np.ndarray) -> float | None:
 
 
 def _steps_between_gaps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """The steps of ``t`` and which are not gaps (at most :data:`GAP_FACTOR` median steps); None without a positive median step."""
+    """The steps of ``t`` and which are not gaps (at most :data:`GAP_FACTOR` median steps, none on a :func:`jittered_clock`);
+    None without a positive median step."""
     steps = np.diff(np.asarray(t, dtype=np.float64).reshape(-1))
     if len(steps) == 0:
         return None
     median = float(np.median(steps))
     if not (median > 0 and math.isfinite(median)):
         return None
-    return steps, steps <= GAP_FACTOR * median
+    inside = steps <= GAP_FACTOR * median
+    return steps, inside if inside.all() or not jittered_clock(t) else np.ones_like(inside)
+
+
+def jittered_clock(t: np.ndarray) -> bool:
+    """Whether stamps ``t`` are every tick of one fixed-rate clock, each stamp within :data:`CLOCK_JITTER` periods of its tick.
+
+    The clock is the straight line fitted to the stamps against the sample
+    index. Such stamps read each sample's tick unambiguously however their
+    steps scatter: a stamp jitter of +-0.3 periods makes steps of 0.4 to 1.6
+    periods, which the steps' own rule (:func:`sampling_kind`) and
+    :data:`GAP_FACTOR` would read as irregular sampling with gaps. A dropped
+    sample is no such clock: it shifts the stamps after it by a period.
+    """
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    if len(t) < 3:
+        return False
+    t = t - t[0]  # epoch stamps: the fit on the log's own time
+    k = np.arange(len(t), dtype=np.float64)
+    start, slope = np.polynomial.polynomial.polyfit(k, t, 1)
+    return bool(slope > 0 and math.isfinite(slope) and np.max(np.abs(t - start - slope * k)) < CLOCK_JITTER * slope)
 
 
 def _round_rate(step: float) -> float:
@@ -230,7 +256,8 @@ def time_unit(t: np.ndarray, declared: str | None = None) -> tuple[str, str]:
 
 
 SAMPLING_RULE = (
-    "stamps whose steps between gaps all lie within half a period of the mean step, with gaps on at most 1 % of the steps, are a fixed-rate "
+    "stamps whose steps between gaps all lie within half a period of the mean step, with gaps on at most 1 % of the steps, or that lie "
+    "within 0.4 periods of one straight clock, are a fixed-rate "
     "loop with stamp jitter: the samples are kept and the rate is the mean step's; any other log is irregularly sampled: it is interpolated "
     "linearly onto a uniform grid at its mean rate, within each part between gaps longer than 5 mean steps"
 )
@@ -251,7 +278,8 @@ def sampling_kind(t: np.ndarray) -> str:
         ``"fixed-rate"``: every step between gaps (steps above
         :data:`GAP_FACTOR` median steps) is within :data:`STAMP_JITTER`
         periods of the mean step and gaps are at most :data:`FREQUENT_GAPS`
-        of the steps (keep the samples); ``"irregular"`` otherwise
+        of the steps, or the stamps are a :func:`jittered_clock` (keep the
+        samples); ``"irregular"`` otherwise
         (interpolate them, :func:`irregular_grid`).
     """
     found = _steps_between_gaps(t)
@@ -260,7 +288,7 @@ def sampling_kind(t: np.ndarray) -> str:
     steps, inside = found
     mean = float(np.mean(steps[inside]))
     if np.mean(~inside) > FREQUENT_GAPS or bool((np.abs(steps[inside] / mean - 1.0) > STAMP_JITTER).any()):
-        return "irregular"
+        return "fixed-rate" if jittered_clock(t) else "irregular"
     return "fixed-rate"
 
 
@@ -281,8 +309,9 @@ def irregular_grid(t: np.ndarray) -> tuple[float, tuple[tuple[int, int], ...]]:
 
 
 def gap_starts(t: np.ndarray, rate_hz: float) -> np.ndarray:
-    """Indices ``i`` where the step ``t[i+1] - t[i]`` is a gap (above :data:`GAP_FACTOR` periods)."""
-    return np.flatnonzero(np.diff(np.asarray(t, dtype=np.float64)) > GAP_FACTOR / rate_hz)
+    """Indices ``i`` where the step ``t[i+1] - t[i]`` is a gap (above :data:`GAP_FACTOR` periods; none on a :func:`jittered_clock`)."""
+    found = np.flatnonzero(np.diff(np.asarray(t, dtype=np.float64)) > GAP_FACTOR / rate_hz)
+    return found if len(found) == 0 or not jittered_clock(t) else found[:0]
 
 
 def segments(t: np.ndarray, rate_hz: float) -> tuple[tuple[int, int], ...]:

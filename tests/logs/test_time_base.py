@@ -323,3 +323,30 @@ def test_a_fixed_rate_loop_with_stamp_jitter_is_restamped_on_its_grid() -> None:
     # stamps within rounding of the grid: the same log, no warning
     exact = RunLog({"t": t + 0.5 * RESTAMP_TOLERANCE * 1e-3, "q": q, "tau": q}, dict(log.units), {})
     assert restamped(exact) == (exact, 0.0) and not any("stamp jitter" in w for w in prepare_log(exact).warnings)
+
+
+def test_stamps_within_04_periods_of_one_clock_are_a_fixed_rate_loop_whatever_their_steps() -> None:
+    """+-0.3 periods of stamp jitter makes steps of 0.4-1.6 periods: still one sample per tick, restamped, no gaps.
+
+    A sample dropped in the middle of a log is no such clock (it stays a gap), nor is jitter of +-0.45 periods
+    (steps up to 1.9 periods: irregular sampling, interpolated).
+    """
+    from ilic_cli.prepare import prepare_log
+    from ilic_cli.quality import gap_starts, jittered_clock, sampling_kind
+
+    n = 6000
+    k = np.arange(n)
+    rng = np.random.default_rng(5)
+    t = 1.7e9 + k / 1000.0 + rng.uniform(-0.3e-3, 0.3e-3, n)  # epoch stamps
+    steps = np.diff(t) * 1000.0
+    assert steps.max() > 1.5 and steps.min() < 0.5  # the steps alone: gaps and irregular
+    assert jittered_clock(t) and sampling_kind(t) == "fixed-rate" and len(gap_starts(t, 1000.0)) == 0 and nominal_rate_hz(t) == 1000.0
+    q = np.sin(k / 1000.0)
+    prepared = prepare_log(RunLog({"t": t, "q": q, "tau": q}, {"t": "s", "q": "m", "tau": "N"}, {}))
+    np.testing.assert_array_equal(prepared.log["q"], q)  # samples kept, not interpolated
+    np.testing.assert_allclose(np.diff(prepared.log.t), 1e-3, atol=3e-7)  # epoch stamps: float64 resolves 2.4e-7 s
+    assert prepared.segments == ((0, n),) and any("stamp jitter" in w and "restamped" in w for w in prepared.warnings), prepared.warnings
+    dropped = np.delete(k, n // 2) / 1000.0
+    assert not jittered_clock(dropped) and list(gap_starts(dropped, 1000.0)) == [n // 2 - 1]
+    wide = k / 1000.0 + rng.uniform(-0.45e-3, 0.45e-3, n)
+    assert not jittered_clock(wide) and sampling_kind(wide) == "irregular"
