@@ -187,8 +187,8 @@ def nominal_rate_hz(t: np.ndarray) -> float | None:
 
 
 def _steps_between_gaps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """The steps of ``t`` and which are not gaps (at most :data:`GAP_FACTOR` median steps, none on a :func:`jittered_clock`);
-    None without a positive median step."""
+    """The steps of ``t`` and which are not gaps (at most :data:`GAP_FACTOR` median steps; on a :func:`jittered_clock`, the
+    steps between its parts); None without a positive median step."""
     steps = np.diff(np.asarray(t, dtype=np.float64).reshape(-1))
     if len(steps) == 0:
         return None
@@ -196,26 +196,43 @@ def _steps_between_gaps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     if not (median > 0 and math.isfinite(median)):
         return None
     inside = steps <= GAP_FACTOR * median
-    return steps, inside if inside.all() or not jittered_clock(t) else np.ones_like(inside)
+    if inside.all() or (cuts := _clock_cuts(t)) is None:
+        return steps, inside
+    inside = np.ones_like(inside)
+    inside[cuts] = False
+    return steps, inside
 
 
 def jittered_clock(t: np.ndarray) -> bool:
-    """Whether stamps ``t`` are every tick of one fixed-rate clock, each stamp within :data:`CLOCK_JITTER` periods of its tick.
+    """Whether stamps ``t`` are, between gaps, every tick of a fixed-rate clock, each stamp within :data:`CLOCK_JITTER` periods of its tick.
 
-    The clock is the straight line fitted to the stamps against the sample
+    The clock of each part between gaps longer than :data:`IRREGULAR_GAP_FACTOR`
+    median steps is the straight line fitted to its stamps against the sample
     index. Such stamps read each sample's tick unambiguously however their
     steps scatter: a stamp jitter of +-0.3 periods makes steps of 0.4 to 1.6
     periods, which the steps' own rule (:func:`sampling_kind`) and
     :data:`GAP_FACTOR` would read as irregular sampling with gaps. A dropped
     sample is no such clock: it shifts the stamps after it by a period.
     """
+    return _clock_cuts(t) is not None
+
+
+def _clock_cuts(t: np.ndarray) -> np.ndarray | None:
+    """The gaps (step indices) between the parts of a :func:`jittered_clock`, ``None`` when ``t`` is not one."""
     t = np.asarray(t, dtype=np.float64).reshape(-1)
-    if len(t) < 3:
-        return False
-    t = t - t[0]  # epoch stamps: the fit on the log's own time
-    k = np.arange(len(t), dtype=np.float64)
-    start, slope = np.polynomial.polynomial.polyfit(k, t, 1)
-    return bool(slope > 0 and math.isfinite(slope) and np.max(np.abs(t - start - slope * k)) < CLOCK_JITTER * slope)
+    steps = np.diff(t)
+    if len(t) < 3 or not float(np.median(steps)) > 0:
+        return None
+    cuts = np.flatnonzero(steps > IRREGULAR_GAP_FACTOR * float(np.median(steps)))
+    for a, b in zip([0, *(cuts + 1)], [*(cuts + 1), len(t)], strict=True):
+        if b - a < 3:
+            return None
+        part = t[a:b] - t[a]  # epoch stamps: the fit on the part's own time
+        k = np.arange(b - a, dtype=np.float64)
+        start, slope = np.polynomial.polynomial.polyfit(k, part, 1)
+        if not (slope > 0 and math.isfinite(slope) and np.max(np.abs(part - start - slope * k)) < CLOCK_JITTER * slope):
+            return None
+    return cuts
 
 
 def _round_rate(step: float) -> float:
@@ -257,7 +274,7 @@ def time_unit(t: np.ndarray, declared: str | None = None) -> tuple[str, str]:
 
 SAMPLING_RULE = (
     "stamps whose steps between gaps all lie within half a period of the mean step, with gaps on at most 1 % of the steps, or that lie "
-    "within 0.4 periods of one straight clock, are a fixed-rate "
+    "within 0.4 periods of one straight clock between gaps longer than 5 median steps, are a fixed-rate "
     "loop with stamp jitter: the samples are kept and the rate is the mean step's; any other log is irregularly sampled: it is interpolated "
     "linearly onto a uniform grid at its mean rate, within each part between gaps longer than 5 mean steps"
 )
@@ -309,9 +326,9 @@ def irregular_grid(t: np.ndarray) -> tuple[float, tuple[tuple[int, int], ...]]:
 
 
 def gap_starts(t: np.ndarray, rate_hz: float) -> np.ndarray:
-    """Indices ``i`` where the step ``t[i+1] - t[i]`` is a gap (above :data:`GAP_FACTOR` periods; none on a :func:`jittered_clock`)."""
+    """Indices ``i`` where the step ``t[i+1] - t[i]`` is a gap (above :data:`GAP_FACTOR` periods; on a :func:`jittered_clock`, between its parts)."""
     found = np.flatnonzero(np.diff(np.asarray(t, dtype=np.float64)) > GAP_FACTOR / rate_hz)
-    return found if len(found) == 0 or not jittered_clock(t) else found[:0]
+    return found if len(found) == 0 or (cuts := _clock_cuts(t)) is None else cuts
 
 
 def segments(t: np.ndarray, rate_hz: float) -> tuple[tuple[int, int], ...]:

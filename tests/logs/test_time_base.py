@@ -326,10 +326,11 @@ def test_a_fixed_rate_loop_with_stamp_jitter_is_restamped_on_its_grid() -> None:
 
 
 def test_stamps_within_04_periods_of_one_clock_are_a_fixed_rate_loop_whatever_their_steps() -> None:
-    """+-0.3 periods of stamp jitter makes steps of 0.4-1.6 periods: still one sample per tick, restamped, no gaps.
+    """+-0.3 periods of stamp jitter makes steps of 0.4-1.6 periods: still one sample per tick, restamped, no false gaps.
 
-    A sample dropped in the middle of a log is no such clock (it stays a gap), nor is jitter of +-0.45 periods
-    (steps up to 1.9 periods: irregular sampling, interpolated).
+    A real gap (0.5 s) still splits the log, each part on its own clock. A sample dropped in the middle of a log
+    is no such clock (it stays a gap), nor is jitter of +-0.45 periods (steps up to 1.9 periods: irregular
+    sampling, interpolated).
     """
     from ilic_cli.prepare import prepare_log
     from ilic_cli.quality import gap_starts, jittered_clock, sampling_kind
@@ -342,10 +343,16 @@ def test_stamps_within_04_periods_of_one_clock_are_a_fixed_rate_loop_whatever_th
     assert steps.max() > 1.5 and steps.min() < 0.5  # the steps alone: gaps and irregular
     assert jittered_clock(t) and sampling_kind(t) == "fixed-rate" and len(gap_starts(t, 1000.0)) == 0 and nominal_rate_hz(t) == 1000.0
     q = np.sin(k / 1000.0)
-    prepared = prepare_log(RunLog({"t": t, "q": q, "tau": q}, {"t": "s", "q": "m", "tau": "N"}, {}))
+    units = {"t": "s", "q": "m", "tau": "N"}
+    prepared = prepare_log(RunLog({"t": t, "q": q, "tau": q}, units, {}))
     np.testing.assert_array_equal(prepared.log["q"], q)  # samples kept, not interpolated
     np.testing.assert_allclose(np.diff(prepared.log.t), 1e-3, atol=3e-7)  # epoch stamps: float64 resolves 2.4e-7 s
     assert prepared.segments == ((0, n),) and any("stamp jitter" in w and "restamped" in w for w in prepared.warnings), prepared.warnings
+    gapped = t + np.where(k >= 2000, 0.5, 0.0)  # a real gap of 0.5 s
+    assert jittered_clock(gapped) and list(gap_starts(gapped, 1000.0)) == [1999] and nominal_rate_hz(gapped) == 1000.0
+    prepared = prepare_log(RunLog({"t": gapped, "q": q, "tau": q}, units, {}))
+    np.testing.assert_array_equal(prepared.log["q"], q)
+    assert prepared.segments == ((0, 2000), (2000, n)), prepared.segments
     dropped = np.delete(k, n // 2) / 1000.0
     assert not jittered_clock(dropped) and list(gap_starts(dropped, 1000.0)) == [n // 2 - 1]
     wide = k / 1000.0 + rng.uniform(-0.45e-3, 0.45e-3, n)
