@@ -43,8 +43,8 @@ STAMP_JITTER = 0.5
 
 CLOCK_JITTER = 0.4
 """Stamps within this share of a period of one straight clock are a fixed-rate loop whatever their steps (:func:`jittered_clock`):
-a margin below the half period beyond which a stamp could be the next tick's (a sample dropped in the middle of a log leaves the
-stamps within 0.4999 periods of a slightly faster clock)."""
+a margin below the half period beyond which a stamp could be the next tick's (a sample dropped in the middle of a jitter-free log
+leaves its stamps within 0.4999 periods of a slightly faster clock)."""
 
 FREQUENT_GAPS = 0.01
 """Gaps on more than this share of the steps are the sampling pattern, not dropped messages (:func:`sampling_kind`)."""
@@ -220,10 +220,13 @@ def jittered_clock(t: np.ndarray) -> bool:
 def _clock_cuts(t: np.ndarray) -> np.ndarray | None:
     """The gaps (step indices) between the parts of a :func:`jittered_clock`, ``None`` when ``t`` is not one."""
     t = np.asarray(t, dtype=np.float64).reshape(-1)
-    steps = np.diff(t)
-    if len(t) < 3 or not float(np.median(steps)) > 0:
+    if len(t) < 3:
         return None
-    cuts = np.flatnonzero(steps > IRREGULAR_GAP_FACTOR * float(np.median(steps)))
+    steps = np.diff(t)
+    median = float(np.median(steps))
+    if not median > 0:
+        return None
+    cuts = np.flatnonzero(steps > IRREGULAR_GAP_FACTOR * median)
     for a, b in zip([0, *(cuts + 1)], [*(cuts + 1), len(t)], strict=True):
         if b - a < 3:
             return None
