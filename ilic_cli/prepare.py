@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ilic_cli.errors import LogError, ParameterError
-from ilic_cli.quality import SAMPLING_RULE, assess_log, irregular_grid, nominal_rate_hz, sampling_kind, saturation_mask, segments
+from ilic_cli.quality import SAMPLING_RULE, assess_log, clock_deviation, irregular_grid, nominal_rate_hz, sampling_kind, saturation_mask, segments
 from ilic_cli.runlog import RunLog
 
 
@@ -157,12 +157,7 @@ def restamped(log: RunLog) -> tuple[RunLog, float]:
     grid = _grid_stamps(t, rate, parts)
     if float(np.max(np.abs(t - grid))) * rate <= RESTAMP_TOLERANCE:
         return log, 0.0
-    jitter = 0.0
-    for a, b in parts:
-        if b - a > 1:
-            k = np.arange(b - a, dtype=np.float64)
-            line = np.polynomial.polynomial.Polynomial.fit(k, t[a:b], 1)
-            jitter = max(jitter, float(np.max(np.abs(t[a:b] - line(k)))) * rate)
+    jitter = max((clock_deviation(t[a:b]) for a, b in parts if b - a > 1), default=0.0)
     return _on_grid(log, grid, rate), jitter
 
 

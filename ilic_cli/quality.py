@@ -228,14 +228,21 @@ def _clock_cuts(t: np.ndarray) -> np.ndarray | None:
         return None
     cuts = np.flatnonzero(steps > IRREGULAR_GAP_FACTOR * median)
     for a, b in zip([0, *(cuts + 1)], [*(cuts + 1), len(t)], strict=True):
-        if b - a < 3:
-            return None
-        part = t[a:b] - t[a]  # epoch stamps: the fit on the part's own time
-        k = np.arange(b - a, dtype=np.float64)
-        start, slope = np.polynomial.polynomial.polyfit(k, part, 1)
-        if not (slope > 0 and math.isfinite(slope) and np.max(np.abs(part - start - slope * k)) < CLOCK_JITTER * slope):
+        if b - a < 3 or not clock_deviation(t[a:b]) < CLOCK_JITTER:
             return None
     return cuts
+
+
+def clock_deviation(t: np.ndarray) -> float:
+    """The largest deviation of stamps ``t`` (two or more) from the straight line fitted to them against the sample index, in
+    periods of that line (``inf`` when it does not rise)."""
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    part = t - t[0]  # epoch stamps: the fit on the part's own time
+    k = np.arange(len(t), dtype=np.float64)
+    start, slope = np.polynomial.polynomial.polyfit(k, part, 1)
+    if not (slope > 0 and math.isfinite(slope)):
+        return math.inf
+    return float(np.max(np.abs(part - start - slope * k))) / slope
 
 
 def _round_rate(step: float) -> float:
