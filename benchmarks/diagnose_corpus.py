@@ -39,24 +39,13 @@ import math
 import os
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from plant.corpus import CASES, PARAM_TOLERANCE, Case, build_case, score  # noqa: E402
-
-RESEED_STEP = 1000
-"""``--reseed``: the ``k``-th other seed of a case is its seed plus ``k`` times this."""
-
-
-def case_of(name: str) -> Case:
-    """The case ``name``, or ``name@sSEED``: that case with another seed (its effects and sizes as they are)."""
-    base, _, seed = name.partition("@s")
-    case = CASES[base]
-    return replace(case, name=name, seed=int(seed)) if seed else case
+from plant.corpus import CASES, PARAM_TOLERANCE, RESEED_STEP, build_case, case_of, score  # noqa: E402
 
 
 def run_case(name: str) -> dict[str, Any]:

@@ -28,7 +28,7 @@ against the truth.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ilic_cli.runlog import RunLog
@@ -500,3 +500,13 @@ PAIR_CASES: tuple[Case, ...] = (
 
 CASES: dict[str, Case] = {c.name: c for c in (*CLEAN_CASES, *EFFECT_CASES, *PAIR_CASES)}
 """Every case by name."""
+
+RESEED_STEP = 1000
+"""The ``k``-th other seed of a case (``benchmarks/diagnose_corpus.py --reseed``) is its seed plus ``k`` times this."""
+
+
+def case_of(name: str) -> Case:
+    """The case ``name``, or ``name@sSEED``: that case with another seed (its effects and sizes as they are)."""
+    base, _, seed = name.partition("@s")
+    case = CASES[base]
+    return replace(case, name=name, seed=int(seed)) if seed else case

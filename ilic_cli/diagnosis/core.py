@@ -326,17 +326,34 @@ def diagnose(
     accepted = {ev.effect: ev for ev in selection.accepted}
     for st in kept:
         if st.level is not None:  # proposed on the closed loop: the evidence is the inverse model's last word on it, and the replay's verdict
-            accepted[st.effect.id] = [ev for step in selection.tried for ev in step if ev.effect == st.effect.id][-1]
+            last = selection.last_word(st.effect.id)
+            assert last is not None
+            accepted[st.effect.id] = last
     refit = None
-    if any(st.level is not None for st in kept):
+    held = [i for i, st in enumerate(kept) if st.level is not None]
+    replayed = settings.simulate and against is None and "q_ref" in log
+    if held == [len(kept) - 1] and replayed and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz):
+        # a level held at the closed loop's estimate (the last candidate judged) joins the refit as a column, the estimate its start;
+        # no search of its value with the inverse model's linear parameters: theirs is the level the closed loop replaced.
+        # Not at dwells: there Stribeck friction shows in the creep the sensor noise drives, and the refit replays noise-free
+        # (measured, refitted so: the two Stribeck trapezoids with the current loop 13 and 10 % -> 37 and 44 % off)
+        grids = {s.effect.id: s.effect.scan.grid(data.kin, fs) for s in kept if s.effect.scan is not None}
+        held_step = kept[-1]
+        assert held_step.level is not None
+        columns = [*kept[:-1], Step(held_step.effect, held_step.value)]
+        refit = closed_loop_refit(log, prepared, base, known, columns, np.r_[res1.theta, held_step.level], grids, ls=settings.ls, hold_s=hold)
+        if refit.accepted and refit.theta is not None and refit.cov is not None and replay_sensor:
+            refit = _judged_with_noise(refit, log, settings.ls, replay_sensor, [*known, *kept], names1, res1.theta, known, hold)
+    elif held:
         refit = Refit(
             False,
-            "not refitted on the closed loop: the Stribeck level and vs found at the dwells are closed-loop estimates already "
+            "not refitted on the closed loop: the Stribeck level and vs found at the dwells are closed-loop estimates already, of the creep "
+            "the sensor noise drives there, which the refit's noise-free replays do not have "
             "(the other parameters: the inverse model's, with that friction taken off the force)",
             list(kept),
             names1,
         )
-    elif kept and settings.simulate and against is None and "q_ref" in log:
+    elif kept and replayed:
         grids = {s.effect.id: s.effect.scan.grid(data.kin, fs) for s in kept if s.effect.scan is not None}
         refit = closed_loop_refit(
             log, prepared, base, known, kept, res1.theta, grids, ls=settings.ls, inverse_fit=lambda s: _inverse_fit(data, base, s, rows), hold_s=hold
@@ -352,7 +369,7 @@ def diagnose(
         method = dwell.METHOD if st.level is not None else "IDIM-LS"
         notes = [s.reason for s in (refit.searches if refit is not None else []) if s.effect == st.effect.id]
         if refit is not None and refit.accepted and refit.theta is not None and refit.cov is not None:
-            std = refit.value_std.get(st.effect.id) if st_final.value != st.value else ev.value_std
+            std = refit.value_std.get(st.effect.id) if st_final.value != st.value else st.value_std if st.level is not None else ev.value_std
             params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold)
             method = refit.method
         regs = sorted([r for r in located if r.kind in st.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
@@ -444,8 +461,8 @@ def _decide(
             material.append(st)
             kept_so_far.append(st)
     replayable = settings.simulate and against is None and "q_ref" in log
-    if replayable and (at_dwells := _dwell_proposal(log, data, base, [*known, *selection.steps], rows, settings)) is not None:
-        material.append(at_dwells)
+    if replayable and (on_loop := _closed_loop_proposal(log, data, base, [*known, *selection.steps], rows, settings, selection)) is not None:
+        material.append(on_loop)
     if replayable and material:
 
         def plant_of(steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> tuple[dict[str, float], dict[str, Any]]:
@@ -489,7 +506,7 @@ def _decide(
             last = [(k, i) for k, step in enumerate(selection.tried) for i, ev in enumerate(step) if ev.effect == st.effect.id][-1:]
             for k, i in last:
                 ev = selection.tried[k][i]
-                selection.tried[k][i] = replace(ev, reason=f"{ev.reason}; proposed on the closed loop at the dwells instead: {by_effect[st.effect.id].reason}")
+                selection.tried[k][i] = replace(ev, reason=f"{ev.reason}; proposed on the closed loop instead: {by_effect[st.effect.id].reason}")
     order = [s.effect.id for s in selection.steps] + [s.effect.id for s in material if s.level is not None]
     verdicts.sort(key=lambda v: order.index(v.effect))
     return kept, verdicts, sensor
@@ -527,16 +544,20 @@ def _judged_with_noise(
     return replace(refit, accepted=False, reason=refit.reason + why, simulated=None)  # its replay is not the model file's
 
 
-def _dwell_proposal(log: RunLog, data: IDIMData, base: Model, proposed: list[Step], rows: np.ndarray, settings: DiagnoseSettings) -> Step | None:
+def _closed_loop_proposal(
+    log: RunLog, data: IDIMData, base: Model, proposed: list[Step], rows: np.ndarray, settings: DiagnoseSettings, selection: SelectionResult
+) -> Step | None:
     """Stribeck friction proposed on the closed loop (:mod:`ilic_cli.diagnosis.dwell`), or ``None``.
 
-    Only when the reference dwells and neither the model file nor the inverse model has it: ``proposed`` are the
-    model file's effects and the inverse model's proposals (material or not).
+    Only when neither the model file nor the inverse model has it (``proposed`` are the model file's effects and
+    the inverse model's proposals, material or not), and either the reference dwells or the inverse model's last
+    word on it was that its F-test passed and its held-out test did not confirm it
+    (:meth:`~ilic_cli.diagnosis.select.SelectionResult.unconfirmed`).
     """
     effect = EFFECTS["stribeck"]
     if effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in proposed):
         return None
-    if not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz):
+    if not selection.unconfirmed(effect.id) and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz):
         return None
     fit = fit_system(data, base, [], rows)  # the rigid Coulomb level: the scale of the levels searched (each fold's own, there)
     fc = dwell.coulomb_N(fit.names, fit.theta)

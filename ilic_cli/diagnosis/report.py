@@ -9,8 +9,9 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis import dwell
-from ilic_cli.diagnosis.core import Diagnosis
+from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.locate import Region
+from ilic_cli.diagnosis.select import HELDOUT_UNCONFIRMED
 from ilic_cli.effects import Estimate
 
 
@@ -59,10 +60,15 @@ def _std(est: Estimate) -> str:
     return "" if est.std is None or not math.isfinite(est.std) else f"{est.std:.3g}"
 
 
-def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], method: str) -> list[str]:
-    """The finding's estimates: the method's, and the inverse model's beside them when the method is another."""
+def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], method: str, at_dwells: bool = True) -> list[str]:
+    """The finding's estimates: the method's, and the inverse model's beside them when the method is another.
+
+    ``at_dwells``: a closed-loop proposal's (:data:`ilic_cli.diagnosis.dwell.METHOD`) was made at the reference's dwells,
+    where the inverse model's estimate is outside the effect's physics; else the inverse model's held-out test did not confirm its own.
+    """
     if method == "IDIM-LS" or not inverse:
-        by = "the inverse model (IDIM-LS)" if method == "IDIM-LS" else f"the {method} (the inverse model has no estimate of it inside its physics)"
+        none = "has no estimate of it inside its physics" if at_dwells else "has one that its held-out test did not confirm"
+        by = "the inverse model (IDIM-LS)" if method == "IDIM-LS" else f"the {method} (the inverse model {none})"
         if method == dwell.METHOD:
             by += f"; std: {dwell.SPREAD}"
         lines = [f"Estimated by {by}.", "", "| parameter | value | std |", "| --- | --- | --- |"]
@@ -79,13 +85,23 @@ def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], 
     return [*lines, ""]
 
 
+def _on_loop(diag: Diagnosis, f: Finding) -> bool:
+    """Whether ``f`` was proposed on the closed loop (:mod:`ilic_cli.diagnosis.dwell`), not by the inverse model."""
+    return any(v.effect == f.effect.id and v.proposed_by == dwell.METHOD for v in diag.decisions)
+
+
+def _at_dwells(diag: Diagnosis, f: Finding) -> bool:
+    """Whether ``f`` was proposed on the closed loop at the reference's dwells (not for want of the inverse model's held-out test)."""
+    return _on_loop(diag, f) and not f.evidence.reason.startswith(HELDOUT_UNCONFIRMED)
+
+
 def to_markdown(diag: Diagnosis) -> str:
     """A report in plain words, then the tables."""
     fit = diag.fit
     lines = [f"# Diagnosis of {diag.source or 'the log'}", ""]
     rel = fit["relative_error_pct"]
     ho = fit["heldout_relative_error_pct"]
-    at_dwells = any(f.method == dwell.METHOD for f in diag.findings)  # Stribeck found by the closed loop at the dwells
+    at_dwells = any(_at_dwells(diag, f) for f in diag.findings)  # Stribeck found by the closed loop at the dwells
     if not diag.findings:
         judged = f" ({len(diag.decisions)} proposed, none material or kept by the replay: see below)" if diag.decisions else ""
         lines += [
@@ -119,7 +135,7 @@ def to_markdown(diag: Diagnosis) -> str:
         lines.append("")
     if diag.refit is not None:
         how = "the closed-loop refit's" if diag.refit.accepted else "the inverse model's (IDIM-LS)"
-        if not diag.refit.accepted and at_dwells:
+        if not diag.refit.accepted and any(f.method == dwell.METHOD for f in diag.findings):
             how = f"Stribeck friction's from the {dwell.METHOD}, the rest the inverse model's (IDIM-LS)"
         lines += [
             f"Estimates: {how}; {diag.refit.reason}. The closed-loop output error is the replayed force against the recorded one, in the inverse model's band.",
@@ -160,14 +176,20 @@ def to_markdown(diag: Diagnosis) -> str:
             f"Form: {f.effect.form}. Signature: {f.effect.signature}.",
             "",
         ]
-        lines += _estimates_table(f.parameters, f.inverse_parameters, f.method)
-        if f.method == dwell.METHOD:
+        lines += _estimates_table(f.parameters, f.inverse_parameters, f.method, _at_dwells(diag, f))
+        if _on_loop(diag, f):
             verdict = next((v.reason for v in diag.decisions if v.effect == f.effect.id), "")
-            lines += [
-                "Evidence: proposed on the closed loop at the reference's dwells, where the inverse model cannot see it (its level there is "
-                f"outside the effect's physics: see the candidates tried); {verdict}.",
-                "",
-            ]
+            why = (
+                "proposed on the closed loop at the reference's dwells, where the inverse model cannot see it (its level there is "
+                "outside the effect's physics: see the candidates tried)"
+                if _at_dwells(diag, f)
+                else (
+                    f"proposed on the closed loop, since the inverse model's F-test finds it (p = {ev.test.p_adjusted:.2g}) but its held-out test "
+                    f"does not confirm it (p = {ev.heldout_p_value:.2g}): on closed-loop data the command answers the noise its filtered "
+                    "kinematics carry, so its estimate there is biased"
+                )
+            )
+            lines += [f"Evidence: {why}; {verdict}.", ""]
             lines += ["Located:", ""] + [f"- {_region_words(r)}" for r in f.located[:5]] + [""] if f.located else []
             lines += [f"Note: {f.note}.", ""] if f.note else []
             continue

@@ -231,6 +231,10 @@ class Evaluation:
         }
 
 
+HELDOUT_UNCONFIRMED = "does not lower the held-out error significantly"
+"""The reason of a candidate whose F-test passed but whose held-out test did not confirm it."""
+
+
 @dataclass
 class SelectionResult:
     """Accepted steps in order, and every evaluation made on the way."""
@@ -239,6 +243,15 @@ class SelectionResult:
     steps: list[Step] = field(default_factory=list)
     accepted: list[Evaluation] = field(default_factory=list)
     tried: list[list[Evaluation]] = field(default_factory=list)
+
+    def last_word(self, effect_id: str) -> Evaluation | None:
+        """The last evaluation of ``effect_id`` (``None`` when it was never tried)."""
+        return next((ev for step in reversed(self.tried) for ev in step if ev.effect == effect_id), None)
+
+    def unconfirmed(self, effect_id: str) -> bool:
+        """Whether the last evaluation of ``effect_id`` passed its F-test but not its held-out test (:data:`HELDOUT_UNCONFIRMED`)."""
+        ev = self.last_word(effect_id)
+        return ev is not None and ev.reason == HELDOUT_UNCONFIRMED
 
 
 class Searcher:
@@ -501,7 +514,7 @@ def forward_select(
                 vb = validation_error(data, validation, base, [*known, *out.steps])
                 va = validation_error(data, validation, base, [*known, *out.steps, Step(eff, ev.value)])
             if not after < before or p_cv >= settings.alpha_heldout:
-                ok, reason = False, "does not lower the held-out error significantly"
+                ok, reason = False, HELDOUT_UNCONFIRMED
             elif va is not None and vb is not None and va > vb:
                 ok, reason = False, "raises the error on the validation log"
             else:

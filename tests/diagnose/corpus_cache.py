@@ -5,10 +5,10 @@ from __future__ import annotations
 from functools import cache
 
 from ilic_cli.diagnosis.core import Diagnosis, diagnose
-from plant.corpus import CASES, build_case
+from plant.corpus import build_case, case_of
 
 
 @cache
 def diagnosed(name: str) -> Diagnosis:
-    """``diagnose`` of corpus case ``name`` with the default settings, computed once (read it, do not change it)."""
-    return diagnose(build_case(CASES[name]))
+    """``diagnose`` of corpus case ``name`` (or ``name@sSEED``, reseeded) with the default settings, computed once (read it, do not change it)."""
+    return diagnose(build_case(case_of(name)))

@@ -381,6 +381,19 @@ def test_not_lowering_the_heldout_error_is_the_reason_given() -> None:
     ev = res.tried[0][0]
     assert ev.test.p_adjusted < 0.01  # significant in-sample (see test_no_concealed_effect_no_acceptance) ...
     assert ev.reason == "does not lower the held-out error significantly" and not ev.accepted  # ... but not held out
+    # the closed loop may propose what the held-out test left unconfirmed (ilic_cli.diagnosis.core._closed_loop_proposal)
+    assert res.last_word("spring") is ev and res.unconfirmed("spring") and res.last_word("stribeck") is None and not res.unconfirmed("stribeck")
+
+
+def test_an_effect_refused_for_another_reason_is_not_unconfirmed() -> None:
+    """Only an F-test passed and a held-out test failed is 'unconfirmed': a refusal by the validation log, or by the F-test, is not."""
+    data = concealed_asymmetry(seed=12)
+    symmetric = concealed_asymmetry(dfv_neg=0.0, seed=13)
+    res = forward_select(data, BASE, FS, SelectSettings(effects=("asymmetric_friction",), max_effects=1), validation=symmetric)
+    assert res.last_word("asymmetric_friction") is res.tried[0][0] and not res.unconfirmed("asymmetric_friction")
+    clean = concealed_asymmetry(dfv_neg=0.0, seed=1)
+    res = forward_select(clean, BASE, FS, SelectSettings(effects=("spring",), max_effects=1))  # alpha 0.001: the spring's p is 0.0054
+    assert res.tried[0][0].reason == "not significant" and not res.unconfirmed("spring")
 
 
 def test_a_zero_delay_step_leaves_the_force_alone() -> None:

@@ -183,7 +183,7 @@ def test_judged_text_gives_the_folds_ranges() -> None:
         "Fs and vs searched on the closed loop of each fold's training blocks (noisy replays): estimates in 3 of 3 folds, Fs 2.4 to 2.6 N, vs 8 to 12 mm/s"
     )
     _, why = dwell.judged([None, None, None])
-    assert why == "its closed-loop search at the dwells finds an estimate inside its grid in 0 of 3 folds (fewer than 3)"
+    assert why == "its closed-loop search of Fs and vs finds an estimate inside its grid in 0 of 3 folds (fewer than 3)"
 
 
 def test_a_proposal_that_cannot_be_replayed_is_still_the_closed_loops(monkeypatch: pytest.MonkeyPatch) -> None:
