@@ -1,0 +1,81 @@
+"""How well a log identifies Stribeck ``vs`` at all: the closed-loop output error of the true plant over ``vs`` (issue #11).
+
+On the corpus's Stribeck trapezoid (``stribeck-trapezoid-sensor-s210``) the
+diagnosis's ``vs`` is 9.1-12.1 mm/s over five seeds for 8. This asks what the
+log itself allows, whatever the estimator: the *true* plant (rigid parameters,
+sensor noise and Stribeck level as simulated) is replayed through the log's
+controller with ``vs`` varied, each point over ``--seeds`` noise realisations
+other than the log's own, and four output errors against the recording are
+printed, relative to their least value (%): the decimated force the diagnosis
+compares (the inverse model's band, ``decide.band_force_error``), the raw
+force, the force decimated by 3, and the position. A ``vs`` whose error is
+within the realisations' standard error (the ``+-``) of the least is not told
+apart from it by the log.
+
+Usage: python benchmarks/stribeck_identifiability.py [--case NAME] [--seeds 4] [--vs-mm 5,6,7,8,9,10,11,12,14]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from ilic_cli.diagnosis.compare import replay  # noqa: E402
+from ilic_cli.diagnosis.decide import band_force_error  # noqa: E402
+from ilic_cli.filtering import decimate_matlab  # noqa: E402
+from ilic_cli.idim_ls import LSSettings  # noqa: E402
+from ilic_cli.runlog import RunLog  # noqa: E402
+from plant.corpus import CASES, build_case  # noqa: E402
+
+METRICS = ("band force", "raw force", "force / 3", "position")
+
+
+def errors(log: RunLog, rigid: dict[str, float], effects: dict[str, dict[str, float]], seed: int, ls: LSSettings) -> np.ndarray:
+    """The four squared output errors of one replay (the filters' edges left out)."""
+    sim = replay(log, rigid, effects, seed=seed)
+    r, edge = ls.decimation, ls.trim
+    band = band_force_error(log, sim, r)[edge // r : -(edge // r)]
+    raw = (np.asarray(sim["tau"]) - np.asarray(log["tau"]))[edge:-edge]
+    third = decimate_matlab(np.asarray(sim["tau"]) - np.asarray(log["tau"]), 3)[edge // 3 : -(edge // 3)]
+    pos = (np.asarray(sim["q"]) - np.asarray(log["q"]))[edge:-edge]
+    return np.array([band @ band, raw @ raw, third @ third, pos @ pos])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--case", default="stribeck-trapezoid-sensor-s210")
+    ap.add_argument("--seeds", type=int, default=4, help="noise realisations per point (seeds 1..N; the log's own is its case seed)")
+    ap.add_argument("--vs-mm", default="5,6,7,8,9,10,11,12,14", help="vs values (mm/s)")
+    args = ap.parse_args()
+    case = CASES[args.case]
+    log = build_case(case)
+    truth = log.meta["corpus"]["truth"]
+    rigid, effects = truth["parameters"], truth["effects"]
+    if "stribeck" not in effects:
+        raise SystemExit(f"{args.case}: no Stribeck friction concealed")
+    ls = LSSettings()
+    vs_grid = [float(v) * 1e-3 for v in args.vs_mm.split(",")]
+    seeds = [s for s in range(1, args.seeds + 2) if s != case.seed][: args.seeds]
+    rows = []
+    for vs in vs_grid:
+        fx = {**effects, "stribeck": {**effects["stribeck"], "vs": vs}}
+        e = np.array([errors(log, rigid, fx, s, ls) for s in seeds])
+        rows.append((e.mean(axis=0), e.std(axis=0, ddof=1) / np.sqrt(len(seeds))))
+    best = np.min([m for m, _ in rows], axis=0)
+    st = effects["stribeck"]
+    print(f"{args.case}: the true plant, Fs = {st['Fs']} N, vs (truth {st['vs'] * 1e3:g} mm/s) varied; {len(seeds)} noise realisations a point")
+    print()
+    print("| vs (mm/s) | " + " | ".join(f"{m} (%)" for m in METRICS) + " |")
+    print("|---|" + "---|" * len(METRICS))
+    for vs, (m, se) in zip(vs_grid, rows, strict=True):
+        print(f"| {vs * 1e3:g} | " + " | ".join(f"{(m[k] / best[k] - 1) * 100:.2f} +- {se[k] / best[k] * 100:.2f}" for k in range(len(METRICS))) + " |")
+
+
+if __name__ == "__main__":
+    main()
