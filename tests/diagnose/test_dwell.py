@@ -6,7 +6,7 @@ import pytest
 
 from ilic_cli.diagnosis import dwell
 from ilic_cli.diagnosis.report import to_markdown
-from plant.corpus import CASES, PARAM_TOLERANCE, score
+from plant.corpus import CASES, score
 from tests.diagnose.corpus_cache import diagnosed
 
 
@@ -64,8 +64,9 @@ def test_stribeck_beside_a_flexibility_that_the_held_out_test_leaves_unconfirmed
     """The Stribeck + flexibility EMPS log on a seed where the inverse model's F-test finds Stribeck friction but its held-out test does not confirm it.
 
     Measured (seed 1303): F-test p ~ 1e-35 and below, held-out p = 0.07; proposed on the closed loop, the replay accepts it
-    (p ~ 1e-10) with the folds' Fs 2.5 N and vs 8.3 mm/s; the refit (DIDIM, the searched level its start) then gives
-    Fs 3.15 N (truth 3.53: 11 %), vs 8.3 mm/s (8: 3 %) and the flexibility within 15 %. Before, Stribeck friction was missed on this seed.
+    (p ~ 1e-10) with the folds' Fs 2.5 N and vs 8.3 mm/s; the refit (DIDIM, the searched level its start, the values
+    searched in rounds) then gives Fs 3.58 N (truth 3.53: 1.4 %), vs 7.53 mm/s (8: 6 %) and the flexibility within 1 %
+    (in one round: 11 % and 14 %). Before, Stribeck friction was missed on this seed.
     """
     from ilic_cli.diagnosis.select import HELDOUT_UNCONFIRMED
     from plant.corpus import case_of
@@ -83,7 +84,7 @@ def test_stribeck_beside_a_flexibility_that_the_held_out_test_leaves_unconfirmed
     assert diag.refit is not None and diag.refit.accepted
     (f,) = [x for x in diag.findings if x.effect.id == "stribeck"]
     assert f.method != dwell.METHOD  # the refit's
-    assert all(abs(e) <= PARAM_TOLERANCE for e in sc["parameter_error"].values()), sc["parameter_error"]
+    assert all(abs(e) <= 0.1 for e in sc["parameter_error"].values()), sc["parameter_error"]
     text = to_markdown(diag)
     assert "proposed on the closed loop, since the inverse model's F-test finds it" in text
     assert "This replay is noise-free" not in text and "do not resolve the stick and break-away there" not in text
