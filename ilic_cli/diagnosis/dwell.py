@@ -28,7 +28,7 @@ training error, keeps the model without it; fewer than :data:`MIN_FOLDS` folds
 with an estimate is no finding. Once kept, a level found off the dwells is the
 start of the closed-loop refit, a column again (:mod:`ilic_cli.diagnosis.refit`:
 the folds hold the other effects at the inverse model's estimates, and the
-level makes up for their bias; on the seed above 2.5 N for 3.53, refitted 3.15 N);
+level makes up for their bias; on seed 1303 2.5 N for 3.53, refitted 3.58 N);
 one found at the dwells is not refitted, since the refit replays noise-free
 and the creep there is the noise's.
 
