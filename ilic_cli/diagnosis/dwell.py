@@ -16,7 +16,7 @@ last candidate for the replay; so too on any log where the inverse model's
 F-test found it but its held-out test did not confirm it
 (:meth:`ilic_cli.diagnosis.select.SelectionResult.unconfirmed`: on the EMPS
 reference with a flexibility beside it, F-test p <= 1e-35 and held-out p =
-0.07-0.5 on four seeds, where the replay accepts it at p <= 1e-9). The replay
+0.027-0.5 on four seeds, where the replay accepts it at p <= 1.0e-9). The replay
 judges it (:func:`ilic_cli.diagnosis.decide.replay_decide`)
 with its level held (``Step.level``): on each fold's training blocks the level
 ``Fs`` and the velocity ``vs`` are searched on a grid by noisy closed-loop
