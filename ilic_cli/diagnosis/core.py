@@ -18,7 +18,7 @@ from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation,
 from ilic_cli.diagnosis.decide import ReplayVerdict, decision_sensor, materiality, noisy_output_error, replay_decide
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
-from ilic_cli.diagnosis.refit import Refit, closed_loop_refit
+from ilic_cli.diagnosis.refit import InverseFit, Refit, closed_loop_refit
 from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, fit_system, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
@@ -332,19 +332,11 @@ def diagnose(
     refit = None
     held = [i for i, st in enumerate(kept) if st.level is not None]
     replayed = settings.simulate and against is None and "q_ref" in log
-    if held == [len(kept) - 1] and replayed and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz):
-        # a level held at the closed loop's estimate (the last candidate judged) joins the refit as a column, the estimate its start;
-        # no search of its value with the inverse model's linear parameters: theirs is the level the closed loop replaced.
-        # Not at dwells: there Stribeck friction shows in the creep the sensor noise drives, and the refit replays noise-free
-        # (measured, refitted so: the two Stribeck trapezoids with the current loop 13 and 10 % -> 37 and 44 % off)
-        grids = {s.effect.id: s.effect.scan.grid(data.kin, fs) for s in kept if s.effect.scan is not None}
-        held_step = kept[-1]
-        assert held_step.level is not None
-        columns = [*kept[:-1], Step(held_step.effect, held_step.value)]
-        refit = closed_loop_refit(log, prepared, base, known, columns, np.r_[res1.theta, held_step.level], grids, ls=settings.ls, hold_s=hold)
-        if refit.accepted and refit.theta is not None and refit.cov is not None and replay_sensor:
-            refit = _judged_with_noise(refit, log, settings.ls, replay_sensor, [*known, *kept], names1, res1.theta, known, hold)
-    elif held:
+    # a level held at the closed loop's estimate (the last candidate judged) joins the refit as a column, the estimate its start,
+    # with no search of its value with the inverse model's linear parameters: theirs is the level the closed loop replaced.
+    # Not at dwells: there Stribeck friction shows in the creep the sensor noise drives, and the refit replays noise-free
+    # (measured, refitted so: the two Stribeck trapezoids with the current loop 13 and 10 % -> 37 and 44 % off)
+    if held and not (held == [len(kept) - 1] and replayed and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz)):
         refit = Refit(
             False,
             "not refitted on the closed loop: the Stribeck level and vs found at the dwells are closed-loop estimates already, of the creep "
@@ -355,9 +347,13 @@ def diagnose(
         )
     elif kept and replayed:
         grids = {s.effect.id: s.effect.scan.grid(data.kin, fs) for s in kept if s.effect.scan is not None}
-        refit = closed_loop_refit(
-            log, prepared, base, known, kept, res1.theta, grids, ls=settings.ls, inverse_fit=lambda s: _inverse_fit(data, base, s, rows), hold_s=hold
-        )
+        inverse_fit: InverseFit | None = lambda s: _inverse_fit(data, base, s, rows)
+        columns, theta0 = kept, res1.theta
+        if held:
+            level = kept[-1].level
+            assert level is not None
+            columns, theta0, inverse_fit = [*kept[:-1], Step(kept[-1].effect, kept[-1].value)], np.r_[res1.theta, level], None
+        refit = closed_loop_refit(log, prepared, base, known, columns, theta0, grids, ls=settings.ls, inverse_fit=inverse_fit, hold_s=hold)
         if refit.accepted and refit.theta is not None and refit.cov is not None and replay_sensor:
             refit = _judged_with_noise(refit, log, settings.ls, replay_sensor, [*known, *kept], names1, res1.theta, known, hold)
     final = refit.steps if refit is not None and refit.accepted else kept
@@ -503,8 +499,8 @@ def _decide(
                 step[i] = replace(ev, reason=f"{ev.reason}; {by_effect[ev.effect].reason}")
     for st in material:
         if st.level is not None and st.effect.id in by_effect:  # the closed loop's proposal: its verdict beside the inverse model's last word on it
-            last = [(k, i) for k, step in enumerate(selection.tried) for i, ev in enumerate(step) if ev.effect == st.effect.id][-1:]
-            for k, i in last:
+            if (at := selection.last_at(st.effect.id)) is not None:
+                k, i = at
                 ev = selection.tried[k][i]
                 selection.tried[k][i] = replace(ev, reason=f"{ev.reason}; proposed on the closed loop instead: {by_effect[st.effect.id].reason}")
     order = [s.effect.id for s in selection.steps] + [s.effect.id for s in material if s.level is not None]

@@ -244,9 +244,14 @@ class SelectionResult:
     accepted: list[Evaluation] = field(default_factory=list)
     tried: list[list[Evaluation]] = field(default_factory=list)
 
+    def last_at(self, effect_id: str) -> tuple[int, int] | None:
+        """Where in ``tried`` the last evaluation of ``effect_id`` is (round, position); ``None`` when it was never tried."""
+        return next(((k, i) for k in reversed(range(len(self.tried))) for i, ev in enumerate(self.tried[k]) if ev.effect == effect_id), None)
+
     def last_word(self, effect_id: str) -> Evaluation | None:
         """The last evaluation of ``effect_id`` (``None`` when it was never tried)."""
-        return next((ev for step in reversed(self.tried) for ev in step if ev.effect == effect_id), None)
+        at = self.last_at(effect_id)
+        return None if at is None else self.tried[at[0]][at[1]]
 
     def unconfirmed(self, effect_id: str) -> bool:
         """Whether the last evaluation of ``effect_id`` passed its F-test but not its held-out test (:data:`HELDOUT_UNCONFIRMED`)."""
