@@ -49,16 +49,16 @@ def errors(log: RunLog, rigid: dict[str, float], effects: dict[str, dict[str, fl
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--case", default="stribeck-trapezoid-sensor-s210")
+    ap.add_argument("--case", default="stribeck-trapezoid-sensor-s210", choices=sorted(n for n, c in CASES.items() if "stribeck" in c.effects))
     ap.add_argument("--seeds", type=int, default=4, help="noise realisations per point (seeds 1..N; the log's own is its case seed)")
     ap.add_argument("--vs-mm", default="5,6,7,8,9,10,11,12,14", help="vs values (mm/s)")
     args = ap.parse_args()
+    if args.seeds < 2:
+        ap.error("--seeds: at least 2 (the standard error needs two realisations)")
     case = CASES[args.case]
     log = build_case(case)
     truth = log.meta["corpus"]["truth"]
     rigid, effects = truth["parameters"], truth["effects"]
-    if "stribeck" not in effects:
-        raise SystemExit(f"{args.case}: no Stribeck friction concealed")
     ls = LSSettings()
     vs_grid = [float(v) * 1e-3 for v in args.vs_mm.split(",")]
     seeds = [s for s in range(1, args.seeds + 2) if s != case.seed][: args.seeds]
