@@ -512,7 +512,7 @@ def closed_loop_refit(
     out.value_std = {s.effect: s.std for s in searches if s.accepted and s.primary}
     searched = ", ".join(f"{s.parameter} of {s.effect}" for s in searches if s.accepted)
     out.reason = (
-        f"refitted on the closed loop ({METHOD}, {res0.n_iterations} iterations{', ' + searched + ' searched' if searched else ''}): "
+        f"refitted on the closed loop ({METHOD}, {_count(res0.n_iterations, 'iteration')}{', ' + searched + ' searched' if searched else ''}): "
         f"closed-loop output error {error_inverse:.3g} % -> {error:.3g} %"
     )
     return _confirmed(out, confirm)
