@@ -864,9 +864,11 @@ def output_error_gauss_newton(
     and without trying a step when the undamped step's linear prediction
     lowers it by less than ``tol`` (less than ``first_gain`` on the first
     iteration: a fit that must gain that much to be kept need not be run on).
-    This is the output-error criterion DIDIM minimises (Gautier et al. 2013,
-    eq. 4) with the true sensitivity of the closed loop instead of DIDIM's
-    regressor of the simulated states.
+    This is the output-error criterion DIDIM minimises (Gautier, Janot,
+    Vandanjon, IEEE TCST 21(2), 2013), with the closed loop's own sensitivity
+    ``d tau_s / d z`` instead of DIDIM's regressor of the simulated states
+    (:mod:`ilic_cli.closed_loop_id`). ``sensitivity`` is the last Jacobian
+    taken, at the point before the last step.
     """
     from ilic_cli.parallel import ordered_map
 
