@@ -17,10 +17,10 @@ first ``N - 1`` reseeds (``plant.corpus.case_of``: new noise, disturbance and
 trajectory): on each, the ``vs`` (a grid of 0.5-2 times the truth) whose
 *mean* replay over the ``--seeds`` realisations is closest to the recording
 in the decimated force, every other parameter the truth. The mean, not the
-mean of the errors: a single noisy replay's own noise adds an error that
-grows as ``vs`` falls (a steeper friction law answers the noise harder),
-which pulls the mean error's least value high. This is the best any
-estimator of ``vs`` can do on that recording, all else known.
+mean of the errors: each noisy replay adds the error of its own noise, whose
+size depends on ``vs`` too (the replay's variance), and averaging the
+replays first takes most of it out. This is the best any estimator of ``vs``
+can do on that recording, all else known.
 
 Usage: python benchmarks/stribeck_identifiability.py [--case NAME] [--seeds 4] [--vs-mm 5,6,7,8,9,10,11,12,14] [--recordings N]
 """
