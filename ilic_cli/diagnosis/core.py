@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -354,10 +355,15 @@ def diagnose(
             level = kept[-1].level
             assert level is not None
             columns, theta0, inverse_fit = [*kept[:-1], Step(kept[-1].effect, kept[-1].value)], np.r_[res1.theta, level], None
-        noise = replay_sensor
-        confirm: Callable[[Refit], str | None] | None = (
-            None if not noise else (lambda r: _noise_objection(r, log, settings.ls, noise, [*known, *kept], names1, res1.theta, known, hold))
-        )
+        confirm: Callable[[Refit], str | None] | None = None
+        if noise := replay_sensor:
+            # the inverse model's estimate replayed with the noise: once, whichever refits (an output-error fit, then a search) are judged
+            before = cache(
+                lambda: noisy_output_error(
+                    log, settings.ls, *model_parameters([*known, *kept], names1, res1.theta, np.zeros((len(res1.theta),) * 2), hold), noise
+                )
+            )
+            confirm = lambda r: _noise_objection(r, log, settings.ls, noise, before(), known, hold)  # noqa: E731
         refit = closed_loop_refit(log, prepared, base, known, columns, theta0, grids, ls=settings.ls, inverse_fit=inverse_fit, hold_s=hold, confirm=confirm)
     final = refit.steps if refit is not None and refit.accepted else kept
     for st, st_final in zip(kept, final, strict=True):
@@ -511,18 +517,9 @@ def _decide(
     return kept, verdicts, sensor
 
 
-def _noise_objection(
-    refit: Refit,
-    log: RunLog,
-    ls: LSSettings,
-    sensor: dict[str, Any],
-    steps: list[Step],
-    names: tuple[str, ...],
-    theta: np.ndarray,
-    known: list[Step],
-    hold: float,
-) -> str | None:
-    """Why ``refit`` is not kept: replayed with the deciding replays' sensor noise, it does not beat the inverse model's estimate; else ``None``.
+def _noise_objection(refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str, Any], before: float, known: list[Step], hold: float) -> str | None:
+    """Why ``refit`` is not kept: replayed with the deciding replays' sensor noise, it does not beat the inverse model's estimate
+    (its output error so, ``before`` %); else ``None``.
 
     The refit itself replays noise-free (a value estimated on noisy replays is pulled by the replay's own answer to
     its noise: a 1.0 ms lag to 0.71-0.84 ms, the corpus's lags 14-17 % off against 0.1-5 %); whether its estimate
@@ -532,7 +529,6 @@ def _noise_objection(
     off) is kept.
     """
     assert refit.theta is not None
-    before = noisy_output_error(log, ls, *model_parameters(steps, names, theta, np.zeros((len(theta),) * 2), hold), sensor)
     after = noisy_output_error(log, ls, *model_parameters([*known, *refit.steps], refit.names, refit.theta, np.zeros((len(refit.theta),) * 2), hold), sensor)
     if after < before:
         return None

@@ -428,11 +428,14 @@ def closed_loop_refit(
         )
 
         # 1b. every parameter at once on the output error itself, its sensitivities by finite differences of replays
-        def residual_of(model_steps: list[Step], theta: np.ndarray) -> np.ndarray | None:
-            sim = replayed(model_steps, names0, theta)
+        def residual_of(model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> np.ndarray | None:
+            """The recorded minus the replayed force of the estimate (decimated; one replay), ``None`` when it does not replay."""
+            sim = replayed(model_steps, names, theta)
             return None if sim is None else y - recorded.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
 
-        oe = _output_error_refit(known, steps, names0, np.asarray(theta0, dtype=np.float64), grids, residual_of, error_inverse, y_norm)
+        oe = _output_error_refit(
+            known, steps, names0, np.asarray(theta0, dtype=np.float64), grids, lambda s, th: residual_of(s, names0, th), error_inverse, y_norm
+        )
         if isinstance(oe, str):
             out.reason += f"; {oe}"
         elif (final := replayed([*known, *oe.steps], names0, oe.theta)) is None:
@@ -451,10 +454,9 @@ def closed_loop_refit(
         def profile_inverse(model_steps: list[Step], anchor: np.ndarray) -> _Point:
             """The inverse model's fit at ``model_steps``' values, replayed (one replay); ``anchor`` is not used."""
             names, theta, _ = inverse_fit(model_steps)
-            sim = replayed(model_steps, names, theta)
-            if sim is None:
+            r = residual_of(model_steps, names, theta)
+            if r is None:
                 return _Point(math.inf, theta, math.inf, 0.0, theta)
-            r = y - recorded.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
             e = 100.0 * float(np.linalg.norm(r)) / y_norm
             return _Point(e, theta, e, lag1_autocorrelation(r), theta)
 
@@ -566,7 +568,7 @@ def _search_all(
             searches.append(found)
             if found.accepted:
                 st = steps[j]
-                steps[j] = Step(st.effect, _with_slot(st.value, slot, found.value) if isinstance(st.value, tuple) else found.value)
+                steps[j] = Step(st.effect, _with_slot(st.value, slot, found.value))
         rounds.append(searches)
         if not any(f.accepted for f in searches) or not point.error < (1.0 - ROUND_GAIN) * begin:
             break
@@ -629,7 +631,10 @@ def _rounds(rounds: list[list[ValueSearch]]) -> list[ValueSearch]:
 
 
 def _with_slot(value: Any, slot: int, new: float) -> Any:
-    v = list(value) if isinstance(value, tuple) else [value]
+    """``value`` with slot ``slot`` set to ``new``: a scalar value (slot 0) is ``new`` itself."""
+    if not isinstance(value, tuple):
+        return new
+    v = list(value)
     v[slot] = new
     return tuple(v)
 
@@ -656,18 +661,14 @@ def _search(
     scan = st.effect.scan
     assert scan is not None
     value = st.value
-    v0 = float(value[slot]) if isinstance(value, tuple) else float(value)
+    v0 = _slot_value(value, slot)
+    sub = _slot_range(st, slot, grid)
+    lo, hi = float(sub[0]), float(sub[-1])
     if slot == 0:
-        sub = search_range(st.effect, np.asarray(grid, dtype=np.float64), v0)
-        lo, hi = float(sub[0]), float(sub[-1])
-        log_scale = scan.log and lo > 0
-        fwd, inv = _scale(log_scale)
+        fwd, inv = _scale(scan.log and lo > 0)
         step_u = (fwd(hi) - fwd(lo)) / max(len(sub) - 1, 1)
     else:
-        assert scan.secondary is not None
-        lo, hi = scan.secondary[2], scan.secondary[3]
         fwd, inv = _scale(True)
-        sub = np.array([lo, hi])
         step_u = (fwd(hi) - fwd(lo)) / 20.0
     at = {"start": replays[0]}
     memo: dict[float, _Point] = {}
@@ -676,7 +677,7 @@ def _search(
 
     def with_value(v: float) -> list[Step]:
         new = list(steps)
-        new[j] = Step(st.effect, _with_slot(value, slot, v) if isinstance(value, tuple) else v)
+        new[j] = Step(st.effect, _with_slot(value, slot, v))
         return new
 
     def f(u: float) -> float:
@@ -740,15 +741,15 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
-def _slot_bounds(step: Step, slot: int, grids: Mapping[str, np.ndarray]) -> tuple[float, float]:
-    """The range the closed loop searches slot ``slot`` of ``step``'s value in (as :func:`_search`)."""
+def _slot_range(step: Step, slot: int, grid: np.ndarray) -> np.ndarray:
+    """What the closed loop searches slot ``slot`` of ``step``'s value on: the part of the effect's ``grid`` around it
+    (:func:`~ilic_cli.diagnosis.select.search_range`), or the secondary value's bounds."""
     scan = step.effect.scan
     assert scan is not None
-    if slot == 1:
-        assert scan.secondary is not None
-        return float(scan.secondary[2]), float(scan.secondary[3])
-    sub = search_range(step.effect, np.asarray(grids[step.effect.id], dtype=np.float64), _slot_value(step.value, 0))
-    return float(sub[0]), float(sub[-1])
+    if slot == 0:
+        return search_range(step.effect, np.asarray(grid, dtype=np.float64), _slot_value(step.value, 0))
+    assert scan.secondary is not None
+    return np.array([scan.secondary[2], scan.secondary[3]])
 
 
 def _output_error_refit(
@@ -778,7 +779,7 @@ def _output_error_refit(
     def steps_at(ratio: np.ndarray) -> list[Step]:
         new = list(steps)
         for (j, _, _, k), v in zip(slots, v0 * ratio, strict=True):
-            new[j] = Step(new[j].effect, _with_slot(new[j].value, k, float(v)) if isinstance(new[j].value, tuple) else float(v))
+            new[j] = Step(new[j].effect, _with_slot(new[j].value, k, float(v)))
         return new
 
     fit = output_error_gauss_newton(lambda z: residual_of(steps_at(z[n_lin:]), z[:n_lin]), np.r_[theta0, np.ones(len(slots))], first_gain=ROUND_GAIN)
@@ -786,9 +787,9 @@ def _output_error_refit(
     found = steps_at(fit.z[n_lin:])
     if not error < (1.0 - ROUND_GAIN) * error_inverse:
         return f"the {OE_METHOD} gives {error:.3g} %, not {ROUND_GAIN:.0%} lower ({fit.stop})"
-    for j, _, _, k in slots:
-        grid = np.asarray(grids[steps[j].effect.id], dtype=np.float64)
-        if k == 0 and (edge := at_edge(found[j].effect, search_range(found[j].effect, grid, _slot_value(steps[j].value, 0)), found[j].value)):
+    ranges = [_slot_range(steps[j], k, grids[steps[j].effect.id]) for j, _, _, k in slots]
+    for (j, _, _, k), sub in zip(slots, ranges, strict=True):
+        if k == 0 and (edge := at_edge(found[j].effect, sub, found[j].value)):
             return f"the {OE_METHOD} ends with {edge}"
     cov = gls_covariance(fit.sensitivity, fit.residual + fit.sensitivity @ fit.z, fit.z)
     std = np.abs(v0) * np.sqrt(np.clip(np.diag(cov)[n_lin:], 0.0, None))
@@ -801,7 +802,7 @@ def _output_error_refit(
             _slot_value(found[j].value, k),
             _slot_value(found[j].value, k),
             float(std[i]),
-            _slot_bounds(steps[j], k, grids),
+            (float(ranges[i][0]), float(ranges[i][-1])),
             error_inverse,
             error,
             fit.replays,
