@@ -16,13 +16,14 @@ With ``--recordings N`` it asks the same of the case's own log and of its
 first ``N - 1`` reseeds (``plant.corpus.case_of``: new noise, disturbance and
 trajectory): on each, the ``vs`` (a grid of 0.5-2 times the truth) whose
 *mean* replay over the ``--seeds`` realisations is closest to the recording
-in the decimated force, every other parameter the truth. The mean, not the
+in the decimated force, every other parameter the truth (``--ratios``: the
+grid as multiples of the truth; ``--vs-mm`` is the profile's grid only). The mean, not the
 mean of the errors: each noisy replay adds the error of its own noise, whose
 size depends on ``vs`` too (the replay's variance), and averaging the
 replays first takes most of it out. This is the best any estimator of ``vs``
 can do on that recording, all else known.
 
-Usage: python benchmarks/stribeck_identifiability.py [--case NAME] [--seeds 4] [--vs-mm 5,6,7,8,9,10,11,12,14] [--recordings N]
+Usage: python benchmarks/stribeck_identifiability.py [--case NAME] [--seeds 4] [--vs-mm 5,6,7,8,9,10,11,12,14] [--recordings N [--ratios 0.5,...,2]]
 """
 
 from __future__ import annotations
@@ -59,10 +60,10 @@ def errors(log: RunLog, rigid: dict[str, float], effects: dict[str, dict[str, fl
 
 
 RATIOS = (0.5, 0.625, 0.75, 0.875, 1.0, 1.125, 1.25, 1.375, 1.5, 1.75, 2.0)
-"""The ``vs`` of ``--recordings``, as multiples of the truth."""
+"""The ``vs`` of ``--recordings``, as multiples of the truth (the default of ``--ratios``)."""
 
 
-def best_vs(name: str, n_seeds: int, ls: LSSettings) -> tuple[float, float]:
+def best_vs(name: str, n_seeds: int, ls: LSSettings, ratios: tuple[float, ...] = RATIOS) -> tuple[float, float]:
     """The truth and the ``vs`` whose mean replay over ``n_seeds`` realisations is closest to recording ``name`` (decimated force)."""
     case = case_of(name)
     log = build_case(case)
@@ -78,21 +79,28 @@ def best_vs(name: str, n_seeds: int, ls: LSSettings) -> tuple[float, float]:
         e = decimate_matlab(mean - np.asarray(log["tau"]), r)[edge:-edge]
         return float(e @ e)
 
-    errs = ordered_map(error, RATIOS)
-    return vs0, vs0 * RATIOS[int(np.argmin(errs))]
+    errs = ordered_map(error, ratios)
+    return vs0, vs0 * ratios[int(np.argmin(errs))]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", default="stribeck-trapezoid-sensor-s210", choices=sorted(n for n, c in CASES.items() if "stribeck" in c.effects))
     ap.add_argument("--seeds", type=int, default=4, help="noise realisations per point (seeds 1..N; the log's own is its case seed)")
-    ap.add_argument("--vs-mm", default="5,6,7,8,9,10,11,12,14", help="vs values (mm/s)")
+    ap.add_argument("--vs-mm", default="5,6,7,8,9,10,11,12,14", help="vs values (mm/s) of the profile (not of --recordings)")
     ap.add_argument("--recordings", type=int, default=0, help="instead: the best vs on this many recordings (the case's and its reseeds)")
+    ap.add_argument("--ratios", default=",".join(f"{r:g}" for r in RATIOS), help="the vs of --recordings, as multiples of the truth")
     args = ap.parse_args()
     if args.seeds < 2:
         ap.error("--seeds: at least 2 (the standard error needs two realisations)")
     if args.recordings < 0:
         ap.error("--recordings: 0 (the profile of the case's own log) or more")
+    try:
+        ratios = tuple(float(r) for r in args.ratios.split(","))
+    except ValueError:
+        ap.error(f"--ratios: numbers separated by commas, not {args.ratios!r}")
+    if not all(r > 0 for r in ratios):
+        ap.error("--ratios: every multiple above 0")
     ls = LSSettings()
     if args.recordings:
         print(f"{args.case}: the vs whose mean replay over {args.seeds} noise realisations fits each recording best, all else the truth")
@@ -101,7 +109,7 @@ def main() -> None:
         print("|---|---|---|---|")
         for k in range(args.recordings):
             name = args.case if k == 0 else f"{args.case}@s{CASES[args.case].seed + k * RESEED_STEP}"
-            vs0, best = best_vs(name, args.seeds, ls)
+            vs0, best = best_vs(name, args.seeds, ls, ratios)
             print(f"| {name} | {vs0 * 1e3:g} | {best * 1e3:g} | {(best / vs0 - 1) * 100:+.1f} |")
         return
     case = CASES[args.case]
