@@ -83,6 +83,17 @@ def best_vs(name: str, n_seeds: int, ls: LSSettings, ratios: tuple[float, ...] =
     return vs0, vs0 * ratios[int(np.argmin(errs))]
 
 
+def numbers(ap: argparse.ArgumentParser, flag: str, text: str) -> tuple[float, ...]:
+    """The positive numbers of a comma-separated option, or a usage error (exit 2)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        ap.error(f"{flag}: numbers separated by commas, not {text!r}")
+    if not all(v > 0 for v in values):
+        ap.error(f"{flag}: every value above 0")
+    return values
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", default="stribeck-trapezoid-sensor-s210", choices=sorted(n for n, c in CASES.items() if "stribeck" in c.effects))
@@ -95,12 +106,8 @@ def main() -> None:
         ap.error("--seeds: at least 2 (the standard error needs two realisations)")
     if args.recordings < 0:
         ap.error("--recordings: 0 (the profile of the case's own log) or more")
-    try:
-        ratios = tuple(float(r) for r in args.ratios.split(","))
-    except ValueError:
-        ap.error(f"--ratios: numbers separated by commas, not {args.ratios!r}")
-    if not all(r > 0 for r in ratios):
-        ap.error("--ratios: every multiple above 0")
+    ratios = numbers(ap, "--ratios", args.ratios)
+    vs_grid = [v * 1e-3 for v in numbers(ap, "--vs-mm", args.vs_mm)]
     ls = LSSettings()
     if args.recordings:
         print(f"{args.case}: the vs whose mean replay over {args.seeds} noise realisations fits each recording best, all else the truth")
@@ -116,7 +123,6 @@ def main() -> None:
     log = build_case(case)
     truth = log.meta["corpus"]["truth"]
     rigid, effects = truth["parameters"], truth["effects"]
-    vs_grid = [float(v) * 1e-3 for v in args.vs_mm.split(",")]
     seeds = [s for s in range(1, args.seeds + 2) if s != case.seed][: args.seeds]
     rows = []
     for vs in vs_grid:
