@@ -91,6 +91,7 @@ from ilic_cli.effects import Fit
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.idim_ls import LSSettings, prepare
 from ilic_cli.lsq import finite_or_none, lstsq
+from ilic_cli.parallel import ordered_map
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
@@ -785,6 +786,7 @@ def _output_error_refit(
     fit = output_error_gauss_newton(lambda z: residual_of(steps_at(z[n_lin:]), z[:n_lin]), np.r_[theta0, np.ones(len(slots))], first_gain=ROUND_GAIN)
     error = 100.0 * float(np.linalg.norm(fit.residual)) / y_norm
     found = steps_at(fit.z[n_lin:])
+    values = [_slot_value(found[j].value, k) for j, _, _, k in slots]
     if not error < (1.0 - ROUND_GAIN) * error_inverse:
         return f"the {OE_METHOD} gives {error:.3g} %, not {ROUND_GAIN:.0%} lower ({fit.stop})"
     ranges = [_slot_range(steps[j], k, grids[steps[j].effect.id]) for j, _, _, k in slots]
@@ -799,15 +801,15 @@ def _output_error_refit(
             pname,
             unit,
             float(v0[i]),
-            _slot_value(found[j].value, k),
-            _slot_value(found[j].value, k),
+            values[i],
+            values[i],
             float(std[i]),
             (float(ranges[i][0]), float(ranges[i][-1])),
             error_inverse,
             error,
             fit.replays,
             True,
-            f"fitted on the closed loop with the linear parameters: {pname} {v0[i]:.4g} -> {_slot_value(found[j].value, k):.4g} {unit}".strip(),
+            f"fitted on the closed loop with the linear parameters: {pname} {v0[i]:.4g} -> {values[i]:.4g} {unit}".strip(),
             k == 0,
         )
         for i, (j, pname, unit, k) in enumerate(slots)
@@ -871,8 +873,6 @@ def output_error_gauss_newton(
     (:mod:`ilic_cli.closed_loop_id`). ``sensitivity`` is the last Jacobian
     taken, at the point before the last step.
     """
-    from ilic_cli.parallel import ordered_map
-
     z = np.asarray(z0, dtype=np.float64).copy()
     r = residual(z)
     evaluations = 1
@@ -898,8 +898,9 @@ def output_error_gauss_newton(
             break
         J = np.column_stack([(r - c) / hk for c, hk in zip(cols, h, strict=True) if c is not None])
         predicted = float(np.linalg.norm(r - J @ np.linalg.lstsq(J, r, rcond=None)[0]))
-        if not e > 0.0 or (e - predicted) / e < (first_gain if len(history) == 1 else tol):
-            stop = f"its step is predicted to lower the error by less than {first_gain if len(history) == 1 else tol:.2%}"
+        need = first_gain if len(history) == 1 else tol
+        if not e > 0.0 or (e - predicted) / e < need:
+            stop = f"its step is predicted to lower the error by less than {need:.2%}"
             break
         jtj, jtr = J.T @ J, J.T @ r
         damp = np.diag(np.diag(jtj))
