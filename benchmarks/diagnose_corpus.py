@@ -45,7 +45,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from plant.corpus import CASES, PARAM_TOLERANCE, RESEED_STEP, build_case, case_of, score  # noqa: E402
+from plant.corpus import CASES, PARAM_TOLERANCE, build_case, case_of, reseeded, score  # noqa: E402
 
 
 def run_case(name: str) -> dict[str, Any]:
@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     if not names:
         print(f"no case matches {args.cases!r}", file=sys.stderr)
         return 2
-    names += [f"{n}@s{CASES[n].seed + RESEED_STEP * k}" for n in names if not CASES[n].clean for k in range(1, args.reseed + 1)]
+    names += [reseeded(n, k) for n in names if not CASES[n].clean for k in range(1, args.reseed + 1)]
     with _pool(args.jobs) as pool:
         rows = pool.map(run_case, names, chunksize=1)
     summ = summary(rows)

@@ -43,7 +43,7 @@ from ilic_cli.filtering import decimate_matlab  # noqa: E402
 from ilic_cli.idim_ls import LSSettings  # noqa: E402
 from ilic_cli.parallel import ordered_map  # noqa: E402
 from ilic_cli.runlog import RunLog  # noqa: E402
-from plant.corpus import CASES, RESEED_STEP, build_case, case_of  # noqa: E402
+from plant.corpus import CASES, Case, build_case, case_of, reseeded  # noqa: E402
 
 METRICS = ("band force", "raw force", "force / 3", "position")
 
@@ -59,18 +59,22 @@ def errors(log: RunLog, rigid: dict[str, float], effects: dict[str, dict[str, fl
     return np.array([band @ band, raw @ raw, third @ third, pos @ pos])
 
 
+def true_plant(case: Case, n_seeds: int) -> tuple[RunLog, dict[str, float], dict[str, dict[str, float]], list[int]]:
+    """``case``'s log, its true rigid parameters and effects, and ``n_seeds`` noise seeds other than the log's own."""
+    log = build_case(case)
+    truth = log.meta["corpus"]["truth"]
+    seeds = [s for s in range(1, n_seeds + 2) if s != case.seed][:n_seeds]
+    return log, truth["parameters"], truth["effects"], seeds
+
+
 RATIOS = (0.5, 0.625, 0.75, 0.875, 1.0, 1.125, 1.25, 1.375, 1.5, 1.75, 2.0)
 """The ``vs`` of ``--recordings``, as multiples of the truth (the default of ``--ratios``)."""
 
 
 def best_vs(name: str, n_seeds: int, ls: LSSettings, ratios: tuple[float, ...] = RATIOS) -> tuple[float, float]:
     """The truth and the ``vs`` whose mean replay over ``n_seeds`` realisations is closest to recording ``name`` (decimated force)."""
-    case = case_of(name)
-    log = build_case(case)
-    truth = log.meta["corpus"]["truth"]
-    rigid, effects = truth["parameters"], truth["effects"]
+    log, rigid, effects, seeds = true_plant(case_of(name), n_seeds)
     vs0 = float(effects["stribeck"]["vs"])
-    seeds = [s for s in range(1, n_seeds + 2) if s != case.seed][:n_seeds]
     r, edge = ls.decimation, ls.trim // ls.decimation
 
     def error(ratio: float) -> float:
@@ -115,15 +119,11 @@ def main() -> None:
         print("| recording | vs truth (mm/s) | best vs (mm/s) | off (%) |")
         print("|---|---|---|---|")
         for k in range(args.recordings):
-            name = args.case if k == 0 else f"{args.case}@s{CASES[args.case].seed + k * RESEED_STEP}"
+            name = reseeded(args.case, k)
             vs0, best = best_vs(name, args.seeds, ls, ratios)
             print(f"| {name} | {vs0 * 1e3:g} | {best * 1e3:g} | {(best / vs0 - 1) * 100:+.1f} |")
         return
-    case = CASES[args.case]
-    log = build_case(case)
-    truth = log.meta["corpus"]["truth"]
-    rigid, effects = truth["parameters"], truth["effects"]
-    seeds = [s for s in range(1, args.seeds + 2) if s != case.seed][: args.seeds]
+    log, rigid, effects, seeds = true_plant(CASES[args.case], args.seeds)
     rows = []
     for vs in vs_grid:
         fx = {**effects, "stribeck": {**effects["stribeck"], "vs": vs}}

@@ -505,6 +505,11 @@ RESEED_STEP = 1000
 """The ``k``-th other seed of a case (``benchmarks/diagnose_corpus.py --reseed``) is its seed plus ``k`` times this."""
 
 
+def reseeded(name: str, k: int) -> str:
+    """The name of case ``name`` with its ``k``-th other seed (:data:`RESEED_STEP`), ``name`` itself for ``k = 0`` (:func:`case_of` reads it)."""
+    return name if k == 0 else f"{name}@s{CASES[name].seed + k * RESEED_STEP}"
+
+
 def case_of(name: str) -> Case:
     """The case ``name``, or ``name@sSEED``: that case with another seed (its effects and sizes as they are)."""
     base, _, seed = name.partition("@s")

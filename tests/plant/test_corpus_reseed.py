@@ -10,7 +10,7 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from plant.corpus import CASES, build_case
+from plant.corpus import CASES, build_case, case_of, reseeded
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "diagnose_corpus.py"
 
@@ -30,6 +30,7 @@ def test_a_reseeded_case_keeps_its_effects_and_changes_its_noise(bench: ModuleTy
     case = bench.case_of(f"{name}@s1233")
     assert (case.name, case.seed, case.effects, case.trajectory, case.noise) == (f"{name}@s1233", 1233, CASES[name].effects, "trapezoid", "combined")
     assert bench.case_of(name) is CASES[name]
+    assert reseeded(name, 1) == f"{name}@s1233" and reseeded(name, 0) == name and case_of(reseeded(name, 3)).seed == 3233
     a, b = build_case(CASES[name]), build_case(case)
     assert a.meta["corpus"]["truth"]["effects"]["spring"] == b.meta["corpus"]["truth"]["effects"]["spring"]
     assert not np.array_equal(np.asarray(a["tau"]), np.asarray(b["tau"]))
