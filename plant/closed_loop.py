@@ -19,7 +19,7 @@ from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.idim_ilic import ILICSettings, estimate_window, update_parameters
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
-from plant.controllers import CTCSettings, PDSettings, chi_vector
+from plant.controllers import CTCSettings, OpenLoopSettings, PDSettings, chi_vector
 from plant.dynamics import P_LAG, STICK_VELOCITY, RigidParameters, drive_lag_s, plant_vector
 from plant.generic import kernel_for
 from plant.sensors import TAU_SENSORS, draw_disturbance, draw_noise, measured_force
@@ -48,6 +48,51 @@ class LoopResult:
     tau_sensor: str
     pulses: np.ndarray | None = None
     windows: list[Any] = field(default_factory=list)
+
+
+def _initial_state(x0: tuple[float, float], T: float) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's state at ``x0 = (q, qd)`` (the load with the motor, the current loop's force NaN: the first command),
+    and the controller's memory as if the axis had been moving at ``qd`` before."""
+    q_prev = x0[0] - x0[1] * T
+    return np.array([x0[0], x0[1], x0[0], x0[1], np.nan], dtype=np.float64), np.array([q_prev, q_prev, 0.0, 1.0])
+
+
+def simulate_segments(
+    *,
+    params: RigidParameters,
+    effects: Effects,
+    command: np.ndarray,
+    fs_hz: float,
+    starts: list[int] | np.ndarray,
+    length: int,
+    x0: np.ndarray,
+    gain: float = 1.0,
+    substeps: int = 10,
+) -> np.ndarray:
+    """The plant driven by ``gain * command`` (held over each period, no feedback) over the segments ``[i, i + length)``
+    of ``starts``, each from its own state ``x0[j] = (q, qd)``: the segments' positions, one after another (multiple shooting).
+
+    One set-up for every segment (the plant's vector, the kernel); the command before a segment
+    feeds a drive lag as in one run.
+    """
+    T = 1.0 / fs_hz
+    p = plant_vector(params, effects)
+    c = OpenLoopSettings(gtau=gain).vector()
+    run_periods = kernel_for(effects).run_periods
+    u = np.ascontiguousarray(command, dtype=np.float64)
+    n = len(u)
+    zero = np.zeros(n)
+    out_q, out_u, out_vir, out_qt, out_qd, out_qdd = (np.zeros(n) for _ in range(6))
+    chi8 = np.zeros(8)
+    for j, i in enumerate(starts):
+        if not (0 <= i and i + length <= n):
+            raise ParameterError("segment", (int(i), int(length)), f"within the command's {n} samples")
+        x, cs = _initial_state((float(x0[j][0]), float(x0[j][1])), T)
+        a, b = int(i), int(i) + length
+        bad = run_periods(a, b, x, cs, zero, zero, zero, u, zero, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd, None)
+        if bad >= 0:
+            raise SimulationError(None, f"the open-loop segment from t = {i * T:.6g} s diverged at t = {bad * T:.6g} s (non-finite state)")
+    return np.concatenate([out_qt[i : i + length] for i in starts]) if len(starts) else np.zeros(0)
 
 
 def simulate_loop(
@@ -122,10 +167,7 @@ def simulate_loop(
     dist = draw_disturbance(n, seed, effects, fs_hz) if "disturbance" in effects else None
     if x0 is None:
         x0 = (float(q_r[0]), float(qd_r[0]))
-    x = np.array([x0[0], x0[1], x0[0], x0[1], np.nan], dtype=np.float64)  # the current loop's force: NaN = the first command
-    # controller memory as if the axis had been moving at qd0 before t = 0
-    q_prev = x0[0] - x0[1] * T
-    cs = np.array([q_prev, q_prev, 0.0, 1.0])
+    x, cs = _initial_state(x0, T)
     out_q, out_u, out_vir, out_qt, out_qd, out_qdd = (np.zeros(n) for _ in range(6))
 
     if isinstance(controller, CTCSettings):

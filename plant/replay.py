@@ -14,7 +14,7 @@ from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
-from plant.closed_loop import loop_log, simulate_loop
+from plant.closed_loop import LoopResult, loop_log, simulate_loop
 from plant.controllers import CTCSettings, OpenLoopSettings, PDSettings
 from plant.dynamics import RigidParameters, plant_model
 from plant.trajectories import Trajectory
@@ -223,6 +223,44 @@ class BenchmarkFigure:
         }
 
 
+STATE_CUTOFF_HZ = 100.0
+"""Cut-off of the zero-phase low-pass the measured state an open-loop simulation starts from is read through (:func:`measured_state`)."""
+
+
+def measured_state(q_m: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity read from a measured position: zero-phase low-pass at :data:`STATE_CUTOFF_HZ`, central difference."""
+    qf = butter_lowpass_zero_phase(np.asarray(q_m, dtype=np.float64), STATE_CUTOFF_HZ, fs_hz)
+    return qf, central_difference(qf, 1.0 / fs_hz)
+
+
+def open_loop(
+    params: RigidParameters,
+    effects: Mapping[str, EffectParams],
+    command: np.ndarray,
+    fs_hz: float,
+    x0: tuple[float, float],
+    *,
+    gain: float = 1.0,
+    substeps: int = 10,
+) -> LoopResult:
+    """The plant driven by ``gain * command`` held over each period (no feedback), from the state ``x0 = (q, qd)``."""
+    u = np.ascontiguousarray(command, dtype=np.float64)
+    zero = np.zeros(len(u))
+    return simulate_loop(
+        q_r=np.full(len(u), x0[0]),
+        qd_r=zero,
+        qdd_r=zero,
+        params=params,
+        effects=dict(effects),
+        controller=OpenLoopSettings(gtau=gain),
+        fs_hz=fs_hz,
+        substeps=substeps,
+        pulses=u,
+        tau_sensor="command",
+        x0=x0,
+    )
+
+
 def simulate_open_loop(
     log: RunLog,
     params: RigidParameters | Mapping[str, float],
@@ -250,23 +288,11 @@ def simulate_open_loop(
     if not 2 <= init_samples < n - 2:
         raise ParameterError("init_samples", init_samples, f"between 2 and {n - 3}")
     T = log.dt_s
-    qf = butter_lowpass_zero_phase(np.asarray(log["q"], dtype=np.float64), 100.0, 1.0 / T)
-    v0 = float((qf[init_samples + 1] - qf[init_samples - 1]) / (2 * T))
+    _, vf = measured_state(np.asarray(log["q"], dtype=np.float64), 1.0 / T)
     q = np.asarray(log["q"][init_samples:], dtype=np.float64)
     zero = np.zeros(len(q))
-    res = simulate_loop(
-        q_r=q,
-        qd_r=zero,
-        qdd_r=zero,
-        params=params,
-        effects=eff,
-        controller=OpenLoopSettings(gtau=float(gain)),
-        fs_hz=1.0 / T,
-        substeps=substeps,
-        pulses=np.asarray(log["vir"][init_samples:], dtype=np.float64),
-        tau_sensor="command",
-        x0=(float(q[0]), v0),
-    )
+    x0 = (float(q[0]), float(vf[init_samples]))
+    res = open_loop(params, eff, np.asarray(log["vir"][init_samples:], dtype=np.float64), 1.0 / T, x0, gain=float(gain), substeps=substeps)
     res.t = np.asarray(log.t[init_samples:], dtype=np.float64).copy()
     rmse = float(np.sqrt(np.mean((res.q_true - q) ** 2)))
     figure = BenchmarkFigure(rmse_mm=1e3 * rmse, fit_pct=100.0 * (1.0 - rmse / float(np.std(q))), samples=len(q), init_samples=init_samples)
