@@ -14,14 +14,26 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis import dwell
+from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
 from ilic_cli.diagnosis.decide import ReplayVerdict, decision_sensor, materiality, noisy_output_error, replay_decide
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
-from ilic_cli.diagnosis.refit import InverseFit, Refit, closed_loop_refit
-from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings, Step, fit_system, forward_select, moving_rows, system, validation_error
+from ilic_cli.diagnosis.refit import InverseFit, Refit, closed_loop_refit, plant_problem
+from ilic_cli.diagnosis.select import (
+    Evaluation,
+    SelectionResult,
+    SelectSettings,
+    Step,
+    at_edge,
+    fit_system,
+    forward_select,
+    moving_rows,
+    system,
+    validation_error,
+)
+from ilic_cli.diagnosis.sensor import position_noise
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit, applicable
@@ -88,6 +100,8 @@ class Finding:
     def to_dict(self) -> dict[str, Any]:
         ev = self.evidence.to_dict()
         ev.pop("effect", None)
+        # none when the level was the closed loop's (its inverse-model estimate is outside the effect's physics or unconfirmed)
+        inverse = self.inverse_parameters or (self.parameters if self.method == "IDIM-LS" else {})
         return {
             "effect": self.effect.id,
             "title": self.effect.title,
@@ -96,9 +110,7 @@ class Finding:
             "signature": self.effect.signature,
             "method": self.method,
             "parameters": {k: v.to_dict() for k, v in self.parameters.items()},
-            "inverse_model_parameters": None
-            if self.method == dwell.METHOD
-            else {k: v.to_dict() for k, v in (self.inverse_parameters or self.parameters).items()},
+            "inverse_model_parameters": {k: v.to_dict() for k, v in inverse.items()} if inverse else None,
             "plant_effect": self.plant_effect,
             "located": [r.to_dict() for r in self.located],
             "evidence": ev,
@@ -294,6 +306,16 @@ def diagnose(
         if validate is not None:
             validate, _ = recorded_loop(validate, before_params, before_effects, settings.ls)
     kept, verdicts, replay_sensor = _decide(log, data, base, known, selection, rows, settings, hold, validate, against)
+    replayed = settings.simulate and against is None and "q_ref" in log
+    held = [i for i, st in enumerate(kept) if st.level is not None]
+    segment_refit = None
+    if held == [len(kept) - 1] and replayed and dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz):
+        # Stribeck friction found at the dwells: the open-loop segments estimate it, and may refute it
+        segment_refit, refuted = _segment_refit(log, data, base, rows, settings.ls, known, kept, hold)
+        if refuted is not None:
+            gone = kept.pop().effect.id
+            held, segment_refit = [], None
+            verdicts = [replace(v, accepted=False, reason=f"{v.reason}; {refuted}") if v.effect == gone and v.accepted else v for v in verdicts]
     steps = [*known, *kept]
     W1, y1, names1 = system(data, base, steps, rows)
     if not len(y0) > 4 * W1.shape[1]:
@@ -332,21 +354,12 @@ def diagnose(
             assert last is not None
             accepted[st.effect.id] = last
     refit = None
-    held = [i for i, st in enumerate(kept) if st.level is not None]
-    replayed = settings.simulate and against is None and "q_ref" in log
     # a level held at the closed loop's estimate (the last candidate judged) joins the refit as a column, the estimate its start,
     # with no search of its value with the inverse model's linear parameters: theirs is the level the closed loop replaced.
     # Not at dwells: there Stribeck friction shows in the creep the sensor noise drives, and the refit replays noise-free
     # (measured, refitted so: the two Stribeck trapezoids with the current loop 13 and 10 % -> 37 and 44 % off)
     if held and not (held == [len(kept) - 1] and replayed and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz)):
-        refit = Refit(
-            False,
-            "not refitted on the closed loop: the Stribeck level and vs found at the dwells are closed-loop estimates already, of the creep "
-            "the sensor noise drives there, which the refit's noise-free replays do not have "
-            "(the other parameters: the inverse model's, with that friction taken off the force)",
-            list(kept),
-            names1,
-        )
+        refit = segment_refit or Refit(False, NOT_REFITTED, list(kept), names1)
     elif kept and replayed:
         grids = {s.effect.id: s.effect.scan.grid(data.kin, fs) for s in kept if s.effect.scan is not None}
         inverse_fit: InverseFit | None = lambda s: _inverse_fit(data, base, s, rows)
@@ -533,6 +546,128 @@ def _noise_objection(refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str
     if after < before:
         return None
     return f"replayed with the recording's sensor noise, as the decisions are, its output error does not fall ({before:.3g} % -> {after:.3g} %)"
+
+
+NOT_REFITTED = (
+    "not refitted on the closed loop: the Stribeck level and vs found at the dwells are closed-loop estimates already, of the creep "
+    "the sensor noise drives there, which the refit's noise-free replays do not have "
+    "(the other parameters: the inverse model's, with that friction taken off the force)"
+)
+"""Why a Stribeck friction found at the dwells keeps its closed-loop search's estimate (when the open-loop segments' fit is not used)."""
+
+
+def _segment_refit(
+    log: RunLog, data: IDIMData, base: Model, rows: np.ndarray, ls: LSSettings, known: list[Step], kept: list[Step], hold: float
+) -> tuple[Refit, str | None]:
+    """The Stribeck friction found at the dwells (the last of ``kept``, its level held), refitted on the open-loop segments.
+
+    Every linear parameter of the model, the Stribeck level, and the nonlinear value of each kept effect searched on a
+    log scale (Stribeck ``vs``, a ripple's period, ...; a pair of values, or one on a linear scale, is held) are fitted
+    by :func:`ilic_cli.diagnosis.segments.fit_segments`, the recorded force driving the plant
+    (:func:`plant.closed_loop.simulate_segments`); started from the inverse model's fit and the closed-loop search's
+    level and ``vs``. The fit replaces those when its residual is the sensor's noise
+    (:attr:`~ilic_cli.diagnosis.segments.SegmentFit.consistent`), the model it gives is a plant of the effects it
+    names, and no value is on the edge of its effect's grid; else the search's estimate is kept, and the reason says
+    which failed. Only a log whose force is the drive's held command is fitted so.
+
+    Returns the refit and, when the fit's residual is the sensor's noise but its Stribeck level is not
+    :data:`~ilic_cli.diagnosis.segments.LEVEL_Z` standard deviations above zero, why the recording refutes the
+    friction the closed-loop search found (else ``None``).
+    """
+    from plant.closed_loop import simulate_segments
+    from plant.dynamics import plant_model
+    from plant.replay import measured_state
+
+    st = kept[-1]
+    assert st.level is not None
+    W, y, names = system(data, base, [*known, *kept], rows)
+    theta = solve(W, y, names, sigma=ls.sigma).theta
+    if tau_sensor(log) != "command":
+        return Refit(False, NOT_REFITTED + "; the recorded force is not the drive's command, so no open-loop fit", list(kept), names), None
+    fs = log.fs_hz
+    model = [*kept[:-1], Step(st.effect, st.value)]
+    free = [k for k, s in enumerate(model) if s.effect.scan is not None and s.effect.scan.log and isinstance(s.value, float)]
+    names_fit = (*names, *st.effect.column_names)
+    n_lin = len(names_fit)
+    p0 = np.r_[theta, st.level, [np.log(float(model[k].value)) for k in free]]
+    tau = np.asarray(log["tau"], dtype=np.float64)
+    zero = np.zeros((n_lin, n_lin))
+
+    def model_at(p: np.ndarray) -> list[Step]:
+        values = dict(zip(free, np.exp(p[n_lin:]), strict=True))
+        return [*known, *(Step(s.effect, float(values[k])) if k in values else s for k, s in enumerate(model))]
+
+    q = np.asarray(log["q"], dtype=np.float64)
+    q_std, step = position_noise(q, fs, ls)
+    noise = float(np.hypot(q_std, 0.0 if step is None else step / np.sqrt(12.0)))
+    length = int(round(segments.SEGMENT_S * fs))
+    starts = segments.segment_starts(len(q), length, ls.trim)
+
+    def simulate(p: np.ndarray, states: np.ndarray) -> np.ndarray:
+        rigid, effects = model_parameters(model_at(p), names_fit, p[:n_lin], zero, hold)
+        params, eff = plant_model(rigid, effects)
+        return simulate_segments(params=params, effects=eff, command=tau, fs_hz=fs, starts=starts, length=length, x0=states, substeps=segments.SUBSTEPS)
+
+    fit = segments.fit_segments(
+        q,
+        np.column_stack(measured_state(q, fs)),
+        simulate,
+        p0,
+        np.r_[1e-3 * np.maximum(np.abs(p0[:n_lin]), 1.0), np.full(len(free), 0.01)],
+        (*names_fit, *(f"log_{model[k].effect.scan.name}" for k in free if model[k].effect.scan is not None)),
+        noise,
+        starts=starts,
+        length=length,
+        max_step=np.r_[np.full(n_lin, np.inf), np.full(len(free), 0.5)],
+    )
+    what = (
+        f"{fit.segments} segments of {segments.SEGMENT_S:g} s driven by the recorded force, residual {1e6 * fit.rms_m:.3g} um RMS "
+        f"for a sensor noise of {1e6 * noise:.3g} um (from {1e6 * fit.rms_start_m:.3g} um), {fit.iterations} iterations"
+    )
+    final = model_at(fit.values)
+    theta_fit = fit.values[:n_lin]
+    at = names_fit.index(st.effect.column_names[0])
+    level, level_std = float(theta_fit[at]), float(fit.std[at])
+    if fit.consistent and not level > segments.LEVEL_Z * level_std:
+        refuted = (
+            f"refuted by the {segments.METHOD} ({what}): the residual is the sensor's noise, "
+            f"and the level it gives Stribeck friction, {level:.3g} +- {level_std:.2g} N, "
+            f"is not {segments.LEVEL_Z:g} standard deviations above zero (the closed-loop search's {st.level[0]:.3g} N is not the recording's)"
+        )
+        return Refit(False, refuted, list(kept), names, segments=fit), refuted
+    problem = plant_problem(final[len(known) :], names_fit, theta_fit)
+    edges = [e for k in free if (e := _edge_of(final[len(known) + k], data, fs))]
+    why = (
+        "it did not converge"
+        if not fit.converged
+        else f"its residual is more than {segments.NOISE_FACTOR:g} times the sensor's noise (the recorded force does not explain the motion alone)"
+        if not fit.consistent
+        else f"its model is no plant ({problem})"
+        if problem
+        else "; ".join(edges)
+        if edges
+        else None
+    )
+    if why is not None:
+        return Refit(False, f"{NOT_REFITTED}; the {segments.METHOD} ({what}) is not used: {why}", list(kept), names, segments=fit), None
+    std = fit.std[n_lin:]
+    return Refit(
+        True,
+        f"{what}: the residual is the sensor's noise, so the estimate is the recording's",
+        final[len(known) :],
+        names_fit,
+        theta_fit,
+        fit.cov[:n_lin, :n_lin],
+        value_std={model[k].effect.id: float(final[len(known) + k].value) * float(s) for k, s in zip(free, std, strict=True)},
+        method=segments.METHOD,
+        segments=fit,
+    ), None
+
+
+def _edge_of(step: Step, data: IDIMData, fs: float) -> str | None:
+    """Why ``step``'s value is on the edge of its effect's grid (:func:`ilic_cli.diagnosis.select.at_edge`), else ``None``."""
+    assert step.effect.scan is not None
+    return at_edge(step.effect, step.effect.scan.grid(data.kin, fs), step.value)
 
 
 def _closed_loop_proposal(

@@ -28,13 +28,18 @@ training error, keeps the model without it; fewer than :data:`MIN_FOLDS` folds
 with an estimate is no finding. Once kept, a level found off the dwells is the
 start of the closed-loop refit, a column again (:mod:`ilic_cli.diagnosis.refit`:
 the folds hold the other effects at the inverse model's estimates, and the
-level makes up for their bias; on seed 1303 2.5 N for 3.53, refitted 3.58 N);
-one found at the dwells is not refitted, since the refit replays noise-free
-and the creep there is the noise's.
+level makes up for their bias; on seed 1303 2.5 N for 3.53, refitted 3.58 N).
+One found at the dwells is not refitted so, since the refit replays noise-free
+and the creep there is the noise's: it is estimated again on open-loop
+segments driven by the recorded force (:mod:`ilic_cli.diagnosis.segments`),
+which holds the loop's answer to the recording's own noise; where that fit
+explains the recording to its noise, its estimate replaces the search's, and
+a level it does not find above zero refutes the finding.
 
 Measured on the corpus (``plant/corpus.py``): the Stribeck trapezoid without a
 current loop, held-out replay force error 1.35 % -> 0.914 % (p = 5e-14, 5 of 5
-folds; Fs 2.55 +- 0.12 N, vs 9.9 +- 2.3 mm/s for 2.47 N, 8 mm/s); the one with
+folds; Fs 2.55 +- 0.12 N, vs 9.9 +- 2.3 mm/s for 2.47 N, 8 mm/s; the open-loop
+segments then 2.473 +- 0.012 N, 7.972 +- 0.040 mm/s); the one with
 the loop and a force disturbance, 2.21 % -> 2.16 % (p = 0.0019, 3 of 5 folds;
 1.08 +- 0.46 N, 17.5 +- 15 mm/s for 1.14 N, 20 mm/s); no fold found an
 estimate on any of the 8 clean trapezoids, once the current loop's lag is realised as the loop it is

@@ -85,6 +85,7 @@ import numpy as np
 
 from ilic_cli.closed_loop_id import ClosedLoopResult, closed_loop_identify, plant_of
 from ilic_cli.diagnosis.compare import replay
+from ilic_cli.diagnosis.segments import SegmentFit
 from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, extended, search_range
 from ilic_cli.diagnosis.stats import gls_covariance, lag1_autocorrelation
 from ilic_cli.effects import Fit
@@ -206,7 +207,10 @@ class Refit:
     simulated : RunLog or None
         The replay of the refitted model (the final DIDIM iteration's).
     method : str
-        :data:`METHOD`, or :data:`INVERSE_METHOD` when DIDIM was not kept but the search of the nonlinear values was.
+        :data:`METHOD`, or :data:`INVERSE_METHOD` when DIDIM was not kept but the search of the nonlinear values was,
+        or :data:`ilic_cli.diagnosis.segments.METHOD` for Stribeck friction found at the dwells.
+    segments : SegmentFit or None
+        The open-loop segments' fit (:mod:`ilic_cli.diagnosis.segments`), when one was made.
     """
 
     accepted: bool
@@ -222,12 +226,14 @@ class Refit:
     didim: ClosedLoopResult | None = None
     simulated: RunLog | None = field(default=None, repr=False)
     method: str = METHOD
+    segments: SegmentFit | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "method": self.method,
             "accepted": self.accepted,
             "reason": self.reason,
+            "open_loop_segments": None if self.segments is None else self.segments.to_dict(),
             "closed_loop_error_pct": {
                 "inverse_model": None if self.error_inverse_pct is None else finite_or_none(self.error_inverse_pct),
                 "closed_loop": None if self.error_pct is None else finite_or_none(self.error_pct),

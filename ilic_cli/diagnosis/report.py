@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis import dwell
+from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.locate import Region
 from ilic_cli.diagnosis.select import HELDOUT_UNCONFIRMED
@@ -71,6 +71,8 @@ def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], 
         by = "the inverse model (IDIM-LS)" if method == "IDIM-LS" else f"the {method} (the inverse model {none})"
         if method == dwell.METHOD:
             by += f"; std: {dwell.SPREAD}"
+        elif method == segments.METHOD:
+            by += f"; std: {segments.SPREAD}"
         lines = [f"Estimated by {by}.", "", "| parameter | value | std |", "| --- | --- | --- |"]
         return lines + [f"| {n} | {_num(e.value, e.unit)} | {_std(e)} |" for n, e in params.items()] + [""]
     lines = [
@@ -135,12 +137,16 @@ def to_markdown(diag: Diagnosis) -> str:
         lines.append("")
     if diag.refit is not None:
         how = "the closed-loop refit's" if diag.refit.accepted else "the inverse model's (IDIM-LS)"
+        if diag.refit.accepted and diag.refit.method == segments.METHOD:
+            how = f"the {segments.METHOD}'s"
         if not diag.refit.accepted and any(f.method == dwell.METHOD for f in diag.findings):
             how = f"Stribeck friction's from the {dwell.METHOD}, the rest the inverse model's (IDIM-LS)"
-        lines += [
-            f"Estimates: {how}; {diag.refit.reason}. The closed-loop output error is the replayed force against the recorded one, in the inverse model's band.",
-            "",
-        ]
+        meaning = (
+            " The closed-loop output error is the replayed force against the recorded one, in the inverse model's band."
+            if "closed-loop output error" in diag.refit.reason
+            else ""
+        )
+        lines += [f"Estimates: {how}; {diag.refit.reason}.{meaning}", ""]
     sim = diag.simulation
     if sim is not None and sim.before:
         after = f" -> {_pct(sim.after['force'])}" if sim.after else ""
