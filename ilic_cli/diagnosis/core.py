@@ -37,7 +37,7 @@ from ilic_cli.diagnosis.sensor import position_noise
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit, applicable
-from ilic_cli.errors import IdentificationError, ParameterError
+from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
@@ -608,18 +608,21 @@ def _segment_refit(
         params, eff = plant_model(rigid, effects)
         return simulate_segments(params=params, effects=eff, command=tau, fs_hz=fs, starts=starts, length=length, x0=states, substeps=segments.SUBSTEPS)
 
-    fit = segments.fit_segments(
-        q,
-        np.column_stack(measured_state(q, fs)),
-        simulate,
-        p0,
-        np.r_[1e-3 * np.maximum(np.abs(p0[:n_lin]), 1.0), np.full(len(free), 0.01)],
-        (*names_fit, *(f"log_{model[k].effect.scan.name}" for k in free if model[k].effect.scan is not None)),
-        noise,
-        starts=starts,
-        length=length,
-        max_step=np.r_[np.full(n_lin, np.inf), np.full(len(free), 0.5)],
-    )
+    try:
+        fit = segments.fit_segments(
+            q,
+            np.column_stack(measured_state(q, fs)),
+            simulate,
+            p0,
+            np.r_[1e-3 * np.maximum(np.abs(p0[:n_lin]), 1.0), np.full(len(free), 0.01)],
+            (*names_fit, *(f"log_{model[k].effect.scan.name}" for k in free if model[k].effect.scan is not None)),
+            noise,
+            starts=starts,
+            length=length,
+            max_step=np.r_[np.full(n_lin, np.inf), np.full(len(free), 0.5)],
+        )
+    except IlicError as exc:  # a sensitivity's step that gives no plant, a segment that diverges: the search's estimate stands
+        return Refit(False, f"{NOT_REFITTED}; the {segments.METHOD} failed: {exc.problem}", list(kept), names), None
     what = (
         f"{fit.segments} segments of {segments.SEGMENT_S:g} s driven by the recorded force, residual {1e6 * fit.rms_m:.3g} um RMS "
         f"for a sensor noise of {1e6 * noise:.3g} um (from {1e6 * fit.rms_start_m:.3g} um), {fit.iterations} iterations"

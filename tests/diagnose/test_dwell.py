@@ -69,6 +69,23 @@ def test_stribeck_the_closed_loop_found_beside_a_ripple_is_refuted_by_the_open_l
     assert "stribeck" not in diag.model_file.get("effects", {})
 
 
+def test_a_segments_fit_that_fails_leaves_the_closed_loop_search_s_estimate(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A segment that diverges (planted): the diagnosis goes on, Stribeck friction is named with the search's estimate, and the refit says why."""
+    import plant.closed_loop
+    from ilic_cli.diagnosis.core import NOT_REFITTED, diagnose
+    from ilic_cli.errors import SimulationError
+    from plant.corpus import build_case
+
+    def diverges(**_: object) -> None:
+        raise SimulationError(None, "the open-loop segment from t = 1 s diverged")
+
+    monkeypatch.setattr(plant.closed_loop, "simulate_segments", diverges)
+    diag = diagnose(build_case(CASES["stribeck-trapezoid-sensor-s210"]))
+    (f,) = diag.findings
+    assert f.effect.id == "stribeck" and f.method == dwell.METHOD and diag.refit is not None and not diag.refit.accepted
+    assert diag.refit.reason == f"{NOT_REFITTED}; the {segments.METHOD} failed: the open-loop segment from t = 1 s diverged"
+
+
 def test_no_stribeck_at_the_dwells_of_a_clean_current_loop_trapezoid() -> None:
     """With the current loop realised as a first-order lag, the dwells show no Stribeck friction (as a pure 0.24 ms delay, they did).
 
