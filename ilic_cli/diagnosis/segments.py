@@ -185,20 +185,18 @@ def fit_segments(
     states = np.array([x0[i] for i in starts], dtype=np.float64)
     bound = np.full(ng, np.inf) if max_step is None else np.asarray(max_step, dtype=np.float64)
 
-    run = simulate
-
     def sse(p: np.ndarray, xs: np.ndarray) -> float:
         try:
-            r = run(p, xs) - y
+            r = simulate(p, xs) - y
         except IlicError:
             return np.inf
         return float(r @ r)
 
     def jacobian(p: np.ndarray, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The residual and its sensitivities (forward differences): the parameters', then each segment's ``q0, qd0``."""
-        jobs: list[Callable[[], np.ndarray]] = [lambda: run(p, xs)]
-        jobs += [lambda k=k: run(p + steps[k] * np.eye(ng)[k], xs) for k in range(ng)]
-        jobs += [lambda c=c, d=d: run(p, xs + d * np.eye(2)[c]) for c, d in ((0, DQ_M), (1, DV_MPS))]
+        jobs: list[Callable[[], np.ndarray]] = [lambda: simulate(p, xs)]
+        jobs += [lambda k=k: simulate(p + steps[k] * np.eye(ng)[k], xs) for k in range(ng)]
+        jobs += [lambda c=c, d=d: simulate(p, xs + d * np.eye(2)[c]) for c, d in ((0, DQ_M), (1, DV_MPS))]
         out = ordered_map(lambda job: job(), jobs)
         base = out[0]
         J = np.zeros((len(y), ng + 2 * ns))
