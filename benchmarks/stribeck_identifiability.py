@@ -50,6 +50,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from ilic_cli.diagnosis import segments  # noqa: E402
 from ilic_cli.diagnosis.compare import replay  # noqa: E402
 from ilic_cli.diagnosis.decide import band_force_error  # noqa: E402
 from ilic_cli.filtering import decimate_matlab  # noqa: E402
@@ -108,8 +109,8 @@ def open_loop_profile(name: str, ratios: tuple[float, ...]) -> tuple[float, np.n
     plant_fx = {k: v for k, v in effects.items() if k not in ("noise", "quantization", "disturbance")}
     vs0 = float(effects["stribeck"]["vs"])
     q, tau, qd = (np.asarray(log[c], dtype=np.float64) for c in ("q", "tau", "qd_plant"))
-    length = int(round(0.3 * log.fs_hz))
-    starts = list(range(200, len(q) - 200 - length + 1, length))
+    length = int(round(segments.SEGMENT_S * log.fs_hz))
+    starts = segments.segment_starts(len(q), length, 200)
     x0 = np.array([[q[i], qd[i]] for i in starts])
     measured = np.concatenate([q[i : i + length] for i in starts])
 
@@ -151,7 +152,8 @@ def main() -> None:
     if args.open_loop and not args.recordings:
         ap.error("--open-loop: with --recordings N")
     if args.open_loop:
-        print(f"{args.case}: the true plant driven open loop by the recorded force, 0.3 s segments from its true state; squared position error over vs")
+        print(f"{args.case}: the true plant driven open loop by the recorded force, {segments.SEGMENT_S:g} s segments from its true state")
+        print("(the squared position error over vs, % above its least)")
         print()
         print("| recording | " + " | ".join(f"{r:g} vs" for r in ratios) + " |")
         print("|---|" + "---|" * len(ratios))
