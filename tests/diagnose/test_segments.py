@@ -8,8 +8,15 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import segments
+from ilic_cli.diagnosis.baseline import hold_s
+from ilic_cli.diagnosis.compare import tau_sensor
+from ilic_cli.diagnosis.core import NOT_REFITTED, Refit, _prepare, _segment_refit, base_model
 from ilic_cli.diagnosis.segments import SegmentFit, fit_segments, segment_starts
-from ilic_cli.errors import ParameterError
+from ilic_cli.diagnosis.select import Step, moving_rows
+from ilic_cli.effects import EFFECTS
+from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.idim_ls import LSSettings
+from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
 from plant.closed_loop import simulate_segments
 from plant.corpus import CASES, build_case
@@ -98,6 +105,44 @@ def test_the_fit_recovers_every_parameter_and_its_residual_is_the_sensor_noise()
     assert abs(got["offset"]) < 0.01
     doc = fit.to_dict()
     assert doc["consistent"] and doc["parameters"]["Fs"] == pytest.approx(got["Fs"]) and doc["sensor_noise_um"] == pytest.approx(0.503, abs=0.001)
+
+
+def _segment_refit_on(name: str, stribeck: Step) -> tuple[Refit, str | None]:
+    """The diagnosis's open-loop segments' refit of ``name`` with ``stribeck`` kept as the closed-loop search found it (its level held)."""
+    log = build_case(CASES[name])
+    prepared = prepare_log(log)
+    base = base_model(None, "rigid-offset")
+    ls = LSSettings()
+    data = _prepare(prepared, base, ls)
+    return _segment_refit(prepared.log, data, base, moving_rows(data), ls, [], [stribeck], hold_s(tau_sensor(prepared.log), prepared.fs_hz))
+
+
+def test_stribeck_friction_a_recording_does_not_carry_is_refuted() -> None:
+    """A clean trapezoid (sensor noise only) given the Stribeck friction the closed-loop search found beside the ripple on seed 3220.
+
+    The fit explains the recording to its noise with no level above zero: the friction is refuted (on seed 3220 itself, in the
+    corpus run: -0.002 +- 0.003 N). Measured here: 0.500 um RMS for 0.553 um, a level of -0.0020 +- 0.0041 N, in 14 iterations.
+    """
+    refit, refuted = _segment_refit_on("clean-trapezoid-sensor-s1", Step(EFFECTS["stribeck"], 0.0125, level=(0.85,)))
+    fit = refit.segments
+    assert fit is not None and fit.consistent and not refit.accepted, refit.reason
+    level, std = fit.values[fit.names.index("Fs")], fit.std[fit.names.index("Fs")]
+    assert abs(level) < 0.02 and not level > segments.LEVEL_Z * std, (level, std)
+    assert refuted is not None and refuted.startswith(f"refuted by the {segments.METHOD} (") and "is not 2 standard deviations above zero" in refuted
+    assert "(the closed-loop search's 0.85 N is not the recording's)" in refuted
+
+
+def test_a_segments_fit_that_fails_leaves_the_closed_loop_search_s_estimate(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A segment that diverges (planted): the search's estimate stands, and the refit says why (the diagnosis goes on)."""
+    import plant.closed_loop
+
+    def diverges(**_: object) -> None:
+        raise SimulationError(None, "the open-loop segment from t = 1 s diverged")
+
+    monkeypatch.setattr(plant.closed_loop, "simulate_segments", diverges)
+    refit, refuted = _segment_refit_on("stribeck-trapezoid-sensor-s210", Step(EFFECTS["stribeck"], 0.0099, level=(2.55,)))
+    assert refuted is None and not refit.accepted and refit.segments is None
+    assert refit.reason == f"{NOT_REFITTED}; the {segments.METHOD} failed: the open-loop segment from t = 1 s diverged"
 
 
 def test_a_fit_without_the_physics_the_motion_carries_is_not_consistent() -> None:
