@@ -313,9 +313,8 @@ def diagnose(
         # Stribeck friction found at the dwells: the open-loop segments estimate it, and may refute it
         segment_refit, refuted = _segment_refit(log, data, base, rows, settings.ls, known, kept, hold)
         if refuted is not None:
-            gone = kept.pop().effect.id
+            kept, verdicts = without_last(kept, verdicts, refuted)
             held, segment_refit = [], None
-            verdicts = [replace(v, accepted=False, reason=f"{v.reason}; {refuted}") if v.effect == gone and v.accepted else v for v in verdicts]
     steps = [*known, *kept]
     W1, y1, names1 = system(data, base, steps, rows)
     if not len(y0) > 4 * W1.shape[1]:
@@ -546,6 +545,12 @@ def _noise_objection(refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str
     if after < before:
         return None
     return f"replayed with the recording's sensor noise, as the decisions are, its output error does not fall ({before:.3g} % -> {after:.3g} %)"
+
+
+def without_last(kept: list[Step], verdicts: list[ReplayVerdict], why: str) -> tuple[list[Step], list[ReplayVerdict]]:
+    """``kept`` without its last effect, and ``verdicts`` with that effect's accepting verdict turned into a rejection that says ``why``."""
+    gone = kept[-1].effect.id
+    return kept[:-1], [replace(v, accepted=False, reason=f"{v.reason}; {why}") if v.effect == gone and v.accepted else v for v in verdicts]
 
 
 NOT_REFITTED = (

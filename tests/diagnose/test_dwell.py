@@ -51,24 +51,25 @@ def test_stribeck_on_a_trapezoid_is_named_by_the_closed_loop_and_estimated_on_op
     assert "outside the catalogue" in ev.reason and "proposed on the closed loop instead" in ev.reason
 
 
-def test_stribeck_the_open_loop_segments_refute_is_dropped_and_the_verdict_says_why(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A refutation (planted here; the rule itself: ``test_segments.py``) drops the finding the replay accepted, and its verdict says why.
+def test_a_refuted_effect_is_dropped_and_its_verdict_says_why() -> None:
+    """The Stribeck trapezoid's kept effect and verdicts, refuted (the rule itself: ``test_segments.py``): the effect leaves the
+    model, and its accepting verdict becomes a rejection that keeps the replay's figures and says why.
 
     Measured on the corpus's ripple trapezoid of seed 3220, where the replay accepts Stribeck friction beside the ripple: the
     segments' fit (the ripple's period fitted too: 20.000 mm for 20) explains the recording to its noise (0.499 um RMS for
-    0.548 um) with a Stribeck level of -0.002 +- 0.003 N, and only the ripple is named (README; 33 s of diagnosis, not run here).
+    0.548 um) with a Stribeck level of -0.002 +- 0.003 N, and only the ripple is named (README; a 33 s diagnosis, not run here).
     """
-    from ilic_cli.diagnosis import core
-    from ilic_cli.diagnosis.core import NOT_REFITTED, Refit, diagnose
-    from plant.corpus import build_case
+    from ilic_cli.diagnosis.core import without_last
+    from ilic_cli.diagnosis.select import Step
+    from ilic_cli.effects import EFFECTS
 
-    why = f"refuted by the {segments.METHOD} (planted)"
-    monkeypatch.setattr(core, "_segment_refit", lambda *args: (Refit(False, NOT_REFITTED, [], ()), why))
-    diag = diagnose(build_case(CASES["stribeck-trapezoid-sensor-s210"]))
-    assert diag.findings == [] and "stribeck" not in diag.model_file.get("effects", {})
+    diag = diagnosed("stribeck-trapezoid-sensor-s210")
     (verdict,) = diag.decisions
-    assert not verdict.accepted and verdict.proposed_by == dwell.METHOD and verdict.reason.endswith(f"; {why}") and "the replay agrees" in verdict.reason
-    assert f"; {why}" in to_markdown(diag)
+    ripple = Step(EFFECTS["position_ripple"], 0.02)
+    kept, verdicts = without_last([ripple, Step(EFFECTS["stribeck"], 0.0125, level=(0.85,))], diag.decisions, "refuted (planted)")
+    assert kept == [ripple] and len(verdicts) == 1 and not verdicts[0].accepted and verdict.accepted
+    assert verdicts[0].reason == f"{verdict.reason}; refuted (planted)" and verdicts[0].force_after == verdict.force_after
+    assert verdicts[0].to_dict()["accepted"] is False
 
 
 def test_no_stribeck_at_the_dwells_of_a_clean_current_loop_trapezoid() -> None:
