@@ -33,7 +33,7 @@ from ilic_cli.diagnosis.select import (
     system,
     validation_error,
 )
-from ilic_cli.diagnosis.sensor import position_noise
+from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit, applicable
@@ -603,8 +603,7 @@ def _segment_refit(
         return [*known, *(Step(s.effect, float(values[k])) if k in values else s for k, s in enumerate(model))]
 
     q = np.asarray(log["q"], dtype=np.float64)
-    q_std, step = position_noise(q, fs, ls)
-    noise = float(np.hypot(q_std, 0.0 if step is None else step / np.sqrt(12.0)))
+    noise = measurement_std(*position_noise(q, fs, ls))
     length = int(round(segments.SEGMENT_S * fs))
     starts = segments.segment_starts(len(q), length, ls.trim)
 

@@ -103,9 +103,18 @@ def position_noise(q: np.ndarray, fs_hz: float, ls: LSSettings) -> tuple[float, 
     r = r[edge:-edge]
     var = float(np.mean((r - r.mean()) ** 2)) / highpass_gain(fs_hz, ls)
     d = grid_step(q)
-    if d is not None:
-        var -= d * d / 12.0
+    var -= quantization_var(d)
     return math.sqrt(max(var, 0.0)), d
+
+
+def quantization_var(resolution: float | None) -> float:
+    """Variance of the rounding error on a grid of step ``resolution`` (m^2): ``d^2/12``; 0 off a grid (``None``)."""
+    return 0.0 if resolution is None else resolution * resolution / 12.0
+
+
+def measurement_std(q_std: float, resolution: float | None) -> float:
+    """The whole error of a measured position (m): white noise ``q_std`` and the rounding of a grid of step ``resolution``."""
+    return math.sqrt(q_std * q_std + quantization_var(resolution))
 
 
 def sensor_effects(q_std: float, resolution: float | None) -> dict[str, dict[str, float]]:

@@ -13,6 +13,7 @@ from ilic_cli.diagnosis.compare import tau_sensor
 from ilic_cli.diagnosis.core import NOT_REFITTED, Refit, _prepare, _segment_refit, base_model
 from ilic_cli.diagnosis.segments import SegmentFit, fit_segments, segment_starts
 from ilic_cli.diagnosis.select import Step, moving_rows
+from ilic_cli.diagnosis.sensor import measurement_std
 from ilic_cli.effects import EFFECTS
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.idim_ls import LSSettings
@@ -50,7 +51,7 @@ def _fit(p0: np.ndarray, stribeck: bool = True) -> tuple[SegmentFit, dict[str, f
     q = np.asarray(log["q"])[: int(SECONDS * log.fs_hz)]
     length = int(segments.SEGMENT_S * log.fs_hz)
     starts = segment_starts(len(q), length, 100)
-    noise = float(np.hypot(5e-7, 2e-7 / np.sqrt(12)))  # the case's sensor: white 0.5 um, a 0.2 um grid
+    noise = measurement_std(5e-7, 2e-7)  # the case's sensor: white 0.5 um, a 0.2 um grid
     fit = fit_segments(
         q,
         np.column_stack(measured_state(q, log.fs_hz)),

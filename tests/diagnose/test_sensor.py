@@ -6,13 +6,23 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis.decide import decision_sensor
-from ilic_cli.diagnosis.sensor import grid_step, loop_corrected, position_noise, recorded_sensor, sensor_effects
+from ilic_cli.diagnosis.sensor import grid_step, loop_corrected, measurement_std, position_noise, recorded_sensor, sensor_effects
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
 from tests.conftest import import_or_skip
 
 LS = LSSettings()
+
+
+def test_measurement_std_is_the_error_of_a_noisy_position_rounded_to_its_grid() -> None:
+    """White noise and a grid's rounding add as variances (``d^2/12`` for a step ``d``); off a grid only the noise is left."""
+    rng = np.random.default_rng(5)
+    x = rng.uniform(0.0, 0.1, 200000)
+    d, s = 2e-7, 5e-7
+    measured = np.round((x + s * rng.standard_normal(len(x))) / d) * d
+    assert measurement_std(s, d) == pytest.approx(float(np.std(measured - x)), rel=0.01)
+    assert measurement_std(s, None) == s and measurement_std(0.0, d) == pytest.approx(d / np.sqrt(12.0))
 
 
 def test_position_noise_of_a_known_signal() -> None:
