@@ -1,5 +1,6 @@
 # make demo: simulate the paper's scenario, identify it, write a report and plots under out/demo/
 # make test: run the test suite (the command CI runs)
+# make test-fast: the unit, vocabulary and I/O tiers (the inner loop)
 # make bench: print speed ratios (benchmarks/)
 # make mutation: mutation score of the numerics, per module, and the planted bugs of issue 14 (not part of make test; about 16 min on 2 cores)
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
@@ -7,7 +8,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench bench-large mutation clean
+.PHONY: demo test test-fast bench bench-large mutation clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -26,6 +27,12 @@ TEST_WORKERS ?= 2
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal
+
+# the tiers without closed-loop diagnoses or long simulations
+FAST_TESTS := tests/unit tests/vocabulary tests/io
+
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal $(FAST_TESTS)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py
