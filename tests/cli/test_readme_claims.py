@@ -1,6 +1,6 @@
-"""README figures asserted as the README states them (issue 14): to the printed digits.
+"""Figures of the README and docs/ asserted as they are printed there (issue 14): to the printed digits.
 
-Each test quotes the README sentence it checks. A printed figure ``x.yz``
+Each test quotes the sentence it checks and names its page. A printed figure ``x.yz``
 holds when the computed value prints as ``x.yz`` at that precision; a printed
 range ``a..b`` holds when every value lies in it and the smallest and largest
 print as ``a`` and ``b``. The diagnosis figures (3.78 -> 2.58 %, the accepted
@@ -44,7 +44,7 @@ def relative_to_ls_pct(doc: dict, name: str) -> list[float]:
 
 
 def test_ilic_on_emps_windows_relative_to_ls(emps_ilic: dict) -> None:
-    """README: "IDIM-ILIC on the same recording (4 windows of 6.2 s ...): the benchmark's PD loop trails its
+    """docs/methods.md: "IDIM-ILIC on the same recording (4 windows of 6.2 s ...): the benchmark's PD loop trails its
     reference by 7 ms (tracking error ratio 7e-3) ... the windows then land within M +0.8..1.3 %,
     Fv -2.1..-3.9 %, Fc +1.8..3.6 % of IDIM-LS"."""
     doc = emps_ilic
@@ -59,14 +59,14 @@ def test_ilic_on_emps_windows_relative_to_ls(emps_ilic: dict) -> None:
 
 
 def test_ilic_on_emps_without_the_delay() -> None:
-    """README: "(without the delay Fv is 10-13 % off)"."""
+    """docs/methods.md: "(without the delay Fv is 10-13 % off)"."""
     doc = identify_json(str(require_shared() / "DATA_EMPS.mat"), "--method", "both", "--ref-lag", "0")
     off = relative_to_ls_pct(doc, "Fv")
     assert all(10.0 <= v < 13.5 for v in off), off
 
 
 def test_paper_payload_followed_within_one_window() -> None:
-    """README: "`paper-payload`: +10 kg at 60 s is followed within one window, dM = 10.04 kg"."""
+    """docs/simulation.md: "`paper-payload`: +10 kg at 60 s is followed within one window, dM = 10.04 kg"."""
     log = run_scenario("paper-payload", Overrides(duration_s=6.2 * 14))
     wins = log.meta["ilic_windows"]
     t_change = log.meta["effects"]["payload_change"]["t_change"]
@@ -81,7 +81,7 @@ def test_paper_payload_followed_within_one_window() -> None:
 
 
 def test_paper_sim_table1_as_printed() -> None:
-    """README: "window k = 1: M 94.83, Fv 200.15, Fc 19.97 ...; k = 2: 94.96, 199.50, 20.10;
+    """docs/simulation.md: "window k = 1: M 94.83, Fv 200.15, Fc 19.97 ...; k = 2: 94.96, 199.50, 20.10;
     k >= 3: 94.96, 200.05, 19.99 (-0.04 %, +0.03 %, -0.07 %)".
 
     The percentages print as stated at k = 3; from k = 4 on Fv prints +0.02 % (200.047 -> 200.046),
@@ -100,7 +100,7 @@ def test_paper_sim_table1_as_printed() -> None:
 
 
 REPLAY_TABLE = {
-    # README "emps-benchmark replay" table: position, velocity, acceleration, force (%), as printed
+    # docs/simulation.md "emps-benchmark replay" table: position, velocity, acceleration, force (%), as printed
     ("DATA_EMPS.mat", True): ("0.01375", "0.2298", "8.02", "5.860"),
     ("DATA_EMPS_PULSES.mat", True): ("0.00801", "0.470", "19.38", "8.867"),
     ("DATA_EMPS.mat", False): ("0.0016", "0.2298", "8.18", "5.861"),
@@ -118,7 +118,7 @@ def test_replay_table_as_printed(name: str, published_setup: bool) -> None:
     got = tuple(printed(ours[w], len(s.split(".")[1])) for w, s in zip(("position", "velocity", "acceleration", "force"), want, strict=True))
     assert got == want
     if published_setup:
-        # README: "its controller clock is t(10) - t(9) of the file (0.99998396 ms for DATA_EMPS, 1.00000802 ms for the pulse run)"
+        # docs/simulation.md: "its controller clock is t(10) - t(9) of the file (0.99998396 ms for DATA_EMPS, 1.00000802 ms for the pulse run)"
         clock_ms = sim.meta["scenario"]["published_setup"]["clock_s"] * 1e3
         assert printed(clock_ms, 8) == {"DATA_EMPS.mat": "0.99998396", "DATA_EMPS_PULSES.mat": "1.00000802"}[name]
         # "so its samples drift against the recording by up to 0.4 ms"
@@ -127,7 +127,7 @@ def test_replay_table_as_printed(name: str, published_setup: bool) -> None:
 
 
 def test_replay_of_the_diagnosed_model_file() -> None:
-    """README: "Replaying the model file through the loop that ran takes the simulated force error from 4.55 % to 3.42 %"."""
+    """docs/diagnosis.md: "Replaying the model file through the loop that ran takes the simulated force error from 4.55 % to 3.42 %"."""
     res = run_cli("diagnose", str(require_shared() / "DATA_EMPS.mat"), "--format", "json")
     assert res.status == 0, res.stderr
     sim = json.loads(res.stdout)["fit"]["simulation_force_relative_error_pct"]
@@ -135,7 +135,7 @@ def test_replay_of_the_diagnosed_model_file() -> None:
 
 
 def test_diagnosis_settings_as_described() -> None:
-    """README: "Bonferroni over candidates and grid points, alpha = 0.001 ... blocked 5-fold cross-validation
+    """docs/diagnosis.md: "Bonferroni over candidates and grid points, alpha = 0.001 ... blocked 5-fold cross-validation
     over time (Diebold-Mariano, alpha = 0.01)"."""
     from ilic_cli.diagnosis.select import SelectSettings
 
@@ -144,7 +144,7 @@ def test_diagnosis_settings_as_described() -> None:
 
 
 def test_paper_sim_study_setting_and_k2_edge() -> None:
-    """README: "with the plant's exact velocity and a sharp sign in the controller (`--velocity exact --alpha 1e6`) the same
+    """docs/simulation.md: "with the plant's exact velocity and a sharp sign in the controller (`--velocity exact --alpha 1e6`) the same
     loop and estimator converge to 1-6e-5 (k >= 3). At k = 2 ... (Fc +0.5 %)".
 
     Only the upper end is asserted: Fv at k = 3 is 6e-6, below the stated 1e-5.
@@ -158,7 +158,7 @@ def test_paper_sim_study_setting_and_k2_edge() -> None:
 
 
 def test_diagnosed_model_on_the_pulse_run(tmp_path: Path) -> None:
-    """README: "diagnosed: asymmetric + position ripple | 4.81 | 11.76 | 85.8" (trained on DATA_EMPS, held out on the pulses)."""
+    """docs/methods.md: "diagnosed: asymmetric + position ripple | 4.81 | 11.76 | 85.8" (trained on DATA_EMPS, held out on the pulses)."""
     shared = require_shared()
     assert run_cli("diagnose", str(shared / "DATA_EMPS.mat"), "--out", str(tmp_path / "diag")).status == 0
     model = json.loads((tmp_path / "diag" / "model.json").read_text())

@@ -1,7 +1,7 @@
 """The diagnosis on the corpus of plant logs with known truth (issue #11; ``plant/corpus.py``).
 
 The whole corpus (32 clean, 32 concealed-effect logs) is run by
-``python benchmarks/diagnose_corpus.py``; its figures are in the README. Here,
+``python benchmarks/diagnose_corpus.py``; its figures are in docs/diagnosis.md. Here,
 within the suite's time budget: the 16 clean logs of seed 1 (every trajectory
 under every noise model) must give no finding other than ``offset`` (the
 issue's rate is >= 95 %; measured 32 of 32, so none is allowed here; a current

@@ -54,7 +54,7 @@ def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> 
     fit = doc["fit"]
     for key in ("relative_error_pct", "heldout_relative_error_pct", "simulation_force_relative_error_pct"):
         assert set(fit[key]) >= {"before", "after"}
-    # the README's figures, at their printed digits
+    # the figures of docs/diagnosis.md, at their printed digits
     assert [f["effect"] for f in doc["findings"]] == ["asymmetric_friction", "position_ripple"]
     assert fit["relative_error_pct"]["before"] == pytest.approx(3.78, abs=0.005)
     assert doc["findings"][0]["evidence"]["relative_error_pct"] == pytest.approx(2.76, abs=0.005)  # asymmetric friction alone

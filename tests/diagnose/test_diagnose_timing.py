@@ -83,7 +83,7 @@ def test_pulses_report_says_the_flexibility_is_the_loop_timing() -> None:
     assert t is not None and t.law.follows == "same" and t.law.same_pct < 0.5 < 5.0 < t.law.previous_pct
     assert t.at_edge is None and 0.15 < t.best < 0.25
     assert t.refined["force"] < 0.6 * t.documented["force"] and t.refined["velocity"] < 0.5 * t.documented["velocity"]
-    # README: "the pulse run's rigid model: 8.27 % -> 4.77 % at 0.19 ms, velocity 0.394 % -> 0.154 %"
+    # docs/diagnosis.md: "the pulse run's rigid model: 8.27 % -> 4.77 % at 0.19 ms, velocity 0.394 % -> 0.154 %"
     printed = (f"{t.documented['force']:.2f}", f"{t.refined['force']:.2f}", f"{t.best * t.period_s * 1e3:.2f}")
     assert printed == ("8.27", "4.77", "0.19") and (f"{t.documented['velocity']:.3f}", f"{t.refined['velocity']:.3f}") == ("0.394", "0.154")
     # every replay of the diagnosis runs that loop: the comparison starts from the timed replay's error

@@ -57,7 +57,7 @@ def test_a_refuted_effect_is_dropped_and_its_verdict_says_why() -> None:
 
     Measured on the corpus's ripple trapezoid of seed 3220, where the replay accepts Stribeck friction beside the ripple: the
     segments' fit (the ripple's period fitted too: 20.000 mm for 20) explains the recording to its noise (0.499 um RMS for
-    0.548 um) with a Stribeck level of -0.002 +- 0.003 N, and only the ripple is named (README; a 33 s diagnosis, not run here).
+    0.548 um) with a Stribeck level of -0.002 +- 0.003 N, and only the ripple is named (docs/diagnosis.md; a 33 s diagnosis, not run here).
     """
     from ilic_cli.diagnosis.core import without_last
     from ilic_cli.diagnosis.select import Step

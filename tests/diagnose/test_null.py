@@ -1,6 +1,6 @@
 """The replay's Monte-Carlo null (``ilic diagnose --null montecarlo``, :mod:`ilic_cli.diagnosis.null`).
 
-Measured on the corpus (``benchmarks/null_calibration.py``; README, diagnosis
+Measured on the corpus (``benchmarks/null_calibration.py``; docs/diagnosis.md
 section): the calibration of the p-value on forced spurious candidates, and
 the power on concealed effects. Here, small and fast: the p-value's formula
 and the refusal of too few replicates, the noise model against a corpus log's
@@ -121,7 +121,7 @@ def test_the_noise_model_recovers_the_corpus_noise(disturbed: _Prepared) -> None
     correction), 0.2 um, 1.42 N at 14.5 Hz. On eight clean logs of seed 1 and 2 (every
     trajectory and noise model): position noise 0.497-0.505 um, disturbance 1.36-1.50 N,
     bandwidth 12-18 Hz. Tolerances: 3 % on the position noise, 10 % on the disturbance's
-    std, its bandwidth within 5-20 Hz (the rule is rough: see the README).
+    std, its bandwidth within 5-20 Hz (the rule is rough: see docs/diagnosis.md).
     """
     noise = estimate_noise(disturbed.log, disturbed.data, disturbed.rows, disturbed.rigid, disturbed.effects, LS)
     assert noise.resolution == pytest.approx(2e-7, rel=1e-6)
@@ -187,7 +187,7 @@ def test_the_null_runs_only_where_the_diebold_mariano_test_passes() -> None:
 def test_a_concealed_effect_is_accepted() -> None:
     """Dv = 58 N s/m concealed (0.68 points of rigid error): T_obs 12.2, the 19 replicates' largest 0.64 (p = 0.05, the smallest there is).
 
-    Power on the 28 concealed single-effect logs (README): 24 accepted at B = 19.
+    Power on the 28 concealed single-effect logs (docs/diagnosis.md): 24 accepted at B = 19.
     """
     p = _Prepared(POWER_LOG)
     v = p.forced(POWER_EFFECT, 19, 0.05)

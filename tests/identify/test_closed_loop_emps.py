@@ -1,4 +1,4 @@
-"""DIDIM and IDIM-IV on the real EMPS recordings: the README's figures, to the printed digits.
+"""DIDIM and IDIM-IV on the real EMPS recordings: the figures of docs/methods.md, to the printed digits.
 
 Trained on ``DATA_EMPS.mat``; ``DATA_EMPS_PULSES.mat`` is held out: the
 closed-loop replay's force error (``ilic replay``) and the benchmark's
@@ -18,7 +18,7 @@ from tests.clirun import run_cli
 from tests.conftest import require_shared
 
 ESTIMATES = {
-    # README "Closed-loop identification": rigid-offset on DATA_EMPS.mat (DIDIM / IV replay the loop that ran: the
+    # docs/methods.md "Closed-loop identification": rigid-offset on DATA_EMPS.mat (DIDIM / IV replay the loop that ran: the
     # command from the same sample, acting at once; with the documented loop, one period late, DIDIM gave M = 93.72)
     "ls": {"M": "95.11", "Fv": "203.5", "Fc": "20.39", "offset": "-3.165"},
     "didim": {"M": "94.93", "Fv": "207.9", "Fc": "20.08", "offset": "-3.169"},
@@ -85,7 +85,7 @@ def test_held_out_pulses(emps: Path, tmp_path: Path, structure: str, method: str
 
 
 def test_documented_loop_on_request(emps: Path, tmp_path: Path) -> None:
-    """README: "--pd-timing documented runs the documented loop": DIDIM M = 93.72 kg, the pulse run's force error 8.71 % / 8.36 %."""
+    """docs/methods.md: "--pd-timing documented runs the documented loop": DIDIM M = 93.72 kg, the pulse run's force error 8.71 % / 8.36 %."""
     res = run_cli("identify", str(emps / "DATA_EMPS.mat"), "--method", "didim", "--pd-timing", "documented", "--format", "json", "--out", str(tmp_path / "d"))
     assert res.status == 0, res.stderr
     doc = json.loads(res.stdout)

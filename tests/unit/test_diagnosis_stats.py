@@ -289,7 +289,7 @@ def test_gls_covariance_one_degree_of_freedom_and_default_folds() -> None:
     W = W_LINE[:3]
     theta, rss = lstsq(W, Y_LINE[:3])
     np.testing.assert_allclose(gls_covariance(W, Y_LINE[:3], theta, max_order=0), rss / 1 * np.linalg.inv(W.T @ W), rtol=1e-9)
-    folds = blocked_folds(200)  # README: blocked 5-fold cross-validation
+    folds = blocked_folds(200)  # docs/diagnosis.md: blocked 5-fold cross-validation
     assert len(folds) == 5
     train, test = folds[2]
     assert (test[0], test[-1]) == (80, 119) and 69 in train and 70 not in train and 129 not in train and 130 in train  # 10 rows guard
