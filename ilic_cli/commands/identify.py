@@ -48,7 +48,15 @@ from ilic_cli.prepare import as_joint, to_load_side
     "oe_segment",
     type=click.FloatRange(min=0, min_open=True),
     default=None,
-    help="OE: multiple shooting over stretches of this length (s), each with its own state [default: one shot from the first 20 samples' state].",
+    help="OE: multiple shooting over stretches of this length (s), each with its own fitted state [default: one shot from the 20th sample].",
+)
+@click.option(
+    "--oe-state",
+    "oe_state",
+    type=click.Choice(["fitted", "protocol"]),
+    default="fitted",
+    show_default=True,
+    help="OE's one shot: fit its initial state with the parameters, or keep the EMPS benchmark protocol's (read from the first 20 samples).",
 )
 @click.option(
     "--structure",
@@ -171,6 +179,7 @@ def command(
     max_iterations: int | None,
     tolerance: float | None,
     oe_segment: float | None,
+    oe_state: str,
     controller: str | None,
     kp: float | None,
     kv: float | None,
@@ -238,6 +247,8 @@ def command(
         raise IlicError("--controller", "the loop that ran is used by --method didim, iv, all or cloe only")
     if oe_segment is not None and method != "oe":
         raise IlicError("--oe-segment", "multiple shooting is --method oe's")
+    if oe_state != "fitted" and (method != "oe" or oe_segment is not None):
+        raise IlicError("--oe-state", "the initial state of --method oe's one shot (without --oe-segment)")
     others = [load(p, None, topic, ref_topic, joint, columns) for p in validate]
     if torque_constant is not None and gear_ratio is None:
         raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
@@ -251,7 +262,9 @@ def command(
     with options_named():
         given = {k: v for k, v in (("max_iterations", max_iterations), ("tolerance_pct", tolerance)) if v is not None}
         closed = {m: replace(DEFAULT_SETTINGS[m], **given) for m in DEFAULT_SETTINGS}
-        oe_settings = OESettings(segment_s=oe_segment, **({"max_iterations": max_iterations} if max_iterations is not None else {}))
+        oe_settings = OESettings(
+            segment_s=oe_segment, fit_state=oe_state == "fitted", **({"max_iterations": max_iterations} if max_iterations is not None else {})
+        )
         result = identify(
             run,
             method=method,
