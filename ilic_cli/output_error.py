@@ -24,8 +24,9 @@ rule: a step that lowers the squared error ``S`` by less than
 no damped step can lower; ``max_iterations`` ends it unconverged. (The looser
 statistical rule, ``tolerance=None``: less than ``k S / dof``, what a move of
 each of the ``k`` parameters and states by one standard deviation would change
-it by. On DATA_EMPS.mat it stops the asymmetric fit at 7.13 mm on the pulse run
-where the 1e-6 rule reaches its least at 6.45 mm: the valley is long and flat.) Standard deviations
+it by. On DATA_EMPS.mat, in a trial of the asymmetric fit, it stopped at a model
+scoring 7.13 mm on the pulse run where the 1e-6 rule went on to 6.45 mm: the
+valley is long and flat.) Standard deviations
 ``s^2 (J'J)^-1`` with ``s^2 = S / dof`` (white position noise; the residual of
 a drifting open-loop shot is not white, so they are a lower bound).
 
