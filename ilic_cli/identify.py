@@ -406,6 +406,11 @@ def _output_error(
     prepared = prepare_log(log)
     result = replace(result, force_error_pct=_finite_pct(_inverse_model_error(result, log, prepared, effects, ls_settings)))
     setattr(report, method, result)
+    if "offset" in result.names and "Fc_pos" in result.names:
+        report.warnings.append(
+            f"{result.method}: the offset and the asymmetric Coulomb levels are one plant (Fc_pos + offset, Fc_neg - offset move the axis alike, "
+            "break-away included): a simulation cannot tell them apart, and their standard deviations say so"
+        )
     if not result.converged:
         report.warnings.append(f"{result.method} did not converge: {result.stop_reason}; the last iterate is reported")
 

@@ -374,7 +374,9 @@ def open_loop_oe(
     from plant.replay import initial_state, measured_state
 
     src = log.meta.get("source")
-    log.require("t", "q", "vir")
+    if "vir" not in log:
+        raise IdentificationError(src, "OE drives the model with the recorded drive command: the log has no vir channel")
+    log.require("t", "q")
     gain = log.meta.get("drive_gain")
     if not gain:
         raise IdentificationError(src, "OE drives the model with drive_gain * vir: the log has no drive gain (N/V)")
