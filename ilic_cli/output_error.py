@@ -192,7 +192,8 @@ class OEResult:
             "segment_samples": self.length if self.starts else None,
             "position_rmse_mm": finite_or_none(1e3 * self.rmse_m),
             "position_rmse_start_mm": finite_or_none(1e3 * self.rmse_start_m),
-            "rmse_history_mm": [finite_or_none(1e3 * h) for h in self.history],
+            "residual_rms_history": [finite_or_none((1e3 if self.method == "OE" else 1.0) * h) for h in self.history],
+            "residual_rms_unit": "mm" if self.method == "OE" else "each block divided by its RMS at the start",
             "force_error_pct": None if self.force_error_pct is None else finite_or_none(self.force_error_pct),
             "iterations": self.iterations,
             "evaluations": self.evaluations,
@@ -408,4 +409,4 @@ def closed_loop_oe(
     }
     from dataclasses import replace
 
-    return replace(res, history=tuple(float(np.sqrt(h / out["samples"])) for h in out["history"]), extra=extra)
+    return replace(res, extra=extra)
