@@ -17,11 +17,12 @@ from ilic_cli import parameters
 from ilic_cli.closed_loop_id import METHODS as CLOSED_LOOP_METHODS
 from ilic_cli.closed_loop_id import ClosedLoopResult, ClosedLoopSettings, closed_loop_identify, plant_of, require_closed_loop
 from ilic_cli.effects import get, unit_of
-from ilic_cli.errors import IdentificationError, ParameterError
+from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic, tracking_error_ratio
 from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, idim_ls
 from ilic_cli.lsq import LSResult
+from ilic_cli.output_error import OEResult, OESettings
 from ilic_cli.prepare import prepare_log
 from ilic_cli.regressor import Model, get_model
 from ilic_cli.runlog import RunLog
@@ -36,12 +37,14 @@ class Validation:
 
     source: str
     method: str
-    result: LSResult
+    result: LSResult | None
+    open_loop: dict[str, Any] | None = None
+    """OE / CLOE runs: the benchmark's open-loop figure of these estimates on the log (:class:`plant.replay.BenchmarkFigure`)."""
 
     def to_dict(self) -> dict[str, Any]:
-        d = self.result.to_dict()
-        d.pop("parameters")
-        return {"source": self.source, "method": self.method, **d}
+        d = {} if self.result is None else self.result.to_dict()
+        d.pop("parameters", None)
+        return {"source": self.source, "method": self.method, **d, "open_loop": self.open_loop}
 
 
 @dataclass
@@ -68,6 +71,21 @@ class IdentifyReport:
     """The ``method`` asked for: its estimate goes to the model file (:meth:`primary`)."""
     timing: ControlTiming | None = None
     """The PD loop's timing read from the recording for DIDIM / IDIM-IV, if read."""
+    oe: OEResult | None = None
+    cloe: OEResult | None = None
+    """Output-error estimates (:mod:`ilic_cli.output_error`); the model file takes the one asked for."""
+
+    def output_error(self) -> OEResult | None:
+        """The OE or CLOE estimate the model file takes (``method`` ``oe`` / ``cloe``), if run."""
+        return {"oe": self.oe, "cloe": self.cloe}.get(self.method)
+
+    def model_method(self) -> str:
+        """The name of the method whose estimate the model file takes."""
+        oe = self.output_error()
+        if oe is not None:
+            return oe.method
+        primary = self.primary()
+        return primary[0] if primary is not None else "IDIM-ILIC"
 
     def closed_loop(self) -> list[ClosedLoopResult]:
         """The DIDIM and IDIM-IV results that were run, in that order."""
@@ -99,6 +117,8 @@ class IdentifyReport:
             "ilic": None if self.ilic is None else self.ilic.to_dict(),
             "didim": None if self.didim is None else self.didim.to_dict(),
             "iv": None if self.iv is None else self.iv.to_dict(),
+            "oe": None if self.oe is None else self.oe.to_dict(),
+            "cloe": None if self.cloe is None else self.cloe.to_dict(),
             "validation": [v.to_dict() for v in self.validation],
             "loop_timing": None if self.timing is None else self.timing.to_dict(),
             "warnings": list(self.warnings),
@@ -110,7 +130,9 @@ class IdentifyReport:
 
         rows: list[dict[str, Any]] = []
         whole = ([("IDIM-LS", None, self.ls.result)] if self.ls is not None else []) + [(c.method, c.n_iterations, c.result) for c in self.closed_loop()]
-        for method, k, r in whole:  # one estimate on the whole log (k: a closed-loop method's iterations)
+        whole += [(o.method, o.iterations, o) for o in (self.oe, self.cloe) if o is not None]
+        for method, k, r in whole:  # one estimate on the whole log (k: a closed-loop or output-error method's iterations)
+            rel_err = r.force_error_pct if isinstance(r, OEResult) else r.relative_error_pct
             for n, v, s, p in zip(r.names, r.theta, r.std, r.rel_std_pct, strict=True):
                 rows.append(
                     {
@@ -123,7 +145,7 @@ class IdentifyReport:
                         "std": s,
                         "rel_std_pct": p,
                         "essential": None,
-                        "relative_error_pct": r.relative_error_pct,
+                        "relative_error_pct": rel_err,
                         "tracking_error_ratio": None,
                     }
                 )
@@ -149,7 +171,10 @@ class IdentifyReport:
         return pd.DataFrame(rows)
 
     def model_parameters(self) -> dict[str, float]:
-        """Rigid parameters for a model file: the :meth:`primary` estimate when run, else the last window's essential estimates."""
+        """Rigid parameters for a model file: the output-error or :meth:`primary` estimate when run, else the last window's essential estimates."""
+        oe = self.output_error()
+        if oe is not None:
+            return oe.plant()[0]
         primary = self.primary()
         if primary is not None:
             return plant_of(primary[1].names, primary[1].theta)[0]
@@ -159,7 +184,10 @@ class IdentifyReport:
         return {}
 
     def model_effects(self) -> dict[str, dict[str, float]]:
-        """Plant effects of the :meth:`primary` fit, for a model file (:func:`ilic_cli.closed_loop_id.plant_of`)."""
+        """Plant effects of the output-error or :meth:`primary` fit, for a model file (:func:`ilic_cli.closed_loop_id.plant_of`)."""
+        oe = self.output_error()
+        if oe is not None:
+            return oe.plant()[1]
         primary = self.primary()
         if primary is None:
             return {}
@@ -205,6 +233,7 @@ def identify(
     validate: list[RunLog] | None = None,
     closed_loop_settings: Mapping[str, ClosedLoopSettings] | None = None,
     pd_timing: str = "recorded",
+    oe_settings: OESettings = OESettings(),
 ) -> IdentifyReport:
     """Run IDIM-LS and/or IDIM-ILIC on ``log`` and validate on other logs.
 
@@ -213,10 +242,13 @@ def identify(
     log : RunLog
         Needs ``t``, ``q``, ``tau``; IDIM-ILIC also needs ``q_ref``
         (``qd_ref``/``qdd_ref`` are derived from it when absent).
-    method : {"ls", "ilic", "both", "didim", "iv", "all"}
+    method : {"ls", "ilic", "both", "didim", "iv", "all", "oe", "cloe"}
         ``both``: IDIM-LS and IDIM-ILIC; ``didim``, ``iv``: DIDIM or IDIM-IV
         (:mod:`ilic_cli.closed_loop_id`) started from IDIM-LS, which is
-        reported beside them; ``all``: every method (IDIM-ILIC when usable).
+        reported beside them; ``all``: every method (IDIM-ILIC when usable);
+        ``oe``, ``cloe``: open- or closed-loop output error from IDIM-LS
+        (:mod:`ilic_cli.output_error`), with the benchmark's open-loop
+        figure on each validation log.
     structure : {"rigid", "rigid-offset", "asymmetric"}
     effects : dict, optional
         Effects identified with the structure as further regressor columns
@@ -240,8 +272,10 @@ def identify(
     model = with_effects(structure, effects, fs)
     if method not in IDENTIFY_METHODS:
         raise ParameterError("method", method, f"one of {', '.join(IDENTIFY_METHODS)}")
-    if effects and method not in ("ls", "didim", "iv"):
-        raise ParameterError("method", method, "'ls', 'didim' or 'iv' with effect columns (IDIM-ILIC windows identify the structure's own parameters)")
+    if effects and method not in ("ls", "didim", "iv", "oe", "cloe"):
+        raise ParameterError(
+            "method", method, "'ls', 'didim', 'iv', 'oe' or 'cloe' with effect columns (IDIM-ILIC windows identify the structure's own parameters)"
+        )
     if pd_timing not in parameters.PD_TIMINGS:
         raise ParameterError("pd_timing", pd_timing, f"one of {', '.join(parameters.PD_TIMINGS)}")
     report = IdentifyReport(
@@ -258,7 +292,11 @@ def identify(
     closed = [m for m in ("didim", "iv") if method in (m, "all")]
     if closed:  # refuse before any work
         require_closed_loop(log, src, " and ".join(CLOSED_LOOP_METHODS[m] for m in closed))
-    if method in ("ls", "both", "all") or closed:
+    if method == "cloe":
+        require_closed_loop(log, src, "CLOE")
+    if method in ("oe", "cloe"):
+        prepared.require_contiguous(method.upper())
+    if method in ("ls", "both", "all", "oe", "cloe") or closed:
         try:
             report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid, segments=prepared.segments)
         except ValueError as exc:
@@ -266,7 +304,7 @@ def identify(
         if not report.ls.result.full_rank:
             report.warnings.append("IDIM-LS: the observation matrix is rank-deficient; the trajectory does not excite every parameter")
     timed = prepared
-    if closed and pd_timing == "recorded":  # the loop that ran: its timing read with the IDIM-LS start
+    if (closed or method == "cloe") and pd_timing == "recorded":  # the loop that ran: its timing read with the IDIM-LS start
         from ilic_cli.diagnosis.timing import recorded_loop  # deferred: with the replay
 
         assert report.ls is not None
@@ -283,6 +321,8 @@ def identify(
         setattr(report, m, result)
         if not result.converged:
             report.warnings.append(f"{result.method} did not converge: {result.stop_reason}; the last iterate is reported")
+    if method in ("oe", "cloe"):
+        _output_error(report, method, timed.log, model, effects, oe_settings, ls_settings)
     run_ilic = method in ("ilic", "both", "all")
     if method in ("both", "all"):
         reason = ilic_unusable(log, fs, ilic_settings)
@@ -331,6 +371,7 @@ def identify(
     if report.ilic is not None and report.ilic.windows and np.all(np.isfinite(report.ilic.windows[-1].result.theta)):
         estimates.append((f"IDIM-ILIC (k={report.ilic.windows[-1].k})", report.ilic.windows[-1].result.theta))
     estimates += [(cl.method, cl.result.theta) for cl in report.closed_loop()]
+    plants = _validation_plants(report, model, effects, estimates)
     for other in validate or []:
         osrc = str(other.meta.get("source", ""))
         op = prepare_log(other, prefix=f"validation log {osrc}")
@@ -340,11 +381,81 @@ def identify(
             report.warnings.append(f"validation log {osrc}: {op.saturation_note()}")
         for label, theta in estimates:
             res = cross_validate(theta, vlog.t, vlog["q"], vlog["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
-            report.validation.append(Validation(osrc, label, res))
+            report.validation.append(Validation(osrc, label, res, _open_loop_figure(vlog, plants.get(label), oe_settings, report.warnings)))
+        for oe in (report.oe, report.cloe):
+            if oe is not None:
+                res = _inverse_model_error(oe, vlog, op, effects, ls_settings)
+                report.validation.append(Validation(osrc, oe.method, res, _open_loop_figure(vlog, oe.plant(), oe_settings, report.warnings)))
     return report
 
 
-IDENTIFY_METHODS = ("ls", "ilic", "both", "didim", "iv", "all")
+def _output_error(
+    report: IdentifyReport, method: str, log: RunLog, model: Model, effects: dict[str, Any], settings: OESettings, ls_settings: LSSettings
+) -> None:
+    """OE or CLOE from the IDIM-LS estimate's plant (:mod:`ilic_cli.output_error`), with its force error on the log."""
+    from ilic_cli.output_error import closed_loop_oe, open_loop_oe
+
+    assert report.ls is not None
+    rigid, eff = plant_of(model.names, report.ls.result.theta, effects)
+    names = parameters.structure_names(report.model)
+    name = model.name
+    if method == "oe":
+        result = open_loop_oe(log, rigid, eff, names, model_name=name, settings=settings, warnings=report.warnings)
+    else:
+        result = closed_loop_oe(log, rigid, eff, names, model_name=name, settings=settings, trim=ls_settings.trim)
+    prepared = prepare_log(log)
+    result = replace(result, force_error_pct=_finite_pct(_inverse_model_error(result, log, prepared, effects, ls_settings)))
+    setattr(report, method, result)
+    if "offset" in result.names and "Fc_pos" in result.names:
+        report.warnings.append(
+            f"{result.method}: the offset and the asymmetric Coulomb levels are one plant (Fc_pos + offset, Fc_neg - offset move the axis alike, "
+            "break-away included): a simulation cannot tell them apart, and their standard deviations say so"
+        )
+    if not result.converged:
+        report.warnings.append(f"{result.method} did not converge: {result.stop_reason}; the last iterate is reported")
+
+
+def _finite_pct(res: LSResult | None) -> float | None:
+    return None if res is None else float(res.relative_error_pct)
+
+
+def _inverse_model_error(oe: OEResult, log: RunLog, prepared: Any, effects: dict[str, Any], ls_settings: LSSettings) -> LSResult | None:
+    """The inverse model's force error with an output-error estimate (IDIM-LS's processing; effects' columns at the fitted values)."""
+    rigid, eff = oe.plant()
+    values = {**rigid, **{k: v for params in eff.values() for k, v in params.items()}}
+    try:
+        fitted = {eid: get(eid).value_from_plant(eff.get(eid, {}), float(rigid["M"])) for eid in effects}
+        m = with_effects(oe.model.split("+")[0], fitted, prepared.fs_hz)
+        theta = np.array([values[n] for n in m.names], dtype=np.float64)
+    except (KeyError, IlicError):
+        return None  # the fitted plant has no inverse model of this form
+    return cross_validate(theta, log.t, log["q"], log["tau"], prepared.fs_hz, m, ls_settings, valid=prepared.valid, segments=prepared.segments)
+
+
+def _validation_plants(report: IdentifyReport, model: Model, effects: dict[str, Any], estimates: list[tuple[str, np.ndarray]]) -> dict[str, Any]:
+    """OE / CLOE runs: each validated estimate's plant, for its open-loop figure (none otherwise)."""
+    if report.method not in ("oe", "cloe"):
+        return {}
+    return {label: plant_of(model.names, theta, effects) for label, theta in estimates if label == "IDIM-LS" or label in CLOSED_LOOP_METHODS.values()}
+
+
+def _open_loop_figure(log: RunLog, plant: Any, settings: OESettings, warnings: list[str]) -> dict[str, Any] | None:
+    """The benchmark's open-loop figure of ``plant`` on ``log`` (``None`` without a plant, or a log without ``vir`` and a drive gain)."""
+    if plant is None:
+        return None
+    if "vir" not in log or not log.meta.get("drive_gain"):
+        warnings.append(f"validation log {log.meta.get('source')}: no open-loop figure (it needs the drive command vir and a drive gain)")
+        return None
+    from plant.replay import simulate_open_loop  # deferred: the plant pulls in numba
+
+    try:
+        return simulate_open_loop(log, *plant, init_samples=settings.init_samples, substeps=10)[1].to_dict()
+    except IlicError as exc:
+        warnings.append(f"validation log {log.meta.get('source')}: no open-loop figure: {exc.problem}")
+        return None
+
+
+IDENTIFY_METHODS = ("ls", "ilic", "both", "didim", "iv", "all", "oe", "cloe")
 """Values of ``identify(method=...)``."""
 
 

@@ -70,6 +70,7 @@ def to_markdown(report: IdentifyReport) -> str:
             "",
         ]
     out += _closed_loop_markdown(report)
+    out += _output_error_markdown(report)
     if report.ilic is not None:
         wins = report.ilic.windows
         shown = wins[:MAX_WINDOW_COLUMNS]
@@ -116,13 +117,22 @@ def to_markdown(report: IdentifyReport) -> str:
         out.append("")
     if report.validation:
         out += ["## Cross-test validation", ""]
-        out += _table(
-            ["log", "estimates", "relative error %", "error norm", "error std", "condition number"],
-            [
-                [v.source, v.method, fmt(v.result.relative_error_pct), fmt(v.result.error_norm), fmt(v.result.sigma_rho), fmt(v.result.condition_number)]
-                for v in report.validation
-            ],
-        )
+        opened = any(v.open_loop is not None for v in report.validation)
+        header = ["log", "estimates", "relative error %", "error norm", "error std", "condition number"] + (["open-loop RMSE mm", "fit %"] if opened else [])
+        rows = []
+        for v in report.validation:
+            r = v.result
+            row = [v.source, v.method] + (["—"] * 4 if r is None else [fmt(r.relative_error_pct), fmt(r.error_norm), fmt(r.sigma_rho), fmt(r.condition_number)])
+            if opened:
+                row += ["—", "—"] if v.open_loop is None else [fmt(v.open_loop["rmse_mm"], 3), fmt(v.open_loop["fit_pct"], 2)]
+            rows.append(row)
+        out += _table(header, rows)
+        if opened:
+            out += [
+                "",
+                "Open loop: the EMPS benchmark's figure, u = vir (times the drive gain) into the model without feedback, "
+                "the state from the first 20 samples, RMSE of the position after them.",
+            ]
         out.append("")
     if report.warnings:
         out += ["## Warnings", ""] + [f"- {w}" for w in report.warnings] + [""]
@@ -170,6 +180,39 @@ def _closed_loop_markdown(report: IdentifyReport) -> list[str]:
             [[str(it.k), fmt(it.relative_error_pct), fmt(it.parameter_change_pct), fmt(it.error_change_pct)] for it in r.iterations],
         )
         out.append("")
+    return out
+
+
+def _output_error_markdown(report: IdentifyReport) -> list[str]:
+    """OE / CLOE: the estimate beside its IDIM-LS start, the criterion and the stopping rule."""
+    out: list[str] = []
+    for r in (report.oe, report.cloe):
+        if r is None:
+            continue
+        what = "open loop, the recorded drive command in" if r.method == "OE" else "closed loop, the log's reference through its controller"
+        out += [f"## {r.method} (output error, {what})", ""]
+        out += _table(
+            ["parameter", "start (IDIM-LS)", r.method, "std", "%σ"],
+            [
+                [_label(n.split(".")[-1], report.joint_type) if "." not in n else n, fmt_sig(s0), fmt_sig(v), fmt_sig(sd), fmt_sig(p, 2)]
+                for n, s0, v, sd, p in zip(r.names, r.start, r.theta, r.std, r.rel_std_pct, strict=True)
+            ],
+        )
+        out.append("")
+        if r.method == "OE":
+            shots = "one shot" if len(r.starts) == 1 else f"{len(r.starts)} stretches of {r.length} samples (multiple shooting)"
+            out.append(
+                f"Position RMSE {fmt(1e3 * r.rmse_start_m, 3)} mm at the start, {fmt(1e3 * r.rmse_m, 3)} mm at the estimate ({shots}, "
+                f"from sample {r.starts[0]})."
+            )
+        else:
+            out.append(
+                f"Closed-loop position RMSE {fmt(1e6 * r.rmse_start_m, 3)} µm at the start, {fmt(1e6 * r.rmse_m, 3)} µm at the estimate; "
+                f"force RMSE {fmt(r.extra.get('force_rmse_start'), 3)} → {fmt(r.extra.get('force_rmse'), 3)} N (criterion: {r.extra.get('output')})."
+            )
+        if r.force_error_pct is not None:
+            out.append(f"Inverse-model force error with these parameters: {fmt(r.force_error_pct)} % (IDIM-LS's own criterion).")
+        out += ["", f"{'Converged' if r.converged else 'Not converged'} after {r.iterations} iterations ({r.evaluations} simulations): {r.stop_reason}.", ""]
     return out
 
 

@@ -261,6 +261,17 @@ def open_loop(
     )
 
 
+def initial_state(q_m: np.ndarray, init_samples: int, fs_hz: float) -> tuple[float, float]:
+    """The state ``(q, qd)`` at sample ``init_samples - 1`` read from the first ``init_samples`` measured positions only.
+
+    A least-squares parabola through ``q_m[:init_samples]``, its value and slope at the last of them: the
+    benchmark's state-initialisation window, nothing after it used.
+    """
+    k = np.arange(init_samples, dtype=np.float64) - (init_samples - 1)
+    c = np.polyfit(k, np.asarray(q_m[:init_samples], dtype=np.float64), 2)
+    return float(c[2]), float(c[1] * fs_hz)
+
+
 def simulate_open_loop(
     log: RunLog,
     params: RigidParameters | Mapping[str, float],
@@ -271,10 +282,11 @@ def simulate_open_loop(
 ) -> tuple[RunLog, BenchmarkFigure]:
     """The benchmark's simulation of ``log``: its recorded drive command in, no feedback; and the figure.
 
-    The plant starts at the measured position and velocity (zero-phase
-    filtered, central difference) of sample ``init_samples`` and is driven by
-    ``drive_gain * vir`` from there; the simulated position is compared with
-    the measured one from that sample on.
+    The official protocol of the EMPS task (``nonlinear_benchmarks``): u = ``vir``, y = ``qm``, the first
+    ``init_samples`` samples set the state and the score is the RMSE of ``y[init_samples:]``. The plant
+    starts at sample ``init_samples - 1`` from :func:`initial_state` (those samples only) and is driven by
+    ``drive_gain * vir`` held over each period from there; the simulated position is compared with the
+    measured one from sample ``init_samples`` on.
     """
     if isinstance(params, RigidParameters):
         eff = make_effects(effects)
@@ -285,15 +297,19 @@ def simulate_open_loop(
     if not gain:
         raise SimulationError(log.meta.get("source"), "the log has no drive gain (N/V): the benchmark drives the model with drive_gain * vir")
     n = len(log)
-    if not 2 <= init_samples < n - 2:
-        raise ParameterError("init_samples", init_samples, f"between 2 and {n - 3}")
+    if not 3 <= init_samples < n - 2:
+        raise ParameterError("init_samples", init_samples, f"between 3 and {n - 3}")
     T = log.dt_s
-    _, vf = measured_state(np.asarray(log["q"], dtype=np.float64), 1.0 / T)
-    q = np.asarray(log["q"][init_samples:], dtype=np.float64)
-    zero = np.zeros(len(q))
-    x0 = (float(q[0]), float(vf[init_samples]))
-    res = open_loop(params, eff, np.asarray(log["vir"][init_samples:], dtype=np.float64), 1.0 / T, x0, gain=float(gain), substeps=substeps)
+    q_all = np.asarray(log["q"], dtype=np.float64)
+    k0 = init_samples - 1
+    x0 = initial_state(q_all, init_samples, 1.0 / T)
+    res = open_loop(params, eff, np.asarray(log["vir"][k0:], dtype=np.float64), 1.0 / T, x0, gain=float(gain), substeps=substeps)
+    for name in ("q", "q_true", "qd_true", "qdd_true", "u", "vir", "tau", "chi"):
+        setattr(res, name, getattr(res, name)[1:])
+    res.pulses = None if res.pulses is None else res.pulses[1:]
     res.t = np.asarray(log.t[init_samples:], dtype=np.float64).copy()
+    q = q_all[init_samples:]
+    zero = np.zeros(len(q))
     rmse = float(np.sqrt(np.mean((res.q_true - q) ** 2)))
     figure = BenchmarkFigure(rmse_mm=1e3 * rmse, fit_pct=100.0 * (1.0 - rmse / float(np.std(q))), samples=len(q), init_samples=init_samples)
     out = loop_log(res, q_ref=q, qd_ref=zero, qdd_ref=zero, meta={"replay_of": log.meta.get("source"), "benchmark": figure.to_dict()})

@@ -27,6 +27,7 @@ from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io.atomic import atomic_write_text, same_path
 from ilic_cli.modelfile import load_model_file, model_document
+from ilic_cli.output_error import OESettings
 from ilic_cli.parameters import DEFAULTS
 from ilic_cli.plotting import plot_identify
 from ilic_cli.prepare import as_joint, to_load_side
@@ -36,10 +37,26 @@ from ilic_cli.prepare import as_joint, to_load_side
 @click.argument("log", type=click.Path(path_type=Path))
 @click.option(
     "--method",
-    type=click.Choice(["ls", "ilic", "both", "didim", "iv", "all"]),
+    type=click.Choice(["ls", "ilic", "both", "didim", "iv", "all", "oe", "cloe"]),
     default="both",
     show_default=True,
-    help="IDIM-LS, IDIM-ILIC per window, both; DIDIM or IDIM-IV (closed-loop, from IDIM-LS, shown beside it); or all.",
+    help="IDIM-LS, IDIM-ILIC per window, both; DIDIM or IDIM-IV (closed-loop, from IDIM-LS, shown beside it); or all; "
+    "OE / CLOE: open- / closed-loop output error of the position (from IDIM-LS; docs/output-error.md).",
+)
+@click.option(
+    "--oe-segment",
+    "oe_segment",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    help="OE: multiple shooting over stretches of this length (s), each with its own fitted state [default: one shot from the 20th sample].",
+)
+@click.option(
+    "--oe-state",
+    "oe_state",
+    type=click.Choice(["fitted", "protocol"]),
+    default="fitted",
+    show_default=True,
+    help="OE's one shot: fit its initial state with the parameters, or keep the EMPS benchmark protocol's (read from the first 20 samples).",
 )
 @click.option(
     "--structure",
@@ -125,7 +142,7 @@ from ilic_cli.prepare import as_joint, to_load_side
     "max_iterations",
     type=click.IntRange(min=1),
     default=None,
-    help="DIDIM / IDIM-IV: most iterations [default: DIDIM 20, IDIM-IV 10].",
+    help="DIDIM / IDIM-IV / OE / CLOE: most iterations [default: DIDIM 20, IDIM-IV 10, OE and CLOE 40].",
 )
 @click.option(
     "--tolerance",
@@ -161,6 +178,8 @@ def command(
     filtering: str,
     max_iterations: int | None,
     tolerance: float | None,
+    oe_segment: float | None,
+    oe_state: str,
     controller: str | None,
     kp: float | None,
     kv: float | None,
@@ -222,10 +241,14 @@ def command(
     if out_dir is not None:
         _refuse_overwriting_inputs(out_dir, plot_format, (log, *validate))
     run = load(log, input_format, topic, ref_topic, joint, columns)
-    if method in ("didim", "iv", "all"):
+    if method in ("didim", "iv", "all", "cloe"):
         run = with_controller(run, log, controller, kp, kv, drive_gain)
     elif controller is not None or any(v is not None for v in (kp, kv, drive_gain)):
-        raise IlicError("--controller", "the loop that ran is used by --method didim, iv or all only")
+        raise IlicError("--controller", "the loop that ran is used by --method didim, iv, all or cloe only")
+    if oe_segment is not None and method != "oe":
+        raise IlicError("--oe-segment", "multiple shooting is --method oe's")
+    if oe_state != "fitted" and (method != "oe" or oe_segment is not None):
+        raise IlicError("--oe-state", "the initial state of --method oe's one shot (without --oe-segment)")
     others = [load(p, None, topic, ref_topic, joint, columns) for p in validate]
     if torque_constant is not None and gear_ratio is None:
         raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
@@ -239,6 +262,9 @@ def command(
     with options_named():
         given = {k: v for k, v in (("max_iterations", max_iterations), ("tolerance_pct", tolerance)) if v is not None}
         closed = {m: replace(DEFAULT_SETTINGS[m], **given) for m in DEFAULT_SETTINGS}
+        oe_settings = OESettings(
+            segment_s=oe_segment, fit_state=oe_state == "fitted", **({"max_iterations": max_iterations} if max_iterations is not None else {})
+        )
         result = identify(
             run,
             method=method,
@@ -249,6 +275,7 @@ def command(
             validate=others,
             closed_loop_settings=closed,
             pd_timing=pd_timing,
+            oe_settings=oe_settings,
         )
     for w in result.warnings:
         note(f"ilic: warning: {w}")
@@ -264,9 +291,9 @@ def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[P
     atomic_write_text(out_dir / "report.md", render.to_markdown(result), inputs=inputs)
     atomic_write_text(out_dir / "report.csv", render.to_csv(result), inputs=inputs)
     atomic_write_text(out_dir / "report.json", render.to_json(result.to_dict()), inputs=inputs)
-    primary = result.primary()
-    method = primary[0] if primary is not None else "IDIM-ILIC"
-    doc = model_document(result.model, result.model_parameters(), method=method, effects=result.model_effects(), source=result.source)
+    oe = result.output_error()
+    std = None if oe is None else {"parameters": {n: float(s) for n, s in zip(oe.names, oe.std, strict=True)}}
+    doc = model_document(result.model, result.model_parameters(), method=result.model_method(), effects=result.model_effects(), source=result.source, std=std)
     atomic_write_text(out_dir / "model.json", render.to_json(doc), inputs=inputs)
     written = [out_dir / n for n in ("report.md", "report.csv", "report.json", "model.json")]
     if plot_format != "none":

@@ -158,7 +158,7 @@ def test_paper_sim_study_setting_and_k2_edge() -> None:
 
 
 def test_diagnosed_model_on_the_pulse_run(tmp_path: Path) -> None:
-    """docs/methods.md: "diagnosed: asymmetric + position ripple | 4.81 | 11.76 | 85.8" (trained on DATA_EMPS, held out on the pulses)."""
+    """docs/methods.md: "diagnosed: asymmetric + position ripple | 4.81 | 11.73 | 85.8" (trained on DATA_EMPS, held out on the pulses)."""
     shared = require_shared()
     assert run_cli("diagnose", str(shared / "DATA_EMPS.mat"), "--out", str(tmp_path / "diag")).status == 0
     model = json.loads((tmp_path / "diag" / "model.json").read_text())
@@ -167,4 +167,4 @@ def test_diagnosed_model_on_the_pulse_run(tmp_path: Path) -> None:
     closed = run_cli(*args, "-o", str(tmp_path / "cl.mcap"))
     assert closed.status == 0 and "force error 4.809 %" in closed.stderr, closed.stderr
     opened = run_cli(*args, "--open-loop", "-o", str(tmp_path / "ol.mcap"))
-    assert opened.status == 0 and "RMSE 11.76 mm, fit 85.77 %" in opened.stderr, opened.stderr
+    assert opened.status == 0 and "RMSE 11.73 mm, fit 85.8 %" in opened.stderr, opened.stderr  # the state from the first 20 samples (issue 31)

@@ -1,0 +1,149 @@
+"""Levenberg-Marquardt on a simulated output, its sensitivities by forward differences (the output-error fits).
+
+The unknowns are parameters ``p`` and, for multiple shooting, each stretch's initial state ``(q, qd)``; each
+stretch's output depends on its own state only, so the states of all stretches are perturbed at once and a
+Jacobian costs ``len(p) + 2`` evaluations, run side by side (:func:`ilic_cli.parallel.ordered_map`). The columns
+are scaled to unit norm; the damping is raised fourfold until the error falls and lowered tenfold after.
+
+Pure numerics: the residual is passed in. (The open-loop segments' fit of the diagnosis,
+:func:`ilic_cli.diagnosis.segments.fit_segments`, runs the same scheme on its own.)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.errors import IlicError
+from ilic_cli.parallel import ordered_map
+
+DQ_M = 1e-6
+"""Finite-difference step of a stretch's initial position (m)."""
+
+DV_MPS = 1e-4
+"""Finite-difference step of a stretch's initial velocity (m/s)."""
+
+FLOOR = 1e-2
+"""A value's finite-difference step is ``rel_step`` of ``max(|value|, FLOOR)`` (an offset near zero still moves)."""
+
+
+Residual = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""``(parameters, states (s, 2)) -> residual``; raises :class:`~ilic_cli.errors.IlicError` where the model does not simulate."""
+
+
+def levenberg_marquardt(
+    residual: Residual,
+    p0: np.ndarray,
+    x0: np.ndarray,
+    steps: np.ndarray,
+    *,
+    state_steps: tuple[float, float] = (DQ_M, DV_MPS),
+    max_iterations: int = 40,
+    tolerance: float | None = None,
+) -> dict[str, Any]:
+    """Minimise ``|residual(p, x)|^2`` over the parameters ``p`` and the stretches' states ``x`` (see the module's stopping rule).
+
+    The states of all stretches are perturbed at once (each stretch's output depends on its own state only), so a
+    Jacobian costs ``len(p) + 2`` residuals (``len(p) + 1`` evaluations side by side with the base).
+    Returns the estimate, its covariance (parameters then states), the residual and the history.
+    """
+    p, x = np.asarray(p0, dtype=np.float64).copy(), np.asarray(x0, dtype=np.float64).reshape(-1, 2).copy()
+    ng, ns = len(p), len(x)
+    fit_states = ns > 0
+
+    def evaluate(p: np.ndarray, x: np.ndarray) -> np.ndarray | None:
+        try:
+            r = residual(p, x)
+        except IlicError:
+            return None
+        return r if np.all(np.isfinite(r)) else None
+
+    r0 = evaluate(p, x)
+    if r0 is None:
+        raise IlicError(None, "the starting estimate does not simulate")
+    seg_len = len(r0) // ns if fit_states else 0
+
+    def jacobian(p: np.ndarray, x: np.ndarray, base: np.ndarray) -> np.ndarray | None:
+        jobs: list[Callable[[], np.ndarray | None]] = [lambda k=k: evaluate(p + steps[k] * np.eye(ng)[k], x) for k in range(ng)]
+        if fit_states:
+            jobs += [lambda c=c: evaluate(p, x + state_steps[c] * np.eye(2)[c]) for c in (0, 1)]
+        out = ordered_map(lambda job: job(), jobs)
+        if any(o is None for o in out):
+            return None
+        J = np.zeros((len(base), ng + 2 * ns))
+        for k in range(ng):
+            J[:, k] = (out[k] - base) / steps[k]  # type: ignore[operator]
+        for c in (0, 1) if fit_states else ():
+            col = (out[ng + c] - base) / state_steps[c]  # type: ignore[operator]
+            for j in range(ns):
+                J[j * seg_len : (j + 1) * seg_len, ng + 2 * j + c] = col[j * seg_len : (j + 1) * seg_len]
+        return J
+
+    r = r0
+    e = e0 = float(r @ r)
+    dof = max(len(r) - ng - 2 * ns, 1)
+    lam, it, evaluations, converged = 1e-3, 0, 1, False
+    history = [e]
+    stop = f"iteration limit ({max_iterations}) reached"
+    J = jacobian(p, x, r)
+    evaluations += ng + (2 if fit_states else 0)
+    if J is None:
+        raise IlicError(None, "a parameter shifted for its sensitivity does not simulate at the start")
+    while it < max_iterations:
+        it += 1
+        scale = np.linalg.norm(J, axis=0)
+        scale[scale == 0] = 1.0
+        Js = J / scale
+        A, g = Js.T @ Js, Js.T @ r
+        D = np.diag(np.where(np.diag(A) > 0, np.diag(A), 1.0))
+        accepted = False
+        while lam <= 1e8:
+            d = -np.linalg.solve(A + lam * D, g) / scale
+            p1, x1 = p + d[:ng], x + d[ng:].reshape(ns, 2)
+            r1 = evaluate(p1, x1)
+            evaluations += 1
+            e1 = np.inf if r1 is None else float(r1 @ r1)
+            if e1 < e:
+                accepted = True
+                drop = e - e1
+                p, x, r, e, lam = p1, x1, r1, e1, max(lam / 10.0, 1e-9)
+                history.append(e)
+                break
+            lam *= 4.0
+        if not accepted:
+            converged, stop = True, f"no damped step lowers the squared error (iteration {it}): at its least"
+            break
+        need = (ng + 2 * ns) / dof if tolerance is None else tolerance
+        if drop < need * e:
+            converged = True
+            rule = f"k/dof = {need:.3g}" if tolerance is None else f"the tolerance {need:.3g}"
+            stop = f"the step lowered the squared error by {drop / e:.3g} of it, less than {rule} (iteration {it})"
+            break
+        J1 = jacobian(p, x, r)
+        evaluations += ng + (2 if fit_states else 0)
+        if J1 is None:
+            stop = "a parameter shifted for its sensitivity does not simulate"
+            break
+        J = J1
+    cov = (e / dof) * np.linalg.pinv(J.T @ J)
+    return {
+        "p": p,
+        "x": x,
+        "cov": cov,
+        "r": r,
+        "sse": e,
+        "sse_start": e0,
+        "history": history,
+        "iterations": it,
+        "evaluations": evaluations,
+        "converged": converged,
+        "stop": stop,
+        "samples": len(r),
+    }
+
+
+def fd_steps(theta: np.ndarray, rel_step: float) -> np.ndarray:
+    """Finite-difference steps of the parameters (:data:`FLOOR`)."""
+    return rel_step * np.maximum(np.abs(theta), FLOOR)
