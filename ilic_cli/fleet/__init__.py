@@ -8,7 +8,9 @@
 - :mod:`~ilic_cli.fleet.trendplot`: the trend plots;
 - :mod:`~ilic_cli.fleet.generate`: a simulated fleet with wear and payload swaps, for tests and the demo.
 
-Nothing here imports numpy, pandas, pyarrow or dask at import time: the command
-line's ``--help`` stays instant, and a spawned worker sets its BLAS threads
-before numpy loads (:func:`~ilic_cli.fleet.execute.one_blas_thread`).
+The commands import these modules only when run (``ilic --help`` stays
+instant); :mod:`~ilic_cli.fleet.execute` and :mod:`~ilic_cli.fleet.batch`
+import no numpy, pandas, pyarrow or dask at import time, so that a spawned
+worker sets its BLAS threads before numpy loads
+(:func:`~ilic_cli.fleet.execute.one_blas_thread`).
 """

@@ -180,8 +180,13 @@ def read_table(path: Path) -> Any:
         if path.suffix.lower() == ".parquet":
             frame = pd.read_parquet(path)
         else:
-            frame = pd.read_csv(path, dtype={c: "string" for c in (*STRING_COLUMNS, "joint_type", "method", "findings", "status", "error")})
-            frame["start_time"] = pd.to_datetime(frame["start_time"], utc=True)
+            import pyarrow as pa
+            import pyarrow.csv as pacsv
+
+            # pyarrow's parser reads every float back exactly (the shortest repr the table was written with)
+            types = {c: pa.string() for c in (*STRING_COLUMNS, "joint_type", "method", "findings", "status", "error")}
+            types["start_time"] = pa.timestamp("ns", tz="UTC")
+            frame = pacsv.read_csv(path, convert_options=pacsv.ConvertOptions(column_types=types, strings_can_be_null=True)).to_pandas()
     except FileNotFoundError:
         raise IlicError(path, "no such table") from None
     except Exception as exc:  # a file that is not a table (pyarrow and pandas raise their own kinds)
