@@ -22,8 +22,8 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
-BLAS_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
-"""Environment variables that set a worker's BLAS (and numba) threads."""
+BLAS_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS", "ILIC_THREADS")
+"""Environment variables that set a worker's BLAS, numba and replay threads (:mod:`ilic_cli.parallel`): the workers share the cores."""
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,7 @@ class Task:
 
 
 def one_blas_thread() -> None:
-    """Initialise a local worker process: one BLAS thread, as dask's workers have (set before numpy loads)."""
+    """Initialise a worker process: one BLAS thread, as dask's workers have (set before numpy loads), and one replay thread."""
     for name in BLAS_THREAD_VARIABLES:
         os.environ[name] = "1"
 
@@ -199,6 +199,7 @@ def dask_runner(address: str | None = None, workers: int | None = None) -> Runne
             cluster = LocalCluster(n_workers=workers or 1, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster if cluster is not None else address)
         try:
+            client.run(one_blas_thread)  # the replays' threads (read at each call); the nanny has set BLAS's
             # a task's key is its log's key: the same log and settings are one task, whoever submits them
             futures = [client.submit(run_task, t, key=f"ilic-{t.key}", pure=False) for t in tasks]
             for f in as_completed(futures):

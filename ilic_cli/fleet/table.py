@@ -13,7 +13,7 @@ Columns, in this order and of these types whatever the batch held:
 ``t_start_s``, ``t_end_s``  float64    the window's span (NaN for a whole-log estimate)
 P, ``P_std``, ``P_rel_std_pct``  float64    each parameter P of the structure, σ and %σ
 ``relative_error_pct``      float64    ‖Y − Wθ̂‖/‖Y‖ of the estimate
-``findings``                string     the diagnosis's effect ids, comma-separated (null without ``--diagnose``)
+``findings``                string     the diagnosis's effect ids, comma-separated; ``none``; null without ``--diagnose``
 ``status``                  string     ``ok`` or ``error``
 ``error``                   string     why the log gave no estimate (or why the diagnosis failed)
 ==========================  =========  =============================================================
@@ -75,7 +75,7 @@ def rows(result: BatchResult, structure: str, group_by: Any = None) -> list[dict
             "joint_type": meta.get("joint_type"),
         }
         error = group_error or doc["error"]
-        findings = None if doc["findings"] is None else ",".join(doc["findings"])
+        findings = None if doc["findings"] is None else ",".join(doc["findings"]) or "none"
         diag_error = next((w for w in doc["warnings"] if w.startswith("diagnose: ")), None)
         if error is not None or not doc["estimates"]:
             out.append(_row(base, names, None, None, "error", error or f"{path}: no estimate"))

@@ -13,8 +13,9 @@ The p-values of all series are then corrected together, across machines x
 joints x parameters (Holm by default, or Benjamini-Hochberg). A series is
 flagged when its corrected p is below ``alpha`` (0.01) and its change is at
 least ``min_change_pct`` (10 %) of its first level; a parameter whose first
-level is not :data:`LEVEL_Z` standard errors from zero (an offset near 0 N) has
-no relative change and is not tested. A flagged rise of Fv or Fc is wear; a
+level is not :data:`LEVEL_Z` times its standard error, nor :data:`LEVEL_Z` times
+one log's median σ, away from zero (an offset near 0 N) has no relative change
+and is not tested. A flagged rise of Fv or Fc is wear; a
 flagged step of M is a payload swap, named by the day of the first log after it.
 """
 
@@ -176,7 +177,7 @@ class Series:
         x = (np.asarray(self.times_ns, dtype=np.int64) - self.times_ns[0]).astype(float) / 86400e9
         y = np.asarray(self.values, dtype=float)
         a, b, se_a, se_b, rss_line = slope_fit(x, y)
-        if not abs(a) > LEVEL_Z * se_a:
+        if not abs(a) > LEVEL_Z * max(se_a, float(np.median(self.stds))):
             return
         k, m1, m2, rss_step, splits = step_fit(y)
         rss0 = float(((y - y.mean()) ** 2).sum())

@@ -166,3 +166,15 @@ def test_out_that_is_a_file_is_refused(small_fleet, tmp_path: Path) -> None:
     (tmp_path / "f").write_text("x")
     res = run_cli("batch", str(folder / "m01"), "--out", str(tmp_path / "f"))
     assert res.status == 2 and "--out must be a folder" in res.stderr
+
+
+def test_diagnose_puts_the_findings_in_every_row_of_the_log(small_fleet, tmp_path: Path) -> None:
+    folder, _ = small_fleet
+    log = folder / "m01" / "m01_2026-01-01.mcap"
+    res = run_cli("batch", str(log), "--out", str(tmp_path / "d"), "--diagnose")
+    assert res.status == 0, res.stderr
+    frame = read_table(tmp_path / "d" / "table.csv")
+    plain = read_table(write_table(run_batch([log], tmp_path / "p", TaskSettings()), "rigid-offset")[0])
+    # the simulated rigid axis leaves nothing out; identification is the same with or without the diagnosis
+    assert list(frame.findings) == ["none", "none"] and plain.findings.isna().all()
+    assert list(frame.M) == list(plain.M) and frame.error.isna().all()
