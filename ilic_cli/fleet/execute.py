@@ -8,7 +8,7 @@ its error, never an exception (only an interrupt ends a batch).
 
 Where a task runs does not change its document: every worker computes with one
 BLAS thread (dask's nanny sets the same for its workers, and the local pool's
-:func:`one_blas_thread` before numpy loads), and the caller writes the documents
+fork server before numpy loads, :mod:`ilic_cli.fleet.preload`), and the caller writes the documents
 and builds the table from them in a fixed order (:mod:`ilic_cli.fleet.table`).
 
 This module imports nothing heavy at import time: a spawned worker unpickles
@@ -175,14 +175,19 @@ def local_processes(workers: int) -> Runner:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor, as_completed  # deferred: only for a parallel batch
 
-        # spawn: a fresh interpreter sets its BLAS threads before numpy loads (a fork would inherit the parent's pool)
-        ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"), initializer=one_blas_thread)
+        # a fork server, not a fork of this process (whose BLAS may run threads): it sets one BLAS thread before numpy loads and
+        # imports the numerics once (ilic_cli.fleet.preload), so the workers it forks start loaded
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["ilic_cli.fleet.preload"])
+        ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=one_blas_thread)
         try:
             futures = [ex.submit(run_task, t) for t in tasks]
             for f in as_completed(futures):
                 yield f.result()
-        finally:
+        except BaseException:  # stopped (Ctrl-C, SIGTERM, a failed write): the logs not started are not run
             ex.shutdown(wait=False, cancel_futures=True)
+            raise
+        ex.shutdown(wait=True)  # the workers end with the batch, not after it
 
     return run
 
