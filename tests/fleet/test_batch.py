@@ -178,3 +178,29 @@ def test_diagnose_puts_the_findings_in_every_row_of_the_log(small_fleet, tmp_pat
     # the simulated rigid axis leaves nothing out; identification is the same with or without the diagnosis
     assert list(frame.findings) == ["none", "none"] and plain.findings.isna().all()
     assert list(frame.M) == list(plain.M) and frame.error.isna().all()
+
+
+def test_a_killed_batch_resumes_to_the_same_table(logs: Path, local_run: Path, tmp_path: Path) -> None:
+    """SIGKILL a batch process once its first log is stored (no clean-up at all); the rerun computes only the others."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-m", "ilic_cli", "batch", str(logs), "--out", str(out), "--jobs", "1"], stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while not list((out / "logs").glob("*.json")) and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.002)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait()
+    done = len(list((out / "logs").glob("*.json")))
+    assert proc.returncode == -signal.SIGKILL and 1 <= done < 25 and not (out / "table.parquet").exists()
+    res = run_cli("batch", str(logs), "--out", str(out), "--format", "json")
+    assert res.status == 0, res.stderr
+    assert (json.loads(res.stdout)["computed"], json.loads(res.stdout)["resumed"]) == (25 - done, done)
+    for name in ("table.parquet", "table.csv"):
+        assert (out / name).read_bytes() == (local_run / name).read_bytes(), name
