@@ -78,7 +78,9 @@ def command(
     if (dask_spec is not None or scheduler is not None) and jobs is not None:
         raise IlicError("--jobs", "sets local processes; with dask the cluster decides")
     rx = group_pattern(group_by)
-    paths = find_logs(logs)
+    paths = [p for p in find_logs(logs) if out_dir.resolve() not in p.resolve().parents]  # not the batch's own table.csv
+    if not paths:
+        raise IlicError(logs[0], f"no log outside --out {out_dir}")
     if dask_spec is not None:
         kind, _, n = dask_spec.partition(":")
         if kind != "local" or not n.isdigit() or int(n) < 1:

@@ -204,3 +204,12 @@ def test_a_killed_batch_resumes_to_the_same_table(logs: Path, local_run: Path, t
     assert (json.loads(res.stdout)["computed"], json.loads(res.stdout)["resumed"]) == (25 - done, done)
     for name in ("table.parquet", "table.csv"):
         assert (out / name).read_bytes() == (local_run / name).read_bytes(), name
+
+
+def test_an_out_folder_inside_the_logs_is_not_read_as_logs(small_fleet, tmp_path: Path) -> None:
+    folder, _ = small_fleet
+    shutil.copytree(folder / "m03", tmp_path / "m03")
+    for _ in range(2):  # the second run sees table.csv under the input folder
+        res = run_cli("batch", str(tmp_path), "--out", str(tmp_path / "batch"), "--method", "ls", "--format", "json")
+        assert res.status == 0, res.stderr
+        assert json.loads(res.stdout)["logs"] == 6 and json.loads(res.stdout)["errors"] == 0
