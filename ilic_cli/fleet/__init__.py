@@ -2,6 +2,7 @@
 
 - :mod:`~ilic_cli.fleet.execute`: one log's task (:func:`~ilic_cli.fleet.execute.run_task`) and where tasks run
   (this process, local processes, ``dask.distributed``);
+- :mod:`~ilic_cli.fleet.preload`: what the local workers' fork server loads before it forks them;
 - :mod:`~ilic_cli.fleet.batch`: which logs, their content keys, the per-log store that makes a batch resumable;
 - :mod:`~ilic_cli.fleet.table`: the batch table (one row per log x joint x method x window), Parquet and CSV;
 - :mod:`~ilic_cli.fleet.trend`: steps and slopes per machine, joint and parameter, with a multiple-test correction;

@@ -123,7 +123,7 @@ def _identify_into(doc: dict[str, Any], task: Task) -> None:
         from ilic_cli.diagnosis import DiagnoseSettings, diagnose  # deferred: only with --diagnose
         from ilic_cli.errors import IlicError
 
-        try:
+        try:  # a diagnosis that cannot run leaves the log's estimates, and says why in its rows
             diagnosis = diagnose(log, settings=DiagnoseSettings(model=s.structure)).to_dict()
         except IlicError as exc:
             doc["warnings"].append(f"diagnose: {exc.message()}")
