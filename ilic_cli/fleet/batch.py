@@ -14,6 +14,7 @@ from __future__ import annotations
 import glob
 import hashlib
 import json
+import math
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -176,9 +177,22 @@ def stored(out_dir: Path, key: str) -> dict[str, Any] | None:
     return doc if isinstance(doc, dict) and doc.get("key") == key else None
 
 
+def plain(x: Any) -> Any:
+    """``x`` as plain JSON values: numpy scalars as Python numbers, a non-finite float as ``None``."""
+    if isinstance(x, dict):
+        return {str(k): plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [plain(v) for v in x]
+    if hasattr(x, "item") and not isinstance(x, (str, bytes)):  # a numpy scalar
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
 def store(out_dir: Path, doc: dict[str, Any]) -> None:
     """Write a finished log's document atomically (``OUT/logs/KEY.json``)."""
-    atomic_write_text(out_dir / STORE / f"{doc['key']}.json", json.dumps(doc, sort_keys=True, allow_nan=False) + "\n")
+    atomic_write_text(out_dir / STORE / f"{doc['key']}.json", json.dumps(plain(doc), sort_keys=True, allow_nan=False) + "\n")
 
 
 def run_batch(
@@ -223,6 +237,7 @@ def run_batch(
         progress(resumed, total)
     computed = 0
     for doc in runner(list(tasks.values())) if tasks else ():
+        doc = plain(doc)  # the table reads a new document as it would read it back from the store
         store(out_dir, doc)
         documents[doc["key"]] = doc
         computed += 1

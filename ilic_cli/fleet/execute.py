@@ -127,6 +127,10 @@ def _identify_into(doc: dict[str, Any], task: Task) -> None:
             diagnosis = diagnose(log, settings=DiagnoseSettings(model=s.structure)).to_dict()
         except IlicError as exc:
             doc["warnings"].append(f"diagnose: {exc.message()}")
+        except (MemoryError, RecursionError):
+            raise
+        except Exception as exc:  # a failed diagnosis is said in the log's rows; its estimates stand
+            doc["warnings"].append(f"diagnose: {task.path}: internal error: {type(exc).__name__}: {exc}")
         else:
             doc["findings"] = [f["effect"] for f in diagnosis["findings"]]
 

@@ -213,3 +213,12 @@ def test_an_out_folder_inside_the_logs_is_not_read_as_logs(small_fleet, tmp_path
         res = run_cli("batch", str(tmp_path), "--out", str(tmp_path / "batch"), "--method", "ls", "--format", "json")
         assert res.status == 0, res.stderr
         assert json.loads(res.stdout)["logs"] == 6 and json.loads(res.stdout)["errors"] == 0
+
+
+def test_a_stored_document_is_plain_json() -> None:
+    import numpy as np
+
+    from ilic_cli.fleet.batch import plain
+
+    doc = {"a": np.float64(1.5), "b": [np.int64(3), float("nan"), float("inf")], "c": {"d": np.bool_(True)}, "e": "x"}
+    assert json.dumps(plain(doc), allow_nan=False) == '{"a": 1.5, "b": [3, null, null], "c": {"d": true}, "e": "x"}'
