@@ -28,6 +28,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "diagnose": ("ilic_cli.commands.diagnose", "Find and model the physics a simulation leaves out."),
     "convert": ("ilic_cli.commands.convert", "Convert a log between .mat, CSV, MCAP and ROS bags."),
     "info": ("ilic_cli.commands.info", "Summarise a log: duration, rate, channels, ranges, quality."),
+    "batch": ("ilic_cli.commands.batch", "Identify (and diagnose) many logs into one table, resumably, locally or on Dask."),
+    "trend": ("ilic_cli.commands.trend", "Trend a batch table's parameters per machine: steps, slopes, payload swaps."),
 }
 
 
