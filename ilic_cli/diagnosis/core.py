@@ -41,7 +41,7 @@ from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
-from ilic_cli.parameters import PARAMETERS, structure_of
+from ilic_cli.parameters import PARAMETERS, joint_type, structure_of
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
 from ilic_cli.runlog import RunLog
@@ -291,6 +291,8 @@ def diagnose(
             warnings.append(f"{p.source}: {p.saturation_note()}")
     known = steps_from_effects(model_doc.get("effects", {}), float(model_doc["parameters"].get("M", 95.0))) if model_doc else []
     sel_settings = settings.select
+    joint = joint_type(log.units.get("q"))  # gravity is proposed on a revolute joint only (Effect.joints)
+    sel_settings = replace(sel_settings, effects=tuple(e for e in sel_settings.effects if e not in EFFECTS or joint in EFFECTS[e].joints))
     if known:
         sel_settings = replace(sel_settings, effects=tuple(e for e in sel_settings.effects if e not in {s.effect.id for s in known}))
     selection = forward_select(data, base, fs, sel_settings, validation=vdata, known=known)
