@@ -538,14 +538,16 @@ def revolute_log(
     duration_s: float = DURATION_S,
     fs_hz: float = 1000.0,
     v_rms: float = 1.2,
+    sensor: bool = True,
 ) -> RunLog:
     """A CTC log of a revolute joint of :data:`REVOLUTE_JOINTS` (units rad, N·m) on a multisine of 0.1-1.2 Hz (about +-2 rad).
 
     The CTC's parameters are 5-10 % off the plant's (no online update, no gravity compensation); the force is the held
-    command (``tau_sensor = "command"``); the sensor is :data:`REVOLUTE_SENSOR`; ``effects`` (``gravity``, ...) are the
-    plant's. Deterministic in ``seed`` (the noise and the multisine's phases).
+    command (``tau_sensor = "command"``); the sensor is :data:`REVOLUTE_SENSOR` (``sensor=False``: exact); ``effects``
+    (``gravity``, ...) are the plant's. Deterministic in ``seed`` (the noise and the multisine's phases).
     """
     from ilic_cli.effects import make_effects
+    from ilic_cli.parameters import unit
     from plant.closed_loop import loop_log, simulate_loop  # deferred: numba and the compiled loop
     from plant.controllers import CTCSettings
     from plant.dynamics import RigidParameters
@@ -553,7 +555,7 @@ def revolute_log(
 
     rigid = REVOLUTE_JOINTS[joint]
     params = RigidParameters(**rigid)
-    spec = {**REVOLUTE_SENSOR, **(effects or {})}
+    spec = {**(REVOLUTE_SENSOR if sensor else {}), **(effects or {})}
     traj = multisine(seed, v_rms=v_rms, q0=0.0)
     n = int(round(duration_s * fs_hz))
     _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, fs_hz)
@@ -573,5 +575,6 @@ def revolute_log(
     )
     log = loop_log(res, q_ref=q_r, qd_ref=qd_log, qdd_ref=qdd_log, meta={"scenario": {"name": f"revolute-{joint}", "trajectory": traj.to_dict()}})
     log.units.update({"q": "rad", "q_ref": "rad", "qd_ref": "rad/s", "qdd_ref": "rad/s^2", "tau": "N·m", "qd_plant": "rad/s", "qdd_plant": "rad/s^2"})
+    log.units.update({c: unit(c[: -len("_hat")], "revolute") for c in log.channels if c.endswith("_hat")})
     log.meta["source"] = f"revolute-{joint}-s{seed}"
     return log

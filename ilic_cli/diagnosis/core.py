@@ -18,6 +18,8 @@ from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
 from ilic_cli.diagnosis.decide import ReplayVerdict, decision_sensor, materiality, noisy_output_error, replay_decide
+from ilic_cli.diagnosis.drift import DriftResult, detect_drift, with_drift
+from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
 from ilic_cli.diagnosis.refit import InverseFit, Refit, closed_loop_refit, plant_problem
@@ -142,6 +144,8 @@ class Diagnosis:
     warnings: list[str] = field(default_factory=list)
     residual: dict[str, np.ndarray] = field(default_factory=dict)
     timing: ControlTiming | None = None
+    drift: DriftResult | None = None
+    """Friction drift read from per-window estimates (:mod:`ilic_cli.diagnosis.drift`)."""
     replay_sensor: dict[str, Any] | None = None
     """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.decide.decision_sensor`); ``None``: none replayed, or noise-free."""
 
@@ -181,6 +185,7 @@ class Diagnosis:
             "replay_sensor_noise": self.replay_sensor,
             "warnings": list(self.warnings),
             "timing": None if self.timing is None else self.timing.to_dict(),
+            "drift": None if self.drift is None else self.drift.to_dict(),
         }
 
 
@@ -400,7 +405,12 @@ def diagnose(
     else:
         rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold)
         doc = model_document(base.name, rigid, method="IDIM-LS + ilic diagnose", effects=effects_doc, source=src or None)
+    drift_found = detect_drift(td, W1, y1, names1)  # friction that changes over time, from per-window estimates
+    if drift_found.found:
+        findings.append(Finding(EFFECTS["friction_drift"], drift_found.estimates(), drift_found.plant_effect(), [], drift_evaluation(drift_found)))
+        doc = with_drift(doc, drift_found)
     diag = Diagnosis(
+        drift=drift_found,
         source=src,
         model=base.name,
         fs_hz=fs,
