@@ -796,6 +796,23 @@ def drift_of(t: Any, change: float, tau: float, rate: float) -> Any:
     return change * (1.0 - np.exp(-t / tau)) + rate * t
 
 
+def _drift_sentence(p: Mapping[str, Estimate]) -> str:
+    """``Fv -33 % from 200 (exponential, time constant 6 s)`` per drifting coefficient (:mod:`ilic_cli.diagnosis.drift`'s estimates)."""
+    parts = []
+    for key, est in p.items():
+        if not key.endswith("_relative_change"):
+            continue
+        name = key[: -len("_relative_change")]
+        start = p.get(f"{name}_start")
+        what = f"{name} {est.value * 100:+.3g} %" + ("" if start is None else f" from {start.value:.4g}")
+        if f"{name}_tau" in p:
+            what += f" (exponential, time constant {p[f'{name}_tau'].value:.3g} s)"
+        elif f"{name}_rate" in p:
+            what += f" (linear, {p[f'{name}_rate'].value:+.3g} per s)"
+        parts.append(what)
+    return "; ".join(parts)
+
+
 FRICTION_DRIFT = register(
     Effect(
         "friction_drift",
@@ -812,6 +829,7 @@ FRICTION_DRIFT = register(
         form="Fv(t) = Fv + dFv (1 - exp(-t/tau)) + Fv_rate t, Fc(t) likewise (Coulomb level kept >= 0), t the log's time",
         signature="the friction estimated on successive time windows follows a trend (exponential or linear) across the windows",
         signature_kinds=("drift", "time"),
+        sentence=_drift_sentence,
     )
 )
 

@@ -43,7 +43,7 @@ from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
-from ilic_cli.parameters import PARAMETERS, joint_type, structure_of
+from ilic_cli.parameters import PARAMETERS, joint_type, structure_of, vertical, weight
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
 from ilic_cli.runlog import RunLog
@@ -146,6 +146,8 @@ class Diagnosis:
     timing: ControlTiming | None = None
     drift: DriftResult | None = None
     """Friction drift read from per-window estimates (:mod:`ilic_cli.diagnosis.drift`)."""
+    weight: dict[str, Estimate] | None = None
+    """A vertical axis's constant force as the load's weight and implied mass (:func:`ilic_cli.parameters.weight`), else ``None``."""
     replay_sensor: dict[str, Any] | None = None
     """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.decide.decision_sensor`); ``None``: none replayed, or noise-free."""
 
@@ -186,6 +188,7 @@ class Diagnosis:
             "warnings": list(self.warnings),
             "timing": None if self.timing is None else self.timing.to_dict(),
             "drift": None if self.drift is None else self.drift.to_dict(),
+            "weight": None if self.weight is None else {k: v.to_dict() for k, v in self.weight.items()},
         }
 
 
@@ -430,6 +433,11 @@ def diagnose(
         warnings=warnings,
         residual={"t": td, "q": q_d, "qd": qd_d, "before": e0, "after": e1, "y": y0, "y_before": W0 @ res0.theta, "y_after": W1 @ res1.theta},
     )
+    if vertical(log.meta) and "offset" in names1:  # a vertical axis: its constant force is the load's weight, not an offset
+        i = names1.index("offset")
+        diag.weight = {k: Estimate(*v) for k, v in weight(float(res1.theta[i]), float(np.sqrt(max(cov1[i, i], 0.0)))).items()}
+        for f in (f for f in findings if f.effect.id == "offset"):
+            f.parameters, f.note = dict(diag.weight), "a vertical axis: the constant force is the load's weight"
     if timing is not None:
         timing.negative_flexibility = any(ev.effect == "flexibility" and "negative mass" in ev.reason for step in selection.tried for ev in step)
     diag.timing = timing

@@ -15,10 +15,16 @@ F-test whose noise is the windows' own scatter around the trend (not their
 nominal standard deviations, which a model error the same in every window
 would make too small), weighted by those standard deviations; Bonferroni over
 the coefficients and the two shapes. A trend is a finding when the test passes
-at :data:`ALPHA` and the trend moves the coefficient by at least
-:data:`MIN_CHANGE` of its level over the log. The exponential shape is named
+at :data:`ALPHA`, the trend moves the coefficient by at least
+:data:`MIN_CHANGE` of its level over the log, and it keeps the coefficient at
+or above zero (friction; a trend through zero is an outlying window, as on a
+window of the EMPS reference that hardly moves). The exponential shape is named
 when it fits significantly better than the straight line (:data:`SHAPE_ALPHA`)
 and its time constant is shorter than the log; else the drift is linear.
+
+The trend's columns (the coefficient's column times its shape in time) must
+then lower the held-out error of blocked cross-validation over time, as a
+catalogue effect's do (Diebold-Mariano at the selection's level).
 
 A step in the mass (``payload_change``) moves each window's ``M``, not its
 friction: every parameter is free in every window, so it is no drift.
@@ -32,10 +38,10 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.select import Evaluation
-from ilic_cli.diagnosis.stats import FTest, f_sf, gls_covariance
+from ilic_cli.diagnosis.select import Evaluation, SelectSettings
+from ilic_cli.diagnosis.stats import FTest, blocked_folds, diebold_mariano, f_sf, gls_covariance, heldout_errors
 from ilic_cli.effects import Estimate
-from ilic_cli.lsq import finite_or_none
+from ilic_cli.lsq import finite_or_none, relative_error_pct
 
 WINDOWS = 10
 """Number of windows of equal duration (a 30 s log: 3 s each)."""
@@ -51,6 +57,9 @@ SHAPE_ALPHA = 0.01
 
 MIN_CHANGE = 0.05
 """Smallest change of a coefficient over the log, relative to its level at the start, that is a finding."""
+
+HELDOUT_ALPHA = SelectSettings().alpha_heldout
+"""Level of the held-out check: the trend's columns must lower the blocked cross-validation error (Diebold-Mariano), as a catalogue effect's."""
 
 DRIFTING = ("Fv", "Fc", "Fv_pos", "Fv_neg", "Fc_pos", "Fc_neg")
 """The friction coefficients whose drift is sought (those of the model)."""
@@ -134,16 +143,20 @@ class Trend:
         return {
             "parameter": self.parameter,
             "shape": self.shape,
-            "start": self.start,
-            "end": self.end,
-            "asymptote": self.asymptote,
+            "start": finite_or_none(self.start),
+            "end": finite_or_none(self.end),
+            "asymptote": None if self.asymptote is None else finite_or_none(self.asymptote),
             "relative_change": finite_or_none(self.relative_change),
             "time_constant_s": self.tau,
             "rate_per_s": self.rate,
-            "test": {**self.test.to_dict(), "noise": "the windows' scatter around the trend"},
+            "test": {**_finite(self.test.to_dict()), "noise": "the windows' scatter around the trend"},
             "exponential_vs_linear_p_value": self.shape_p_value,
             "windows": self.windows,
         }
+
+
+def _finite(d: dict[str, Any]) -> dict[str, Any]:
+    return {k: finite_or_none(v) if isinstance(v, float) else v for k, v in d.items()}
 
 
 @dataclass(frozen=True)
@@ -158,6 +171,9 @@ class DriftResult:
     trends: list[Trend] = field(default_factory=list)
     findings: list[Trend] = field(default_factory=list)
     reason: str = ""
+    heldout_before_pct: float | None = None
+    heldout_after_pct: float | None = None
+    heldout_p_value: float | None = None
 
     @property
     def found(self) -> bool:
@@ -218,7 +234,10 @@ class DriftResult:
             "trends": [t.to_dict() for t in self.trends],
             "windows": None if self.windows is None else self.windows.to_dict(),
             "reason": self.reason,
-            "settings": {"windows": WINDOWS, "alpha": ALPHA, "shape_alpha": SHAPE_ALPHA, "min_change": MIN_CHANGE},
+            "heldout_relative_error_pct": None
+            if self.heldout_before_pct is None
+            else {"before": self.heldout_before_pct, "after": self.heldout_after_pct, "p_value": self.heldout_p_value},
+            "settings": {"windows": WINDOWS, "alpha": ALPHA, "shape_alpha": SHAPE_ALPHA, "min_change": MIN_CHANGE, "heldout_alpha": HELDOUT_ALPHA},
         }
 
 
@@ -274,12 +293,13 @@ def _wls(X: np.ndarray, x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float
     return c, float(r @ r)
 
 
-def tau_grid(duration: float) -> np.ndarray:
-    """Time constants searched for a warm-up: from a 50th of the log to twice its duration."""
-    return np.geomspace(duration / 50.0, 2.0 * duration, 60)
+def tau_grid(duration: float, n_windows: int = WINDOWS) -> np.ndarray:
+    """Time constants searched for a warm-up: from one window's duration (a shorter one is a single window's step,
+    which the windows cannot tell from an outlier) to twice the log's."""
+    return np.geomspace(duration / n_windows, 2.0 * duration, 40)
 
 
-def fit_trend(parameter: str, t: np.ndarray, x: np.ndarray, s: np.ndarray, start: float, end: float, trials: int = 1) -> Trend | None:
+def fit_trend(parameter: str, t: np.ndarray, x: np.ndarray, s: np.ndarray, start: float, end: float, trials: int = 1, n_windows: int = WINDOWS) -> Trend | None:
     """The best trend of one coefficient's window estimates ``x`` (standard deviations ``s``) at times ``t``; ``None`` with too few windows.
 
     ``trials``: the Bonferroni factor of the test (coefficients x shapes).
@@ -293,7 +313,7 @@ def fit_trend(parameter: str, t: np.ndarray, x: np.ndarray, s: np.ndarray, start
     _, rss0 = _wls(one[:, None], x, w)
     lin, rss1 = _wls(np.c_[one, tt], x, w)
     best = None
-    for tau in tau_grid(max(end - start, 1e-9)):
+    for tau in tau_grid(max(end - start, 1e-9), n_windows):
         c, rss = _wls(np.c_[one, np.exp(-tt / tau)], x, w)
         if best is None or rss < best[2]:
             best = (tau, c, rss)
@@ -323,6 +343,33 @@ def fit_trend(parameter: str, t: np.ndarray, x: np.ndarray, s: np.ndarray, start
     return Trend(parameter, "exponential" if exponential else "linear", *trend, test, float(p_shape), k)
 
 
+def drift_columns(t: np.ndarray, W: np.ndarray, names: tuple[str, ...], trends: list[Trend], start: float) -> np.ndarray:
+    """The regressor columns of the trends: each drifting coefficient's column times its shape in time
+    (``exp(-(t - start)/tau)`` or ``t - start``)."""
+    cols = []
+    for tr in trends:
+        shape = np.exp(-(t - start) / tr.tau) if tr.tau is not None else t - start
+        cols.append(W[:, names.index(tr.parameter)] * shape)
+    return np.column_stack(cols) if cols else np.zeros((len(t), 0))
+
+
+def heldout_check(
+    t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], trends: list[Trend], start: float, folds: int | None = None, guard: int | None = None
+) -> tuple[float, float, float]:
+    """Held-out relative error (%) without and with the trends' columns over blocked folds in time, and the
+    one-sided Diebold-Mariano p-value that they lower it (the selection's folds and guard by default)."""
+    settings = SelectSettings()
+    blocks = blocked_folds(len(y), folds or settings.folds, settings.guard if guard is None else guard)
+    h0 = heldout_errors(W, y, blocks)
+    h1 = heldout_errors(np.c_[W, drift_columns(t, W, names, trends, start)], y, blocks)
+    return relative_error_pct(y, y - h0), relative_error_pct(y, y - h1), float(diebold_mariano(h0, h1))
+
+
+def _physical(tr: Trend) -> bool:
+    """A friction coefficient's trend stays at or above zero over the log (and its warm-up's asymptote too)."""
+    return min(tr.start, tr.end, tr.asymptote if tr.asymptote is not None else tr.end) >= 0.0
+
+
 def detect_drift(
     t: np.ndarray,
     W: np.ndarray,
@@ -339,18 +386,28 @@ def detect_drift(
         return DriftResult(None, reason="the model has no friction coefficient")
     win = window_estimates(t, W, y, names, n_windows)
     trials = len(drifting) * len(SHAPES)
-    trends = [tr for n in drifting if (tr := fit_trend(n, *win.series(n), win.start, win.end, trials)) is not None]
+    trends = [tr for n in drifting if (tr := fit_trend(n, *win.series(n), win.start, win.end, trials, n_windows)) is not None]
     if not trends:
         return DriftResult(win, reason=f"fewer than 5 of the {n_windows} windows have enough rows to estimate the friction")
-    significant = [tr for tr in trends if tr.test.p_adjusted < alpha]
+    significant = [tr for tr in trends if tr.test.p_adjusted < alpha and _physical(tr)]
+    unphysical = [tr for tr in trends if tr.test.p_adjusted < alpha and not _physical(tr)]
     material = sorted((tr for tr in significant if abs(tr.relative_change) >= min_change), key=lambda tr: tr.test.p_value)
     if material:
-        return DriftResult(win, trends, material)
+        before, after, p = heldout_check(t, W, y, names, material, win.start)
+        if p < HELDOUT_ALPHA:
+            return DriftResult(win, trends, material, "", before, after, p)
+        why = f"the trend of {material[0].parameter} does not lower the held-out error significantly ({before:.3g} % -> {after:.3g} %, p = {p:.2g})"
+        return DriftResult(win, trends, [], why, before, after, p)
     if significant:
         tr = min(significant, key=lambda x: x.test.p_value)
         why = (
             f"a trend of {tr.parameter} is significant (p = {tr.test.p_adjusted:.2g}) "
             f"but moves it by {tr.relative_change * 100:+.2g} %, below {min_change * 100:g} %"
+        )
+    elif unphysical:
+        tr = min(unphysical, key=lambda x: x.test.p_value)
+        why = (
+            f"the trend of {tr.parameter} (p = {tr.test.p_adjusted:.2g}) takes it below zero ({tr.start:.3g} -> {tr.end:.3g}): no friction, an outlying window"
         )
     else:
         tr = min(trends, key=lambda x: x.test.p_value)
@@ -366,9 +423,12 @@ def evaluation(result: DriftResult) -> Evaluation:
         tr.shape,
         None,
         tr.test,
+        heldout_before_pct=result.heldout_before_pct,
+        heldout_after_pct=result.heldout_after_pct,
+        heldout_p_value=result.heldout_p_value,
         accepted=True,
         reason=f"a {tr.shape} trend of {tr.parameter} across {tr.windows} windows (F = {tr.test.F:.3g}, p = {tr.test.p_adjusted:.2g} after Bonferroni over "
-        f"{tr.test.trials} trends, against the windows' scatter around it); not replayed",
+        f"{tr.test.trials} trends, against the windows' scatter around it), and its columns lower the held-out error; not replayed",
     )
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
+from ilic_cli.diagnosis.select import SelectSettings
 from ilic_cli.io import write_log
 from plant.corpus import revolute_log
 from tests.clirun import run_cli
@@ -72,3 +73,33 @@ def test_a_clean_revolute_log_gets_no_gravity(seed: int) -> None:
     assert "gravity" not in [f.effect.id for f in diag.findings], diag.conclusion
     tried = [ev for step in diag.tried for ev in step if ev.effect == "gravity"]
     assert tried and not any(ev.accepted for ev in tried)  # proposed on this revolute joint, and rejected by the data
+
+
+def test_a_vertical_axis_reports_its_constant_force_as_a_weight() -> None:
+    """A 12 kg load hanging on the EMPS-like axis (its metadata says ``vertical``): 117.7 N, read as that weight and that mass."""
+    from ilic_cli.diagnosis.report import to_markdown
+    from plant.corpus import CTC_CHI0, NOISE_MODELS, PLANT
+    from plant.scenarios import Overrides, run_scenario
+
+    g = 9.80665
+    ov = Overrides(
+        params={**PLANT, "offset": 12.0 * g},
+        effects=dict(NOISE_MODELS["sensor"]),
+        ctc={"ilic": False},
+        chi0=dict(CTC_CHI0),
+        duration_s=30.0,
+        seed=3,
+        tau_sensor="command",
+        trajectory="trapezoid",
+        trajectory_seed=3,
+    )
+    log = run_scenario("paper-sim", ov)
+    log.meta.pop("true_parameters")
+    settings = DiagnoseSettings(simulate=False, select=SelectSettings(effects=()))  # the rigid fit's constant: no candidate needed
+    assert diagnose(log, settings=settings).weight is None  # not said to be vertical: an offset, as before
+    log.meta["vertical"] = True
+    diag = diagnose(log, settings=settings)
+    assert diag.weight is not None
+    assert diag.weight["weight"].value == pytest.approx(12.0 * g, rel=0.01) and diag.weight["implied_mass"].value == pytest.approx(12.0, rel=0.01)
+    assert diag.to_dict()["weight"]["implied_mass"]["unit"] == "kg"
+    assert "the constant force is the load's weight, 117.7 N" in to_markdown(diag)
