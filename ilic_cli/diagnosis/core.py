@@ -412,6 +412,7 @@ def diagnose(
     if drift_found.found:
         findings.append(Finding(EFFECTS["friction_drift"], drift_found.estimates(), drift_found.plant_effect(), [], drift_evaluation(drift_found)))
         doc = with_drift(doc, drift_found)
+        fit["relative_error_pct"]["after"], fit["heldout_relative_error_pct"]["after"] = drift_found.relative_error_after_pct, drift_found.heldout_after_pct
     diag = Diagnosis(
         drift=drift_found,
         source=src,

@@ -174,6 +174,8 @@ class DriftResult:
     heldout_before_pct: float | None = None
     heldout_after_pct: float | None = None
     heldout_p_value: float | None = None
+    relative_error_after_pct: float | None = None
+    """The relative error (%) of the whole fit with the trends' columns (in sample)."""
 
     @property
     def found(self) -> bool:
@@ -234,6 +236,7 @@ class DriftResult:
             "trends": [t.to_dict() for t in self.trends],
             "windows": None if self.windows is None else self.windows.to_dict(),
             "reason": self.reason,
+            "relative_error_after_pct": self.relative_error_after_pct,
             "heldout_relative_error_pct": None
             if self.heldout_before_pct is None
             else {"before": self.heldout_before_pct, "after": self.heldout_after_pct, "p_value": self.heldout_p_value},
@@ -361,8 +364,16 @@ def heldout_check(
     settings = SelectSettings()
     blocks = blocked_folds(len(y), folds or settings.folds, settings.guard if guard is None else guard)
     h0 = heldout_errors(W, y, blocks)
-    h1 = heldout_errors(np.c_[W, drift_columns(t, W, names, trends, start)], y, blocks)
+    W1 = np.c_[W, drift_columns(t, W, names, trends, start)]
+    h1 = heldout_errors(W1, y, blocks)
     return relative_error_pct(y, y - h0), relative_error_pct(y, y - h1), float(diebold_mariano(h0, h1))
+
+
+def relative_error_with(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], trends: list[Trend], start: float) -> float:
+    """The relative error (%) of the least-squares fit of ``W`` with the trends' columns."""
+    W1 = np.c_[W, drift_columns(t, W, names, trends, start)]
+    theta, *_ = np.linalg.lstsq(W1, y, rcond=None)
+    return relative_error_pct(y, W1 @ theta)
 
 
 def _physical(tr: Trend) -> bool:
@@ -395,7 +406,7 @@ def detect_drift(
     if material:
         before, after, p = heldout_check(t, W, y, names, material, win.start)
         if p < HELDOUT_ALPHA:
-            return DriftResult(win, trends, material, "", before, after, p)
+            return DriftResult(win, trends, material, "", before, after, p, relative_error_with(t, W, y, names, material, win.start))
         why = f"the trend of {material[0].parameter} does not lower the held-out error significantly ({before:.3g} % -> {after:.3g} %, p = {p:.2g})"
         return DriftResult(win, trends, [], why, before, after, p)
     if significant:
