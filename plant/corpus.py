@@ -228,6 +228,10 @@ def _truth_values(eid: str, p: dict[str, float], case: Case) -> dict[str, float]
         return {"lag": max(-p["delay"], 0.0)}
     if eid == "flexibility":
         return {"stiffness": p["stiffness"], "load_fraction": p["load_fraction"]}
+    if eid == "friction_drift":  # a warm-up's change and time constant, or a wear's rates
+        if p.get("dFv", 0.0) or p.get("dFc", 0.0):
+            return {"dFv": p.get("dFv", 0.0), "dFc": p.get("dFc", 0.0), "tau": p["tau"]}
+        return {"Fv_rate": p.get("Fv_rate", 0.0), "Fc_rate": p.get("Fc_rate", 0.0)}
     return dict(p)
 
 

@@ -47,3 +47,17 @@ def test_friction_that_warms_up_is_simulated() -> None:
     ratio = (log["tau"][late] - truth["M"] * qdd[late] - truth["Fc"] * np.sign(qd[late])) / qd[late]
     np.testing.assert_allclose(ratio, 200.0 + drift["dFv"] * (1 - np.exp(-(log.t[late] + T / 2) / 6.0)), rtol=1e-6)
     assert np.abs(still[late] - log["tau"][late]).max() > 5.0
+
+
+def test_score_compares_a_drift_by_its_shape_parameters() -> None:
+    from plant.corpus import parameter_error, score
+
+    warm = Case("warm-up", "paper", "sensor", 5, {"friction_drift": {"dFv": -66.7, "dFc": 0.0, "tau": 6.0, "Fv_rate": 0.0, "Fc_rate": 0.0}})
+    found = {"dFv": -71.5, "dFc": 0.0, "tau": 5.96, "Fv_rate": 0.0, "Fc_rate": 0.0}
+    assert parameter_error("friction_drift", found, warm) == np.float64(abs(-71.5 + 66.7) / 66.7)
+    wear = Case("wear", "paper", "sensor", 7, {"friction_drift": {"dFv": 0.0, "dFc": 0.0, "tau": 10.0, "Fv_rate": 0.0, "Fc_rate": 0.2}})
+    linear = {"dFv": 0.0, "dFc": 0.0, "tau": 1.0, "Fv_rate": 0.0, "Fc_rate": 0.197}  # the found tau is no part of a linear drift
+    assert abs(parameter_error("friction_drift", linear, wear) - 0.015) < 1e-12
+    assert score(wear, [("friction_drift", linear)])["false_alarms"] == 0
+    gravity = Case("g", "paper", "sensor", 1, {"gravity": {"MX": 0.006, "MY": 0.003}})
+    assert abs(parameter_error("gravity", {"MX": 0.0063, "MY": 0.003}, gravity) - 0.05) < 1e-12
