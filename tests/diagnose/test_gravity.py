@@ -46,8 +46,10 @@ def test_diagnose_names_gravity_on_a_small_revolute_joint(tmp_path: Path) -> Non
     assert spring and not any(ev["accepted"] for ev in spring)  # tried, and not named
 
 
-def test_diagnose_names_gravity_on_a_large_revolute_joint() -> None:
-    diag = diagnose(revolute_log("large", {"gravity": LARGE}, seed=2, duration_s=12.0))
+@pytest.mark.parametrize("fs_hz", [500.0, 1000.0])
+def test_diagnose_names_gravity_on_a_large_revolute_joint(fs_hz: float) -> None:
+    """At 500 Hz and 1 kHz (measured at 2 kHz too: MX, MY 4.7 and 7.3 % off, 36 s, left out here for the suite's time)."""
+    diag = diagnose(revolute_log("large", {"gravity": LARGE}, seed=2, duration_s=12.0, fs_hz=fs_hz))
     assert [f.effect.id for f in diag.findings] == ["gravity"], diag.conclusion
     f = diag.findings[0]
     assert f.plant_effect is not None and _within(f.plant_effect, LARGE), f.plant_effect
