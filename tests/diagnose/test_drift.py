@@ -132,3 +132,20 @@ def test_a_clean_log_has_no_drift(trajectory: str, noise: str, seed: int) -> Non
     settings = DiagnoseSettings(simulate=False, select=SelectSettings(effects=()))
     diag = diagnose(simulate_case(Case("clean", trajectory, noise, seed), {}), settings=settings)
     assert diag.drift is not None and not diag.drift.found and diag.findings == [], diag.drift.sentence()
+
+
+@pytest.mark.parametrize(
+    ("joint", "drift", "shape", "size"),
+    [
+        ("small", {"dFv": -0.05 / 3.0, "tau": 6.0}, "exponential", ("relative_change", -1.0 / 3.0)),
+        ("large", {"dFv": 0.0, "Fc_rate": 0.01}, "linear", ("rate", 0.01)),
+    ],
+)
+def test_drift_is_scale_free_on_revolute_joints(joint: str, drift: dict, shape: str, size: tuple[str, float]) -> None:
+    """The same tests on a 0.08 kg·m² and a 0.5 kg·m² joint (N·m·s/rad, N·m): measured -31.4 % (tau 6.43 s) and +0.0100 N·m/s."""
+    from plant.corpus import revolute_log
+
+    settings = DiagnoseSettings(simulate=False, select=SelectSettings(effects=()))
+    diag = diagnose(revolute_log(joint, {"friction_drift": drift}, seed=3), settings=settings)
+    assert diag.drift is not None and diag.drift.found and diag.drift.shape == shape, diag.drift.reason
+    assert getattr(diag.drift.findings[0], size[0]) == pytest.approx(size[1], rel=TOLERANCE)

@@ -75,6 +75,7 @@ def test_a_clean_revolute_log_gets_no_gravity(seed: int) -> None:
     assert "gravity" not in [f.effect.id for f in diag.findings], diag.conclusion
     tried = [ev for step in diag.tried for ev in step if ev.effect == "gravity"]
     assert tried and not any(ev.accepted for ev in tried)  # proposed on this revolute joint, and rejected by the data
+    assert diag.drift is not None and not diag.drift.found, diag.drift.sentence()  # nor a drift, on this scale either
 
 
 def test_a_vertical_axis_reports_its_constant_force_as_a_weight() -> None:
