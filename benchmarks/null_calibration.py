@@ -66,8 +66,9 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
     from ilic_cli.diagnosis.decide import materiality, replay_decide
     from ilic_cli.diagnosis.null import MonteCarloNull, reproposed
     from ilic_cli.diagnosis.select import Searcher, Step, at_edge, fit_system, moving_rows, system
-    from ilic_cli.effects import EFFECTS, applicable
+    from ilic_cli.effects import EFFECTS, applicable, catalogue_ids
     from ilic_cli.idim_ls import LSSettings
+    from ilic_cli.parameters import joint_type
     from ilic_cli.prepare import prepare_log
     from ilic_cli.regressor import get_model
     from plant.corpus import build_case, score
@@ -85,7 +86,10 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
         return model_parameters(steps, names, theta, np.zeros((len(theta), len(theta))), hold)
 
     _, _, names = system(data, base, [], rows)
-    ids = effects or (tuple(case.effects) if case.effects else tuple(i for i in EFFECTS if EFFECTS[i].identifiable and applicable(EFFECTS[i], names)))
+    joint = joint_type(log.units.get("q"))  # what the diagnosis proposes on this joint (gravity: revolute only)
+    ids = effects or (
+        tuple(case.effects) if case.effects else tuple(i for i in catalogue_ids(joint) if EFFECTS[i].identifiable and applicable(EFFECTS[i], names))
+    )
     null = MonteCarloNull(replicates, seed, ls, prep)
     out = []
     for eid in ids:

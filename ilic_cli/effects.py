@@ -36,7 +36,8 @@ from ilic_cli import parameters
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import bilinear_lfilter
 from ilic_cli.lsq import finite_or_none
-from ilic_cli.regressor import Column, Kinematics, negative_side
+from ilic_cli.parameters import STANDARD_GRAVITY
+from ilic_cli.regressor import GRAVITY_COLUMNS, Column, Kinematics, negative_side
 
 
 # ---------------------------------------------------------------------------
@@ -212,6 +213,9 @@ class Effect:
         ``(plant parameters, hold_s) -> {plant effect id: parameters}``: the
         plant effects that realise the estimate (:meth:`plant_entries`;
         default: this effect with its own parameters).
+    joints : tuple of str
+        The joint types (:func:`ilic_cli.parameters.joint_type`) diagnosis
+        proposes it on (``gravity``: a revolute joint only).
     """
 
     id: str
@@ -233,6 +237,7 @@ class Effect:
     scan_value: Callable[[Mapping[str, float], float], Any] | None = None
     sentence: Callable[[Mapping[str, Estimate]], str] | None = None
     realise: Callable[[Mapping[str, float], float], dict[str, dict[str, float]]] | None = None
+    joints: tuple[str, ...] = ("prismatic", "revolute")
 
     def plant_entries(self, plant: Mapping[str, float], hold_s: float = 0.0) -> dict[str, dict[str, float]]:
         """The plant effects (id -> parameters) that realise this effect's plant parameters in a model file and a replay.
@@ -386,9 +391,9 @@ def plant_ids() -> tuple[str, ...]:
     return tuple(i for i, e in EFFECTS.items() if e.plant)
 
 
-def catalogue_ids() -> tuple[str, ...]:
-    """Ids of the effects diagnosis can fit, in the order they are tried."""
-    return tuple(i for i, e in EFFECTS.items() if e.identifiable)
+def catalogue_ids(joint: str | None = None) -> tuple[str, ...]:
+    """Ids of the effects diagnosis can fit, in the order they are tried (on a ``joint`` of that type only, when given)."""
+    return tuple(i for i, e in EFFECTS.items() if e.identifiable and (joint is None or joint in e.joints))
 
 
 def make_effects(spec: Mapping[str, Any] | None) -> Effects:
@@ -733,6 +738,37 @@ SPRING = register(
     )
 )
 
+
+def _gravity_sentence(p: Mapping[str, Estimate]) -> str:
+    mx, my = p["MX"].value, p["MY"].value
+    peak = STANDARD_GRAVITY * math.hypot(mx, my)
+    return (
+        f"first moments MX = {mx:.4g} kg·m, MY = {my:.4g} kg·m: a gravity torque of up to {peak:.4g} N·m, "
+        f"largest at q = {math.atan2(-my, mx):+.3g} rad from the joint's zero"
+    )
+
+
+GRAVITY = register(
+    Effect(
+        "gravity",
+        "gravity",
+        "The link's weight acts at its centre of mass, off the joint's axis: a torque that varies with the angle as the cosine of the arm's "
+        "angle to the horizontal (paper eq. 3, the first moments MX, MY).",
+        params=(
+            PlantParam("MX", "kg·m", 0.05, parameters.FIRST_MOMENTS["MX"].meaning),
+            PlantParam("MY", "kg·m", 0.0, parameters.FIRST_MOMENTS["MY"].meaning),
+        ),
+        force=lambda q, qd, prm: STANDARD_GRAVITY * (prm[0] * np.cos(q) - prm[1] * np.sin(q)),
+        form="g * (MX * cos q - MY * sin q), q from the joint's zero as given (revolute joint)",
+        signature="residual periodic in the angle with one cycle per turn, same sign in both directions of motion",
+        signature_kinds=("position",),
+        columns=tuple(EffectColumn(c.name, c.unit, c.description) for c in GRAVITY_COLUMNS.values()),
+        build=lambda kin, value, fs_hz: np.column_stack([c.build(kin) for c in GRAVITY_COLUMNS.values()]),
+        sentence=_gravity_sentence,
+        joints=("revolute",),
+    )
+)
+
 PAYLOAD_CHANGE = register(
     Effect(
         "payload_change",
@@ -746,6 +782,54 @@ PAYLOAD_CHANGE = register(
         build=lambda kin, tc, fs_hz: np.c_[kin.qdd * (kin.t >= tc)],
         scan=Scan("t_change", "s", _change_time_grid, log=False),
         sentence=lambda p: f"{p['dM'].value:+.3g} kg from t = {p['t_change'].value:.3g} s",
+    )
+)
+
+
+def drift_of(t: Any, change: float, tau: float, rate: float) -> Any:
+    """Change of a friction coefficient at ``t`` (s, the log's time, as ``payload_change``'s ``t_change``).
+
+    A warm-up ``change * (1 - exp(-t/tau))`` plus a wear ``rate * t``.
+
+    NumPy operations only (arrays or floats); the plant's compiled loop has its own form, checked against this one by the tests.
+    """
+    return change * (1.0 - np.exp(-t / tau)) + rate * t
+
+
+def _drift_sentence(p: Mapping[str, Estimate]) -> str:
+    """``Fv -33 % from 200 (exponential, time constant 6 s)`` per drifting coefficient (:mod:`ilic_cli.diagnosis.drift`'s estimates)."""
+    parts = []
+    for key, est in p.items():
+        if not key.endswith("_relative_change"):
+            continue
+        name = key[: -len("_relative_change")]
+        start = p.get(f"{name}_start")
+        what = f"{name} {est.value * 100:+.3g} %" + ("" if start is None else f" from {start.value:.4g}")
+        if f"{name}_tau" in p:
+            what += f" (exponential, time constant {p[f'{name}_tau'].value:.3g} s)"
+        elif f"{name}_rate" in p:
+            what += f" (linear, {p[f'{name}_rate'].value:+.3g} per s)"
+        parts.append(what)
+    return "; ".join(parts)
+
+
+FRICTION_DRIFT = register(
+    Effect(
+        "friction_drift",
+        "friction drift",
+        "Friction changes during the run: it falls as the lubricant warms up (an exponential approach to its warm level) "
+        "or changes steadily with wear (a linear trend).",
+        params=(
+            PlantParam("dFv", "N·s/m", -50.0, "change of viscous friction at the end of the warm-up (exponential)"),
+            PlantParam("dFc", "N", 0.0, "change of Coulomb friction at the end of the warm-up (exponential)"),
+            PlantParam("tau", "s", 10.0, "time constant of the warm-up", low=0.0, low_open=True),
+            PlantParam("Fv_rate", "N·s/m/s", 0.0, "linear change of viscous friction per second (wear)"),
+            PlantParam("Fc_rate", "N/s", 0.0, "linear change of Coulomb friction per second (wear)"),
+        ),
+        form="Fv(t) = Fv + dFv (1 - exp(-t/tau)) + Fv_rate t, Fc(t) likewise (Coulomb level kept >= 0), t the log's time",
+        signature="the friction estimated on successive time windows follows a trend (exponential or linear) across the windows",
+        signature_kinds=("drift", "time"),
+        sentence=_drift_sentence,
     )
 )
 

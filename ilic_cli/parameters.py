@@ -59,6 +59,19 @@ PARAMETERS: dict[str, Parameter] = {
 }
 """Every identifiable parameter of the rigid axis, by name."""
 
+FIRST_MOMENTS: dict[str, Parameter] = {
+    p.name: p
+    for p in (
+        Parameter("MX", "kg·m", "kg·m", "first moment of the link along its zero direction (gravity torque g·MX at q = 0)"),
+        Parameter("MY", "kg·m", "kg·m", "first moment of the link normal to its zero direction (gravity torque -g·MY at q = pi/2)"),
+    )
+}
+"""The first moments of a revolute link (paper eq. 3): gravity's parameters, ``g·(MX cos q - MY sin q)``.
+They are the ``gravity`` effect's (:mod:`ilic_cli.effects`), not rigid parameters of the plant."""
+
+STANDARD_GRAVITY = 9.80665
+"""g (m/s²): gravity's torque on a revolute link and the weight of the load of a vertical prismatic axis."""
+
 RIGID = ("M", "Fv", "Fc", "offset")
 """The plant's rigid parameters (its parameter set without effects)."""
 
@@ -85,9 +98,32 @@ def joint_type(position_unit: str | None) -> str:
     return "revolute" if (position_unit or "").strip().lower() in ROTARY_UNITS else "prismatic"
 
 
+VERTICAL_KEYS = ("vertical", "axis_vertical")
+"""Log metadata that says a prismatic axis moves along the vertical (a true value): its constant force is the load's weight."""
+
+
+def vertical(meta: Mapping[str, object]) -> bool:
+    """Whether the log's metadata says the axis is vertical (:data:`VERTICAL_KEYS`, or ``orientation: vertical``)."""
+    if str(meta.get("orientation", "")).strip().lower() == "vertical":
+        return True
+    return any(meta.get(k) is True or str(meta.get(k, "")).strip().lower() in ("1", "true", "yes") for k in VERTICAL_KEYS)
+
+
+def weight(constant_N: float, std_N: float | None = None) -> dict[str, tuple[float, float | None, str]]:
+    """The constant force of a vertical axis as the weight it is: ``weight = M·g`` (N) and the implied mass (kg), with standard deviations.
+
+    The sign is the force's (a load pulled down along a positive-up axis needs a positive force to hold it).
+    """
+    g = STANDARD_GRAVITY
+    return {
+        "weight": (float(constant_N), std_N, "N"),
+        "implied_mass": (float(constant_N) / g, None if std_N is None else float(std_N) / g, "kg"),
+    }
+
+
 def unit(name: str, joint: str = "prismatic") -> str:
-    """Unit of a parameter (``""`` for a name that is not a rigid parameter)."""
-    p = PARAMETERS.get(name)
+    """Unit of a parameter (``""`` for a name that is not a rigid parameter or a first moment)."""
+    p = PARAMETERS.get(name) or FIRST_MOMENTS.get(name)
     return "" if p is None else p.unit_for(joint)
 
 

@@ -115,6 +115,22 @@ _BUILDS: dict[str, Callable[[Kinematics], np.ndarray]] = {
 COLUMNS: dict[str, Column] = {n: Column(n, p.unit, _BUILDS[n], p.meaning) for n, p in parameters.PARAMETERS.items()}
 """The regressor column of every rigid parameter of :mod:`ilic_cli.parameters`."""
 
+
+def _q(k: Kinematics) -> np.ndarray:
+    if k.q is None:
+        raise ValueError("the gravity columns need the position q")
+    return k.q
+
+
+_GRAVITY_BUILDS: dict[str, Callable[[Kinematics], np.ndarray]] = {
+    "MX": lambda k: parameters.STANDARD_GRAVITY * np.cos(_q(k)),
+    "MY": lambda k: -parameters.STANDARD_GRAVITY * np.sin(_q(k)),
+}
+"""Gravity on a revolute link, ``g·(MX cos q - MY sin q)`` (paper eq. 3), ``q`` from the joint's zero as given."""
+
+GRAVITY_COLUMNS: dict[str, Column] = {n: Column(n, p.unit, _GRAVITY_BUILDS[n], p.meaning) for n, p in parameters.FIRST_MOMENTS.items()}
+"""The column pair of the first moments ``MX, MY`` (:data:`ilic_cli.parameters.FIRST_MOMENTS`): the ``gravity`` effect's."""
+
 MODELS: dict[str, Model] = {name: Model(name, tuple(COLUMNS[n] for n in names)) for name, names in parameters.STRUCTURES.items()}
 """Model structures by name (:data:`ilic_cli.parameters.STRUCTURES`)."""
 

@@ -228,6 +228,10 @@ def _truth_values(eid: str, p: dict[str, float], case: Case) -> dict[str, float]
         return {"lag": max(-p["delay"], 0.0)}
     if eid == "flexibility":
         return {"stiffness": p["stiffness"], "load_fraction": p["load_fraction"]}
+    if eid == "friction_drift":  # a warm-up's change and time constant, or a wear's rates
+        if p.get("dFv", 0.0) or p.get("dFc", 0.0):
+            return {"dFv": p.get("dFv", 0.0), "dFc": p.get("dFc", 0.0), "tau": p["tau"]}
+        return {"Fv_rate": p.get("Fv_rate", 0.0), "Fc_rate": p.get("Fc_rate", 0.0)}
     return dict(p)
 
 
@@ -515,3 +519,66 @@ def case_of(name: str) -> Case:
     base, _, seed = name.partition("@s")
     case = CASES[base]
     return replace(case, name=name, seed=int(seed)) if seed else case
+
+
+# ---------------------------------------------------------------------------
+# revolute joints (gravity) and logs whose friction drifts
+# ---------------------------------------------------------------------------
+REVOLUTE_JOINTS: dict[str, dict[str, float]] = {
+    "small": {"M": 0.08, "Fv": 0.05, "Fc": 0.2, "offset": 0.0},
+    "large": {"M": 0.5, "Fv": 0.3, "Fc": 1.0, "offset": 0.0},
+}
+"""Rigid parameters of two revolute joints (kg·m², N·m·s/rad, N·m): a wrist-sized and an elbow-sized link."""
+
+REVOLUTE_SENSOR: dict[str, dict[str, float]] = {"noise": {"q_std": 1e-5}, "quantization": {"resolution": 1.2e-5}}
+"""A 19-bit encoder (1.2e-5 rad per count) with 10 urad of position noise."""
+
+
+def revolute_log(
+    joint: str = "small",
+    effects: dict[str, dict[str, float]] | None = None,
+    *,
+    seed: int = 1,
+    duration_s: float = DURATION_S,
+    fs_hz: float = 1000.0,
+    v_rms: float = 1.2,
+    sensor: bool = True,
+) -> RunLog:
+    """A CTC log of a revolute joint of :data:`REVOLUTE_JOINTS` (units rad, N·m) on a multisine of 0.1-1.2 Hz (about +-2 rad).
+
+    The CTC's parameters are 5-10 % off the plant's (no online update, no gravity compensation); the force is the held
+    command (``tau_sensor = "command"``); the sensor is :data:`REVOLUTE_SENSOR` (``sensor=False``: exact); ``effects``
+    (``gravity``, ...) are the plant's. Deterministic in ``seed`` (the noise and the multisine's phases).
+    """
+    from ilic_cli.effects import make_effects
+    from ilic_cli.parameters import unit
+    from plant.closed_loop import loop_log, simulate_loop  # deferred: numba and the compiled loop
+    from plant.controllers import CTCSettings
+    from plant.dynamics import RigidParameters
+    from plant.trajectories import multisine
+
+    rigid = REVOLUTE_JOINTS[joint]
+    params = RigidParameters(**rigid)
+    spec = {**(REVOLUTE_SENSOR if sensor else {}), **(effects or {})}
+    traj = multisine(seed, v_rms=v_rms, q0=0.0)
+    n = int(round(duration_s * fs_hz))
+    _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, fs_hz)
+    ctl = CTCSettings(chi0={"M": 1.05 * rigid["M"], "Fv": 0.9 * rigid["Fv"], "Fc": 0.9 * rigid["Fc"]}, ilic=False)
+    res = simulate_loop(
+        q_r=q_r,
+        qd_r=qd_r,
+        qdd_r=qdd_r,
+        qd_log=qd_log,
+        qdd_log=qdd_log,
+        params=params,
+        effects=make_effects(spec),
+        controller=ctl,
+        fs_hz=fs_hz,
+        seed=seed,
+        tau_sensor="command",
+    )
+    log = loop_log(res, q_ref=q_r, qd_ref=qd_log, qdd_ref=qdd_log, meta={"scenario": {"name": f"revolute-{joint}", "trajectory": traj.to_dict()}})
+    log.units.update({"q": "rad", "q_ref": "rad", "qd_ref": "rad/s", "qdd_ref": "rad/s^2", "tau": "N·m", "qd_plant": "rad/s", "qdd_plant": "rad/s^2"})
+    log.units.update({c: unit(c[: -len("_hat")], "revolute") for c in log.channels if c.endswith("_hat")})
+    log.meta["source"] = f"revolute-{joint}-s{seed}"
+    return log

@@ -117,8 +117,15 @@ def plant_model(values: Mapping[str, float], effects: Mapping[str, Any] | None =
     P_DIST_STD,
     P_DIST_BW,
     P_CL_BW,
-) = range(25)
-N_PLANT = 25
+    P_MX,
+    P_MY,
+    P_DR_DFV,
+    P_DR_DFC,
+    P_DR_TAU,
+    P_DR_RFV,
+    P_DR_RFC,
+) = range(32)
+N_PLANT = 32
 
 SLOTS: dict[str, dict[str, int]] = {
     "asymmetric_friction": {"Fv_pos": P_FV_POS, "Fv_neg": P_FV_NEG, "Fc_pos": P_FC_POS, "Fc_neg": P_FC_NEG},
@@ -133,6 +140,8 @@ SLOTS: dict[str, dict[str, int]] = {
     "noise": {},  # drawn up front (plant.sensors.draw_noise)
     "disturbance": {"std": P_DIST_STD, "bandwidth_hz": P_DIST_BW},  # recorded; the force is drawn up front (plant.sensors.draw_disturbance)
     "current_loop": {"bandwidth_hz": P_CL_BW},
+    "gravity": {"MX": P_MX, "MY": P_MY},
+    "friction_drift": {"dFv": P_DR_DFV, "dFc": P_DR_DFC, "tau": P_DR_TAU, "Fv_rate": P_DR_RFV, "Fc_rate": P_DR_RFC},
 }
 """Compiled form of the built-in effects: parameter -> slot of the plant vector."""
 
@@ -169,7 +178,7 @@ def plant_vector(params: RigidParameters, effects: Mapping[str, EffectParams]) -
     p[P_FV_POS] = p[P_FV_NEG] = params.Fv
     p[P_FC_POS] = p[P_FC_NEG] = params.Fc
     p[P_OFFSET] = params.offset
-    p[P_VS] = p[P_RIP_L] = 1.0
+    p[P_VS] = p[P_RIP_L] = p[P_DR_TAU] = 1.0
     p[P_TCH] = p[P_FMAX] = np.inf
     p[P_VEPS] = STICK_VELOCITY
     for eid, slots in SLOTS.items():
@@ -196,6 +205,8 @@ def force_model(
 
     ``tau = M(t)*qdd + friction(qd) + offset + ripple(q) + spring(q)`` with
     ``sign(0) = 0``; ``payload_change`` raises the mass from ``t_change``;
+    ``friction_drift`` changes ``Fv`` and ``Fc`` with ``t`` (:func:`ilic_cli.effects.drift_of`);
+    ``gravity`` adds ``g·(MX cos q - MY sin q)``;
     ``flexibility`` adds the force that accelerates the load mass, obtained by
     simulating the linear load dynamics driven by the given motor motion
     (load at rest relative to the motor at ``t[0]``; uniform ``t`` expected);
@@ -225,7 +236,13 @@ def force_model(
     p = plant_vector(params, eff)
     q, qd, qdd, t = (np.asarray(a, dtype=np.float64) for a in (q, qd, qdd, t))
     pos, neg = qd > 0, qd < 0
-    fric = np.where(pos, p[P_FV_POS] * qd + p[P_FC_POS], 0.0) + np.where(neg, p[P_FV_NEG] * qd - p[P_FC_NEG], 0.0)
+    fv_pos, fv_neg, fc_pos, fc_neg = p[P_FV_POS], p[P_FV_NEG], p[P_FC_POS], p[P_FC_NEG]
+    if "friction_drift" in eff:  # friction that changes over time (t: the plant's time, as payload_change's)
+        dfv = fx.drift_of(t, p[P_DR_DFV], p[P_DR_TAU], p[P_DR_RFV])
+        dfc = fx.drift_of(t, p[P_DR_DFC], p[P_DR_TAU], p[P_DR_RFC])
+        fv_pos, fv_neg = fv_pos + dfv, fv_neg + dfv
+        fc_pos, fc_neg = np.maximum(fc_pos + dfc, 0.0), np.maximum(fc_neg + dfc, 0.0)
+    fric = np.where(pos, fv_pos * qd + fc_pos, 0.0) + np.where(neg, fv_neg * qd - fc_neg, 0.0)
     dm = np.where(t >= p[P_TCH], p[P_DM], 0.0)
     if p[P_FLEX_K] > 0.0:
         m_motor = (1.0 - p[P_FLEX_R]) * p[P_M]

@@ -24,7 +24,7 @@ velocity), the velocity is set to exactly 0 and the rest of the step starts
 with a new stick/slip decision. The result is deterministic and does not
 depend on luck at zero crossings.
 
-Rigid axis without smooth effects (no Stribeck term, ripple, spring or
+Rigid axis without smooth effects (no Stribeck term, ripple, spring, gravity, friction drift or
 flexibility; payload change, asymmetric friction, offset and the measurement
 effects allowed): between direction changes the dynamics are linear with a
 constant force, so the four RK4 stages sum to a closed form
@@ -41,11 +41,17 @@ import math
 import numpy as np
 from numba import njit
 
+from ilic_cli.parameters import STANDARD_GRAVITY
 from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PD_SAME, C_PULSE_RAMP, C_VMAX
 from plant.dynamics import (
     N_PLANT,
     P_CL_BW,
     P_DM,
+    P_DR_DFC,
+    P_DR_DFV,
+    P_DR_RFC,
+    P_DR_RFV,
+    P_DR_TAU,
     P_FC_NEG,
     P_FC_POS,
     P_FLEX_C,
@@ -58,6 +64,8 @@ from plant.dynamics import (
     P_K,
     P_LAG,
     P_M,
+    P_MX,
+    P_MY,
     P_OFFSET,
     P_Q0,
     P_RES,
@@ -95,6 +103,8 @@ def _nonfriction(p, u, x0, x1, x2, x3, flex):
         f -= p[P_RIP_A] * math.sin(TWO_PI * x0 / p[P_RIP_L] + p[P_RIP_PH])
     if p[P_K] != 0.0:
         f -= p[P_K] * (x0 - p[P_Q0])
+    if p[P_MX] != 0.0 or p[P_MY] != 0.0:  # gravity on a revolute link (ilic_cli.effects.GRAVITY)
+        f -= STANDARD_GRAVITY * (p[P_MX] * math.cos(x0) - p[P_MY] * math.sin(x0))
     if HAS_GENERIC:
         f -= _generic_force(p[N_PLANT:], x0, x1)
     fc = 0.0
@@ -351,6 +361,23 @@ def _current_loop_substeps(p, c, y, d, x0, x1, x2, x3, tk, h, nsub, flex, tau_i)
 
 
 @njit(cache=CACHE, nogil=True)
+def _drift(change, tau, rate, t):
+    """:func:`ilic_cli.effects.drift_of` compiled: a friction coefficient's change at ``t``."""
+    return change * (1.0 - math.exp(-t / tau)) + rate * t
+
+
+@njit(cache=CACHE, nogil=True)
+def _drifted(p, base, t):
+    """Write the friction of the plant at ``t`` into ``p`` (``friction_drift``; ``base``: the friction slots at t = 0)."""
+    dfv = _drift(p[P_DR_DFV], p[P_DR_TAU], p[P_DR_RFV], t)
+    dfc = _drift(p[P_DR_DFC], p[P_DR_TAU], p[P_DR_RFC], t)
+    p[P_FV_POS] = base[0] + dfv
+    p[P_FV_NEG] = base[1] + dfv
+    p[P_FC_POS] = max(base[2] + dfc, 0.0)
+    p[P_FC_NEG] = max(base[3] + dfc, 0.0)
+
+
+@njit(cache=CACHE, nogil=True)
 def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd, dist=None):
     """Advance the closed loop over periods ``k0 <= k < k1``.
 
@@ -369,13 +396,19 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
     flex = p[P_FLEX_K] > 0.0
     h = T / substeps
     x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
+    # friction drift: a copy of the plant vector whose friction follows the time, piecewise constant over each
+    # period at its middle (the drift is slow: seconds against the period's milliseconds)
+    drift = p[P_DR_DFV] != 0.0 or p[P_DR_DFC] != 0.0 or p[P_DR_RFV] != 0.0 or p[P_DR_RFC] != 0.0
+    base = np.array([p[P_FV_POS], p[P_FV_NEG], p[P_FC_POS], p[P_FC_NEG]])
+    if drift:
+        p = p.copy()
     pd = c[C_KIND] == 1.0
     same = c[C_PD_SAME] == 1.0
     exact_vel = c[C_EXACT_VEL] == 1.0
     res = p[P_RES]
     fmax = p[P_FMAX]
     # rigid axis without smooth effects: the closed-form RK4 step (_linear_period)
-    linear = not flex and p[P_FS] == 0.0 and p[P_RIP_A] == 0.0 and p[P_K] == 0.0 and not HAS_GENERIC
+    linear = not flex and p[P_FS] == 0.0 and p[P_RIP_A] == 0.0 and p[P_K] == 0.0 and p[P_MX] == 0.0 and p[P_MY] == 0.0 and not drift and not HAS_GENERIC
     cf = _linear_coefficients(p, h, substeps)
     veps = p[P_VEPS]
     static_pos = p[P_FC_POS] + p[P_FS]
@@ -398,6 +431,8 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
     tau_i = 1.0 / (TWO_PI * p[P_CL_BW]) if p[P_CL_BW] > 0.0 else 0.0
     y = x[4] if len(x) > 4 else math.nan
     for k in range(k0, k1):
+        if drift:
+            _drifted(p, base, (k + 0.5) * T)
         du = 0.0  # change of the applied force over the period (pulses ramped between control instants)
         qm = x0 + noise_q[k]
         if res > 0.0:

@@ -18,6 +18,8 @@ from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
 from ilic_cli.diagnosis.decide import ReplayVerdict, decision_sensor, materiality, noisy_output_error, replay_decide
+from ilic_cli.diagnosis.drift import DriftResult, detect_drift, with_drift
+from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
 from ilic_cli.diagnosis.refit import InverseFit, Refit, closed_loop_refit, plant_problem
@@ -41,7 +43,7 @@ from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
-from ilic_cli.parameters import PARAMETERS, structure_of
+from ilic_cli.parameters import PARAMETERS, joint_type, structure_of, vertical, weight
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
 from ilic_cli.runlog import RunLog
@@ -142,6 +144,10 @@ class Diagnosis:
     warnings: list[str] = field(default_factory=list)
     residual: dict[str, np.ndarray] = field(default_factory=dict)
     timing: ControlTiming | None = None
+    drift: DriftResult | None = None
+    """Friction drift read from per-window estimates (:mod:`ilic_cli.diagnosis.drift`)."""
+    weight: dict[str, Estimate] | None = None
+    """A vertical axis's constant force as the load's weight and implied mass (:func:`ilic_cli.parameters.weight`), else ``None``."""
     replay_sensor: dict[str, Any] | None = None
     """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.decide.decision_sensor`); ``None``: none replayed, or noise-free."""
 
@@ -181,6 +187,8 @@ class Diagnosis:
             "replay_sensor_noise": self.replay_sensor,
             "warnings": list(self.warnings),
             "timing": None if self.timing is None else self.timing.to_dict(),
+            "drift": None if self.drift is None else self.drift.to_dict(),
+            "weight": None if self.weight is None else {k: v.to_dict() for k, v in self.weight.items()},
         }
 
 
@@ -291,6 +299,8 @@ def diagnose(
             warnings.append(f"{p.source}: {p.saturation_note()}")
     known = steps_from_effects(model_doc.get("effects", {}), float(model_doc["parameters"].get("M", 95.0))) if model_doc else []
     sel_settings = settings.select
+    joint = joint_type(log.units.get("q"))  # gravity is proposed on a revolute joint only (Effect.joints)
+    sel_settings = replace(sel_settings, effects=tuple(e for e in sel_settings.effects if e not in EFFECTS or joint in EFFECTS[e].joints))
     if known:
         sel_settings = replace(sel_settings, effects=tuple(e for e in sel_settings.effects if e not in {s.effect.id for s in known}))
     selection = forward_select(data, base, fs, sel_settings, validation=vdata, known=known)
@@ -398,7 +408,13 @@ def diagnose(
     else:
         rigid, effects_doc = model_parameters(steps, names1, res1.theta, cov1, hold)
         doc = model_document(base.name, rigid, method="IDIM-LS + ilic diagnose", effects=effects_doc, source=src or None)
+    drift_found = detect_drift(td, W1, y1, names1)  # friction that changes over time, from per-window estimates
+    if drift_found.found:
+        findings.append(Finding(EFFECTS["friction_drift"], drift_found.estimates(), drift_found.plant_effect(), [], drift_evaluation(drift_found)))
+        doc = with_drift(doc, drift_found)
+        fit["relative_error_pct"]["after"], fit["heldout_relative_error_pct"]["after"] = drift_found.relative_error_after_pct, drift_found.heldout_after_pct
     diag = Diagnosis(
+        drift=drift_found,
         source=src,
         model=base.name,
         fs_hz=fs,
@@ -418,6 +434,11 @@ def diagnose(
         warnings=warnings,
         residual={"t": td, "q": q_d, "qd": qd_d, "before": e0, "after": e1, "y": y0, "y_before": W0 @ res0.theta, "y_after": W1 @ res1.theta},
     )
+    if vertical(log.meta) and "offset" in names1:  # a vertical axis: its constant force is the load's weight, not an offset
+        i = names1.index("offset")
+        diag.weight = {k: Estimate(*v) for k, v in weight(float(res1.theta[i]), float(np.sqrt(max(cov1[i, i], 0.0)))).items()}
+        for f in (f for f in findings if f.effect.id == "offset"):
+            f.parameters, f.note = dict(diag.weight), "a vertical axis: the constant force is the load's weight"
     if timing is not None:
         timing.negative_flexibility = any(ev.effect == "flexibility" and "negative mass" in ev.reason for step in selection.tried for ev in step)
     diag.timing = timing

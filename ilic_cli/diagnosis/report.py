@@ -161,6 +161,9 @@ def to_markdown(diag: Diagnosis) -> str:
             ),
             "",
         ]
+    if diag.weight is not None:  # a vertical axis (the log says so): the constant force is a weight
+        w, m = diag.weight["weight"], diag.weight["implied_mass"]
+        lines += [f"Vertical axis: the constant force is the load's weight, {w.value:.4g} N (std {w.std:.2g} N): an implied mass of {m.value:.4g} kg.", ""]
     timing = diag.timing.sentence() if diag.timing is not None else ""
     if timing:
         lines += [f"Control timing: {timing}.", ""]

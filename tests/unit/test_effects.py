@@ -19,7 +19,9 @@ def test_registry_order_and_kinds() -> None:
         "stribeck",
         "position_ripple",
         "spring",
+        "gravity",
         "payload_change",
+        "friction_drift",
         "offset",
         "delay",
         "flexibility",
@@ -29,7 +31,9 @@ def test_registry_order_and_kinds() -> None:
         "disturbance",
         "current_loop",
     ]
-    assert fx.catalogue_ids() == ("asymmetric_friction", "stribeck", "position_ripple", "spring", "payload_change", "offset", "delay", "flexibility")
+    assert fx.catalogue_ids() == ("asymmetric_friction", "stribeck", "position_ripple", "spring", "gravity", "payload_change", "offset", "delay", "flexibility")
+    # gravity is proposed on a revolute joint only; friction drift is read from per-window estimates (ilic_cli.diagnosis.drift), no column
+    assert "gravity" not in fx.catalogue_ids("prismatic") and "gravity" in fx.catalogue_ids("revolute") and "friction_drift" not in fx.catalogue_ids()
     assert "offset" not in fx.plant_ids() and "noise" in fx.plant_ids()
     assert {"disturbance", "current_loop"} <= set(fx.plant_ids())  # plant effects diagnosis does not fit
     assert [e for e in EFFECTS if EFFECTS[e].shift] == ["delay"]

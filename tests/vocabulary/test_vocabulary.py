@@ -120,7 +120,7 @@ def test_compiled_effects_cover_every_parameter_of_their_definition() -> None:
         assert set(SLOTS[eid]) == set(effect.names), eid
 
 
-@pytest.mark.parametrize("eid", ["stribeck", "position_ripple", "spring", "asymmetric_friction"])
+@pytest.mark.parametrize("eid", ["stribeck", "position_ripple", "spring", "asymmetric_friction", "gravity"])
 def test_compiled_force_agrees_with_the_definition(eid: str) -> None:
     """The kernel's acceleration under a force u is (u - inverse dynamics at qdd = 0) / M at sliding states."""
     rng = np.random.default_rng(5)

@@ -1,0 +1,151 @@
+"""Friction that changes over time is named ``friction_drift`` with its shape and size; a payload step and clean logs are not (issue 29, item 5).
+
+First the pure functions of :mod:`ilic_cli.diagnosis.drift` on a synthetic regressor (exact truth, many seeds in
+milliseconds), then ``ilic diagnose`` on plant logs (:func:`plant.corpus.simulate_case`) whose friction drifts.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ilic_cli.diagnosis import DiagnoseSettings, diagnose
+from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, detect_drift
+from ilic_cli.diagnosis.report import to_markdown
+from ilic_cli.diagnosis.select import SelectSettings
+from plant.corpus import CASES, Case, simulate_case
+
+TOLERANCE = 0.15
+NAMES = ("M", "Fv", "Fc", "offset")
+
+
+def _system(seed: int, fv=lambda t: 200.0 + 0 * t, fc=lambda t: 20.0 + 0 * t, m=lambda t: 95.0 + 0 * t, noise: float = 2.0):
+    """Decimated-IDIM-like rows of 30 s at 100 Hz: a two-tone motion, AR(1) force noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(3000) / 100.0
+    qd = 0.2 * np.sin(2 * np.pi * 0.5 * t) + 0.05 * np.sin(2 * np.pi * 1.3 * t + 1.0)
+    qdd = np.gradient(qd, t)
+    e = np.zeros(len(t))
+    w = rng.normal(0.0, noise, len(t))
+    for i in range(1, len(t)):
+        e[i] = 0.6 * e[i - 1] + w[i]
+    W = np.c_[qdd, qd, np.sign(qd), np.ones(len(t))]
+    y = m(t) * qdd + fv(t) * qd + fc(t) * np.sign(qd) + e
+    return t, W, y
+
+
+def test_an_exponential_warm_up_of_viscous_friction_is_named_with_its_size() -> None:
+    t, W, y = _system(1, fv=lambda t: 200.0 - 200.0 / 3.0 * (1 - np.exp(-t / 6.0)))
+    res = detect_drift(t, W, y, NAMES)
+    assert res.found and res.shape == "exponential", res.reason
+    tr = res.findings[0]
+    assert tr.parameter == "Fv" and tr.test.p_adjusted < ALPHA
+    assert tr.relative_change == pytest.approx(-1.0 / 3.0, rel=TOLERANCE)
+    assert tr.tau == pytest.approx(6.0, rel=0.3)
+    plant = res.plant_effect()
+    assert plant is not None and plant["dFv"] == pytest.approx(-200.0 / 3.0, rel=TOLERANCE)
+    json.dumps(res.to_dict(), allow_nan=False)
+
+
+def test_a_linear_wear_of_coulomb_friction_is_named_linear() -> None:
+    t, W, y = _system(2, fc=lambda t: 20.0 + 0.2 * t)
+    res = detect_drift(t, W, y, NAMES)
+    assert res.found and res.shape == "linear", res.reason
+    tr = res.findings[0]
+    assert tr.parameter == "Fc" and tr.rate == pytest.approx(0.2, rel=TOLERANCE) and tr.tau is None
+    assert res.plant_effect() == pytest.approx({"dFv": 0.0, "dFc": 0.0, "tau": 1.0, "Fv_rate": 0.0, "Fc_rate": tr.rate})
+
+
+@pytest.mark.parametrize("seed", range(10, 30))
+def test_stationary_friction_has_no_drift(seed: int) -> None:
+    t, W, y = _system(seed, noise=5.0)
+    res = detect_drift(t, W, y, NAMES)
+    assert not res.found, res.sentence()
+    assert res.reason
+
+
+def test_a_mass_step_is_not_a_friction_drift() -> None:
+    """Every parameter is free in each window: a payload added at 15 s moves the windows' M, not their friction."""
+    t, W, y = _system(3, m=lambda t: 95.0 + 10.0 * (t >= 15.0))
+    res = detect_drift(t, W, y, NAMES)
+    assert not res.found, res.sentence()
+    M = res.windows.theta[:, 0]
+    assert M[5:].mean() - M[:5].mean() == pytest.approx(10.0, rel=0.1)  # the step (at the 6th window) is seen, in the mass
+
+
+def test_a_small_trend_is_not_material() -> None:
+    t, W, y = _system(4, fv=lambda t: 200.0 - 0.2 * t, noise=0.2)  # 3 % over the log, very significant
+    res = detect_drift(t, W, y, NAMES)
+    assert not res.found and "below" in res.reason and MIN_CHANGE == 0.05
+
+
+# -- the diagnosis of plant logs ------------------------------------------------------------------
+WARM_UP = {"dFv": -200.0 / 3.0, "tau": 6.0}
+"""Viscous friction falls by a third as the drive warms up (the issue's case)."""
+
+WEAR = {"dFv": 0.0, "Fc_rate": 0.2}
+"""Coulomb friction grows by 0.2 N/s: +30 % over the 30 s log."""
+
+
+def test_diagnose_names_a_warm_up_exponential_with_its_size() -> None:
+    diag = diagnose(simulate_case(Case("warm-up", "paper", "sensor", 5), {"friction_drift": WARM_UP}))
+    assert [f.effect.id for f in diag.findings] == ["friction_drift"], diag.conclusion
+    assert diag.drift is not None and diag.drift.shape == "exponential"
+    tr = diag.drift.findings[0]
+    assert tr.parameter == "Fv" and tr.relative_change == pytest.approx(-1.0 / 3.0, rel=TOLERANCE)
+    plant = diag.model_file["effects"]["friction_drift"]
+    assert plant["dFv"] == pytest.approx(WARM_UP["dFv"], rel=TOLERANCE) and plant["tau"] == pytest.approx(6.0, rel=TOLERANCE)
+    assert diag.model_file["parameters"]["Fv"] == pytest.approx(200.0, rel=0.05)  # the level at the log's start
+    doc = diag.to_dict()
+    assert doc["drift"]["shape"] == "exponential" and doc["findings"][0]["effect"] == "friction_drift"
+    ho = diag.fit["heldout_relative_error_pct"]
+    assert ho["after"] < 0.5 * ho["before"]  # the trend's columns predict the blocks left out (measured 3.6 % -> 0.6 %)
+    assert "Left out: friction drift (Fv -3" in to_markdown(diag) and "exponential, time constant" in to_markdown(diag)
+
+
+def test_diagnose_names_a_linear_wear() -> None:
+    diag = diagnose(simulate_case(Case("wear", "paper", "sensor", 7), {"friction_drift": WEAR}), settings=DiagnoseSettings(simulate=False))
+    assert "friction_drift" in [f.effect.id for f in diag.findings], diag.conclusion
+    assert diag.drift is not None and diag.drift.shape == "linear"
+    tr = diag.drift.findings[0]
+    assert tr.parameter == "Fc" and tr.rate == pytest.approx(0.2, rel=TOLERANCE)
+
+
+def test_a_payload_step_is_not_called_drift() -> None:
+    """On the rigid model's windows (no candidate effect: the drift test alone), a 3.14 kg step at 10.5 s is seen in M, not as drift."""
+    case = CASES["payload_change-paper-sensor-s240"]
+    settings = DiagnoseSettings(simulate=False, select=SelectSettings(effects=()))
+    diag = diagnose(simulate_case(case), settings=settings)
+    assert diag.drift is not None and not diag.drift.found, diag.drift.sentence()
+    win = diag.drift.windows
+    assert win is not None
+    M = win.theta[:, win.names.index("M")]
+    dM = case.effects["payload_change"]["dM"]
+    assert M[win.t > 12.0].mean() - M[win.t < 9.0].mean() == pytest.approx(dM, rel=0.25)
+
+
+@pytest.mark.parametrize(("trajectory", "noise", "seed"), [("paper", "sensor", 1), ("multisine", "disturbance", 2), ("trapezoid", "combined", 3)])
+def test_a_clean_log_has_no_drift(trajectory: str, noise: str, seed: int) -> None:
+    """The drift test on the rigid model alone (no other candidate: it reads the rigid fit's windows)."""
+    settings = DiagnoseSettings(simulate=False, select=SelectSettings(effects=()))
+    diag = diagnose(simulate_case(Case("clean", trajectory, noise, seed), {}), settings=settings)
+    assert diag.drift is not None and not diag.drift.found and diag.findings == [], diag.drift.sentence()
+
+
+@pytest.mark.parametrize(
+    ("joint", "drift", "shape", "size"),
+    [
+        ("small", {"dFv": -0.05 / 3.0, "tau": 6.0}, "exponential", ("relative_change", -1.0 / 3.0)),
+        ("large", {"dFv": 0.0, "Fc_rate": 0.01}, "linear", ("rate", 0.01)),
+    ],
+)
+def test_drift_is_scale_free_on_revolute_joints(joint: str, drift: dict, shape: str, size: tuple[str, float]) -> None:
+    """The same tests on a 0.08 kg·m² and a 0.5 kg·m² joint (N·m·s/rad, N·m): measured -31.4 % (tau 6.43 s) and +0.0100 N·m/s."""
+    from plant.corpus import revolute_log
+
+    settings = DiagnoseSettings(simulate=False, select=SelectSettings(effects=()))
+    diag = diagnose(revolute_log(joint, {"friction_drift": drift}, seed=3), settings=settings)
+    assert diag.drift is not None and diag.drift.found and diag.drift.shape == shape, diag.drift.reason
+    assert getattr(diag.drift.findings[0], size[0]) == pytest.approx(size[1], rel=TOLERANCE)

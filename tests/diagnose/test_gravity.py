@@ -1,0 +1,108 @@
+"""Gravity on a revolute joint is named gravity, not a spring, with its first moments (issue 29, item 4).
+
+Logs of :func:`plant.corpus.revolute_log`: a CTC without gravity compensation on a multisine that swings the link
+through about 2.8 rad, a 19-bit encoder, the held command as the torque. Measured (30 s logs, seed 1): the rigid
+fit's relative error 2.56 % clean; with gravity 5.30 % (0.08 kg·m², MX 0.006, MY 0.003 kg·m) and 3.80 %
+(0.5 kg·m², MX 0.03, MY -0.015 kg·m); ``ilic diagnose`` names gravity on both within 0.5 % (spring: not
+significant, or "another effect was accepted first"), and nothing on the clean log.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from ilic_cli.diagnosis import DiagnoseSettings, diagnose
+from ilic_cli.diagnosis.select import SelectSettings
+from ilic_cli.io import write_log
+from plant.corpus import revolute_log
+from tests.clirun import run_cli
+
+TOLERANCE = 0.15
+"""The issue's: parameters within 15 %."""
+
+SMALL = {"MX": 0.006, "MY": 0.003}
+LARGE = {"MX": 0.03, "MY": -0.015}
+
+
+def _within(found: dict[str, float], truth: dict[str, float]) -> bool:
+    return all(abs(found[k] - v) <= TOLERANCE * abs(v) for k, v in truth.items())
+
+
+def test_diagnose_names_gravity_on_a_small_revolute_joint(tmp_path: Path) -> None:
+    """The command line on a CSV log (its units say radians: the joint is revolute)."""
+    path = tmp_path / "wrist.csv"
+    write_log(revolute_log("small", {"gravity": SMALL}, seed=2, duration_s=12.0), path)
+    res = run_cli("diagnose", str(path), "--format", "json")
+    assert res.status == 0, res.stderr
+    doc = json.loads(res.stdout)
+    named = [f["effect"] for f in doc["findings"]]
+    assert named == ["gravity"], named
+    assert _within(doc["findings"][0]["plant_effect"], SMALL), doc["findings"][0]["plant_effect"]
+    assert doc["model_file"]["effects"]["gravity"].keys() == {"MX", "MY"}
+    spring = [ev for step in doc["selection"] for ev in step if ev["effect"] == "spring"]
+    assert spring and not any(ev["accepted"] for ev in spring)  # tried, and not named
+
+
+@pytest.mark.parametrize("fs_hz", [500.0, 1000.0])
+def test_diagnose_names_gravity_on_a_large_revolute_joint(fs_hz: float) -> None:
+    """At 500 Hz and 1 kHz (measured at 2 kHz too: MX, MY 4.7 and 7.3 % off, 36 s, left out here for the suite's time)."""
+    diag = diagnose(revolute_log("large", {"gravity": LARGE}, seed=2, duration_s=12.0, fs_hz=fs_hz))
+    assert [f.effect.id for f in diag.findings] == ["gravity"], diag.conclusion
+    f = diag.findings[0]
+    assert f.plant_effect is not None and _within(f.plant_effect, LARGE), f.plant_effect
+    assert "first moments" in f.effect.describe(f.parameters)
+
+
+def test_identify_with_the_gravity_effect_gives_the_first_moments(tmp_path: Path) -> None:
+    path = tmp_path / "elbow.csv"
+    write_log(revolute_log("large", {"gravity": LARGE}, seed=2, duration_s=12.0), path)
+    res = run_cli("identify", str(path), "--method", "ls", "--effect", "gravity", "--format", "json")
+    assert res.status == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["joint_type"] == "revolute"
+    ls = doc["ls"]
+    found = {k: v["value"] for k, v in ls["parameters"].items()}
+    assert _within({k: found[k] for k in LARGE}, LARGE), found
+
+
+@pytest.mark.parametrize("seed", [1, 4])
+def test_a_clean_revolute_log_gets_no_gravity(seed: int) -> None:
+    """Judged by the inverse model alone (no replay: the stricter, since a candidate past its tests is then kept)."""
+    diag = diagnose(revolute_log("small", {}, seed=seed, duration_s=12.0), settings=DiagnoseSettings(simulate=False))
+    assert "gravity" not in [f.effect.id for f in diag.findings], diag.conclusion
+    tried = [ev for step in diag.tried for ev in step if ev.effect == "gravity"]
+    assert tried and not any(ev.accepted for ev in tried)  # proposed on this revolute joint, and rejected by the data
+    assert diag.drift is not None and not diag.drift.found, diag.drift.sentence()  # nor a drift, on this scale either
+
+
+def test_a_vertical_axis_reports_its_constant_force_as_a_weight() -> None:
+    """A 12 kg load hanging on the EMPS-like axis (its metadata says ``vertical``): 117.7 N, read as that weight and that mass."""
+    from ilic_cli.diagnosis.report import to_markdown
+    from plant.corpus import CTC_CHI0, NOISE_MODELS, PLANT
+    from plant.scenarios import Overrides, run_scenario
+
+    g = 9.80665
+    ov = Overrides(
+        params={**PLANT, "offset": 12.0 * g},
+        effects=dict(NOISE_MODELS["sensor"]),
+        ctc={"ilic": False},
+        chi0=dict(CTC_CHI0),
+        duration_s=30.0,
+        seed=3,
+        tau_sensor="command",
+        trajectory="trapezoid",
+        trajectory_seed=3,
+    )
+    log = run_scenario("paper-sim", ov)
+    log.meta.pop("true_parameters")
+    settings = DiagnoseSettings(simulate=False, select=SelectSettings(effects=()))  # the rigid fit's constant: no candidate needed
+    assert diagnose(log, settings=settings).weight is None  # not said to be vertical: an offset, as before
+    log.meta["vertical"] = True
+    diag = diagnose(log, settings=settings)
+    assert diag.weight is not None
+    assert diag.weight["weight"].value == pytest.approx(12.0 * g, rel=0.01) and diag.weight["implied_mass"].value == pytest.approx(12.0, rel=0.01)
+    assert diag.to_dict()["weight"]["implied_mass"]["unit"] == "kg"
+    assert "the constant force is the load's weight, 117.7 N" in to_markdown(diag)
