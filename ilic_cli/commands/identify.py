@@ -222,10 +222,9 @@ def command(
     if out_dir is not None:
         _refuse_overwriting_inputs(out_dir, plot_format, (log, *validate))
     run = load(log, input_format, topic, ref_topic, joint, columns)
-    if method in ("didim", "iv", "all"):
+    if method in ("didim", "iv", "all") or controller is not None or any(v is not None for v in (kp, kv, drive_gain)):
+        # the loop that ran: DIDIM / IDIM-IV replay it; for every method it says the force is the PD drive's held command
         run = with_controller(run, log, controller, kp, kv, drive_gain)
-    elif controller is not None or any(v is not None for v in (kp, kv, drive_gain)):
-        raise IlicError("--controller", "the loop that ran is used by --method didim, iv or all only")
     others = [load(p, None, topic, ref_topic, joint, columns) for p in validate]
     if torque_constant is not None and gear_ratio is None:
         raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
