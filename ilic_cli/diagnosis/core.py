@@ -17,7 +17,7 @@ import numpy as np
 from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
-from ilic_cli.diagnosis.decide import ReplayVerdict, decision_sensor, materiality, noisy_output_error, replay_decide
+from ilic_cli.diagnosis.decide import ReplayVerdict, below_period, decision_sensor, materiality, noisy_output_error, replay_decide
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.null import MonteCarloNull, NullSettings
 from ilic_cli.diagnosis.refit import InverseFit, Refit, closed_loop_refit, plant_problem
@@ -474,14 +474,15 @@ def _decide(
     sensor = None
     verdicts: list[ReplayVerdict] = []
     kept_so_far = list(known)
+    replayable = settings.simulate and against is None and "q_ref" in log
     for st in selection.steps:
-        why = materiality(data, base, kept_so_far, st, rows)
+        # without a replay the inverse model's value is the estimate: a delay too short for a finding goes now
+        why = materiality(data, base, kept_so_far, st, rows) or (None if replayable else below_period(st, data.fs_hz))
         if why:
             verdicts.append(ReplayVerdict(st.effect.id, None, None, None, None, None, None, None, False, why))
         else:
             material.append(st)
             kept_so_far.append(st)
-    replayable = settings.simulate and against is None and "q_ref" in log
     if replayable and (on_loop := _closed_loop_proposal(log, data, base, [*known, *selection.steps], rows, settings, selection)) is not None:
         material.append(on_loop)
     if replayable and material:
