@@ -202,6 +202,9 @@ def test_diagnose_on_the_issues_log_fits_identifys_rows_and_finds_nothing(folder
         assert d["base"]["parameters"][n]["value"] == pytest.approx(i["ls"]["parameters"][n]["value"], rel=1e-9)
     assert {f["effect"] for f in d["findings"]} <= {"offset"}, d["findings"]
     assert f"{d['usable_rows']['rows_at_rest']} at rest left out" in (out / "report.md").read_text()
+    u = i["usable_rows"]
+    md = run_cli("identify", str(path), "--method", "ls", *user_options("linear")).stdout  # the text states the rule too
+    assert f"{u['usable_rows']} of {u['decimated_rows']} decimated rows fitted: {u['rows_at_rest']} at rest left out ({u['dwells']} dwells: {REST_RULE})" in md
 
 
 def test_a_log_without_standstill_keeps_every_row_and_the_published_procedure() -> None:
