@@ -244,3 +244,25 @@ def test_a_delay_below_a_tenth_of_the_period_is_not_a_finding() -> None:
     assert below_period(Step(delay, -0.227e-3), 1000.0) is None  # a 700 Hz current loop's lag at 1 kHz: 23 % of a period
     assert below_period(Step(delay, -20e-6), 8000.0) is None and below_period(Step(delay, -20e-6), 1000.0) is not None
     assert below_period(Step(EFFECTS["spring"], 1e-9), 1000.0) is None
+
+
+def test_a_threefold_drop_of_the_heldout_error_is_not_rejected() -> None:
+    """A spring (0.3 N·m/rad) on the 2 kHz revolute dwell-and-move log: the replay's held-out force error falls threefold and the spring is named.
+
+    Measured: 7.76 % -> 2.46 %, p = 5e-24 (Diebold-Mariano over every held-out decimated sample), k within 0.1 %. The
+    issue's case (21.9 % -> 7.5 % rejected at p = 0.011, an independent simulator's log) is not reproduced by this one.
+    """
+    axis = AXES["revolute"]
+    t, q_ref = reference(axis, 2000.0)
+    ref = RunLog({"t": t, "q_ref": q_ref, "q": q_ref.copy(), "tau": np.zeros_like(t)}, {"t": "s", "q": "rad", "q_ref": "rad", "tau": "N·m"}, {})
+    kp, kv = axis.gains()
+    effects = {"noise": {"q_std": axis.noise}, "quantization": {"resolution": axis.resolution}, "spring": {"k": 0.3, "q0": 0.3}}
+    sim = simulate_replay(ref, axis.truth, effects, controller=PDSettings(kp=kp, kv=kv, gtau=axis.drive_gain), substeps=5, seed=3)
+    meta = {"controller": {"kind": "pd", "kp": kp, "kv": kv}, "drive_gain": axis.drive_gain, "source": "spring"}
+    diag = diagnose(RunLog({n: sim[n] for n in ("t", "q", "tau", "q_ref")}, {"t": "s", "q": "rad", "q_ref": "rad", "tau": "N·m"}, meta))
+    (verdict,) = [v for v in diag.decisions if v.effect == "spring"]
+    assert verdict.accepted and verdict.force_before is not None and verdict.force_after is not None
+    assert verdict.force_after < verdict.force_before / 2.5, verdict.reason
+    (found,) = [f for f in diag.findings if f.effect.id == "spring"]
+    assert found.plant_effect is not None and abs(found.plant_effect["k"] / 0.3 - 1) < 0.15
+    assert {f.effect.id for f in diag.findings} <= {"spring", "offset"}
