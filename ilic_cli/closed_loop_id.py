@@ -39,7 +39,7 @@ import numpy as np
 
 from ilic_cli.effects import EFFECTS, Fit
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
-from ilic_cli.idim_ls import LSSettings, prepare
+from ilic_cli.idim_ls import LSSettings, prepare, with_rest
 from ilic_cli.lsq import LSResult, finite_or_none, solve, solve_iv
 from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import PreparedLog, prepare_log
@@ -294,7 +294,7 @@ def closed_loop_identify(
         raise ParameterError("method", method, f"one of {', '.join(METHODS)}")
     name = METHODS[method]
     settings = settings or DEFAULT_SETTINGS[method]
-    prepared = prepared or prepare_log(log)
+    prepared = with_rest(prepared or prepare_log(log), ls_settings)  # the rows every fit uses (identify's: no standstill)
     log = prepared.log  # an irregularly sampled log is on a uniform grid now
     src = prepared.source
     require_closed_loop(log, src, name)

@@ -20,7 +20,7 @@ from ilic_cli.effects import get, unit_of
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic, tracking_error_ratio
-from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, idim_ls
+from ilic_cli.idim_ls import IDIMLSResult, LSSettings, UsableRows, cross_validate, identification_hold_s, idim_ls, usable_rows, with_rest
 from ilic_cli.lsq import LSResult
 from ilic_cli.output_error import OEResult, OESettings
 from ilic_cli.prepare import prepare_log
@@ -71,6 +71,8 @@ class IdentifyReport:
     """The ``method`` asked for: its estimate goes to the model file (:meth:`primary`)."""
     timing: ControlTiming | None = None
     """The PD loop's timing read from the recording for DIDIM / IDIM-IV, if read."""
+    usable: UsableRows | None = None
+    """The rows every method fits and the rule for samples at rest (:func:`ilic_cli.idim_ls.with_rest`)."""
     oe: OEResult | None = None
     cloe: OEResult | None = None
     """Output-error estimates (:mod:`ilic_cli.output_error`); the model file takes the one asked for."""
@@ -121,6 +123,7 @@ class IdentifyReport:
             "cloe": None if self.cloe is None else self.cloe.to_dict(),
             "validation": [v.to_dict() for v in self.validation],
             "loop_timing": None if self.timing is None else self.timing.to_dict(),
+            "usable_rows": None if self.usable is None else self.usable.to_dict(),
             "warnings": list(self.warnings),
         }
 
@@ -265,9 +268,9 @@ def identify(
         (:func:`ilic_cli.diagnosis.timing.recorded_loop`), or as the log's
         metadata states it.
     """
-    prepared = prepare_log(log)
+    prepared = with_rest(prepare_log(log), ls_settings)  # the samples every method fits (no saturated drive, no standstill)
     log = prepared.log  # an irregularly sampled log is on a uniform grid now
-    src, fs, valid = prepared.source, prepared.fs_hz, prepared.valid
+    src, fs, valid, hold = prepared.source, prepared.fs_hz, prepared.valid, identification_hold_s(prepared)
     effects = dict(effects or {})
     model = with_effects(structure, effects, fs)
     if method not in IDENTIFY_METHODS:
@@ -288,6 +291,7 @@ def identify(
         joint=log.meta.get("joint"),
         joint_type=parameters.joint_type(log.units.get("q")),
         method=method,
+        usable=usable_rows(prepared, ls_settings),
     )
     closed = [m for m in ("didim", "iv") if method in (m, "all")]
     if closed:  # refuse before any work
@@ -298,7 +302,7 @@ def identify(
         prepared.require_contiguous(method.upper())
     if method in ("ls", "both", "all", "oe", "cloe") or closed:
         try:
-            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid, segments=prepared.segments)
+            report.ls = idim_ls(log.t, log["q"], log["tau"], fs, model, ls_settings, valid=valid, segments=prepared.segments, hold_s=hold)
         except ValueError as exc:
             raise IdentificationError(src, str(exc)) from None
         if not report.ls.result.full_rank:
@@ -350,6 +354,9 @@ def identify(
         except ValueError as exc:
             raise IdentificationError(src, str(exc)) from None
         report.ilic = _without_cut_windows(report.ilic, prepared.gap_samples, fs, report.warnings)
+        if prepared.rest is not None and prepared.rest.count:  # the windows' masked rows: at rest too, not only a saturated drive
+            why = "(saturated drive, or at rest)" if prepared.saturated is not None else "(at rest)"
+            report.ilic = replace(report.ilic, windows=[replace(w, note=w.note.replace("(saturated drive)", why)) for w in report.ilic.windows])
         not_essential: dict[str, list[int]] = {}
         for w in report.ilic.windows:
             if w.note and not w.note.startswith("not essential"):
@@ -363,8 +370,8 @@ def identify(
                 f"IDIM-ILIC: {name} not essential (%σ > {ilic_settings.sigma_max_pct:g}) in {len(ks)} of {len(report.ilic.windows)} windows "
                 f"(k = {_ranges(ks)}); it would not be updated"
             )
-    if valid is not None:
-        report.warnings.append(_masked_summary(report, valid, str(prepared.saturation_note())))
+    if prepared.saturated is not None:
+        report.warnings.append(_masked_summary(report, prepared.saturated, str(prepared.saturation_note())))
     estimates: list[tuple[str, np.ndarray]] = []  # (method, theta) applied to each validation log
     if report.ls is not None:
         estimates.append(("IDIM-LS", report.ls.result.theta))
@@ -374,13 +381,15 @@ def identify(
     plants = _validation_plants(report, model, effects, estimates)
     for other in validate or []:
         osrc = str(other.meta.get("source", ""))
-        op = prepare_log(other, prefix=f"validation log {osrc}")
+        op = with_rest(prepare_log(other, prefix=f"validation log {osrc}"), ls_settings)
         vlog = op.log  # an irregularly sampled log is on a uniform grid now
         report.warnings.extend(op.warnings)
-        if op.valid is not None:
+        if op.saturated is not None:
             report.warnings.append(f"validation log {osrc}: {op.saturation_note()}")
         for label, theta in estimates:
-            res = cross_validate(theta, vlog.t, vlog["q"], vlog["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments)
+            res = cross_validate(
+                theta, vlog.t, vlog["q"], vlog["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments, hold_s=identification_hold_s(op)
+            )
             report.validation.append(Validation(osrc, label, res, _open_loop_figure(vlog, plants.get(label), oe_settings, report.warnings)))
         for oe in (report.oe, report.cloe):
             if oe is not None:
@@ -429,7 +438,9 @@ def _inverse_model_error(oe: OEResult, log: RunLog, prepared: Any, effects: dict
         theta = np.array([values[n] for n in m.names], dtype=np.float64)
     except (KeyError, IlicError):
         return None  # the fitted plant has no inverse model of this form
-    return cross_validate(theta, log.t, log["q"], log["tau"], prepared.fs_hz, m, ls_settings, valid=prepared.valid, segments=prepared.segments)
+    return cross_validate(
+        theta, log.t, log["q"], log["tau"], prepared.fs_hz, m, ls_settings, valid=prepared.valid, segments=prepared.segments, hold_s=identification_hold_s(prepared)
+    )
 
 
 def _validation_plants(report: IdentifyReport, model: Model, effects: dict[str, Any], estimates: list[tuple[str, np.ndarray]]) -> dict[str, Any]:

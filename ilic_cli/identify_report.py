@@ -69,6 +69,10 @@ def to_markdown(report: IdentifyReport) -> str:
             f"error std {fmt(r.sigma_rho)}.",
             "",
         ]
+        u = report.usable
+        if u is not None and u.at_rest and u.rest is not None:  # the rule for samples at rest, stated where it acted
+            held = f"; the regressor evaluated {1e3 * u.hold_s:.4g} ms later (the drive's held command)" if u.hold_s else ""
+            out += [f"{u.usable} of {u.decimated} decimated rows fitted: {u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){held}.", ""]
     out += _closed_loop_markdown(report)
     out += _output_error_markdown(report)
     if report.ilic is not None:

@@ -21,18 +21,82 @@ each. The rules:
   irregularly is interpolated linearly onto a uniform grid at its mean rate,
   within each part between gaps (:func:`to_uniform_grid`), and a warning
   says so and states the rule (:data:`ilic_cli.quality.SAMPLING_RULE`);
-* **saturation**: samples on the plateau of a saturated drive are masked.
+* **saturation**: samples on the plateau of a saturated drive are masked;
+* **rest**: samples where the axis stands still are masked too
+  (:func:`ilic_cli.idim_ls.with_rest`, the rule :data:`ilic_cli.idim_ls.REST_RULE`):
+  a stuck axis carries any force within the static friction, so the sign of
+  the Coulomb column is undefined there. :attr:`PreparedLog.valid` holds both
+  masks, so every estimator and the diagnosis fit the same rows;
+* **force timing** (:func:`tau_sensor`, :attr:`PreparedLog.hold_s`): a force
+  that is the drive's command held over each period is the model's mean over
+  that period, i.e. the model half a period later.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
 from ilic_cli.errors import LogError, ParameterError
 from ilic_cli.quality import SAMPLING_RULE, assess_log, clock_deviation, irregular_grid, nominal_rate_hz, sampling_kind, saturation_mask, segments
 from ilic_cli.runlog import RunLog
+
+
+@dataclass(frozen=True)
+class RestSamples:
+    """The samples of a log at which the axis stands still (:func:`ilic_cli.idim_ls.rest_samples` finds them).
+
+    Attributes
+    ----------
+    mask : ndarray of bool
+        One per sample: True at rest, or within the position filter's reach of a sample at rest.
+    dwells : int
+        Stretches of rest found.
+    speed_threshold : float
+        The filtered speed below which a sample may be at rest (position unit per second).
+    rule : str
+        The rule, in words (:data:`ilic_cli.idim_ls.REST_RULE`).
+    """
+
+    mask: np.ndarray
+    dwells: int
+    speed_threshold: float
+    rule: str
+
+    @property
+    def count(self) -> int:
+        """Samples masked as at rest."""
+        return int(np.count_nonzero(self.mask))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"rule": self.rule, "dwells": self.dwells, "samples_at_rest": self.count, "speed_threshold": self.speed_threshold}
+
+
+def tau_sensor(log: RunLog) -> str | None:
+    """How ``log``'s force samples the drive force, when the log says so; else ``None``.
+
+    The sensor a simulated log was made with (``meta["simulation"]["tau_sensor"]``);
+    ``command`` when the force is the drive command times the drive gain: a
+    ``vir`` channel and a ``drive_gain``, as in the EMPS recordings, or a PD
+    loop with its drive gain declared for a log that records neither
+    (``--controller pd --drive-gain``: the force of that loop is its command);
+    nothing is assumed for any other log.
+    """
+    sensor = (log.meta.get("simulation") or {}).get("tau_sensor")
+    if sensor:
+        return str(sensor)
+    if not log.meta.get("drive_gain"):
+        return None
+    controller = log.meta.get("controller")
+    declared_pd = isinstance(controller, dict) and controller.get("kind") == "pd"
+    return "command" if "vir" in log or declared_pd else None
+
+
+def hold_of(sensor: str | None, fs_hz: float) -> float:
+    """Half a sample period when the logged force is the held command (``sensor == "command"``), else 0."""
+    return 0.5 / fs_hz if sensor == "command" else 0.0
 
 
 @dataclass(frozen=True)
@@ -47,12 +111,17 @@ class PreparedLog:
         Its nominal sample rate (:attr:`RunLog.fs_hz`).
     valid : ndarray of bool or None
         Samples that may be used; False on the plateaus of a saturated drive
-        (:func:`ilic_cli.quality.saturation_mask`); ``None`` when every one may.
+        (:func:`ilic_cli.quality.saturation_mask`) and, once
+        :func:`ilic_cli.idim_ls.with_rest` has looked, at rest; ``None`` when every one may.
     warnings : tuple of str
         The data-quality warnings, prefixed.
     segments : tuple of (int, int)
         The contiguous runs of samples between gaps of the time stamps
         (``(start, stop)``; one run without gaps).
+    saturated : ndarray of bool or None
+        The samples masked because the drive saturates (``None``: none).
+    rest : RestSamples or None
+        The samples masked at rest (``None``: not looked for yet).
     """
 
     log: RunLog
@@ -60,6 +129,18 @@ class PreparedLog:
     valid: np.ndarray | None
     warnings: tuple[str, ...]
     segments: tuple[tuple[int, int], ...] = ()
+    saturated: np.ndarray | None = None
+    rest: RestSamples | None = None
+
+    @property
+    def hold_s(self) -> float:
+        """Half a period when the log's force is the drive's held command (:func:`tau_sensor`), else 0."""
+        return hold_of(tau_sensor(self.log), self.fs_hz)
+
+    def with_rest(self, rest: RestSamples) -> PreparedLog:
+        """This log with the samples of ``rest`` masked too (:attr:`valid`: neither saturated nor at rest)."""
+        usable = ~rest.mask if self.saturated is None else ~(rest.mask | self.saturated)
+        return replace(self, valid=None if usable.all() else usable, rest=rest)
 
     @property
     def source(self) -> str:
@@ -83,9 +164,9 @@ class PreparedLog:
 
     def saturation_note(self) -> str | None:
         """``saturated drive: X % of the samples masked``, or ``None`` without masking."""
-        if self.valid is None:
+        if self.saturated is None:
             return None
-        return f"saturated drive: {100.0 * (1.0 - float(np.mean(self.valid))):.3g} % of the samples masked"
+        return f"saturated drive: {100.0 * float(np.mean(self.saturated)):.3g} % of the samples masked"
 
 
 def to_uniform_grid(log: RunLog, rate_hz: float, parts: tuple[tuple[int, int], ...], rule: str) -> RunLog:
@@ -199,12 +280,13 @@ def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
             notes = (f"{prefix}: stamp jitter of a fixed-rate loop (up to {100 * jitter:.3g} % of a period): samples kept, restamped on its uniform grid",)
     quality = assess_log(log)
     warnings = notes + tuple(f"{prefix}: {message}" for message in quality.warnings())
-    valid = None
+    saturated = None
     if quality.saturation_limit is not None and "vir" in log.channels:
-        saturated = saturation_mask(log["vir"], quality.saturation_limit)
-        valid = ~saturated if saturated.any() else None
+        mask = saturation_mask(log["vir"], quality.saturation_limit)
+        saturated = mask if mask.any() else None
     fs = log.fs_hz
-    return PreparedLog(log=log, fs_hz=fs, valid=valid, warnings=warnings, segments=segments(log.t, fs))
+    valid = None if saturated is None else ~saturated
+    return PreparedLog(log=log, fs_hz=fs, valid=valid, warnings=warnings, segments=segments(log.t, fs), saturated=saturated)
 
 
 JOINT_UNITS = {"prismatic": ("m", "N"), "revolute": ("rad", "N·m")}

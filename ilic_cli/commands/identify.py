@@ -241,10 +241,9 @@ def command(
     if out_dir is not None:
         _refuse_overwriting_inputs(out_dir, plot_format, (log, *validate))
     run = load(log, input_format, topic, ref_topic, joint, columns)
-    if method in ("didim", "iv", "all", "cloe"):
+    if method in ("didim", "iv", "all", "cloe") or controller is not None or any(v is not None for v in (kp, kv, drive_gain)):
+        # the loop that ran: DIDIM / IDIM-IV / CLOE replay it; for every method it says the force is the PD drive's held command
         run = with_controller(run, log, controller, kp, kv, drive_gain)
-    elif controller is not None or any(v is not None for v in (kp, kv, drive_gain)):
-        raise IlicError("--controller", "the loop that ran is used by --method didim, iv, all or cloe only")
     if oe_segment is not None and method != "oe":
         raise IlicError("--oe-segment", "multiple shooting is --method oe's")
     if oe_state != "fitted" and (method != "oe" or oe_segment is not None):

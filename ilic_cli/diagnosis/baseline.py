@@ -6,7 +6,7 @@ Two things a rigid fit leaves in the residual without any missing physics:
   (``u[k]`` applied over ``[kT, (k+1)T)``: the EMPS recordings' ``gtau*vir``,
   our plant with ``tau_sensor = "command"``), it equals the mean over that
   interval of the inverse model, i.e. the model half a sample later. The
-  regressor is therefore evaluated at ``t_k + T/2`` (:func:`held`). For the
+  regressor is therefore evaluated at ``t_k + T/2`` (:func:`ilic_cli.idim_ls.held`). For the
   filtered kinematics (100 Hz position filter at 1 kHz), the value at the
   midpoint and the mean over the interval differ by ``O((2 pi f T)^2 / 24)``,
   below 1e-3. ``delay`` is then only a lag beyond the hold.
@@ -23,61 +23,16 @@ Two things a rigid fit leaves in the residual without any missing physics:
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
-from ilic_cli.idim_ls import IDIMData
-from ilic_cli.regressor import Kinematics, Model
+from ilic_cli.idim_ls import held, rebuilt
+from ilic_cli.prepare import hold_of
+
+__all__ = ["held", "hold_s", "rebuilt", "reversal_samples"]
 
 
-def hold_s(sensor: str | None, fs_hz: float) -> float:
-    """Half a sample period when the logged force is the held command (``sensor == "command"``), else 0."""
-    return 0.5 / fs_hz if sensor == "command" else 0.0
-
-
-def held(data: IDIMData, model: Model, shift_s: float) -> IDIMData:
-    """``data`` with ``model``'s regressor (and every effect column built later) evaluated ``shift_s`` later.
-
-    Parameters
-    ----------
-    data : IDIMData
-        Prepared with ``model`` (:func:`ilic_cli.idim_ls.prepare`).
-    model : Model
-        The regressor of ``data.W``.
-    shift_s : float
-        :func:`hold_s` of the log; 0 returns ``data`` itself.
-
-    Returns
-    -------
-    IDIMData
-        Same force, time stamps and rows; kinematics linearly interpolated at
-        ``t + shift_s`` (the last value held at the end, inside the trimmed
-        edge rows) and the decimated regressor rebuilt from them.
-    """
-    if shift_s == 0.0:
-        return data
-    k = data.kin
-    t = k.t
-    assert t is not None
-
-    def later(x: np.ndarray) -> np.ndarray:
-        return np.interp(t + shift_s, t, x)
-
-    kin = Kinematics(
-        qd=later(k.qd),
-        qdd=later(k.qdd),
-        q=None if k.q is None else later(k.q),
-        t=t,
-        sign_qd=None if k.sign_qd is None else later(k.sign_qd),
-        extra={n: later(v) for n, v in k.extra.items()},
-    )
-    return rebuilt(data, model, kin)
-
-
-def rebuilt(data: IDIMData, model: Model, kin: Kinematics) -> IDIMData:
-    """``data`` with kinematics ``kin`` and ``model``'s decimated regressor rebuilt from them (same force and rows)."""
-    return replace(data, kin=kin, W=np.ascontiguousarray(data.decimate(model.matrix(kin))), memo={})
+hold_s = hold_of
+"""Half a sample period when the logged force is the held command (:func:`ilic_cli.prepare.hold_of`, the one definition)."""
 
 
 def reversal_samples(qd: np.ndarray) -> np.ndarray:

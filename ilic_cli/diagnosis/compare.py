@@ -17,9 +17,12 @@ from ilic_cli.diagnosis.locate import Region, locate
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import relative_error_pct
+from ilic_cli.prepare import tau_sensor
 from ilic_cli.runlog import RunLog
 from plant.controllers import PDSettings
 from plant.replay import simulate_replay
+
+__all__ = ["SimulationComparison", "compare_simulation", "relative_errors", "replay", "tau_sensor"]
 
 
 @dataclass
@@ -50,20 +53,6 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
     return simulate_replay(log, params, effects, controller, tau_sensor=tau_sensor(log), seed=seed)
-
-
-def tau_sensor(log: RunLog) -> str | None:
-    """How ``log``'s force samples the drive force, when the log says so; else ``None``.
-
-    The sensor a simulated log was made with (``meta["simulation"]["tau_sensor"]``);
-    ``command`` when the force is the recorded drive command times the drive
-    gain (a ``vir`` channel and a ``drive_gain``, as in the EMPS recordings);
-    nothing is assumed for any other log.
-    """
-    sensor = (log.meta.get("simulation") or {}).get("tau_sensor")
-    if sensor:
-        return str(sensor)
-    return "command" if "vir" in log and log.meta.get("drive_gain") else None
 
 
 def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float]:

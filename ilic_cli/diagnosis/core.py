@@ -17,7 +17,7 @@ import numpy as np
 from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
-from ilic_cli.diagnosis.decide import ReplayVerdict, decision_sensor, materiality, noisy_output_error, replay_decide
+from ilic_cli.diagnosis.decide import ReplayVerdict, below_period, decision_sensor, materiality, noisy_output_error, replay_decide
 from ilic_cli.diagnosis.drift import DriftResult, detect_drift, with_drift
 from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
@@ -40,7 +40,7 @@ from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_erro
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit, applicable
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
-from ilic_cli.idim_ls import IDIMData, LSSettings, prepare
+from ilic_cli.idim_ls import IDIMData, LSSettings, UsableRows, prepare, usable_rows, with_rest
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, joint_type, structure_of, vertical, weight
@@ -150,6 +150,8 @@ class Diagnosis:
     """A vertical axis's constant force as the load's weight and implied mass (:func:`ilic_cli.parameters.weight`), else ``None``."""
     replay_sensor: dict[str, Any] | None = None
     """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.decide.decision_sensor`); ``None``: none replayed, or noise-free."""
+    usable: UsableRows | None = None
+    """The rows every fit of the log uses (the rule for samples at rest, as ``identify``'s); ``rows_total`` of them, ``rows_used`` beyond the timing rows."""
 
     @property
     def conclusion(self) -> str:
@@ -164,6 +166,7 @@ class Diagnosis:
             "sample_rate_hz": self.fs_hz,
             "rows_used": self.rows_used,
             "rows_total": self.rows_total,
+            "usable_rows": None if self.usable is None else self.usable.to_dict(),
             "conclusion": self.conclusion,
             "findings": [f.to_dict() for f in self.findings],
             "fit": self.fit,
@@ -281,7 +284,7 @@ def diagnose(
     """
     settings = settings or DiagnoseSettings()
     settings.null.check(replay_alpha(settings))
-    prepared = prepare_log(log)
+    prepared = with_rest(prepare_log(log), settings.ls)  # the samples every fit uses, as identify's
     log = prepared.log  # an irregularly sampled log is on a uniform grid now
     prepared.require_contiguous("diagnosis")
     fs = prepared.fs_hz
@@ -289,7 +292,7 @@ def diagnose(
     warnings: list[str] = list(prepared.warnings)
     base = base_model(model_doc, settings.model)
     data = _prepare(prepared, base, settings.ls)
-    vprepared = prepare_log(validate, prefix=f"validation log {validate.meta.get('source', '')}") if validate is not None else None
+    vprepared = with_rest(prepare_log(validate, prefix=f"validation log {validate.meta.get('source', '')}"), settings.ls) if validate is not None else None
     if vprepared is not None:
         validate = vprepared.log
         vprepared.require_contiguous("diagnosis")
@@ -432,6 +435,7 @@ def diagnose(
         refit=refit,
         validation_source=None if validate is None else str(validate.meta.get("source", "")),
         warnings=warnings,
+        usable=replace(usable_rows(prepared, settings.ls), hold_s=hold),
         residual={"t": td, "q": q_d, "qd": qd_d, "before": e0, "after": e1, "y": y0, "y_before": W0 @ res0.theta, "y_after": W1 @ res1.theta},
     )
     if vertical(log.meta) and "offset" in names1:  # a vertical axis: its constant force is the load's weight, not an offset
@@ -491,14 +495,15 @@ def _decide(
     sensor = None
     verdicts: list[ReplayVerdict] = []
     kept_so_far = list(known)
+    replayable = settings.simulate and against is None and "q_ref" in log
     for st in selection.steps:
-        why = materiality(data, base, kept_so_far, st, rows)
+        # without a replay the inverse model's value is the estimate: a delay too short for a finding goes now
+        why = materiality(data, base, kept_so_far, st, rows) or (None if replayable else below_period(st, data.fs_hz))
         if why:
             verdicts.append(ReplayVerdict(st.effect.id, None, None, None, None, None, None, None, False, why))
         else:
             material.append(st)
             kept_so_far.append(st)
-    replayable = settings.simulate and against is None and "q_ref" in log
     if replayable and (on_loop := _closed_loop_proposal(log, data, base, [*known, *selection.steps], rows, settings, selection)) is not None:
         material.append(on_loop)
     if replayable and material:
@@ -510,7 +515,9 @@ def _decide(
         ns = settings.null
         null = None
         if ns.kind == "montecarlo":
-            null = MonteCarloNull(ns.replicates, ns.seed, settings.ls, lambda lg: _prepare(prepare_log(lg), base, settings.ls), settings.replay_noise)
+            null = MonteCarloNull(
+                ns.replicates, ns.seed, settings.ls, lambda lg: _prepare(with_rest(prepare_log(lg), settings.ls), base, settings.ls), settings.replay_noise
+            )
         if settings.replay_noise:
             sensor = decision_sensor(log, settings.ls, data, base, known, rows, plant_of)
         kept, judged = replay_decide(

@@ -168,7 +168,7 @@ def to_markdown(diag: Diagnosis) -> str:
     if timing:
         lines += [f"Control timing: {timing}.", ""]
     lines += [
-        f"{diag.rows_used} of {diag.rows_total} decimated rows used (standstill, velocity reversals and the filter's edge left out).",
+        _rows_sentence(diag),
         "",
         "## Findings",
         "",
@@ -270,3 +270,16 @@ def _sensor_words(sensor: dict[str, Any]) -> str:
         parts.append(f"encoder step {1e6 * sensor['quantization']['resolution']:.3g} um")
     words = ", ".join(parts) or "none (no noise above the position filter's cut-off, no grid)"
     return f"{words} (one realisation, the same in every replay)"
+
+
+def _rows_sentence(diag: Any) -> str:
+    """How many decimated rows the diagnosis used, and the rule for those at rest (the one ``identify`` fits by)."""
+    u = diag.usable
+    if u is None:
+        return f"{diag.rows_used} of {diag.rows_total} decimated rows used (velocity reversals and the filter's edge left out)."
+    rest = f"{u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule})" if u.rest is not None and u.at_rest else "none at rest"
+    saturated = f", {u.saturated} of a saturated drive" if u.saturated else ""
+    return (
+        f"{diag.rows_used} of {u.decimated} decimated rows used: {rest}{saturated}; of the {u.usable} rows every fit uses "
+        "(identify's too), velocity reversals and the filter's edge left out."
+    )

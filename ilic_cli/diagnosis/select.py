@@ -90,34 +90,22 @@ class Step:
     value_std: float | None = None
 
 
-STANDSTILL_FRACTION = 0.01
-"""A decimated row is at standstill when the speed stays below this fraction of
-the top speed (99.5th percentile) over the support of the decimation filter."""
-
-
 def moving_rows(data: IDIMData) -> np.ndarray:
-    """Decimated rows used by the diagnosis (boolean mask).
+    """Decimated rows used by the diagnosis (boolean mask over ``data``'s rows).
 
-    Left out: rows at standstill, where the axis sticks and friction
-    balances whatever force the controller applies, so the force says
-    nothing about the model (``sign(qd)`` of a velocity that is zero or noise
-    is meaningless); and, mirroring the samples the procedure drops at the
-    start, the rows within as many samples of either end of the trimmed
-    record, where the zero-phase filters have their edge transients; and the
-    rows whose decimation span touches a velocity reversal, where the Coulomb
-    switch is timed only through the filtered velocity
-    (:mod:`ilic_cli.diagnosis.baseline`). A run without dwells (the EMPS
-    recordings) loses only those edge and reversal rows.
+    ``data``'s rows are already those every fit uses (:func:`ilic_cli.idim_ls.with_rest`: no standstill, no
+    saturated drive, the one definition ``identify`` uses too). Left out here, for the diagnosis's timing:
+    mirroring the samples the procedure drops at the start, the rows within as many samples of either end of
+    the trimmed record, where the zero-phase filters have their edge transients; and the rows whose decimation
+    span touches a velocity reversal, where the Coulomb switch is timed only through the filtered velocity
+    (:mod:`ilic_cli.diagnosis.baseline`). A run without dwells (the EMPS recordings) loses only those edge and
+    reversal rows.
     """
-    from scipy.ndimage import maximum_filter1d  # deferred: scipy.ndimage costs start-up time the other commands need not pay
-
-    v = np.abs(data.kin.qd)
-    top = float(np.percentile(v, 99.5))
+    n = len(data.kin.qd)
     r = data.settings.decimation
-    kept = kept_indices(len(v), r)
-    peak = maximum_filter1d(v, 6 * r + 1)[kept]
+    kept = kept_indices(n, r)
     edge = data.settings.trim
-    moving = (peak >= STANDSTILL_FRACTION * top) & (kept >= edge) & (kept < len(v) - edge) & valid_rows(~reversal_samples(data.kin.qd), r)
+    moving = (kept >= edge) & (kept < n - edge) & valid_rows(~reversal_samples(data.kin.qd), r)
     return moving if data.rows is None else moving[data.rows]
 
 
