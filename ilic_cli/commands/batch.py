@@ -77,7 +77,10 @@ def command(
         raise IlicError("--dask", "give --dask local:N or --scheduler, not both")
     if (dask_spec is not None or scheduler is not None) and jobs is not None:
         raise IlicError("--jobs", "sets local processes; with dask the cluster decides")
-    rx = group_pattern(group_by)
+    try:
+        rx = group_pattern(group_by)
+    except IlicError as exc:  # the library names the pattern; the command names its option
+        raise IlicError("--group-by", exc.problem) from None
     paths = [p for p in find_logs(logs) if out_dir.resolve() not in p.resolve().parents]  # not the batch's own table.csv
     if not paths:
         raise IlicError(logs[0], f"no log outside --out {out_dir}")

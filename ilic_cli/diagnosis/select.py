@@ -423,6 +423,34 @@ def minimise(f: Any, lo: float, hi: float, use_log: bool, rel_tol: float = 1e-4)
     return float(inv(res.x))
 
 
+def parsimonious_first(
+    evals: list[tuple[Evaluation, Effect, np.ndarray, np.ndarray]], W: np.ndarray, y: np.ndarray, alpha: float
+) -> list[tuple[Evaluation, Effect, np.ndarray, np.ndarray]]:
+    """Put a linear candidate with fewer columns ahead of the best-fitting one when the latter adds nothing beyond it.
+
+    Two linear effects can span nearly the same force over the range a log covers: gravity on a
+    revolute joint, ``g (MX cos q - MY sin q)``, is a straight line in ``q`` plus a little curvature
+    over a swing of less than a radian, which a spring (``k q``) also is. The two-column effect then
+    always fits at least as well. When its columns, added to the model with the simpler effect, do
+    not pass the nested F-test at ``alpha``, the data cannot tell them apart, and the simpler effect
+    is proposed first (parsimony); where the swing shows the curvature the larger one stays first.
+    """
+    ok = [i for i, (ev, eff, _, _) in enumerate(evals) if not ev.reason and ev.test.p_adjusted < alpha]
+    if not ok:
+        return evals
+    top_ev, top, W_top, _ = evals[ok[0]]
+    if top.nonlinear or top.shift:
+        return evals
+    extra = W_top[:, W.shape[1] :]
+    for i in ok[1:]:
+        ev, eff, W_s, y_s = evals[i]
+        if eff.nonlinear or eff.shift or len(eff.columns) >= len(top.columns):
+            continue
+        if nested_f_test(W_s, y, np.hstack([W_s, extra]), y, extra.shape[1]).p_value >= alpha:
+            return [evals[i], *evals[:i], *evals[i + 1 :]]
+    return evals
+
+
 def forward_select(
     data: IDIMData,
     base: Model,
@@ -488,6 +516,7 @@ def forward_select(
             evals.append((Evaluation(eff.id, value, vstd, test, rel, reason=why or ""), eff, W1, y1))
         # the candidate explaining most of the mismatch first; significance and held-out error gate it
         evals.sort(key=lambda e: e[0].relative_error_pct)
+        evals = parsimonious_first(evals, W, y, settings.alpha)
         tried: list[Evaluation] = []
         chosen = None
         for ev, eff, W1, y1 in evals:

@@ -99,13 +99,13 @@ def group_pattern(pattern: str | None) -> re.Pattern[str] | None:
     try:
         rx = re.compile(pattern)
     except re.error as exc:
-        raise IlicError("--group-by", f"not a regular expression: {exc}") from None
+        raise IlicError("group pattern", f"not a regular expression: {exc}") from None
     names = set(rx.groupindex)
     if not names:
-        raise IlicError("--group-by", f"no named group: name them (?P<machine>...), (?P<joint>...) or (?P<start>...) [{', '.join(GROUPS)}]")
+        raise IlicError("group pattern", f"no named group: name them (?P<machine>...), (?P<joint>...) or (?P<start>...) [{', '.join(GROUPS)}]")
     unknown = sorted(names - set(GROUPS))
     if unknown:
-        raise IlicError("--group-by", f"unknown group '{unknown[0]}' (known: {', '.join(GROUPS)})")
+        raise IlicError("group pattern", f"unknown group '{unknown[0]}' (known: {', '.join(GROUPS)})")
     return rx
 
 

@@ -9,7 +9,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ilic_cli.diagnosis.select import Searcher, SelectSettings, forward_select, moving_rows, system, validation_error
+from ilic_cli.diagnosis.select import Evaluation, Searcher, SelectSettings, forward_select, moving_rows, parsimonious_first, system, validation_error
+from ilic_cli.diagnosis.stats import nested_f_test
 from ilic_cli.effects import EFFECTS, catalogue_ids
 from ilic_cli.idim_ls import LSSettings, prepare
 from ilic_cli.lsq import lstsq
@@ -486,3 +487,21 @@ def test_concealed_position_ripple_has_its_period() -> None:
     assert [e.effect for e in res.accepted] == ["position_ripple"]
     assert res.accepted[0].value == pytest.approx(0.01, rel=0.01)
     assert res.accepted[0].test.df1 == 2  # sine and cosine
+
+
+def test_a_spring_is_proposed_before_gravity_when_the_swing_cannot_tell_them_apart() -> None:
+    """Over a swing of 0.9 rad of a spring's log gravity's two columns add nothing significant to the spring's one: parsimony puts the spring first;
+    over 2.8 rad the curvature shows and gravity stays first (planting ``p_value < alpha`` in ``parsimonious_first`` fails it)."""
+    rng = np.random.default_rng(7)
+    for swing, first in ((0.9, "spring"), (2.8, "gravity")):
+        q = np.linspace(0.0, swing, 3000)
+        W = np.c_[np.ones_like(q), rng.standard_normal(q.size)]
+        y = W @ np.array([0.1, 1.0]) + (0.3 * q if first == "spring" else 9.81 * (0.02 * np.cos(q) - 0.01 * np.sin(q))) + 1e-3 * rng.standard_normal(q.size)
+        evals = []
+        for eid, cols in (("gravity", np.c_[9.81 * np.cos(q), -9.81 * np.sin(q)]), ("spring", np.c_[q])):
+            W1 = np.hstack([W, cols])
+            test = nested_f_test(W, y, W1, y, cols.shape[1])
+            rel = float(np.linalg.norm(y - W1 @ np.linalg.lstsq(W1, y, rcond=None)[0]) / np.linalg.norm(y))
+            evals.append((Evaluation(eid, None, None, test, rel), EFFECTS[eid], W1, y))
+        # gravity first, as the sort by relative error put it on the spring's revolute log (its two columns fit the noise too)
+        assert parsimonious_first(evals, W, y, 0.001)[0][0].effect == first, swing
