@@ -27,7 +27,7 @@ from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, sol
 from ilic_cli.robot.base import BaseParameters
 from ilic_cli.robot.model import RobotModel, regressor
 
-BLOCK = 65536
+BLOCK = 16384
 """Samples per block of the full-rate regressor (only its base columns are kept)."""
 
 

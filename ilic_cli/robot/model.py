@@ -10,8 +10,8 @@ Coulomb ``Fc`` (``sign(qd)``) and the torque ``offset``. Names are
 
 The regressor ``Y`` (``n*N x 14n``) stacks the joints' rows joint-major: the
 rows of joint ``j`` are ``j*N .. (j+1)*N - 1``, so that ``tau.T.ravel() = Y @ pi``.
-:func:`regressor` computes it vectorised over samples (a recursive Newton-Euler
-pass in regressor form, NumPy); :func:`regressor_loop` calls pinocchio's
+:func:`regressor` computes it by a compiled Newton-Euler pass in regressor form
+(:mod:`ilic_cli.robot.kernel`); :func:`regressor_loop` calls pinocchio's
 ``computeJointTorqueRegressor`` per sample (the reference the tests and the
 speed figures compare against).
 
@@ -39,9 +39,6 @@ DRIVE = ("Ia", "Fv", "Fc", "offset")
 
 PER_JOINT = INERTIAL + DRIVE
 """The 14 standard parameters of one joint, in column order."""
-
-CHUNK = 4096
-"""Samples per block of the vectorised regressor (its work arrays stay in the CPU cache's neighbourhood)."""
 
 
 class PinocchioMissing(ParameterError):
@@ -273,99 +270,21 @@ def regressor_loop(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.nda
     return Y.reshape(n * N, -1)
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices ``[v]x`` (..., 3, 3) of vectors (..., 3)."""
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    o = np.zeros_like(x)
-    return np.stack([np.stack([o, -z, y], -1), np.stack([z, o, -x], -1), np.stack([-y, x, o], -1)], -2)
-
-
-def _inertia_map(w: np.ndarray) -> np.ndarray:
-    """``L(w)`` (..., 3, 6) with ``I w = L(w) @ (Ixx, Ixy, Iyy, Ixz, Iyz, Izz)`` for a symmetric ``I``."""
-    x, y, z = w[..., 0], w[..., 1], w[..., 2]
-    o = np.zeros_like(x)
-    return np.stack([np.stack([x, y, o, z, o, o], -1), np.stack([o, x, y, o, z, o], -1), np.stack([o, o, o, x, y, z], -1)], -2)
-
-
-def _joint_motion(robot: RobotModel, j: int, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation (N, 3, 3) and translation (N, 3) of joint ``j`` at positions ``q`` (N,), in its own frame."""
-    u = robot.axes[j]
-    N = len(q)
-    if robot.kinds[j] == "prismatic":
-        return np.broadcast_to(np.eye(3), (N, 3, 3)), q[:, None] * u
-    K = _skew(u)
-    s, c = np.sin(q)[:, None, None], np.cos(q)[:, None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K), np.zeros((N, 3))
-
-
-def _regressor_block(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-    """Inertial columns (n, N, 10 n) of a block of samples: Newton-Euler in regressor form, vectorised over samples.
-
-    Motion vectors are ``(linear, angular)`` in each joint's frame, as pinocchio's;
-    the base accelerates at ``-gravity``.
-    """
-    N, n = q.shape
-    P = len(INERTIAL) * n
-    R, p, v, w, a, al = [], [], [], [], [], []
-    for j in range(n):
-        Rj, pj = _joint_motion(robot, j, q[:, j])
-        Rp, pp = robot.rotations[j], robot.translations[j]
-        Rm, pm = Rp @ Rj, pp + pj @ Rp.T  # liMi = placement * joint motion
-        u = robot.axes[j]
-        prism = robot.kinds[j] == "prismatic"
-        Su_lin, Su_ang = (u, np.zeros(3)) if prism else (np.zeros(3), u)
-        if robot.parents[j] < 0:
-            vp, wp = np.zeros((N, 3)), np.zeros((N, 3))
-            ap, alp = np.broadcast_to(-robot.gravity, (N, 3)), np.zeros((N, 3))
-        else:
-            i = robot.parents[j]
-            vp, wp, ap, alp = v[i], w[i], a[i], al[i]
-        RmT = np.swapaxes(Rm, 1, 2)
-        # actInv: w' = R^T w, v' = R^T (v - p x w)
-        wj = np.einsum("kab,kb->ka", RmT, wp)
-        vj = np.einsum("kab,kb->ka", RmT, vp - np.cross(pm, wp))
-        alj = np.einsum("kab,kb->ka", RmT, alp)
-        aj = np.einsum("kab,kb->ka", RmT, ap - np.cross(pm, alp))
-        # S qd, S qdd, and v x (S qd) = (w x S_lin qd + v x S_ang qd, w x S_ang qd)
-        sl, sa = qd[:, j : j + 1] * Su_lin, qd[:, j : j + 1] * Su_ang
-        vj, wj = vj + sl, wj + sa
-        aj = aj + qdd[:, j : j + 1] * Su_lin + np.cross(wj, sl) + np.cross(vj, sa)
-        alj = alj + qdd[:, j : j + 1] * Su_ang + np.cross(wj, sa)
-        R.append(Rm), p.append(pm), v.append(vj), w.append(wj), a.append(aj), al.append(alj)
-    F = np.zeros((n, N, 6, P))  # spatial force (linear, angular) of each joint's subtree, per parameter
-    for j in range(n):
-        c = len(INERTIAL) * j
-        Ww, av = _skew(w[j]), a[j] + np.cross(w[j], v[j])
-        F[j, :, :3, c] = av
-        F[j, :, :3, c + 1 : c + 4] = _skew(al[j]) + Ww @ Ww
-        F[j, :, 3:, c + 1 : c + 4] = -_skew(av)
-        F[j, :, 3:, c + 4 : c + 10] = _inertia_map(al[j]) + Ww @ _inertia_map(w[j])
-    Y = np.zeros((n, N, P))
-    for j in reversed(range(n)):
-        u = robot.axes[j]
-        Y[j] = np.einsum("a,kap->kp", u, F[j, :, :3] if robot.kinds[j] == "prismatic" else F[j, :, 3:])
-        i = robot.parents[j]
-        if i >= 0:
-            # actForce: f' = R f, n' = R n + p x (R f)
-            fl = np.einsum("kab,kbp->kap", R[j], F[j, :, :3])
-            F[i, :, :3] += fl
-            F[i, :, 3:] += np.einsum("kab,kbp->kap", R[j], F[j, :, 3:]) + np.cross(p[j][:, :, None], fl, axis=1)
-    return Y
-
-
 def regressor(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *, joint_major: bool = True) -> np.ndarray:
     """The regressor ``Y`` (n*N, 14 n) of the standard parameters at the states ``q, qd, qdd`` (N, n).
 
     ``tau.T.ravel() = Y @ pi`` (joint-major rows); ``joint_major=False`` returns the
-    (n, N, 14 n) array instead. Vectorised over samples in blocks of :data:`CHUNK`;
-    equals :func:`regressor_loop` (pinocchio) to rounding.
+    (n, N, 14 n) array instead. The inertial columns come from the compiled
+    kernel (:func:`ilic_cli.robot.kernel.inertial_regressor`); they equal
+    :func:`regressor_loop` (pinocchio) to rounding.
     """
+    from ilic_cli.robot.kernel import inertial_regressor  # deferred: numba's import and the cached machine code cost ~0.5 s
+
     q, qd, qdd = _check(robot, q, qd, qdd)
     N, n = q.shape
     Y = np.zeros((n, N, len(PER_JOINT) * n))
-    cols = (np.arange(n)[:, None] * len(PER_JOINT) + np.arange(len(INERTIAL))).ravel()
-    for s in range(0, N, CHUNK):
-        b = slice(s, s + CHUNK)
-        Y[:, b, cols] = _regressor_block(robot, q[b], qd[b], qdd[b])
+    prismatic = np.array([k == "prismatic" for k in robot.kinds])
+    parents = np.array(robot.parents, dtype=np.int64)
+    inertial_regressor(prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, Y, len(PER_JOINT))
     _drive_columns(robot, Y, qd, qdd)
     return Y.reshape(n * N, -1) if joint_major else Y

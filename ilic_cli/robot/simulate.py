@@ -108,9 +108,13 @@ class RobotLog:
     fs_hz: float
 
 
-def quantise(robot: RobotModel, q: np.ndarray, settings: SimSettings) -> np.ndarray:
-    """Encoder reading of positions ``q``: rounded to the step of each joint."""
-    step = np.where(np.array(robot.kinds) == "prismatic", settings.encoder_step_m, 2.0 * np.pi / settings.encoder_counts)
+def encoder_step(robot: RobotModel, settings: SimSettings) -> np.ndarray:
+    """Quantisation step of each joint's encoder (rad or m)."""
+    return np.where(np.array(robot.kinds) == "prismatic", settings.encoder_step_m, 2.0 * np.pi / settings.encoder_counts)
+
+
+def quantise(q: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Encoder reading of positions ``q``: rounded to each joint's ``step``."""
     return np.round(q / step) * step
 
 
@@ -140,27 +144,36 @@ def simulate(robot: RobotModel, pi: np.ndarray, trajectory: Trajectory, duration
     w = 2.0 * np.pi * settings.bandwidth_hz
     kp, kd = Mjj * w * w, 2.0 * settings.damping_ratio * Mjj * w
     unbounded = any(robot.unbounded)
+    step = encoder_step(robot, settings)
+    aba, inv_vs = pin.aba, 1.0 / settings.v_smooth
+    # the nominal feed-forward of the whole reference at once (it does not depend on the state)
+    q_ref_c = configuration(robot, q_ref)
+    ff_all = np.array([pin.rnea(nominal, ndata, a, b, c) for a, b, c in zip(q_ref_c, qd_ref, qdd_ref)])
 
     def accel(q: np.ndarray, qd: np.ndarray, u: np.ndarray) -> np.ndarray:
-        f = u - Fv * qd - Fc * np.tanh(qd / settings.v_smooth) - off
-        return pin.aba(true, tdata, configuration(robot, q) if unbounded else q, qd, f)
+        f = u - Fv * qd - Fc * np.tanh(qd * inv_vs) - off
+        return aba(true, tdata, configuration(robot, q) if unbounded else q, qd, f)
 
     q, qd = q_ref[0].copy(), qd_ref[0].copy()
     q_log, qd_log, tau_log = np.empty((N, n)), np.empty((N, n)), np.empty((N, n))
-    prev = quantise(robot, q, settings)
+    prev = quantise(q, step)
+    h = 0.5 * dt
     for k in range(N):
-        qm = quantise(robot, q, settings)
+        qm = quantise(q, step)
         vm = (qm - prev) / dt if k else qd_ref[0]
         prev = qm
-        ff = pin.rnea(nominal, ndata, configuration(robot, q_ref[k]) if unbounded else q_ref[k], qd_ref[k], qdd_ref[k])
-        u = ff + kp * (q_ref[k] - qm) + kd * (qd_ref[k] - vm)
+        u = ff_all[k] + kp * (q_ref[k] - qm) + kd * (qd_ref[k] - vm)
         q_log[k], qd_log[k], tau_log[k] = q, qd, u
-        k1v, k1a = qd, accel(q, qd, u)
-        k2v, k2a = qd + 0.5 * dt * k1a, accel(q + 0.5 * dt * k1v, qd + 0.5 * dt * k1a, u)
-        k3v, k3a = qd + 0.5 * dt * k2a, accel(q + 0.5 * dt * k2v, qd + 0.5 * dt * k2a, u)
-        k4v, k4a = qd + dt * k3a, accel(q + dt * k3v, qd + dt * k3a, u)
+        k1a = accel(q, qd, u)
+        k2v = qd + h * k1a
+        k2a = accel(q + h * qd, k2v, u)
+        k3v = qd + h * k2a
+        k3a = accel(q + h * k2v, k3v, u)
+        k4v = qd + dt * k3a
+        k4a = accel(q + dt * k3v, k4v, u)
+        k1v = qd
         q = q + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
         qd = qd + dt / 6.0 * (k1a + 2.0 * k2a + 2.0 * k3a + k4a)
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
-            raise FloatingPointError(f"the simulation diverged at t = {t[k]:.3f} s")
-    return RobotLog(t=t, q=quantise(robot, q_log, settings), tau=tau_log + noise, q_true=q_log, qd_true=qd_log, q_ref=q_ref, fs_hz=settings.fs_hz)
+    if not (np.all(np.isfinite(q_log)) and np.all(np.isfinite(qd_log))):
+        raise FloatingPointError("the simulation diverged")
+    return RobotLog(t=t, q=quantise(q_log, step), tau=tau_log + noise, q_true=q_log, qd_true=qd_log, q_ref=q_ref, fs_hz=settings.fs_hz)
