@@ -131,9 +131,12 @@ def prepare(
     qf, qd, qdd, tau = qf[s], qd[s], qdd[s], tau[s]
     Nt = len(qf)
     Yb = np.empty((robot.n, Nt, base.b))
+    buffer = None
     for a in range(0, Nt, BLOCK):
         b = slice(a, a + BLOCK)
-        Yb[:, b] = base.columns(regressor(robot, qf[b], qd[b], qdd[b], joint_major=False))
+        Y = regressor(robot, qf[b], qd[b], qdd[b], joint_major=False, out=buffer)
+        buffer = Y if buffer is None else buffer
+        Yb[:, b] = base.columns(Y)
     parts = [_decimate(np.column_stack([Yb[j], tau[:, j]]), settings, fs_hz) for j in range(robot.n)]
     if min_speed > 0:
         parts = [p[valid_rows(np.abs(qd[:, j]) > min_speed, settings.decimation)] for j, p in enumerate(parts)]

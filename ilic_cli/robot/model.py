@@ -270,19 +270,27 @@ def regressor_loop(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.nda
     return Y.reshape(n * N, -1)
 
 
-def regressor(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *, joint_major: bool = True) -> np.ndarray:
+def regressor(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, *, joint_major: bool = True, out: np.ndarray | None = None) -> np.ndarray:
     """The regressor ``Y`` (n*N, 14 n) of the standard parameters at the states ``q, qd, qdd`` (N, n).
 
     ``tau.T.ravel() = Y @ pi`` (joint-major rows); ``joint_major=False`` returns the
     (n, N, 14 n) array instead. The inertial columns come from the compiled
     kernel (:func:`ilic_cli.robot.kernel.inertial_regressor`); they equal
-    :func:`regressor_loop` (pinocchio) to rounding.
+    :func:`regressor_loop` (pinocchio) to rounding. ``out``: an (n, >= N, 14 n)
+    array returned by an earlier call for the same robot, filled again (a block
+    loop then touches no new memory: fresh pages cost more than the kernel).
     """
     from ilic_cli.robot.kernel import inertial_regressor  # deferred: numba's import and the cached machine code cost ~0.5 s
 
     q, qd, qdd = _check(robot, q, qd, qdd)
     N, n = q.shape
-    Y = np.zeros((n, N, len(PER_JOINT) * n))
+    p = len(PER_JOINT) * n
+    if out is None:
+        Y = np.zeros((n, N, p))
+    elif out.ndim != 3 or out.shape[0] != n or out.shape[1] < N or out.shape[2] != p:
+        raise ValueError(f"out has shape {out.shape}; expected ({n}, >= {N}, {p})")
+    else:
+        Y = out[:, :N]
     prismatic = np.array([k == "prismatic" for k in robot.kinds])
     parents = np.array(robot.parents, dtype=np.int64)
     inertial_regressor(prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, Y, len(PER_JOINT))
