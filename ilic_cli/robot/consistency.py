@@ -187,7 +187,7 @@ def consistent_fit(robot: RobotModel, base: BaseParameters, theta: np.ndarray, c
 
     # the friction of the identified set as the start where it is already >= 0 (it is a base parameter alone)
     start = x0.copy()
-    for i, name in enumerate(base.names):
+    for i in range(base.b):
         kept = int(base.kept[i])
         if len(base.combination(i)) == 1 and PER_JOINT[kept % k] in DRIVE:
             start[kept] = max(theta[i], 0.0) if PER_JOINT[kept % k] != "offset" else theta[i]
