@@ -11,7 +11,9 @@ Weighted LS (Gautier 1997): a first unweighted fit gives each joint's error
 standard deviation ``sigma_j`` (sample std of its rows' residual); every row of
 joint ``j`` is divided by ``sigma_j`` and the weighted system is solved by
 :func:`ilic_cli.lsq.solve`, whose eq. (9) standard deviations are then those of
-the weighted estimate. Memory: the full-rate base regressor, ``8 n N b`` bytes.
+the weighted estimate. Only the base columns a joint's rows can touch
+(:func:`active_columns`) are decimated; memory: those columns at the full rate,
+at most ``8 n N b`` bytes.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
 from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve
 from ilic_cli.robot.base import BaseParameters
-from ilic_cli.robot.model import RobotModel, regressor
+from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel, regressor
 
 BLOCK = 16384
 """Samples per block of the full-rate regressor (only its base columns are kept)."""
@@ -130,14 +132,24 @@ def prepare(
     s = slice(settings.trim, None)
     qf, qd, qdd, tau = qf[s], qd[s], qdd[s], tau[s]
     Nt = len(qf)
-    Yb = np.empty((robot.n, Nt, base.b))
+    active = active_columns(robot, base)
+    # per joint: its nonzero base columns then its torque, at the full rate (the zero columns are never decimated)
+    full = [np.empty((Nt, int(active[j].sum()) + 1)) for j in range(robot.n)]
     buffer = None
     for a in range(0, Nt, BLOCK):
         b = slice(a, a + BLOCK)
         Y = regressor(robot, qf[b], qd[b], qdd[b], joint_major=False, out=buffer)
         buffer = Y if buffer is None else buffer
-        Yb[:, b] = base.columns(Y)
-    parts = [_decimate(np.column_stack([Yb[j], tau[:, j]]), settings, fs_hz) for j in range(robot.n)]
+        for j in range(robot.n):
+            full[j][b, :-1] = Y[j][:, base.kept[active[j]]]
+    parts = []
+    for j in range(robot.n):
+        columns = full.pop(0)  # each joint's full-rate columns are let go once decimated
+        columns[:, -1] = tau[:, j]
+        d = _decimate(columns, settings, fs_hz)
+        part = np.zeros((len(d), base.b + 1))
+        part[:, np.flatnonzero(np.append(active[j], True))] = d
+        parts.append(part)
     if min_speed > 0:
         parts = [p[valid_rows(np.abs(qd[:, j]) > min_speed, settings.decimation)] for j, p in enumerate(parts)]
         if sum(len(p) for p in parts) <= base.b:
@@ -146,6 +158,26 @@ def prepare(
     y = np.concatenate([p[:, -1] for p in parts])
     joint = np.concatenate([np.full(len(p), j) for j, p in enumerate(parts)])
     return RobotSystem(W=W, y=y, joint=joint, names=base.names, joints=robot.joints, settings=settings)
+
+
+def active_columns(robot: RobotModel, base: BaseParameters) -> np.ndarray:
+    """``(n, b)``: True where base column ``c`` can be nonzero on joint ``j``'s rows.
+
+    A joint's torque depends on the inertial parameters of the links below it
+    (itself included) and on its own ``Ia, Fv, Fc, offset`` only; the regressor
+    is exactly zero elsewhere.
+    """
+    k = len(PER_JOINT)
+    below = np.zeros((robot.n, robot.n), dtype=bool)  # below[j, i]: link i is moved by joint j
+    for i in range(robot.n):
+        j = i
+        while j >= 0:
+            below[j, i] = True
+            j = robot.parents[j]
+    link = base.kept // k
+    drive = base.kept % k >= len(INERTIAL)
+    own = link[None, :] == np.arange(robot.n)[:, None]
+    return np.where(drive[None, :], own, below[:, link])
 
 
 def _joint_std(system: RobotSystem, e: np.ndarray) -> np.ndarray:

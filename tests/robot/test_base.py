@@ -60,3 +60,22 @@ def test_docs_show_the_table_as_printed() -> None:
     quoted = [line for line in doc.splitlines() if line.startswith("base ") and " = " in line and "(" not in line]
     table = base_parameters(rm.load_urdf(FIXTURES / "arm2.urdf")).table().splitlines()
     assert len(quoted) == 2 and all(line in table for line in quoted)
+
+
+@pytest.mark.parametrize("arm", ("arm2.urdf", "ur5like.urdf"))
+def test_active_columns_cover_the_nonzero_pattern(arm: str) -> None:
+    """IDIM decimates only the base columns a joint's rows can touch: every nonzero one, and far from all."""
+    from ilic_cli.robot.idim import active_columns
+
+    robot = rm.load_urdf(FIXTURES / arm)
+    base = base_parameters(robot)
+    Y = base.columns(rm.regressor(robot, *random_states_for(robot), joint_major=False))
+    active, nonzero = active_columns(robot, base), np.abs(Y).max(axis=1) > 0
+    assert not (nonzero & ~active).any()
+    assert active.mean() < 0.75  # ur5like: 48 % (the last joint's rows touch only its own link's 13 columns)
+
+
+def random_states_for(robot: rm.RobotModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from ilic_cli.robot.base import random_states
+
+    return random_states(robot, 50, seed=9)
