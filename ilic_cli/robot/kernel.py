@@ -1,0 +1,161 @@
+"""The inertial regressor of an arm, compiled (numba): one pass per sample, no work arrays of N.
+
+For each sample, a forward pass gives every link's velocity ``(v, w)`` and
+acceleration ``(a, al)`` in its own frame (pinocchio's conventions: motion
+vectors ``(linear, angular)``, the base accelerating at ``-gravity``) and carries
+the motion axis of every ancestor joint ``j`` into link ``i``'s frame, ``s_ji``.
+The torque of joint ``j`` due to link ``i``'s parameters is ``s_ji . A_i pi_i``,
+``A_i`` the 6 x 10 body regressor (``f = I a + v x* I v``); its products with
+``s`` are written out (``g`` for the first moments, ``u' L(x)`` for the inertia):
+
+- mass: ``s_lin . (a + w x v)``;
+- first moments ``h = m c``: ``s_lin x al + (s_lin x w) x w - s_ang x (a + w x v)``;
+- inertia ``(Ixx, Ixy, Iyy, Ixz, Iyz, Izz)``: ``s_ang' L(al) + (s_ang x w)' L(w)``.
+
+Compiled once with ``cache=True`` (the machine code is kept in ``__pycache__``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cross(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out = a x b`` (``out`` may not alias ``a`` or ``b``)."""
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _act_inv(R: np.ndarray, p: np.ndarray, lin: np.ndarray, ang: np.ndarray, out_lin: np.ndarray, out_ang: np.ndarray) -> None:
+    """A motion vector of the parent's frame in the child's: ``w' = R' w``, ``v' = R' (v - p x w)``."""
+    d0 = lin[0] - (p[1] * ang[2] - p[2] * ang[1])
+    d1 = lin[1] - (p[2] * ang[0] - p[0] * ang[2])
+    d2 = lin[2] - (p[0] * ang[1] - p[1] * ang[0])
+    for r in range(3):
+        out_lin[r] = R[0, r] * d0 + R[1, r] * d1 + R[2, r] * d2
+        out_ang[r] = R[0, r] * ang[0] + R[1, r] * ang[1] + R[2, r] * ang[2]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _inertia_row(u: np.ndarray, x: np.ndarray, out: np.ndarray, c: int) -> None:
+    """``out[c:c+6] += u' L(x)``: ``I x`` projected on ``u``, per ``(Ixx, Ixy, Iyy, Ixz, Iyz, Izz)``."""
+    out[c] += u[0] * x[0]
+    out[c + 1] += u[0] * x[1] + u[1] * x[0]
+    out[c + 2] += u[1] * x[1]
+    out[c + 3] += u[0] * x[2] + u[2] * x[0]
+    out[c + 4] += u[1] * x[2] + u[2] * x[1]
+    out[c + 5] += u[2] * x[2]
+
+
+@njit(cache=True, nogil=True)
+def inertial_regressor(
+    prismatic: np.ndarray,
+    parents: np.ndarray,
+    axes: np.ndarray,
+    rotations: np.ndarray,
+    translations: np.ndarray,
+    gravity: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    out: np.ndarray,
+    stride: int,
+) -> None:
+    """Fill ``out[j, k, stride * i + c]`` (c < 10) with joint ``j``'s torque per inertial parameter ``c`` of link ``i`` at sample ``k``.
+
+    ``out`` is (n, N, >= stride * n); entries of a link not below a joint are left as they are (zeros).
+    """
+    N, n = q.shape
+    v = np.zeros((n, 3))
+    w = np.zeros((n, 3))
+    a = np.zeros((n, 3))
+    al = np.zeros((n, 3))
+    s_lin = np.zeros((n, n, 3))  # s_lin[i, j]: joint j's axis in link i's frame (linear part)
+    s_ang = np.zeros((n, n, 3))
+    R = np.zeros((3, 3))
+    p = np.zeros(3)
+    zero = np.zeros(3)
+    base_a = -gravity
+    t1, t2, t3, av = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
+    for k in range(N):
+        for i in range(n):
+            u = axes[i]
+            x = q[k, i]
+            Rp = rotations[i]
+            if prismatic[i]:
+                for r in range(3):
+                    p[r] = translations[i, r] + x * (Rp[r, 0] * u[0] + Rp[r, 1] * u[1] + Rp[r, 2] * u[2])
+                    for c in range(3):
+                        R[r, c] = Rp[r, c]
+            else:
+                # Rodrigues: Rj = I + sin K + (1 - cos) K K, K = [u]x; R = Rp Rj
+                sn, cs = np.sin(x), 1.0 - np.cos(x)
+                for r in range(3):
+                    p[r] = translations[i, r]
+                for c in range(3):
+                    # column c of Rj
+                    e0, e1, e2 = (1.0 if c == 0 else 0.0), (1.0 if c == 1 else 0.0), (1.0 if c == 2 else 0.0)
+                    k0, k1, k2 = u[1] * e2 - u[2] * e1, u[2] * e0 - u[0] * e2, u[0] * e1 - u[1] * e0
+                    kk0, kk1, kk2 = u[1] * k2 - u[2] * k1, u[2] * k0 - u[0] * k2, u[0] * k1 - u[1] * k0
+                    j0, j1, j2 = e0 + sn * k0 + cs * kk0, e1 + sn * k1 + cs * kk1, e2 + sn * k2 + cs * kk2
+                    for r in range(3):
+                        R[r, c] = Rp[r, 0] * j0 + Rp[r, 1] * j1 + Rp[r, 2] * j2
+            par = parents[i]
+            if par < 0:
+                _act_inv(R, p, zero, zero, v[i], w[i])
+                _act_inv(R, p, base_a, zero, a[i], al[i])
+            else:
+                _act_inv(R, p, v[par], w[par], v[i], w[i])
+                _act_inv(R, p, a[par], al[par], a[i], al[i])
+                j = par
+                while j >= 0:
+                    _act_inv(R, p, s_lin[par, j], s_ang[par, j], s_lin[i, j], s_ang[i, j])
+                    j = parents[j]
+            for r in range(3):
+                s_lin[i, i, r] = u[r] if prismatic[i] else 0.0
+                s_ang[i, i, r] = 0.0 if prismatic[i] else u[r]
+            # v += S qd; a += S qdd + v x (S qd)
+            for r in range(3):
+                v[i, r] += s_lin[i, i, r] * qd[k, i]
+                w[i, r] += s_ang[i, i, r] * qd[k, i]
+            for r in range(3):
+                t1[r] = s_lin[i, i, r] * qd[k, i]
+                t2[r] = s_ang[i, i, r] * qd[k, i]
+            _cross(w[i], t1, t3)
+            for r in range(3):
+                a[i, r] += s_lin[i, i, r] * qdd[k, i] + t3[r]
+            _cross(v[i], t2, t3)
+            for r in range(3):
+                a[i, r] += t3[r]
+            _cross(w[i], t2, t3)
+            for r in range(3):
+                al[i, r] += s_ang[i, i, r] * qdd[k, i] + t3[r]
+        for i in range(n):
+            _cross(w[i], v[i], t1)
+            for r in range(3):
+                av[r] = a[i, r] + t1[r]
+            c = stride * i
+            j = i
+            while j >= 0:
+                cl, ca = s_lin[i, j], s_ang[i, j]
+                row = out[j, k]
+                row[c] = cl[0] * av[0] + cl[1] * av[1] + cl[2] * av[2]
+                # g = cl x al + (cl x w) x w - ca x av
+                _cross(cl, w[i], t1)
+                _cross(t1, w[i], t2)
+                _cross(cl, al[i], t3)
+                for r in range(3):
+                    row[c + 1 + r] = t3[r] + t2[r]
+                _cross(ca, av, t3)
+                for r in range(3):
+                    row[c + 1 + r] -= t3[r]
+                for r in range(6):
+                    row[c + 4 + r] = 0.0
+                _inertia_row(ca, al[i], row, c + 4)
+                _cross(ca, w[i], t1)
+                _inertia_row(t1, w[i], row, c + 4)
+                j = parents[j]
