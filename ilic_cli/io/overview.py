@@ -82,7 +82,7 @@ def overview(path: Path, fmt: str) -> list[TopicOverview]:
     if fmt == "rosbag1":
         return _bag1(path)
     if fmt == "rosbag2":
-        return _bag(path)
+        return _bag2(path)
     return []
 
 
@@ -134,6 +134,38 @@ def _bag1(path: Path) -> list[TopicOverview]:
             except ros1fast.Fallback:
                 return _bag(path)
         out.append(TopicOverview(conn.topic, msgtype, count, _rate(count, bag.start_ns, bag.end_ns), joints))
+    return out
+
+
+def _bag2(path: Path) -> list[TopicOverview]:
+    """A ROS 2 bag's topics: of an sqlite3 bag just read off its pages, from that read's counts (:func:`~ilic_cli.io.rosbag2.table_summary`); else ``rosbags``.
+
+    ``rosbags`` counts each topic's messages when it opens an sqlite3 bag (a
+    scan of the table: some 0.9 s of a 600 s, 1 kHz bag); the read counted them.
+    """
+    from rosbags.rosbag2 import Reader
+
+    from ilic_cli.io import rosbag2
+
+    files = sorted(path.glob("*.db3"))
+    summary = rosbag2.table_summary(files[0]) if len(files) == 1 else None
+    if summary is None:
+        return _bag(path)
+    reader = Reader(path)
+    with rosbag2._rosbags_sqlite_settings(uncounted=True):  # the topics only: the counts are the read's
+        reader.open()
+    try:
+        storage = rosbag2._single_sqlite(reader)
+        if storage is None or storage.path.resolve() != files[0].resolve():
+            return _bag(path)
+        out = []
+        for conn in sorted(reader.connections, key=lambda c: (c.topic, c.id)):
+            msgtype = normalize_msgtype(conn.msgtype)
+            count = summary.counts.get(int(conn.id), 0)
+            joints = _joints(summary.first[int(conn.id)], msgtype, ROS2) if msgtype in NAMED and count else None
+            out.append(TopicOverview(conn.topic, msgtype, count, _rate(count, summary.start_ns, summary.end_ns), joints))
+    finally:
+        reader.close()
     return out
 
 

@@ -214,6 +214,8 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
     try:
         db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
+        if _feed_pages(storage.path, db, by_id, path, total):
+            return
         joined = db.execute("PRAGMA encoding").fetchone()[0] == "UTF-8"  # group_concat joins blobs as UTF-8 text
         if _id_is_rowid(db):
             joined_sql, rows_sql = (SQL_JOINED.format(ids=ids) if joined else None), SQL_ROWS.format(ids=ids)
@@ -232,6 +234,71 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
                     progress(done, total)
     finally:
         db.close()
+
+
+_TABLES: dict[tuple[str, int, int, int], Any] = {}
+"""The :class:`~ilic_cli.io.sqlitepages.Summary` of the last sqlite3 file read off its pages, by the file's identity (:func:`_identity`)."""
+
+
+def _identity(file: Path) -> tuple[str, int, int, int]:
+    """The file's path, size, modification time and inode: another file, or the file changed, gives another key."""
+    st = file.stat()
+    return (str(file.resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+
+
+def table_summary(file: Path) -> Any:
+    """The message counts, first messages and time range of the sqlite3 file ``file`` when this process just read it off its pages; else None."""
+    try:
+        return _TABLES.get(_identity(file))
+    except OSError:
+        return None
+
+
+PAGE_BLOCK = 65536
+"""Messages of a topic copied out of the file's pages at a time (:func:`_feed_pages`)."""
+
+
+def _feed_pages(file: Path, db: Any, by_id: dict[int, Any], path: Path, total: int) -> bool:
+    """Feed the sinks from the table's rows read off the file's pages (:mod:`ilic_cli.io.sqlitepages`); False when that module does not read the file.
+
+    Each topic's messages, in id order, go to its sink in runs of one size:
+    their blobs are copied out of the mapped file row after row (a window of
+    the run's size at each blob's start), a message fetched by SQL alone.
+    """
+    from numpy.lib.stride_tricks import as_strided
+
+    from ilic_cli.io import current_progress, sqlitepages
+
+    try:
+        rows = sqlitepages.read(file, db, set(by_id))
+    except sqlitepages.Unusual:
+        return False
+    if rows.summary is not None:
+        _TABLES.clear()  # the last table read only: a summary of a few topics
+        _TABLES[_identity(file)] = rows.summary
+    done = 0
+    with current_progress(path) as progress:
+        for tid, sink in by_id.items():
+            mine = np.flatnonzero(rows.topic_id == tid)
+            if not len(mine):
+                continue
+            sizes, starts, log_ns = rows.size[mine], rows.start[mine], rows.log_ns[mine]
+            alone = starts < 0
+            cut = np.flatnonzero((sizes[1:] != sizes[:-1]) | alone[1:] | alone[:-1]) + 1
+            bounds = [0, *cut.tolist(), len(mine)]
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                if alone[a]:
+                    sink.add(int(log_ns[a]), rows.fetched[int(mine[a])])
+                    continue
+                size = int(sizes[a])
+                windows = as_strided(rows.data, shape=(len(rows.data) - size + 1, size), strides=(1, 1), writeable=False)
+                for c in range(a, b, PAGE_BLOCK):
+                    d = min(c + PAGE_BLOCK, b)
+                    sink.add_run(windows[starts[c:d]].reshape(-1), 0, size, d - c, size, log_ns[c:d])
+            done += len(mine)
+            if progress is not None:
+                progress(done, total)
+    return True
 
 
 Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
