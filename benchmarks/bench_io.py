@@ -200,6 +200,36 @@ def simulate_rates(duration_s: float = 300.0, runs: int = 3) -> None:
         shutil.rmtree(work, ignore_errors=True)
 
 
+def simulate_stages(duration_s: float = 300.0) -> None:
+    """Where ``ilic simulate`` spends its CPU time, stage by stage, in one process: imports, the compiled loop's load, the loop, each writer."""
+    import subprocess as sp
+
+    code = f"""
+import time
+c0 = time.process_time()
+from ilic_cli.commands import simulate
+from ilic_cli.io import WriteOptions, write_log
+from plant.scenarios import Overrides, run_scenario
+c1 = time.process_time()
+run_scenario('paper-sim', Overrides(duration_s=1.0, seed=0))
+c2 = time.process_time()
+log = run_scenario('paper-sim', Overrides(duration_s={duration_s}, seed=0))
+c3 = time.process_time()
+print(f'  stages (CPU s): imports {{c1 - c0:.2f}}, compiled loop load {{c2 - c1:.2f}}, {duration_s:g} s loop and log {{c3 - c2:.2f}}; writing:', end='')
+import pathlib, tempfile
+work = pathlib.Path(tempfile.mkdtemp())
+for name, fmt, extra in [('x.mat', None, {{}}), ('x.mcap', None, {{}}), ('x.csv', None, {{}}), ('x.bag', None, {{}}),
+                         ('q', 'rosbag2', {{'storage': 'sqlite3'}}), ('m', 'rosbag2', {{'storage': 'mcap'}})]:
+    a, w = time.process_time(), time.perf_counter()
+    write_log(log, work / name, fmt, WriteOptions(**extra))
+    print(f' {{name}} {{time.process_time() - a:.2f}} ({{time.perf_counter() - w:.2f}} wall)', end='')
+print()
+import shutil
+shutil.rmtree(work)
+"""
+    sp.run([sys.executable, "-c", code], cwd=ROOT, env=dict(os.environ, CI="1"), check=False)
+
+
 INFO_FILES: list[tuple[str, str, dict[str, Any]]] = [
     ("mcap", "log.mcap", {}),
     ("mat", "log.mat", {}),
@@ -257,6 +287,7 @@ def main(argv: list[str] | None = None) -> None:
         info_rates(paper_sim(int(args.info_seconds * 1000)))
     if not args.no_simulate:
         simulate_rates()
+        simulate_stages()
 
 
 if __name__ == "__main__":
