@@ -213,9 +213,9 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
     ids = ", ".join(str(tid) for tid in sorted(by_id))
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
     try:
-        db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
         if _feed_pages(storage.path, db, by_id, path, total):
             return
+        db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
         joined = db.execute("PRAGMA encoding").fetchone()[0] == "UTF-8"  # group_concat joins blobs as UTF-8 text
         if _id_is_rowid(db):
             joined_sql, rows_sql = (SQL_JOINED.format(ids=ids) if joined else None), SQL_ROWS.format(ids=ids)
@@ -295,6 +295,7 @@ def _feed_pages(file: Path, db: Any, by_id: dict[int, Any], path: Path, total: i
                 for c in range(a, b, PAGE_BLOCK):
                     d = min(c + PAGE_BLOCK, b)
                     sink.add_run(windows[starts[c:d]].reshape(-1), 0, size, d - c, size, log_ns[c:d])
+                    rows.data.release()  # the pages copied from leave the process's resident memory
             done += len(mine)
             if progress is not None:
                 progress(done, total)
