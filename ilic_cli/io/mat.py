@@ -1,4 +1,4 @@
-"""EMPS-style MATLAB ``.mat`` files (level 5, read and written with ``scipy.io``).
+"""EMPS-style MATLAB ``.mat`` files (level 5: plain ones by :mod:`ilic_cli.io.matfast`, any other with ``scipy.io``).
 
 Layout (column vectors ``N x 1`` unless noted)
 ----------------------------------------------

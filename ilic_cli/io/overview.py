@@ -1,7 +1,8 @@
 """What a container holds: its topics, message types, counts, rates and joints (``ilic info``'s overview).
 
 Like ``ros2 bag info`` or ``mcap info``: from the container's summary and
-indexes (``mcap`` and ``rosbags``), plus the first message of each
+indexes (``mcap``; a ROS 1 bag's index records; the counts of the read of an
+sqlite3 bag just made; else ``rosbags``), plus the first message of each
 ``JointState``, controller-state and ``JointTrajectory`` topic for its joint names. Only called on a file that the
 reader has already parsed with every check (:func:`ilic_cli.io.read_log`,
 or the reader's refusal to choose a joint), so that nothing here meets an

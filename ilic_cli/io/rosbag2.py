@@ -8,8 +8,10 @@ Writing creates a bag of format version 9 (Humble CDR types, the topics of
 one, or an MCAP file with zstd chunks). Reading accepts both storages; the ``.mcap`` files
 of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
 (CRCs, bounded decompression). With ``fast`` (the default) that scan of a
-bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag is
-read in ranges of ids that sqlite3 joins into one row each, whose blobs are decoded in runs;
+bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag's
+table is read off the file's pages (:mod:`ilic_cli.io.sqlitepages`), or, for a
+file that module does not read, in ranges of ids that sqlite3 joins into one
+row each; the blobs are decoded in runs;
 ``rosbags`` still reads ``metadata.yaml`` and the topics, without counting the messages. Otherwise ``rosbags`` streams the
 messages one by one.
 """
