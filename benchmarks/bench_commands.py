@@ -1,14 +1,19 @@
-"""Whole commands as a user runs them, process start included: medians of several runs.
+"""Whole commands as a user runs them, process start included, each paired against a baseline in the same run.
 
-``ilic --help``, ``ilic identify DATA_EMPS.mat --method ls`` (the small job of
-the start-up budget) and ``ilic diagnose DATA_EMPS.mat`` (replays included),
-each run ``--repeat`` times after one warm-up; prints the median and the range.
-Never asserted by tests: run it with ``make bench``.
+``ilic --help`` and ``ilic identify DATA_EMPS.mat --method ls`` (the small job
+of the start-up budget, issue 33: at most 2.5x ``python -c 'import numpy'``)
+run in turn with ``python -c 'import numpy'`` -- A B A B ... after one warm-up
+pair -- and the ratio is taken pair by pair (a machine whose speed drifts moves
+both); ``ilic diagnose DATA_EMPS.mat`` (replays included) likewise. Prints the
+medians, the median ratio and its range. Never asserted by tests: run it with
+``make bench``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -17,35 +22,63 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 EMPS = ROOT.parent / "shared" / "emps" / "DATA_EMPS.mat"
+NUMPY = [sys.executable, "-c", "import numpy"]
+"""The yardstick of start-up: an interpreter that imports NumPy and does nothing."""
 
 
-def timed(args: list[str], repeat: int) -> list[float]:
-    """Wall times (s) of ``repeat`` runs of ``args`` after one warm-up run."""
-    out = []
-    for i in range(repeat + 1):
-        t0 = time.perf_counter()
-        subprocess.run(args, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
+def run_once(args: list[str], env: dict[str, str] | None = None) -> tuple[float, float, int]:
+    """Wall time (s), CPU time (user + sys of the child, s) and peak RSS (KiB) of one run of ``args``."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT, env=env)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)}: status {proc.returncode}")
+    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss
+
+
+def paired(a: list[str], b: list[str], runs: int, env: dict[str, str] | None = None) -> dict[str, list[float]]:
+    """Run ``a`` and ``b`` in turn ``runs`` times after one warm-up pair; wall and CPU times of each, and A/B per pair."""
+    out: dict[str, list[float]] = {"a": [], "b": [], "a_cpu": [], "b_cpu": [], "ratio": [], "a_peak_kib": []}
+    for i in range(runs + 1):
+        wa, ca, pa = run_once(a, env)
+        wb, cb, _ = run_once(b, env)
         if i:
-            out.append(time.perf_counter() - t0)
+            out["a"].append(wa)
+            out["b"].append(wb)
+            out["a_cpu"].append(ca)
+            out["b_cpu"].append(cb)
+            out["a_peak_kib"].append(pa)
+            out["ratio"].append(wa / wb)
     return out
+
+
+def describe(label: str, res: dict[str, list[float]], b_label: str) -> str:
+    """One line: A's median wall time, B's, and the median ratio of the pairs with its range."""
+    med = statistics.median
+    return (
+        f"  {label:44s} {med(res['a']):6.3f} s median vs {b_label} {med(res['b']):6.3f} s: "
+        f"{med(res['ratio']):5.2f}x (pairs {min(res['ratio']):.2f}-{max(res['ratio']):.2f}, {len(res['ratio'])} runs; CPU {med(res['a_cpu']):.3f} s)"
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--repeat", type=int, default=7)
     repeat = parser.parse_args().repeat
+    resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
     ilic = [sys.executable, "-m", "ilic_cli"]
-    jobs = [("ilic --help", [*ilic, "--help"])]
+    jobs = [("ilic --help", [*ilic, "--help"], repeat)]
     if EMPS.is_file():
         jobs += [
-            ("ilic identify DATA_EMPS.mat --method ls", [*ilic, "identify", str(EMPS), "--method", "ls"]),
-            ("ilic diagnose DATA_EMPS.mat", [*ilic, "diagnose", str(EMPS)]),
+            ("ilic identify DATA_EMPS.mat --method ls", [*ilic, "identify", str(EMPS), "--method", "ls"], repeat),
+            ("ilic diagnose DATA_EMPS.mat", [*ilic, "diagnose", str(EMPS)], 3),
         ]
     else:
         print("  ../shared/emps absent: the DATA_EMPS.mat jobs are skipped")
-    for label, args in jobs:
-        times = timed(args, repeat)
-        print(f"  {label:42s} median {statistics.median(times):6.3f} s   (min {min(times):.3f}, max {max(times):.3f}, {repeat} runs)")
+    for label, args, runs in jobs:
+        print(describe(label, paired(args, NUMPY, runs), "python -c 'import numpy'"), flush=True)
 
 
 if __name__ == "__main__":

@@ -11,10 +11,14 @@ process CPU time (steadier than wall time on a shared machine); ``n/a`` where a 
 per-message path (``.mat``) or does not take the keyword yet (a
 ``TypeError``). Every read is checked to give the written columns.
 
-Then times ``ilic simulate --scenario paper-sim --duration 300`` to ``.mat``,
-``.mcap``, ``.bag`` and ROS 2 bags (``--format rosbag2``, ``--storage sqlite3``
-and ``mcap``) as whole processes (start-up included) and prints each as a
-multiple of real time, with the process's CPU time (user + system).
+Then times ``ilic info`` on a 600 s log (600k samples) in every format as a
+whole process (start-up included), each paired against ``ilic info`` on the
+MCAP file (issue 33: at least 500k samples/s everywhere), and
+``ilic simulate --scenario paper-sim --duration 300`` to ``.mat``, ``.mcap``,
+CSV, ``.bag`` and ROS 2 bags (``--format rosbag2``, ``--storage sqlite3`` and
+``mcap``), each paired against a process that imports and simulates the same
+and writes nothing; prints each as a multiple of real time, with the process's
+CPU time (user + system).
 
 Never asserted by tests: run it with ``make bench`` (or
 ``python benchmarks/bench_io.py [--samples N] [--repeat R] [--fast-only] [--no-simulate]``).
@@ -25,7 +29,6 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -157,35 +160,109 @@ def bench(log: Any, repeat: int = 3, per_message: bool = True, formats: list[str
 SIMULATE_OUTPUTS: list[tuple[str, list[str]]] = [
     ("x.mat", []),
     ("x.mcap", []),
+    ("x.csv", []),
     ("x.bag", []),
     ("x_bag", ["--format", "rosbag2", "--storage", "sqlite3"]),
     ("m_bag", ["--format", "rosbag2", "--storage", "mcap"]),
 ]
-"""``ilic simulate`` outputs timed: .mat, MCAP, ROS 1 bag, ROS 2 bags with sqlite3 and MCAP storage."""
+"""``ilic simulate`` outputs timed: .mat, MCAP, CSV, ROS 1 bag, ROS 2 bags with sqlite3 and MCAP storage."""
+
+SIMULATION_ONLY = (
+    "import sys; sys.argv = ['ilic', 'simulate']; from ilic_cli.commands import simulate; "
+    "from plant.scenarios import Overrides, run_scenario; run_scenario('paper-sim', Overrides(duration_s={duration}, seed=0))"
+)
+"""The baseline of ``ilic simulate``: the same imports and simulation in a process that writes nothing."""
 
 
-def simulate_rates(duration_s: float = 300.0) -> None:
-    """Wall and CPU time of ``ilic simulate`` to each output as a whole process, as a multiple of real time."""
-    import resource
+def simulate_rates(duration_s: float = 300.0, runs: int = 3) -> None:
+    """``ilic simulate`` to each output as a whole process, as a multiple of real time, paired against the simulation alone."""
+    import statistics
+
+    from benchmarks.bench_commands import paired
 
     work = Path(tempfile.mkdtemp(prefix="ilic-bench-sim-"))
     env = dict(os.environ, CI="1")  # no progress display
+    base = [sys.executable, "-c", SIMULATION_ONLY.format(duration=duration_s)]
     try:
         for out, extra in SIMULATE_OUTPUTS:
             args = [sys.executable, "-m", "ilic_cli", "simulate", "--scenario", "paper-sim", "--duration", f"{duration_s:g}", "-o", str(work / out), *extra]
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t0 = time.perf_counter()
-            proc = subprocess.run(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, check=False)
-            wall = time.perf_counter() - t0
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
-            cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
-            status = "" if proc.returncode == 0 else f"  status {proc.returncode}: {proc.stderr.strip().splitlines()[-1:]}"
+            res = paired(args, base, runs, env)
+            wall = statistics.median(res["a"])
             label = f"{out} {' '.join(extra)}".strip()
             print(
-                f"ilic simulate --duration {duration_s:g} -o {label:<40} {wall:6.2f} s wall = {duration_s / wall:6.1f}x real time ({cpu:5.2f} s CPU){status}",
+                f"ilic simulate --duration {duration_s:g} -o {label:<40} {wall:6.2f} s wall = {duration_s / wall:6.1f}x real time "
+                f"({statistics.median(res['a_cpu']):5.2f} s CPU); {statistics.median(res['ratio']):4.2f}x the simulation alone "
+                f"({statistics.median(res['b']):5.2f} s = {duration_s / statistics.median(res['b']):6.1f}x real time)",
                 flush=True,
             )
             remove(work / out)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def simulate_stages(duration_s: float = 300.0) -> None:
+    """Where ``ilic simulate`` spends its CPU time, stage by stage, in one process: imports, the compiled loop's load, the loop, each writer."""
+    import subprocess as sp
+
+    code = f"""
+import time
+c0 = time.process_time()
+from ilic_cli.commands import simulate
+from ilic_cli.io import WriteOptions, write_log
+from plant.scenarios import Overrides, run_scenario
+c1 = time.process_time()
+run_scenario('paper-sim', Overrides(duration_s=1.0, seed=0))
+c2 = time.process_time()
+log = run_scenario('paper-sim', Overrides(duration_s={duration_s}, seed=0))
+c3 = time.process_time()
+print(f'  stages (CPU s): imports {{c1 - c0:.2f}}, compiled loop load {{c2 - c1:.2f}}, {duration_s:g} s loop and log {{c3 - c2:.2f}}; writing:', end='')
+import pathlib, tempfile
+work = pathlib.Path(tempfile.mkdtemp())
+for name, fmt, extra in [('x.mat', None, {{}}), ('x.mcap', None, {{}}), ('x.csv', None, {{}}), ('x.bag', None, {{}}),
+                         ('q', 'rosbag2', {{'storage': 'sqlite3'}}), ('m', 'rosbag2', {{'storage': 'mcap'}})]:
+    a, w = time.process_time(), time.perf_counter()
+    write_log(log, work / name, fmt, WriteOptions(**extra))
+    print(f' {{name}} {{time.process_time() - a:.2f}} ({{time.perf_counter() - w:.2f}} wall)', end='')
+print()
+import shutil
+shutil.rmtree(work)
+"""
+    sp.run([sys.executable, "-c", code], cwd=ROOT, env=dict(os.environ, CI="1"), check=False)
+
+
+INFO_FILES: list[tuple[str, str, dict[str, Any]]] = [
+    ("mcap", "log.mcap", {}),
+    ("mat", "log.mat", {}),
+    ("csv", "log.csv", {}),
+    ("rosbag1", "log.bag", {}),
+    ("rosbag2-sqlite3", "bag_sqlite3", {"storage": "sqlite3"}),
+    ("rosbag2-mcap", "bag_mcap", {"storage": "mcap"}),
+]
+"""``ilic info`` on the same log in each format; MCAP first (the yardstick)."""
+
+
+def info_rates(log: Any, runs: int = 3) -> None:
+    """``ilic info`` on ``log`` in every format as a whole process: samples per second, paired against ``ilic info`` on its MCAP file."""
+    import statistics
+
+    from benchmarks.bench_commands import paired
+    from ilic_cli.io import WriteOptions, write_log
+
+    work = Path(tempfile.mkdtemp(prefix="ilic-bench-info-"))
+    env = dict(os.environ, CI="1")
+    ilic = [sys.executable, "-m", "ilic_cli", "info"]
+    try:
+        paths = {name: write_log(log, work / file_name, options=WriteOptions(**extra)) for name, file_name, extra in INFO_FILES}
+        yardstick = [*ilic, str(paths["mcap"])]
+        for name, path in paths.items():
+            res = paired([*ilic, str(path)], yardstick, runs, env)
+            wall = statistics.median(res["a"])
+            print(
+                f"ilic info {name:<16} {len(log)} samples: {wall:5.2f} s wall = {len(log) / wall / 1e3:5.0f}k samples/s "
+                f"({statistics.median(res['a_cpu']):5.2f} s CPU = {len(log) / statistics.median(res['a_cpu']) / 1e3:5.0f}k samples/CPU-s); "
+                f"{statistics.median(res['ratio']):4.2f}x ilic info on the MCAP file ({statistics.median(res['b']):5.2f} s)",
+                flush=True,
+            )
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -198,6 +275,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--fast-only", action="store_true", help="skip the per-message paths")
     parser.add_argument("--format", action="append", help="only this format (repeatable)")
     parser.add_argument("--no-simulate", action="store_true", help="skip the ilic simulate timings")
+    parser.add_argument("--info-seconds", type=float, default=600.0, help="length of the log of the ilic info timings (0: skip them)")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     t0 = time.perf_counter()
@@ -205,8 +283,11 @@ def main(argv: list[str] | None = None) -> None:
     print(f"paper-sim log: {len(log)} samples ({len(log) / 1000:.0f} s at 1 kHz), simulated in {time.perf_counter() - t0:.1f} s")
     print("rates in samples/s, fast path vs per-message path (ratio = per-message time / fast time); best of", args.repeat, "fast runs")
     bench(log, repeat=args.repeat, per_message=not args.fast_only, formats=args.format)
+    if args.info_seconds > 0:
+        info_rates(paper_sim(int(args.info_seconds * 1000)))
     if not args.no_simulate:
         simulate_rates()
+        simulate_stages()
 
 
 if __name__ == "__main__":

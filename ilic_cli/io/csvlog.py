@@ -367,6 +367,18 @@ ROWS_PER_BLOCK = 32768
 """Rows formatted at once by the fast writer."""
 
 
+def _texts(values: np.ndarray) -> np.ndarray:
+    """``repr`` of each value as bytes; a column with repeated values (estimates, references at rest) formats each distinct value once.
+
+    Values are told apart by their bits (``-0.0`` and ``0.0`` print differently).
+    """
+    bits = np.ascontiguousarray(values).view(np.uint64)
+    distinct, inverse = np.unique(bits, return_inverse=True)
+    if len(distinct) > len(values) // 2:  # mostly distinct: the sort does not pay
+        return np.array(list(map(repr, values.tolist())), dtype="S")
+    return np.array(list(map(repr, distinct.view(np.float64).tolist())), dtype="S")[inverse.reshape(-1)]
+
+
 def _rows_text(columns: list[np.ndarray], start: int, stop: int) -> bytes:
     """Rows ``start..stop-1`` as CSV text: ``repr`` of every value, ``,`` between, ``\n`` after.
 
@@ -374,7 +386,7 @@ def _rows_text(columns: list[np.ndarray], start: int, stop: int) -> bytes:
     with the separators in their own columns; dropping the NUL padding leaves
     the rows exactly as joining the texts would.
     """
-    texts = [np.array(list(map(repr, col[start:stop].tolist())), dtype="S") for col in columns]
+    texts = [_texts(col[start:stop]) for col in columns]
     widths = [t.dtype.itemsize for t in texts]
     matrix = np.zeros((stop - start, sum(widths) + len(texts)), dtype=np.uint8)
     at = 0

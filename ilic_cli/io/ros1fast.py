@@ -410,6 +410,144 @@ def _index_data(stream: BinaryIO, count: int) -> dict[int, tuple[np.ndarray, np.
     return out
 
 
+_BROKEN = (struct.error, ValueError, OSError, KeyError, AssertionError)
+"""What a damaged record raises besides ``rosbags``' ``ReaderError`` (:func:`_reader_errors`)."""
+
+
+def _reader_errors() -> tuple[type[BaseException], ...]:
+    from rosbags.rosbag1.reader import ReaderError
+
+    return (ReaderError, *_BROKEN)
+
+
+def _bag_index(path: Path, stream: BinaryIO) -> tuple[list[Any], list[Any]]:
+    """The bag's connections and chunk infos (``rosbags``' records), read from its index section at the end.
+
+    Raises :class:`Fallback` for anything but an indexed, unencrypted bag of
+    version 2.0 with one connection per topic and distinct chunks in order.
+    """
+    from rosbags.rosbag1.reader import Header, Reader, RecordType
+
+    shell = Reader(path)
+    shell.bio = stream
+    try:
+        if stream.readline() != b"#ROSBAG V2.0\n":
+            raise Fallback
+        header = Header.read(stream, RecordType.BAGHEADER)
+        index_pos = header.get_uint64("index_pos")
+        conn_count = header.get_uint32("conn_count")
+        chunk_count = header.get_uint32("chunk_count")
+        if "encryptor" in header or index_pos == 0 or chunk_count == 0:
+            raise Fallback
+        stream.seek(index_pos)
+        connections = [shell.read_connection() for _ in range(conn_count)]
+        infos = [shell.read_chunk_info() for _ in range(chunk_count)]
+    except _reader_errors() as exc:
+        raise Fallback from exc
+    finally:
+        shell.bio = None
+    ids = [c.id for c in connections]
+    topics = [c.topic for c in connections]
+    positions = [info.pos for info in infos]
+    if len(set(ids)) != len(ids) or len(set(topics)) != len(topics) or positions != sorted(set(positions)):
+        raise Fallback  # several connections per topic, or odd indexes: per message
+    return connections, infos
+
+
+def _chunk_record(stream: BinaryIO, pos: int, size: int, limit: int, *, skip: bool = False) -> tuple[str, int, bytes]:
+    """The chunk record at ``pos``: its compression, declared uncompressed size and data (``b""`` with ``skip``); the stream is left after it."""
+    from rosbags.rosbag1.reader import Header, RecordType
+
+    try:
+        stream.seek(pos)
+        chunk_header = Header.read(stream, RecordType.CHUNK)
+        compression = chunk_header.get_string("compression")
+        declared = chunk_header.get_uint32("size")
+        datasize = _U32.unpack(stream.read(4))[0]
+        if datasize > size or declared > limit or stream.tell() + datasize > size:
+            raise Fallback
+        if skip:
+            stream.seek(datasize, 1)
+            return compression, declared, b""
+        data = stream.read(datasize)
+    except _reader_errors() as exc:
+        raise Fallback from exc
+    if len(data) != datasize:
+        raise Fallback
+    return compression, declared, data
+
+
+def _index_data_of(stream: BinaryIO, count: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """:func:`_index_data`, a damaged record raising :class:`Fallback`."""
+    try:
+        return _index_data(stream, count)
+    except _reader_errors() as exc:
+        raise Fallback from exc
+
+
+@dataclass(frozen=True)
+class BagSummary:
+    """What the index of a ROS 1 bag says (as ``rosbags``' reader says it, without an object per message).
+
+    Attributes
+    ----------
+    connections : list
+        ``rosbags`` connections (``msgcount`` 0: see ``counts``).
+    counts : dict of int to int
+        Connection id -> its index entries (``rosbags``' ``msgcount``).
+    start_ns, end_ns : int
+        ``rosbags``' ``start_time`` and ``end_time`` (the chunk infos' range, end exclusive).
+    first : dict of int to (int, int)
+        Connection id -> chunk position and offset in the chunk of its first
+        message (least log time, then chunk, then offset: ``rosbags``' order).
+    """
+
+    connections: list[Any]
+    counts: dict[int, int]
+    start_ns: int
+    end_ns: int
+    first: dict[int, tuple[int, int]]
+
+
+def summary(path: Path) -> BagSummary:
+    """The connections, message counts, time range and first messages of a ROS 1 bag, from its index records.
+
+    Raises :class:`Fallback` when the file is not one :func:`collect` reads.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as stream:
+        connections, infos = _bag_index(path, stream)
+        counts = {c.id: 0 for c in connections}
+        first: dict[int, tuple[int, int, int]] = {}
+        for info in infos:
+            _chunk_record(stream, info.pos, size, 2**63, skip=True)
+            for cid, (times, offsets) in _index_data_of(stream, len(info.connection_counts)).items():
+                if cid not in counts:
+                    raise Fallback
+                counts[cid] += len(times)
+                if len(times):
+                    j = int(np.lexsort((offsets, times))[0])
+                    here = (int(times[j]), info.pos, int(offsets[j]))
+                    first[cid] = min(first.get(cid, here), here)
+    start = min(info.start_time for info in infos)
+    end = max(info.end_time for info in infos)
+    return BagSummary(connections, counts, start, end, {cid: (pos, offset) for cid, (_, pos, offset) in first.items()})
+
+
+def message_at(path: Path, chunk_pos: int, offset: int, limit: int) -> bytes:
+    """The data of the message-data record at ``offset`` of the chunk at ``chunk_pos`` (decompressed to at most ``limit`` bytes)."""
+    size = path.stat().st_size
+    with open(path, "rb") as stream:
+        compression, declared, data = _chunk_record(stream, chunk_pos, size, limit)
+    buf = _decompress(data, compression, limit, path)
+    if len(buf) != declared:
+        raise Fallback
+    fields, dstart, dend = _record_header(buf, offset, len(buf))
+    if _op(buf, fields) != OP_MSGDATA:
+        raise Fallback
+    return buf[dstart:dend]
+
+
 def collect(path: Path, limit: int, declare: Callable[[roscollect.Collector, list[Any]], dict[int, Any]]) -> roscollect.Collected:
     """Read every message of a ROS 1 bag into per-topic columns, vectorised where the layout repeats.
 
@@ -436,35 +574,11 @@ def collect(path: Path, limit: int, declare: Callable[[roscollect.Collector, lis
     LogError
         A chunk decompresses past ``limit``.
     """
-    from rosbags.rosbag1.reader import Header, Reader, ReaderError, RecordType
-
     from ilic_cli.io import current_progress
 
     size = path.stat().st_size
     with open(path, "rb") as stream:
-        shell = Reader(path)
-        shell.bio = stream
-        try:
-            if stream.readline() != b"#ROSBAG V2.0\n":
-                raise Fallback
-            header = Header.read(stream, RecordType.BAGHEADER)
-            index_pos = header.get_uint64("index_pos")
-            conn_count = header.get_uint32("conn_count")
-            chunk_count = header.get_uint32("chunk_count")
-            if "encryptor" in header or index_pos == 0 or chunk_count == 0:
-                raise Fallback
-            stream.seek(index_pos)
-            connections = [shell.read_connection() for _ in range(conn_count)]
-            infos = [shell.read_chunk_info() for _ in range(chunk_count)]
-        except (ReaderError, struct.error, ValueError, OSError, KeyError, AssertionError) as exc:
-            raise Fallback from exc
-        finally:
-            shell.bio = None
-        ids = [c.id for c in connections]
-        topics = [c.topic for c in connections]
-        positions = [info.pos for info in infos]
-        if len(set(ids)) != len(ids) or len(set(topics)) != len(topics) or positions != sorted(set(positions)):
-            raise Fallback  # several connections per topic, or odd indexes: per message
+        connections, infos = _bag_index(path, stream)
         collector = roscollect.Collector(path)
         sinks = declare(collector, connections)
         ts = rosschema.typestore(rosschema.ROS1)
@@ -481,20 +595,8 @@ def collect(path: Path, limit: int, declare: Callable[[roscollect.Collector, lis
         last_time: dict[int, int] = {}
         with current_progress(path) as progress:
             for number, info in enumerate(infos):
-                try:
-                    stream.seek(info.pos)
-                    chunk_header = Header.read(stream, RecordType.CHUNK)
-                    compression = chunk_header.get_string("compression")
-                    declared = chunk_header.get_uint32("size")
-                    datasize = _U32.unpack(stream.read(4))[0]
-                    if datasize > size or declared > limit:
-                        raise Fallback
-                    data = stream.read(datasize)
-                    if len(data) != datasize:
-                        raise Fallback
-                    index = _index_data(stream, len(info.connection_counts))
-                except (ReaderError, struct.error, ValueError, OSError, KeyError, AssertionError) as exc:
-                    raise Fallback from exc
+                compression, declared, data = _chunk_record(stream, info.pos, size, limit)
+                index = _index_data_of(stream, len(info.connection_counts))
                 buf = _decompress(data, compression, limit, path)
                 del data
                 if len(buf) != declared:

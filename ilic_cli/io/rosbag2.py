@@ -8,8 +8,10 @@ Writing creates a bag of format version 9 (Humble CDR types, the topics of
 one, or an MCAP file with zstd chunks). Reading accepts both storages; the ``.mcap`` files
 of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
 (CRCs, bounded decompression). With ``fast`` (the default) that scan of a
-bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag is
-read in ranges of ids that sqlite3 joins into one row each, whose blobs are decoded in runs;
+bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag's
+table is read off the file's pages (:mod:`ilic_cli.io.sqlitepages`), or, for a
+file that module does not read, in ranges of ids that sqlite3 joins into one
+row each; the blobs are decoded in runs;
 ``rosbags`` still reads ``metadata.yaml`` and the topics, without counting the messages. Otherwise ``rosbags`` streams the
 messages one by one.
 """
@@ -213,6 +215,8 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
     ids = ", ".join(str(tid) for tid in sorted(by_id))
     db = sqlite3.connect(storage.path.resolve().as_uri() + "?mode=ro&immutable=1", uri=True)
     try:
+        if _feed_pages(storage.path, db, by_id, path, total):
+            return
         db.execute(f"PRAGMA mmap_size = {SQL_MMAP}")  # pages mapped, not copied through read()
         joined = db.execute("PRAGMA encoding").fetchone()[0] == "UTF-8"  # group_concat joins blobs as UTF-8 text
         if _id_is_rowid(db):
@@ -232,6 +236,72 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
                     progress(done, total)
     finally:
         db.close()
+
+
+_TABLES: dict[tuple[str, int, int, int], Any] = {}
+"""The :class:`~ilic_cli.io.sqlitepages.Summary` of the last sqlite3 file read off its pages, by the file's identity (:func:`_identity`)."""
+
+
+def _identity(file: Path) -> tuple[str, int, int, int]:
+    """The file's path, size, modification time and inode: another file, or the file changed, gives another key."""
+    st = file.stat()
+    return (str(file.resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+
+
+def table_summary(file: Path) -> Any:
+    """The message counts, first messages and time range of the sqlite3 file ``file`` when this process just read it off its pages; else None."""
+    try:
+        return _TABLES.get(_identity(file))
+    except OSError:
+        return None
+
+
+PAGE_BLOCK = 65536
+"""Messages of a topic copied out of the file's pages at a time (:func:`_feed_pages`)."""
+
+
+def _feed_pages(file: Path, db: Any, by_id: dict[int, Any], path: Path, total: int) -> bool:
+    """Feed the sinks from the table's rows read off the file's pages (:mod:`ilic_cli.io.sqlitepages`); False when that module does not read the file.
+
+    Each topic's messages, in id order, go to its sink in runs of one size:
+    their blobs are copied out of the mapped file row after row (a window of
+    the run's size at each blob's start), a message fetched by SQL alone.
+    """
+    from numpy.lib.stride_tricks import as_strided
+
+    from ilic_cli.io import current_progress, sqlitepages
+
+    try:
+        rows = sqlitepages.read(file, db, set(by_id))
+    except sqlitepages.Unusual:
+        return False
+    if rows.summary is not None:
+        _TABLES.clear()  # the last table read only: a summary of a few topics
+        _TABLES[_identity(file)] = rows.summary
+    done = 0
+    with current_progress(path) as progress:
+        for tid, sink in by_id.items():
+            mine = np.flatnonzero(rows.topic_id == tid)
+            if not len(mine):
+                continue
+            sizes, starts, log_ns = rows.size[mine], rows.start[mine], rows.log_ns[mine]
+            alone = starts < 0
+            cut = np.flatnonzero((sizes[1:] != sizes[:-1]) | alone[1:] | alone[:-1]) + 1
+            bounds = [0, *cut.tolist(), len(mine)]
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                if alone[a]:
+                    sink.add(int(log_ns[a]), rows.fetched[int(mine[a])])
+                    continue
+                size = int(sizes[a])
+                windows = as_strided(rows.data, shape=(len(rows.data) - size + 1, size), strides=(1, 1), writeable=False)
+                for c in range(a, b, PAGE_BLOCK):
+                    d = min(c + PAGE_BLOCK, b)
+                    sink.add_run(windows[starts[c:d]].reshape(-1), 0, size, d - c, size, log_ns[c:d])
+                    rows.data.release()  # the pages copied from leave the process's resident memory
+            done += len(mine)
+            if progress is not None:
+                progress(done, total)
+    return True
 
 
 Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]

@@ -93,7 +93,11 @@ def bag(tmp_path: Path) -> tuple[Path, object]:
 
 
 def _spy(monkeypatch: pytest.MonkeyPatch, refuse_every: int = 0) -> list[bool]:
-    """Record whether each batch was joined; refuse every ``refuse_every``-th joined batch (0: none)."""
+    """Record whether each batch was joined; refuse every ``refuse_every``-th joined batch (0: none).
+
+    The read off the file's pages (tests/io/test_sqlitepages.py) is turned off: the SQL path is the one spied on.
+    """
+    monkeypatch.setattr(rosbag2, "_feed_pages", lambda *args: False)
     joined: list[bool] = []
     original = rosbag2._joined_batch
 

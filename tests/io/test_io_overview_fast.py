@@ -1,0 +1,75 @@
+"""``ilic info``'s topic overview of a ROS 1 bag from its index records, against ``rosbags``' reader (issue 33).
+
+``rosbags`` builds an object per message when it opens a bag; the overview
+reads the counts, the time range and each topic's first message from the
+chunk-info and index-data records instead. Both must list the same topics.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ilic_cli.io import overview, ros1fast, rosschema, write_log
+
+
+def _foreign_bag(path: Path, compression: str | None) -> None:
+    """Two JointState topics with different joints, written out of time order, in small (optionally compressed) chunks."""
+    from rosbags.rosbag1 import Writer
+
+    ts = rosschema.typestore("ros1")
+    js = ts.types["sensor_msgs/msg/JointState"]
+    header = ts.types["std_msgs/msg/Header"]
+    stamp = ts.types["builtin_interfaces/msg/Time"]
+    writer = Writer(path)
+    if compression:
+        writer.set_compression(getattr(Writer.CompressionFormat, compression))
+    writer.chunk_threshold = 2000
+    with writer:
+        left = writer.add_connection("/left/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
+        right = writer.add_connection("/right/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
+        for i in range(200):
+            for conn, names, shift in ((right, ["r1"], 7), (left, ["l1", "l2"], 0)):
+                ns = 3 * 10**9 + i * 10**7 + (shift if i % 5 else -(10**8))  # every 5th message earlier than the ones before
+                msg = js(
+                    header=header(seq=i, stamp=stamp(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
+                    name=names,
+                    position=np.full(len(names), float(i)),
+                    velocity=np.array([], dtype=np.float64),
+                    effort=np.zeros(len(names)),
+                )
+                writer.write(conn, ns, bytes(ts.serialize_ros1(msg, "sensor_msgs/msg/JointState")))
+
+
+@pytest.mark.parametrize("compression", [None, "LZ4", "BZ2"])
+def test_foreign_bag_overview_is_rosbags(tmp_path: Path, compression: str | None) -> None:
+    path = tmp_path / "arm.bag"
+    _foreign_bag(path, compression)
+    fast = overview._bag1(path)
+    assert len(ros1fast.summary(path).first) == 2  # read from the index, not through rosbags
+    assert fast == overview._bag(path)
+    assert [(t.topic, t.count, t.joints) for t in fast] == [("/left/joint_states", 200, ("l1", "l2")), ("/right/joint_states", 200, ("r1",))]
+
+
+def test_own_bag_overview_is_rosbags(tmp_path: Path) -> None:
+    from tests.conftest import make_synthetic_log
+
+    path = write_log(make_synthetic_log(samples=12_000), tmp_path / "own.bag")  # several 1 MiB chunks
+    fast = overview._bag1(path)
+    assert fast == overview._bag(path)
+    assert {t.topic: t.count for t in fast}["/joint_states"] == 12_000
+
+
+def test_unusual_bag_overview_falls_back_to_rosbags(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A bag the index reader refuses (here: a planted refusal) is listed by ``rosbags``, the same."""
+    path = tmp_path / "arm.bag"
+    _foreign_bag(path, None)
+    expected = overview._bag(path)
+
+    def refuse(path: Path) -> ros1fast.BagSummary:
+        raise ros1fast.Fallback
+
+    monkeypatch.setattr(ros1fast, "summary", refuse)
+    assert overview._bag1(path) == expected
