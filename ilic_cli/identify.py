@@ -438,9 +438,8 @@ def _inverse_model_error(oe: OEResult, log: RunLog, prepared: Any, effects: dict
         theta = np.array([values[n] for n in m.names], dtype=np.float64)
     except (KeyError, IlicError):
         return None  # the fitted plant has no inverse model of this form
-    return cross_validate(
-        theta, log.t, log["q"], log["tau"], prepared.fs_hz, m, ls_settings, valid=prepared.valid, segments=prepared.segments, hold_s=identification_hold_s(prepared)
-    )
+    hold = identification_hold_s(prepared)
+    return cross_validate(theta, log.t, log["q"], log["tau"], prepared.fs_hz, m, ls_settings, valid=prepared.valid, segments=prepared.segments, hold_s=hold)
 
 
 def _validation_plants(report: IdentifyReport, model: Model, effects: dict[str, Any], estimates: list[tuple[str, np.ndarray]]) -> dict[str, Any]:

@@ -151,6 +151,8 @@ class Diagnosis:
     replay_sensor: dict[str, Any] | None = None
     """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.decide.decision_sensor`); ``None``: none replayed, or noise-free."""
     usable: UsableRows | None = None
+    joint: str = "prismatic"
+    """``prismatic`` or ``revolute`` (:func:`ilic_cli.parameters.joint_type`): the units the report writes."""
     """The rows every fit of the log uses (the rule for samples at rest, as ``identify``'s); ``rows_total`` of them, ``rows_used`` beyond the timing rows."""
 
     @property
@@ -355,7 +357,7 @@ def diagnose(
     e1 = y1 - W1 @ res1.theta
     fs_dec = fs / settings.ls.decimation
     alpha = sel_settings.alpha
-    located = locate(e0, t=td, q=q_d, qd=qd_d, qdd=qdd_d, W=W0, fs_hz=fs_dec, alpha=alpha)
+    located = locate(e0, t=td, q=q_d, qd=qd_d, qdd=qdd_d, W=W0, fs_hz=fs_dec, alpha=alpha, q_unit="rad" if joint == "revolute" else "m")
     full = np.asarray(base.matrix(kin)) @ res0.theta[: len(base.names)]
     located.append(force_lag(data.tau, full, fs))
     findings = []
@@ -436,6 +438,7 @@ def diagnose(
         validation_source=None if validate is None else str(validate.meta.get("source", "")),
         warnings=warnings,
         usable=replace(usable_rows(prepared, settings.ls), hold_s=hold),
+        joint=joint,
         residual={"t": td, "q": q_d, "qd": qd_d, "before": e0, "after": e1, "y": y0, "y_before": W0 @ res0.theta, "y_after": W1 @ res1.theta},
     )
     if vertical(log.meta) and "offset" in names1:  # a vertical axis: its constant force is the load's weight, not an offset

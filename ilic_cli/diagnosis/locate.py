@@ -89,7 +89,7 @@ def _bins(kind: str, e: np.ndarray, x: np.ndarray, edges: list[tuple[float, floa
     return out
 
 
-def velocity_bins(e: np.ndarray, qd: np.ndarray, n_per_sign: int = 3, alpha: float = 0.001, rho: float | None = None) -> list[Region]:
+def velocity_bins(e: np.ndarray, qd: np.ndarray, n_per_sign: int = 3, alpha: float = 0.001, rho: float | None = None, unit: str = "m/s") -> list[Region]:
     """Bins of velocity: ``n_per_sign`` speed quantile bins on each side of zero."""
     rho = lag1_autocorrelation(e) if rho is None else rho
     edges: list[tuple[float, float]] = []
@@ -101,14 +101,14 @@ def velocity_bins(e: np.ndarray, qd: np.ndarray, n_per_sign: int = 3, alpha: flo
         pairs = [(sign * qs[i + (sign < 0)], sign * qs[i + (sign > 0)]) for i in range(n_per_sign)]
         edges.extend(sorted(pairs))
     edges.sort()
-    return _bins("velocity", e, qd, edges, "m/s", alpha, rho)
+    return _bins("velocity", e, qd, edges, unit, alpha, rho)
 
 
-def position_bins(e: np.ndarray, q: np.ndarray, n: int = 8, alpha: float = 0.001, rho: float | None = None) -> list[Region]:
+def position_bins(e: np.ndarray, q: np.ndarray, n: int = 8, alpha: float = 0.001, rho: float | None = None, unit: str = "m") -> list[Region]:
     """Equal-width bins of position."""
     rho = lag1_autocorrelation(e) if rho is None else rho
     x = np.linspace(float(q.min()), float(q.max()), n + 1)
-    return _bins("position", e, q, list(zip(x[:-1], x[1:], strict=True)), "m", alpha, rho)
+    return _bins("position", e, q, list(zip(x[:-1], x[1:], strict=True)), unit, alpha, rho)
 
 
 def acceleration_phases(e: np.ndarray, qd: np.ndarray, qdd: np.ndarray, alpha: float = 0.001, rho: float | None = None) -> list[Region]:
@@ -250,12 +250,14 @@ def force_lag(y: np.ndarray, y_hat: np.ndarray, fs_hz: float, max_lag_s: float =
     )
 
 
-def locate(e: np.ndarray, *, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, W: np.ndarray, fs_hz: float, alpha: float = 0.001) -> list[Region]:
-    """All families of regions for one residual sampled at ``fs_hz`` (rows of the decimated IDIM system)."""
+def locate(
+    e: np.ndarray, *, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, W: np.ndarray, fs_hz: float, alpha: float = 0.001, q_unit: str = "m"
+) -> list[Region]:
+    """All families of regions for one residual sampled at ``fs_hz`` (rows of the decimated IDIM system); ``q_unit`` the position's (m or rad)."""
     rho = lag1_autocorrelation(e)
     regions: list[Region] = []
-    regions += velocity_bins(e, qd, alpha=alpha, rho=rho)
-    regions += position_bins(e, q, alpha=alpha, rho=rho)
+    regions += velocity_bins(e, qd, alpha=alpha, rho=rho, unit=f"{q_unit}/s")
+    regions += position_bins(e, q, alpha=alpha, rho=rho, unit=q_unit)
     regions += acceleration_phases(e, qd, qdd, alpha=alpha, rho=rho)
     regions += reversal_windows(e, t, qd, alpha=alpha, rho=rho)
     regions += time_segments(e, t, W, alpha=alpha)

@@ -13,6 +13,7 @@ from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.locate import Region
 from ilic_cli.diagnosis.select import HELDOUT_UNCONFIRMED
 from ilic_cli.effects import Estimate
+from ilic_cli.parameters import PARAMETERS
 
 
 def to_json(diag: Diagnosis) -> str:
@@ -117,9 +118,9 @@ def to_markdown(diag: Diagnosis) -> str:
             where = ""
             if f.located:
                 r = f.located[0]
-                where = (
-                    f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} N). " if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
-                )
+                force_unit = PARAMETERS["Fc"].unit_for(diag.joint)
+                structured = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} {force_unit}). "
+                where = structured if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
             lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
         lines += [
             "",

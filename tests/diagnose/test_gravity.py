@@ -44,6 +44,9 @@ def test_diagnose_names_gravity_on_a_small_revolute_joint(tmp_path: Path) -> Non
     assert doc["model_file"]["effects"]["gravity"].keys() == {"MX", "MY"}
     spring = [ev for step in doc["selection"] for ev in step if ev["effect"] == "spring"]
     assert spring and not any(ev["accepted"] for ev in spring)  # tried, and not named
+    md = run_cli("diagnose", str(path))
+    assert md.status == 0 and "] m" not in md.stdout and " N)" not in md.stdout, md.stdout  # a revolute joint's units: rad, N·m
+    assert "] rad" in md.stdout and " N·m)" in md.stdout, md.stdout
 
 
 @pytest.mark.parametrize("fs_hz", [500.0, 1000.0])
