@@ -22,17 +22,20 @@ demo: $(STAMP)
 	$(BIN)/ilic identify out/demo/paper-sim.mcap --out out/demo
 	@echo "demo: report and plots in out/demo/"
 
-# the suite in TEST_WORKERS processes (pytest-xdist; CI has 2 cores): 585 s in one, 437 s in two on a 2-core machine
+# the suite in TEST_WORKERS processes (pytest-xdist; CI has 2 cores): 268 s in two with one BLAS thread each, 332 s with BLAS threads on top (2-core machine)
 TEST_WORKERS ?= 2
 
+# one BLAS thread a worker: the TEST_WORKERS processes already share the cores (BLAS's own threads on top oversubscribed them)
+TEST_ENV := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
+
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal
+	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal
 
 # the tiers without closed-loop diagnoses or long simulations
 FAST_TESTS := tests/unit tests/vocabulary tests/io
 
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal $(FAST_TESTS)
+	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal $(FAST_TESTS)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py

@@ -17,6 +17,7 @@ from ilic_cli.diagnosis.locate import Region, locate
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import relative_error_pct
+from ilic_cli.parameters import joint_type
 from ilic_cli.prepare import tau_sensor
 from ilic_cli.runlog import RunLog
 from plant.controllers import PDSettings
@@ -122,6 +123,7 @@ def compare_simulation(
         W=data.W[rows],
         fs_hz=log.fs_hz / ls.decimation,
         alpha=alpha,
+        q_unit="rad" if joint_type(log.units.get("q")) == "revolute" else "m",
     )
     signals = {"t": log.t[:n], "tau": tau_r, "tau_before": tau_s}
     if sim1 is not None:

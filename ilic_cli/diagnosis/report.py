@@ -42,9 +42,10 @@ def _num(x: float, unit: str = "") -> str:
     return f"{s} {unit}".strip()
 
 
-def _region_words(r: Region) -> str:
+def _region_words(r: Region, force_unit: str = "N") -> str:
     if r.kind in ("velocity", "position", "time", "acceleration", "reversal"):
-        return f"{r.label}: mean residual {r.mean:+.3g} N (standard error {r.se:.2g} N, {r.rows} rows, p = {r.p_value:.2g})"
+        u = force_unit
+        return f"{r.label}: mean residual {r.mean:+.3g} {u} (standard error {r.se:.2g} {u}, {r.rows} rows, p = {r.p_value:.2g})"
     if r.kind == "drift":
         return f"{r.label} (F = {r.statistic:.3g}, p = {r.p_value:.2g})"
     if r.kind == "frequency":
@@ -101,6 +102,7 @@ def _at_dwells(diag: Diagnosis, f: Finding) -> bool:
 def to_markdown(diag: Diagnosis) -> str:
     """A report in plain words, then the tables."""
     fit = diag.fit
+    force_unit = PARAMETERS["Fc"].unit_for(diag.joint)  # N, or N·m on a revolute joint
     lines = [f"# Diagnosis of {diag.source or 'the log'}", ""]
     rel = fit["relative_error_pct"]
     ho = fit["heldout_relative_error_pct"]
@@ -118,7 +120,6 @@ def to_markdown(diag: Diagnosis) -> str:
             where = ""
             if f.located:
                 r = f.located[0]
-                force_unit = PARAMETERS["Fc"].unit_for(diag.joint)
                 structured = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} {force_unit}). "
                 where = structured if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
             lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
@@ -200,7 +201,7 @@ def to_markdown(diag: Diagnosis) -> str:
                 )
             )
             lines += [f"Evidence: {why}; {verdict}.", ""]
-            lines += ["Located:", ""] + [f"- {_region_words(r)}" for r in f.located[:5]] + [""] if f.located else []
+            lines += ["Located:", ""] + [f"- {_region_words(r, force_unit)}" for r in f.located[:5]] + [""] if f.located else []
             lines += [f"Note: {f.note}.", ""] if f.note else []
             continue
         lines += [
@@ -210,17 +211,17 @@ def to_markdown(diag: Diagnosis) -> str:
             "",
         ]
         if f.located:
-            lines += ["Located:", ""] + [f"- {_region_words(r)}" for r in f.located[:5]] + [""]
+            lines += ["Located:", ""] + [f"- {_region_words(r, force_unit)}" for r in f.located[:5]] + [""]
         if f.note:
             lines += [f"Note: {f.note}.", ""]
     lines += ["## Where the rigid model's residual is structured", ""]
     sig = [r for r in diag.located if r.significant]
-    lines += [f"- {_region_words(r)}" for r in sorted(sig, key=lambda r: r.p_value)[:12]] or ["- nowhere (no significant region)"]
+    lines += [f"- {_region_words(r, force_unit)}" for r in sorted(sig, key=lambda r: r.p_value)[:12]] or ["- nowhere (no significant region)"]
     lines.append("")
     if sim is not None and sim.located:
         s_sig = [r for r in sim.located if r.significant]
         lines += ["## Where the simulation differs from the recording (force)", ""]
-        lines += [f"- {_region_words(r)}" for r in sorted(s_sig, key=lambda r: r.p_value)[:8]] or ["- nowhere (no significant region)"]
+        lines += [f"- {_region_words(r, force_unit)}" for r in sorted(s_sig, key=lambda r: r.p_value)[:8]] or ["- nowhere (no significant region)"]
         lines.append("")
     if diag.decisions:
         lines += ["## Proposed by the inverse model, decided by materiality and the replay", ""]

@@ -45,8 +45,10 @@ def test_diagnose_names_gravity_on_a_small_revolute_joint(tmp_path: Path) -> Non
     spring = [ev for step in doc["selection"] for ev in step if ev["effect"] == "spring"]
     assert spring and not any(ev["accepted"] for ev in spring)  # tried, and not named
     md = run_cli("diagnose", str(path))
-    assert md.status == 0 and "] m" not in md.stdout and " N)" not in md.stdout, md.stdout  # a revolute joint's units: rad, N·m
-    assert "] rad" in md.stdout and " N·m)" in md.stdout, md.stdout
+    regions = [line for line in md.stdout.splitlines() if line.startswith("- position in [")]
+    assert md.status == 0 and regions, md.stdout  # a revolute joint's regions in its units: rad, N·m (they said m and N)
+    assert all("] rad: mean residual" in line and " N·m (standard error" in line for line in regions), regions
+    assert "] m" not in md.stdout and "mean residual" in md.stdout and " N (standard error" not in md.stdout, md.stdout
 
 
 @pytest.mark.parametrize("fs_hz", [500.0, 1000.0])
