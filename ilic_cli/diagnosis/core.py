@@ -151,9 +151,9 @@ class Diagnosis:
     replay_sensor: dict[str, Any] | None = None
     """The sensor noise every deciding replay carried (:func:`ilic_cli.diagnosis.decide.decision_sensor`); ``None``: none replayed, or noise-free."""
     usable: UsableRows | None = None
+    """The rows every fit of the log uses (the rule for samples at rest, as ``identify``'s); ``rows_total`` of them, ``rows_used`` beyond the timing rows."""
     joint: str = "prismatic"
     """``prismatic`` or ``revolute`` (:func:`ilic_cli.parameters.joint_type`): the units the report writes."""
-    """The rows every fit of the log uses (the rule for samples at rest, as ``identify``'s); ``rows_total`` of them, ``rows_used`` beyond the timing rows."""
 
     @property
     def conclusion(self) -> str:
