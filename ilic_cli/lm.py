@@ -11,6 +11,7 @@ Pure numerics: the residual is passed in. (The open-loop segments' fit of the di
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -66,9 +67,15 @@ def levenberg_marquardt(
     seg_len = len(r0) // ns if fit_states else 0
 
     def jacobian(p: np.ndarray, x: np.ndarray, base: np.ndarray) -> np.ndarray | None:
-        jobs: list[Callable[[], np.ndarray | None]] = [lambda k=k: evaluate(p + steps[k] * np.eye(ng)[k], x) for k in range(ng)]
+        def probe_parameter(k: int) -> np.ndarray | None:
+            return evaluate(p + steps[k] * np.eye(ng)[k], x)
+
+        def probe_state(c: int) -> np.ndarray | None:
+            return evaluate(p, x + state_steps[c] * np.eye(2)[c])
+
+        jobs: list[Callable[[], np.ndarray | None]] = [functools.partial(probe_parameter, k) for k in range(ng)]
         if fit_states:
-            jobs += [lambda c=c: evaluate(p, x + state_steps[c] * np.eye(2)[c]) for c in (0, 1)]
+            jobs += [functools.partial(probe_state, c) for c in (0, 1)]
         out = ordered_map(lambda job: job(), jobs)
         if any(o is None for o in out):
             return None
@@ -105,7 +112,7 @@ def levenberg_marquardt(
             r1 = evaluate(p1, x1)
             evaluations += 1
             e1 = np.inf if r1 is None else float(r1 @ r1)
-            if e1 < e:
+            if r1 is not None and e1 < e:  # r1 is None -> e1 is inf
                 accepted = True
                 drop = e - e1
                 p, x, r, e, lam = p1, x1, r1, e1, max(lam / 10.0, 1e-9)

@@ -99,8 +99,8 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         # DIDIM's residual is an output error, IDIM-IV's an inverse-model residual: one panel each
         fig, axes = plt.subplots(len(runs), 1, figsize=(7, 2.6 * len(runs) + 0.6), squeeze=False)
         for i, (cl, ax) in enumerate(zip(runs, axes[:, 0], strict=True)):
-            ks = [it.k for it in cl.iterations]
-            ax.plot(ks, [it.relative_error_pct for it in cl.iterations], "o-", color=f"C{i + 4}")
+            iteration_ks = [it.k for it in cl.iterations]
+            ax.plot(iteration_ks, [it.relative_error_pct for it in cl.iterations], "o-", color=f"C{i + 4}")
             ax.set_title(f"{cl.method} ({'converged' if cl.converged else 'not converged'}): {RESIDUAL[cl.method]}", fontsize=9)
             ax.set_ylabel("relative to ‖y‖ (%)")
             ax.ticklabel_format(axis="y", useOffset=False)  # IV moves in the 5th digit: an offset label would hide the level

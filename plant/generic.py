@@ -32,7 +32,7 @@ def kernel_for(effects: Mapping[str, EffectParams]) -> ModuleType:
 
 def _summed_force(ids: tuple[str, ...]) -> Callable[..., float]:
     """One compiled ``(g, q, qd) -> force``: the effects' forces, each reading its parameters from ``g`` in turn."""
-    total = _zero
+    total: Callable[..., float] = _zero
     start = 0
     for eid in ids:
         effect = EFFECTS[eid]
