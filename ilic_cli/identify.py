@@ -208,8 +208,8 @@ def with_effects(structure: str, effects: dict[str, Any] | None, fs_hz: float) -
         effect = get(eid)
         if not effect.columns:
             raise ParameterError("effect", eid, "an effect with regressor columns (a time shift such as 'delay' is not a column)")
-        if effect.nonlinear and value is None:
-            raise ParameterError(f"{eid}.{effect.scan.name}", None, "given: the columns depend on it")  # type: ignore[union-attr]
+        if effect.scan is not None and value is None:  # nonlinear: its columns depend on the scanned value
+            raise ParameterError(f"{eid}.{effect.scan.name}", None, "given: the columns depend on it")
         columns.extend(effect.regressor_columns(value, fs_hz))
     return model.extend(*columns, name=structure + "".join(f"+{e}" for e in effects))
 
@@ -507,7 +507,7 @@ def _ranges(ks: list[int]) -> str:
     """``[1, 2, 3, 5]`` -> ``"1-3, 5"``."""
     parts: list[str] = []
     start = prev = ks[0]
-    for k in ks[1:] + [None]:  # type: ignore[list-item]
+    for k in ks[1:] + [None]:
         if k is not None and k == prev + 1:
             prev = k
             continue

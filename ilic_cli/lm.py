@@ -81,9 +81,9 @@ def levenberg_marquardt(
             return None
         J = np.zeros((len(base), ng + 2 * ns))
         for k in range(ng):
-            J[:, k] = (out[k] - base) / steps[k]  # type: ignore[operator]
+            J[:, k] = (out[k] - base) / steps[k]
         for c in (0, 1) if fit_states else ():
-            col = (out[ng + c] - base) / state_steps[c]  # type: ignore[operator]
+            col = (out[ng + c] - base) / state_steps[c]
             for j in range(ns):
                 J[j * seg_len : (j + 1) * seg_len, ng + 2 * j + c] = col[j * seg_len : (j + 1) * seg_len]
         return J

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
 
 
-def _pyplot():  # type: ignore[no-untyped-def]
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
@@ -25,7 +25,7 @@ def _pyplot():  # type: ignore[no-untyped-def]
     return plt
 
 
-def _save(fig, path: Path) -> Path:  # type: ignore[no-untyped-def]
+def _save(fig, path: Path) -> Path:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=path.suffix.lstrip("."), dpi=120, bbox_inches="tight")
     _pyplot().close(fig)
@@ -133,7 +133,7 @@ def edge_rows(n: int) -> int:
     return int(EDGE_FRACTION * n)
 
 
-def scale_y(ax, values: np.ndarray, margin: float = 0.08) -> None:  # type: ignore[no-untyped-def]
+def scale_y(ax, values: np.ndarray, margin: float = 0.08) -> None:
     """Scale ``ax``'s y axis on the finite ``values`` with a margin (no empty band, no line on the frame)."""
     finite = values[np.isfinite(values)]
     if not len(finite):
@@ -143,7 +143,7 @@ def scale_y(ax, values: np.ndarray, margin: float = 0.08) -> None:  # type: igno
     ax.set_ylim(lo - pad, hi + pad)
 
 
-def mark_edges(ax, t: np.ndarray, edges: int) -> None:  # type: ignore[no-untyped-def]
+def mark_edges(ax, t: np.ndarray, edges: int) -> None:
     """Shade the rows left out of the scale at both ends."""
     if edges > 0 and len(t) > 2 * edges:
         ax.axvspan(t[0], t[edges], color="0.85", zorder=0, label="edges (not scaled)")

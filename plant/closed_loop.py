@@ -210,7 +210,7 @@ def simulate_loop(
                     qdd_log[a:b],
                     tau_w,
                     fs_hz,
-                    settings,  # type: ignore[arg-type]
+                    settings,
                     q_ref=q_r[a:b],
                     q=out_q[a:b],
                     t=np.arange(a, b) * T,

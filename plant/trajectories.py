@@ -119,7 +119,8 @@ class Sampled:
         k = self._cycle_samples(len(t), fs_hz)
         if not k:
             return self.evaluate(t + shift)
-        return self._tile(self.evaluate(t[:k] + shift), len(t))  # type: ignore[return-value]
+        q, qd, qdd = self._tile(self.evaluate(t[:k] + shift), len(t))
+        return q, qd, qdd
 
     def sample_centred(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``t, q, qd, qdd`` with ``qd, qdd`` averaged over ``[t - T/2, t + T/2]`` (exact).

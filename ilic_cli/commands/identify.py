@@ -290,7 +290,7 @@ def command(
     click.echo(text, nl=False)
 
 
-def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
+def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "report.md", render.to_markdown(result), inputs=inputs)

@@ -451,7 +451,7 @@ def _rosbags_sqlite_settings(uncounted: bool = False) -> Iterator[None]:
         yield
         return
 
-    class Uncounted(apsw.Cursor):  # type: ignore[misc]
+    class Uncounted(apsw.Cursor):
         def execute(self, statements: str, *args: Any, **kwargs: Any) -> Any:
             for part, instead in ROSBAGS_UNCOUNTED:
                 statements = statements.replace(part, instead)

@@ -12,9 +12,9 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("ilic_cli", "plant")
 
 
-def test_mypy_passes() -> None:
-    """``mypy ilic_cli plant`` reports no error (one run; its cache in the interpreter's environment, not in the tree)."""
-    cache = Path(sys.prefix) / "mypy_cache"
+def test_mypy_passes(tmp_path: Path) -> None:
+    """``mypy ilic_cli plant`` reports no error (one run, its cache in the test's own tmp dir: not in the tree, none shared between workers)."""
+    cache = tmp_path / "mypy_cache"
     res = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(cache), "--no-color-output", *PACKAGES], cwd=ROOT, capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr
 
