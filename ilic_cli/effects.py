@@ -25,6 +25,7 @@ README's "Adding an effect"); the plant, ``ilic identify --effect``,
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -274,7 +275,11 @@ class Effect:
 
     def regressor_columns(self, value: Any = None, fs_hz: float = 1000.0) -> tuple[Column, ...]:
         """The columns as :class:`~ilic_cli.regressor.Column` s for a fixed nonlinear ``value``."""
-        return tuple(Column(c.name, c.unit, (lambda k, i=i: self.matrix(k, value, fs_hz)[:, i]), c.description) for i, c in enumerate(self.columns))
+
+        def column(kin: Kinematics, i: int) -> np.ndarray:
+            return self.matrix(kin, value, fs_hz)[:, i]
+
+        return tuple(Column(c.name, c.unit, functools.partial(column, i=i), c.description) for i, c in enumerate(self.columns))
 
     def fit_to_plant(self, fit: Fit) -> EstimateResult:
         """Reported estimates, plant parameters and a note from a fit that includes this effect."""
@@ -608,7 +613,8 @@ def _delay_realise(plant: Mapping[str, float], hold_s: float) -> dict[str, dict[
 
 def _flex_estimate(fit: Fit) -> EstimateResult:
     v = fit.value
-    f_res, zeta = (float(v), FLEX_DAMPING) if np.isscalar(v) else (float(v[0]), float(v[1]))
+    scalar = bool(np.isscalar(v))  # a bool: np.isscalar's TypeGuard would narrow v to types float() does not take
+    f_res, zeta = (float(v), FLEX_DAMPING) if scalar else (float(v[0]), float(v[1]))
     ml = fit.combination({"M_load": 1.0})
     M = fit.get("M", float("nan"))
     w = 2.0 * math.pi * f_res
@@ -636,8 +642,15 @@ def _flex_scan_value(values: Mapping[str, float], M: float) -> tuple[float, floa
     return math.sqrt(k / ml) / (2 * math.pi), values["damping"] / (2.0 * math.sqrt(k * ml))
 
 
+def _ripple_build(kin: Kinematics, period: Any, fs_hz: float) -> np.ndarray:
+    if kin.q is None:
+        raise ValueError("the ripple columns need the position q")
+    return np.c_[np.sin(2.0 * np.pi * kin.q / period), np.cos(2.0 * np.pi * kin.q / period)]
+
+
 def _flex_build(kin: Kinematics, value: Any, fs_hz: float) -> np.ndarray:
-    f_hz, zeta = (value, FLEX_DAMPING) if np.isscalar(value) else value
+    scalar = bool(np.isscalar(value))  # a bool: np.isscalar's TypeGuard would narrow value to types float() does not take
+    f_hz, zeta = (value, FLEX_DAMPING) if scalar else value
     return np.c_[flexible_acceleration(kin.qdd, float(f_hz), fs_hz, float(zeta)) - kin.qdd]
 
 
@@ -714,7 +727,7 @@ POSITION_RIPPLE = register(
         signature="residual periodic in position: a peak in the residual against position, at frequency velocity/P in time",
         signature_kinds=("position", "frequency"),
         columns=(_col("ripple_sin", "ripple, sine component", "N"), _col("ripple_cos", "ripple, cosine component", "N")),
-        build=lambda kin, period, fs_hz: np.c_[np.sin(2.0 * np.pi * kin.q / period), np.cos(2.0 * np.pi * kin.q / period)],
+        build=_ripple_build,
         scan=Scan("L", "m", _ripple_grid),
         estimate=_ripple_estimate,
         sentence=lambda p: f"amplitude {p['A'].value:.3g} N, spatial period {p['L'].value * 1e3:.4g} mm",

@@ -8,6 +8,7 @@ Every error a user can cause (bad file, bad option value, unusable data) is an
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 
 class IlicError(Exception):
@@ -30,8 +31,8 @@ class IlicError(Exception):
         """Pickle by the state, whatever the subclass's arguments (an error raised in a worker process reaches the parent whole)."""
         return (Exception.__new__, (type(self),), self.__dict__)
 
-    def __setstate__(self, state: dict[str, object]) -> None:
-        self.__dict__.update(state)
+    def __setstate__(self, state: dict[str, Any] | None) -> None:
+        self.__dict__.update(state or {})
         Exception.__init__(self, self.message())
 
     def message(self) -> str:

@@ -24,7 +24,7 @@ from ilic_cli.idim_ls import IDIMLSResult, LSSettings, UsableRows, cross_validat
 from ilic_cli.lsq import LSResult
 from ilic_cli.output_error import OEResult, OESettings
 from ilic_cli.prepare import prepare_log
-from ilic_cli.regressor import Model, get_model
+from ilic_cli.regressor import Column, Model, get_model
 from ilic_cli.runlog import RunLog
 
 if TYPE_CHECKING:
@@ -132,7 +132,8 @@ class IdentifyReport:
         import pandas as pd
 
         rows: list[dict[str, Any]] = []
-        whole = ([("IDIM-LS", None, self.ls.result)] if self.ls is not None else []) + [(c.method, c.n_iterations, c.result) for c in self.closed_loop()]
+        whole: list[tuple[str, int | None, LSResult | OEResult]] = []
+        whole += ([("IDIM-LS", None, self.ls.result)] if self.ls is not None else []) + [(c.method, c.n_iterations, c.result) for c in self.closed_loop()]
         whole += [(o.method, o.iterations, o) for o in (self.oe, self.cloe) if o is not None]
         for method, k, r in whole:  # one estimate on the whole log (k: a closed-loop or output-error method's iterations)
             rel_err = r.force_error_pct if isinstance(r, OEResult) else r.relative_error_pct
@@ -202,13 +203,13 @@ def with_effects(structure: str, effects: dict[str, Any] | None, fs_hz: float) -
     model = get_model(structure)
     if not effects:
         return model
-    columns = []
+    columns: list[Column] = []
     for eid, value in effects.items():
         effect = get(eid)
         if not effect.columns:
             raise ParameterError("effect", eid, "an effect with regressor columns (a time shift such as 'delay' is not a column)")
-        if effect.nonlinear and value is None:
-            raise ParameterError(f"{eid}.{effect.scan.name}", None, "given: the columns depend on it")  # type: ignore[union-attr]
+        if effect.scan is not None and value is None:  # nonlinear: its columns depend on the scanned value
+            raise ParameterError(f"{eid}.{effect.scan.name}", None, "given: the columns depend on it")
         columns.extend(effect.regressor_columns(value, fs_hz))
     return model.extend(*columns, name=structure + "".join(f"+{e}" for e in effects))
 
@@ -393,8 +394,8 @@ def identify(
             report.validation.append(Validation(osrc, label, res, _open_loop_figure(vlog, plants.get(label), oe_settings, report.warnings)))
         for oe in (report.oe, report.cloe):
             if oe is not None:
-                res = _inverse_model_error(oe, vlog, op, effects, ls_settings)
-                report.validation.append(Validation(osrc, oe.method, res, _open_loop_figure(vlog, oe.plant(), oe_settings, report.warnings)))
+                oe_res = _inverse_model_error(oe, vlog, op, effects, ls_settings)
+                report.validation.append(Validation(osrc, oe.method, oe_res, _open_loop_figure(vlog, oe.plant(), oe_settings, report.warnings)))
     return report
 
 
@@ -506,7 +507,7 @@ def _ranges(ks: list[int]) -> str:
     """``[1, 2, 3, 5]`` -> ``"1-3, 5"``."""
     parts: list[str] = []
     start = prev = ks[0]
-    for k in ks[1:] + [None]:  # type: ignore[list-item]
+    for k in ks[1:] + [None]:
         if k is not None and k == prev + 1:
             prev = k
             continue

@@ -125,8 +125,9 @@ def to_markdown(report: IdentifyReport) -> str:
         header = ["log", "estimates", "relative error %", "error norm", "error std", "condition number"] + (["open-loop RMSE mm", "fit %"] if opened else [])
         rows = []
         for v in report.validation:
-            r = v.result
-            row = [v.source, v.method] + (["—"] * 4 if r is None else [fmt(r.relative_error_pct), fmt(r.error_norm), fmt(r.sigma_rho), fmt(r.condition_number)])
+            vr = v.result
+            measures = ["—"] * 4 if vr is None else [fmt(vr.relative_error_pct), fmt(vr.error_norm), fmt(vr.sigma_rho), fmt(vr.condition_number)]
+            row = [v.source, v.method] + measures
             if opened:
                 row += ["—", "—"] if v.open_loop is None else [fmt(v.open_loop["rmse_mm"], 3), fmt(v.open_loop["fit_pct"], 2)]
             rows.append(row)

@@ -197,14 +197,14 @@ def estimate_windows(
     masked: dict[int, str] = {}
     if valid is not None and not np.all(valid):
         rows = valid_rows(np.atleast_2d(valid), r)
-        for i in np.flatnonzero(~rows.all(axis=1)):
+        for i in np.flatnonzero(~rows.all(axis=1)).tolist():
             keep = rows[i]
             if keep.sum() > Wd.shape[-1]:
                 results[i] = solve_batch(Wd[i : i + 1, keep], yd[i : i + 1, keep], model.names, sigma="eq8")[0]
             else:  # nothing identifiable is left: a null system (rank 0, infinite std)
                 b = Wd.shape[-1]
                 results[i] = solve_batch(np.zeros((1, b, b)), np.zeros((1, b)), model.names, sigma="eq8")[0]
-            masked[int(i)] = f"{100 * (1 - keep.mean()):.3g} % of the rows masked (saturated drive)"
+            masked[i] = f"{100 * (1 - keep.mean()):.3g} % of the rows masked (saturated drive)"
     ratios = tracking_error_ratio(np.atleast_2d(q_ref), np.atleast_2d(q)) if q_ref is not None and q is not None else None
     out = []
     for i, res in enumerate(results):
@@ -247,8 +247,16 @@ def estimate_window(
     k: int = 1,
 ) -> WindowEstimate:
     """Estimate one window (the online step of the closed loop); see :func:`estimate_windows`."""
-    stack = lambda a: None if a is None else np.asarray(a, dtype=np.float64)[None]
-    return estimate_windows(model, stack(qd_ref), stack(qdd_ref), stack(tau), fs_hz, settings, q_ref=stack(q_ref), q=stack(q), t=stack(t), k0=k)[0]
+
+    def stack(a: np.ndarray) -> np.ndarray:
+        return np.asarray(a, dtype=np.float64)[None]
+
+    def stack_optional(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else stack(a)
+
+    return estimate_windows(
+        model, stack(qd_ref), stack(qdd_ref), stack(tau), fs_hz, settings, q_ref=stack_optional(q_ref), q=stack_optional(q), t=stack_optional(t), k0=k
+    )[0]
 
 
 def reference_lag(q_ref: np.ndarray, q: np.ndarray, max_lag: int, max_samples: int = 200_000) -> int:
@@ -313,10 +321,16 @@ def identify_ilic(
     m = K * n
     q_ref_actual = q_ref
     q_ref, qd_ref, qdd_ref = (delay_samples(np.asarray(a, dtype=np.float64), lag) for a in (q_ref, qd_ref, qdd_ref))
-    cut = lambda a: None if a is None else np.asarray(a[:m], dtype=np.float64).reshape(K, n)
+
+    def cut(a: np.ndarray) -> np.ndarray:
+        return np.asarray(a[:m], dtype=np.float64).reshape(K, n)
+
+    def cut_optional(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else cut(a)
+
     valid = usable_mask(valid, np.shape(t))
     mask = None if valid is None else valid[:m].reshape(K, n)
-    windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut(q), t=cut(t), valid=mask)
+    windows = estimate_windows(model, cut(qd_ref), cut(qdd_ref), cut(tau), fs_hz, settings, q_ref=cut(q_ref), q=cut_optional(q), t=cut(t), valid=mask)
     if lag and q is not None:  # the tracking error is the controller's: against the reference as recorded
         ratios = tracking_error_ratio(cut(q_ref_actual), cut(q))
         windows = [replace(w, tracking_error_ratio=float(r)) for w, r in zip(windows, ratios, strict=True)]

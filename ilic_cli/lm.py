@@ -11,6 +11,7 @@ Pure numerics: the residual is passed in. (The open-loop segments' fit of the di
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -66,17 +67,23 @@ def levenberg_marquardt(
     seg_len = len(r0) // ns if fit_states else 0
 
     def jacobian(p: np.ndarray, x: np.ndarray, base: np.ndarray) -> np.ndarray | None:
-        jobs: list[Callable[[], np.ndarray | None]] = [lambda k=k: evaluate(p + steps[k] * np.eye(ng)[k], x) for k in range(ng)]
+        def probe_parameter(k: int) -> np.ndarray | None:
+            return evaluate(p + steps[k] * np.eye(ng)[k], x)
+
+        def probe_state(c: int) -> np.ndarray | None:
+            return evaluate(p, x + state_steps[c] * np.eye(2)[c])
+
+        jobs: list[Callable[[], np.ndarray | None]] = [functools.partial(probe_parameter, k) for k in range(ng)]
         if fit_states:
-            jobs += [lambda c=c: evaluate(p, x + state_steps[c] * np.eye(2)[c]) for c in (0, 1)]
+            jobs += [functools.partial(probe_state, c) for c in (0, 1)]
         out = ordered_map(lambda job: job(), jobs)
         if any(o is None for o in out):
             return None
         J = np.zeros((len(base), ng + 2 * ns))
         for k in range(ng):
-            J[:, k] = (out[k] - base) / steps[k]  # type: ignore[operator]
+            J[:, k] = (out[k] - base) / steps[k]
         for c in (0, 1) if fit_states else ():
-            col = (out[ng + c] - base) / state_steps[c]  # type: ignore[operator]
+            col = (out[ng + c] - base) / state_steps[c]
             for j in range(ns):
                 J[j * seg_len : (j + 1) * seg_len, ng + 2 * j + c] = col[j * seg_len : (j + 1) * seg_len]
         return J
@@ -105,7 +112,7 @@ def levenberg_marquardt(
             r1 = evaluate(p1, x1)
             evaluations += 1
             e1 = np.inf if r1 is None else float(r1 @ r1)
-            if e1 < e:
+            if r1 is not None and e1 < e:  # r1 is None -> e1 is inf
                 accepted = True
                 drop = e - e1
                 p, x, r, e, lam = p1, x1, r1, e1, max(lam / 10.0, 1e-9)

@@ -232,7 +232,7 @@ def solve_iv(Z: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...]
     s = np.linalg.svd(A, compute_uv=False)
     rank = int((s > rank_tolerance(s[0], b, b)).sum()) if len(s) else 0
     if rank < b:
-        theta = pinv(A) @ (Z.T @ y)
+        theta: np.ndarray = pinv(A) @ (Z.T @ y)
         std = np.full(b, np.inf)
     else:
         theta = np.linalg.solve(A, Z.T @ y)

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
 
 
-def _pyplot():  # type: ignore[no-untyped-def]
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
@@ -25,7 +25,7 @@ def _pyplot():  # type: ignore[no-untyped-def]
     return plt
 
 
-def _save(fig, path: Path) -> Path:  # type: ignore[no-untyped-def]
+def _save(fig, path: Path) -> Path:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=path.suffix.lstrip("."), dpi=120, bbox_inches="tight")
     _pyplot().close(fig)
@@ -99,8 +99,8 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         # DIDIM's residual is an output error, IDIM-IV's an inverse-model residual: one panel each
         fig, axes = plt.subplots(len(runs), 1, figsize=(7, 2.6 * len(runs) + 0.6), squeeze=False)
         for i, (cl, ax) in enumerate(zip(runs, axes[:, 0], strict=True)):
-            ks = [it.k for it in cl.iterations]
-            ax.plot(ks, [it.relative_error_pct for it in cl.iterations], "o-", color=f"C{i + 4}")
+            iteration_ks = [it.k for it in cl.iterations]
+            ax.plot(iteration_ks, [it.relative_error_pct for it in cl.iterations], "o-", color=f"C{i + 4}")
             ax.set_title(f"{cl.method} ({'converged' if cl.converged else 'not converged'}): {RESIDUAL[cl.method]}", fontsize=9)
             ax.set_ylabel("relative to ‖y‖ (%)")
             ax.ticklabel_format(axis="y", useOffset=False)  # IV moves in the 5th digit: an offset label would hide the level
@@ -133,7 +133,7 @@ def edge_rows(n: int) -> int:
     return int(EDGE_FRACTION * n)
 
 
-def scale_y(ax, values: np.ndarray, margin: float = 0.08) -> None:  # type: ignore[no-untyped-def]
+def scale_y(ax, values: np.ndarray, margin: float = 0.08) -> None:
     """Scale ``ax``'s y axis on the finite ``values`` with a margin (no empty band, no line on the frame)."""
     finite = values[np.isfinite(values)]
     if not len(finite):
@@ -143,7 +143,7 @@ def scale_y(ax, values: np.ndarray, margin: float = 0.08) -> None:  # type: igno
     ax.set_ylim(lo - pad, hi + pad)
 
 
-def mark_edges(ax, t: np.ndarray, edges: int) -> None:  # type: ignore[no-untyped-def]
+def mark_edges(ax, t: np.ndarray, edges: int) -> None:
     """Shade the rows left out of the scale at both ends."""
     if edges > 0 and len(t) > 2 * edges:
         ax.axvspan(t[0], t[edges], color="0.85", zorder=0, label="edges (not scaled)")

@@ -202,6 +202,7 @@ def simulate_loop(
             run(a, b, chi)
             chi_hist[a:b] = chi
             if b - a == nwin:
+                assert model is not None  # set with the CTC controller above
                 tau_w = measured_force(out_u[:b], T, b, effects, tau_sensor, noise_tau[:b], start=a)
                 est = estimate_window(
                     model,
@@ -209,7 +210,7 @@ def simulate_loop(
                     qdd_log[a:b],
                     tau_w,
                     fs_hz,
-                    settings,  # type: ignore[arg-type]
+                    settings,
                     q_ref=q_r[a:b],
                     q=out_q[a:b],
                     t=np.arange(a, b) * T,

@@ -32,7 +32,7 @@ def kernel_for(effects: Mapping[str, EffectParams]) -> ModuleType:
 
 def _summed_force(ids: tuple[str, ...]) -> Callable[..., float]:
     """One compiled ``(g, q, qd) -> force``: the effects' forces, each reading its parameters from ``g`` in turn."""
-    total = _zero
+    total: Callable[..., float] = _zero
     start = 0
     for eid in ids:
         effect = EFFECTS[eid]
@@ -54,7 +54,7 @@ def _plus(rest: Callable[..., float], force: Callable[..., float], a: int, b: in
     def total(g: Any, q: float, qd: float) -> float:
         return rest(g, q, qd) + force(q, qd, g[a:b])
 
-    return total  # type: ignore[no-any-return]
+    return total
 
 
 @functools.lru_cache(maxsize=8)
@@ -62,6 +62,6 @@ def _compiled(ids: tuple[str, ...]) -> ModuleType:
     spec = importlib.util.spec_from_file_location(f"plant._kernel_{'_'.join(ids)}", kernel.__file__)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
-    module._GENERIC_FORCE = _summed_force(ids)  # type: ignore[attr-defined]
+    module.__dict__["_GENERIC_FORCE"] = _summed_force(ids)  # the kernel module reads this global when it is executed
     spec.loader.exec_module(module)
     return module

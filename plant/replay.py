@@ -28,6 +28,13 @@ def records_controller(log: RunLog) -> bool:
     return bool(log.meta.get("controller")) or "vir" in log
 
 
+def _gain(value: Any) -> float:
+    """``float(value)``; a gain missing from the metadata (None) raises TypeError, as float(None) does."""
+    if value is None:
+        raise TypeError("a controller gain is missing")
+    return float(value)
+
+
 def controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
     """The controller the log records (:func:`records_controller`); a log with none is refused."""
     if not records_controller(log):
@@ -41,9 +48,9 @@ def controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
         gtau = log.meta.get("drive_gain", ctl.get("gtau"))
         try:
             return PDSettings(
-                kp=float(ctl.get("kp", log.meta.get("kp"))),
-                kv=float(ctl.get("kv", log.meta.get("kv"))),
-                gtau=float(gtau),
+                kp=_gain(ctl.get("kp", log.meta.get("kp"))),
+                kv=_gain(ctl.get("kv", log.meta.get("kv"))),
+                gtau=_gain(gtau),
                 vmax=float(ctl.get("vmax", 10.0)),
                 pulse_input=str(ctl.get("pulse_input", "held")),
                 delay_samples=float(ctl.get("delay_samples", 1.0)),

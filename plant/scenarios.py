@@ -29,6 +29,7 @@ options). :func:`run_scenario` returns the simulated :class:`RunLog`.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -157,7 +158,7 @@ def resolve(name: str, ov: Overrides) -> tuple[Scenario, RigidParameters, Effect
     else:
         if ov.chi0 or ov.ctc:
             raise SimulationError(None, f"CTC settings ({', '.join(sorted(ov.ctc) + sorted(f'chi0.{k}' for k in ov.chi0))}) do not apply to the PD controller")
-        ctl = replace(PDSettings(), **ov.pd)
+        ctl = _pd_with(PDSettings(), ov.pd)
     ctl.validate()
     return sc, params, effects, ctl
 
@@ -187,7 +188,7 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
     ov = ov or Overrides()
     check(name, ov)
     sc, params, effects, ctl = resolve(name, ov)
-    scen_meta = {"name": sc.name, "description": sc.description, "source": sc.section}
+    scen_meta: dict[str, Any] = {"name": sc.name, "description": sc.description, "source": sc.section}
     if sc.reference == "log":
         log = _read_reference_log(ov.log_path)
         n = len(log)
@@ -208,6 +209,7 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
         out.meta.pop("replay_of", None)
         return out
     duration = sc.duration_s if ov.duration_s is None else ov.duration_s
+    assert duration is not None  # only the scenarios that replay a log (handled above) have no duration of their own
     n = int(round(duration * FS_HZ))
     traj = make_trajectory(ov.trajectory or "paper", ov.trajectory_seed)
     _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, FS_HZ)  # = sample(), sample_centred()
@@ -250,7 +252,15 @@ def _pd_from_log(log: RunLog, default: PDSettings) -> PDSettings:
         kw["kv"] = float(ctl["kv"])
     if log.meta.get("drive_gain"):
         kw["gtau"] = float(log.meta["drive_gain"])
-    return replace(default, **kw)
+    return _pd_with(default, kw)
+
+
+def _pd_with(default: PDSettings, gains: Mapping[str, float]) -> PDSettings:
+    """``default`` with the gains ``kp``, ``kv``, ``gtau`` given in ``gains`` (another key is a TypeError, as in ``dataclasses.replace``)."""
+    bad = sorted(set(gains) - {"kp", "kv", "gtau"})
+    if bad:
+        raise TypeError(f"PDSettings gets no gain {bad[0]!r}")
+    return replace(default, kp=gains.get("kp", default.kp), kv=gains.get("kv", default.kv), gtau=gains.get("gtau", default.gtau))
 
 
 def describe() -> dict[str, Any]:

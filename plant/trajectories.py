@@ -119,7 +119,8 @@ class Sampled:
         k = self._cycle_samples(len(t), fs_hz)
         if not k:
             return self.evaluate(t + shift)
-        return self._tile(self.evaluate(t[:k] + shift), len(t))  # type: ignore[return-value]
+        q, qd, qdd = self._tile(self.evaluate(t[:k] + shift), len(t))
+        return q, qd, qdd
 
     def sample_centred(self, n: int, fs_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``t, q, qd, qdd`` with ``qd, qdd`` averaged over ``[t - T/2, t + T/2]`` (exact).
@@ -276,17 +277,17 @@ def exciting_cycle(
     ``[1 - spread, 1]`` (numpy PCG64); the last move is rescaled so the cycle
     still returns to its start.
     """
-    moves = list(moves)
-    desc: dict[str, Any] = {"kind": "exciting_cycle", "moves": [[m.v, m.t_acc, m.t_const, m.dwell] for m in moves]}
+    moves_list = list(moves)
+    desc: dict[str, Any] = {"kind": "exciting_cycle", "moves": [[m.v, m.t_acc, m.t_const, m.dwell] for m in moves_list]}
     if seed is not None:
         rng = np.random.Generator(np.random.PCG64(seed))
-        f = rng.uniform(1.0 - spread, 1.0, size=len(moves))
-        moves = [Move(m.v * fi, m.t_acc, m.t_const, m.dwell) for m, fi in zip(moves, f, strict=True)]
-        rest = sum(m.displacement for m in moves[:-1])
-        last = moves[-1]
-        moves[-1] = Move(-rest / (last.t_acc + last.t_const), last.t_acc, last.t_const, last.dwell)
-        desc.update(seed=seed, spread=spread, moves=[[m.v, m.t_acc, m.t_const, m.dwell] for m in moves])
-    segs = tuple(s for m in moves for s in m.segments())
+        f = rng.uniform(1.0 - spread, 1.0, size=len(moves_list))
+        moves_list = [Move(m.v * fi, m.t_acc, m.t_const, m.dwell) for m, fi in zip(moves_list, f, strict=True)]
+        rest = sum(m.displacement for m in moves_list[:-1])
+        last = moves_list[-1]
+        moves_list[-1] = Move(-rest / (last.t_acc + last.t_const), last.t_acc, last.t_const, last.dwell)
+        desc.update(seed=seed, spread=spread, moves=[[m.v, m.t_acc, m.t_const, m.dwell] for m in moves_list])
+    segs = tuple(s for m in moves_list for s in m.segments())
     return Trajectory(segs, q0=q0, repeat=True, t_offset=t_offset, description=desc)
 
 

@@ -111,7 +111,7 @@ def command(
         note(f"ilic: warning: {result.errors} log(s) gave no estimate: their rows in the table say why")
 
 
-def _progress():  # type: ignore[no-untyped-def]
+def _progress():
     def report(done: int, total: int) -> None:
         click.echo(f"\r  {done}/{total} logs", err=True, nl=done >= total)
 

@@ -182,7 +182,7 @@ def command(
     click.echo(text if text.endswith("\n") else text + "\n", nl=False)
 
 
-def _write_outputs(result, out_dir: Path, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
+def _write_outputs(result, out_dir: Path, inputs: tuple[Path, ...]) -> None:
     import json
 
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -259,10 +259,16 @@ def command(
     ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
     ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
     with options_named():
-        given = {k: v for k, v in (("max_iterations", max_iterations), ("tolerance_pct", tolerance)) if v is not None}
-        closed = {m: replace(DEFAULT_SETTINGS[m], **given) for m in DEFAULT_SETTINGS}
+        closed = {
+            m: replace(
+                s,
+                max_iterations=s.max_iterations if max_iterations is None else max_iterations,
+                tolerance_pct=s.tolerance_pct if tolerance is None else tolerance,
+            )
+            for m, s in DEFAULT_SETTINGS.items()
+        }
         oe_settings = OESettings(
-            segment_s=oe_segment, fit_state=oe_state == "fitted", **({"max_iterations": max_iterations} if max_iterations is not None else {})
+            segment_s=oe_segment, fit_state=oe_state == "fitted", max_iterations=OESettings.max_iterations if max_iterations is None else max_iterations
         )
         result = identify(
             run,
@@ -284,7 +290,7 @@ def command(
     click.echo(text, nl=False)
 
 
-def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:  # type: ignore[no-untyped-def]
+def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "report.md", render.to_markdown(result), inputs=inputs)

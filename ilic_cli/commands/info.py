@@ -141,11 +141,12 @@ def command(
         log = load(log_path, input_format, topic, ref_topic, joint, columns)
     except ChoiceError as exc:  # the container parsed; which of its topics or joints is for the user to say
         topics = _overview(log_path, input_format, fmt)
-        summary = {"file": str(log_path), "format": fmt, "topics": [t.to_dict() for t in topics], "choose": exc.message()}
+        topic_rows = [t.to_dict() for t in topics]
+        summary = {"file": str(log_path), "format": fmt, "topics": topic_rows, "choose": exc.message()}
         if out_format == "json":
             click.echo(json.dumps(summary, indent=2, default=_json_default))
         else:
-            click.echo("\n".join([f"# {log_path}", "", *_topics_markdown(summary["topics"]), "", f"Choose: {exc.message()}", ""]), nl=False)
+            click.echo("\n".join([f"# {log_path}", "", *_topics_markdown(topic_rows), "", f"Choose: {exc.message()}", ""]), nl=False)
         return
     summary = summarize(log, log_path, fmt)
     summary["topics"] = [t.to_dict() for t in _overview(log_path, input_format, fmt)]

@@ -207,7 +207,7 @@ def command(
         note(f"ilic: wrote {output} ({len(log)} samples, {log.duration_s:.3f} s)")
 
 
-def _progress():  # type: ignore[no-untyped-def]
+def _progress():
     def report(done: int, total: int) -> None:
         click.echo(f"\r  {100 * done // total:3d} %", err=True, nl=done >= total)
 

@@ -114,6 +114,7 @@ def compare_simulation(
     e_full[:m] = (tau_s[s] - tau_r[s])[:m]
     e_dec = data.decimate(e_full)[rows]
     dec = data.decimate
+    assert data.kin.q is not None  # the residual's kinematics carry the position (located against it)
     located = locate(
         e_dec,
         t=data.t_dec[rows],

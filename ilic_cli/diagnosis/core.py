@@ -352,6 +352,7 @@ def diagnose(
     # locate on the rigid residual (decimated rows) and the force lag
     dec = data.decimate
     kin = data.kin
+    assert kin.q is not None  # the residual's kinematics carry the position (located against it)
     td, qd_d, qdd_d, q_d = data.t_dec[rows], dec(kin.qd)[rows], dec(kin.qdd)[rows], dec(kin.q)[rows]
     e0 = y0 - W0 @ res0.theta
     e1 = y1 - W1 @ res1.theta
@@ -650,7 +651,7 @@ def _segment_refit(
             simulate,
             p0,
             np.r_[1e-3 * np.maximum(np.abs(p0[:n_lin]), 1.0), np.full(len(free), 0.01)],
-            (*names_fit, *(f"log_{model[k].effect.scan.name}" for k in free if model[k].effect.scan is not None)),
+            (*names_fit, *(f"log_{scan.name}" for k in free if (scan := model[k].effect.scan) is not None)),
             noise,
             starts=starts,
             length=length,

@@ -433,6 +433,7 @@ def replay_decide(
         searched = ""
         judged = st
         if proposed_here:
+            assert judged_step is not None  # refused above when None
             judged = judged_step
             searched = (
                 "; "
@@ -453,7 +454,7 @@ def replay_decide(
             vlog, vls = validate
             sims = [_replayed(vlog, plant_of, s, fit_system(data, base, s, rows), vsensor) for s in (kept, [*kept, judged])]
             if sims[0] is not None and sims[1] is not None:
-                vb, va = (relative_errors(vlog, s, vls)["force"] for s in sims)
+                vb, va = relative_errors(vlog, sims[0], vls)["force"], relative_errors(vlog, sims[1], vls)["force"]
         if not fa < fb:
             ok, why = False, f"rejected by the replay: the held-out simulated force error does not fall ({fb:.3g} % -> {fa:.3g} %)"
         elif not significant:

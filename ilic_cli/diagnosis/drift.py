@@ -337,7 +337,7 @@ def fit_trend(parameter: str, t: np.ndarray, x: np.ndarray, s: np.ndarray, start
     if exponential:
         a, b = float(cexp[0]), float(cexp[1])
         F, df1, df2, p = F_exp, 2, k - 3, p_exp
-        trend = (a + b, a + b * math.exp(-duration / tau), a, float(tau), None)
+        trend: tuple[float, float, float | None, float | None, float | None] = (a + b, a + b * math.exp(-duration / tau), a, float(tau), None)
     else:
         a, r = float(lin[0]), float(lin[1])
         F, df1, df2, p = F_lin, 1, k - 2, p_lin

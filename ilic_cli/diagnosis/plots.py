@@ -4,6 +4,7 @@ and time with the located regions marked, residual spectrum, before/after force 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -11,6 +12,9 @@ from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.filtering import welch_psd
 from ilic_cli.io.atomic import atomic_path
 from ilic_cli.plotting import edge_rows, mark_edges, scale_y
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
@@ -23,11 +27,11 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     r = diag.residual
     written: list[Path] = []
 
-    def save(fig: object, name: str) -> None:
+    def save(fig: Figure, name: str) -> None:
         path = out_dir / name
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png", dpi=90)  # type: ignore[attr-defined]
-        plt.close(fig)  # type: ignore[arg-type]
+            fig.savefig(tmp, format="png", dpi=90)
+        plt.close(fig)
         written.append(path)
 
     sig = [g for g in diag.located if g.significant]

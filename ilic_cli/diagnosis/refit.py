@@ -265,6 +265,12 @@ class _Point(NamedTuple):
     """The estimate the step started from."""
 
 
+def _estimate(fit: Refit) -> np.ndarray:
+    """The estimate of a refit that has one (the output-error refit always sets it)."""
+    assert fit.theta is not None
+    return fit.theta
+
+
 def plant_problem(steps: list[Step] | tuple[Step, ...], names: tuple[str, ...], theta: np.ndarray) -> str | None:
     """Why the estimate ``theta`` of the model with ``steps`` is not a plant of the effects it names, else ``None``.
 
@@ -445,7 +451,7 @@ def closed_loop_refit(
         )
         if isinstance(oe, str):
             out.reason += f"; {oe}"
-        elif (final := replayed([*known, *oe.steps], names0, oe.theta)) is None:
+        elif (final := replayed([*known, *oe.steps], names0, _estimate(oe))) is None:
             out.reason += f"; the {OE_METHOD} estimate does not replay"
         elif (why := None if confirm is None else confirm(oe)) is not None:
             out.reason += f"; the {OE_METHOD} lowers it to {oe.error_pct:.3g} %, but {why}"

@@ -239,18 +239,18 @@ def to_markdown(diag: Diagnosis) -> str:
             "| effect | held-out simulated force | held-out simulated position | p | decision |",
             "| --- | --- | --- | --- | --- |",
         ]
-        for v in diag.decisions:
-            force = "" if v.force_before is None else f"{_pct(v.force_before)} -> {_pct(v.force_after)}"
-            pos = "" if v.position_before is None else f"{v.position_before:.3g} % -> {v.position_after:.3g} %"
-            p = "" if v.p_value is None else f"{v.p_value:.2g}"
-            if v.null is not None:
-                n = v.null.noise
+        for dv in diag.decisions:
+            force = "" if dv.force_before is None else f"{_pct(dv.force_before)} -> {_pct(dv.force_after)}"
+            pos = "" if dv.position_before is None else f"{dv.position_before:.3g} % -> {dv.position_after:.3g} %"
+            p = "" if dv.p_value is None else f"{dv.p_value:.2g}"
+            if dv.null is not None:
+                n = dv.null.noise
                 p += (
-                    f" (Monte-Carlo, B = {len(v.null.t_null)}: T_obs {v.null.t_obs:.3g}, null median {np.nanmedian(v.null.t_null):.3g}, "
-                    f"max {np.nanmax(v.null.t_null):.3g}; noise: position {1e6 * n.q_std:.3g} um, disturbance {n.disturbance_std:.3g} N "
+                    f" (Monte-Carlo, B = {len(dv.null.t_null)}: T_obs {dv.null.t_obs:.3g}, null median {np.nanmedian(dv.null.t_null):.3g}, "
+                    f"max {np.nanmax(dv.null.t_null):.3g}; noise: position {1e6 * n.q_std:.3g} um, disturbance {n.disturbance_std:.3g} N "
                     f"at {n.bandwidth_hz:.3g} Hz)"
                 )
-            lines.append(f"| {v.effect} | {force} | {pos} | {p} | {v.reason} |")
+            lines.append(f"| {dv.effect} | {force} | {pos} | {p} | {dv.reason} |")
         lines.append("")
     lines += ["## Candidates tried", "", "| step | effect | F | p (adjusted) | held out before -> after | decision |", "| --- | --- | --- | --- | --- | --- |"]
     for k, step in enumerate(diag.tried, 1):

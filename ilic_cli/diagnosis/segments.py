@@ -38,6 +38,7 @@ Pure numerics on arrays: the simulation is passed in.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -195,8 +196,15 @@ def fit_segments(
     def jacobian(p: np.ndarray, xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The residual and its sensitivities (forward differences): the parameters', then each segment's ``q0, qd0``."""
         jobs: list[Callable[[], np.ndarray]] = [lambda: simulate(p, xs)]
-        jobs += [lambda k=k: simulate(p + steps[k] * np.eye(ng)[k], xs) for k in range(ng)]
-        jobs += [lambda c=c, d=d: simulate(p, xs + d * np.eye(2)[c]) for c, d in ((0, DQ_M), (1, DV_MPS))]
+
+        def probe_parameter(k: int) -> np.ndarray:
+            return simulate(p + steps[k] * np.eye(ng)[k], xs)
+
+        def probe_state(c: int, d: float) -> np.ndarray:
+            return simulate(p, xs + d * np.eye(2)[c])
+
+        jobs += [functools.partial(probe_parameter, k) for k in range(ng)]
+        jobs += [functools.partial(probe_state, c, d) for c, d in ((0, DQ_M), (1, DV_MPS))]
         out = ordered_map(lambda job: job(), jobs)
         base = out[0]
         J = np.zeros((len(y), ng + 2 * ns))

@@ -229,7 +229,7 @@ class TrendReport:
         groups: dict[tuple[str, str], list[Series]] = {}
         for s in self.series:
             groups.setdefault((s.machine, s.joint), []).append(s)
-        out = []
+        out: list[dict[str, Any]] = []
         for (machine, joint), ss in groups.items():
             friction = [s for s in ss if is_friction(s.parameter) and s.kind != "untested"]
             worst = max(friction, key=lambda s: s.change_pct, default=None)

@@ -124,7 +124,7 @@ def detect_format(path: str | Path, fmt: str | None = None, *, for_writing: bool
 
 
 def _module(fmt: str) -> LogFormat:
-    return importlib.import_module(FORMATS[fmt])  # type: ignore[return-value]
+    return importlib.import_module(FORMATS[fmt])
 
 
 ProgressFactory = Callable[[Path], "Progress"]

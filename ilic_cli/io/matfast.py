@@ -178,7 +178,7 @@ def _matrix_parts(name: str, value: np.ndarray) -> list[bytes | memoryview] | No
         dims, mclass = value.shape, (6 if value.dtype == np.float64 else 9)
         kind = MI_DOUBLE if mclass == 6 else MI_UINT8
         flat = np.ascontiguousarray(value.reshape(-1).astype(value.dtype.newbyteorder("<"), copy=False))
-        data = memoryview(flat).cast("B")
+        data = memoryview(flat).cast("B")  # type: ignore[arg-type]  # numpy's stubs give ndarray the buffer protocol only for Python >= 3.12
     else:
         return None
     head = _tag(MI_UINT32, struct.pack("<II", mclass, 0)) + _tag(MI_INT32, struct.pack("<2i", *dims)) + _tag(MI_INT8, name.encode("latin1"))
@@ -204,10 +204,11 @@ def dump(variables: dict[str, np.ndarray], header_text: bytes) -> list[bytes] | 
     """
     from ilic_cli.parallel import ordered_map
 
-    elements = [_matrix_parts(name, value) for name, value in variables.items()]
-    if any(parts is None for parts in elements):
+    all_parts = [_matrix_parts(name, value) for name, value in variables.items()]
+    elements = [parts for parts in all_parts if parts is not None]
+    if len(elements) < len(all_parts):
         return None
     header = header_text.ljust(116, b" ")[:116] + bytes(8) + b"\x00\x01IM"
-    biggest_first = sorted(range(len(elements)), key=lambda i: -sum(len(p) for p in elements[i]))  # type: ignore[union-attr]
-    done = dict(zip(biggest_first, ordered_map(lambda i: _compressed(elements[i]), biggest_first)))  # type: ignore[arg-type]
+    biggest_first = sorted(range(len(elements)), key=lambda i: -sum(len(p) for p in elements[i]))
+    done = dict(zip(biggest_first, ordered_map(lambda i: _compressed(elements[i]), biggest_first)))
     return [header, *(done[i] for i in range(len(elements)))]

@@ -219,7 +219,7 @@ class BulkWriter:
         """
         rows = np.ascontiguousarray(rows)
         groups, width = rows.shape
-        flat = memoryview(rows.reshape(-1))
+        flat = memoryview(rows.reshape(-1))  # type: ignore[arg-type]  # numpy's stubs give ndarray the buffer protocol only for Python >= 3.12
         per = len(slots)
         offsets = np.array([s[0] for s in slots], dtype=np.int64)
         ends = offsets + np.array([s[1] for s in slots], dtype=np.int64)

@@ -162,7 +162,7 @@ class _State:
         if length < MESSAGE_HEAD - 9:
             raise McapScanError("file is truncated or corrupt (a message record is too short)")
         body = at + 9
-        channel_id, _, log_time, _ = struct.unpack_from("<HIQQ", buf, body)
+        channel_id, _, log_time, _ = struct.unpack_from("<HIQQ", buf, body)  # type: ignore[arg-type]  # numpy's stubs give ndarray the buffer protocol only for Python >= 3.12
         sink = self.sinks.get(channel_id)
         if sink is not None:
             sink.add(log_time, bytes(buf[at + MESSAGE_HEAD : at + 9 + length]))

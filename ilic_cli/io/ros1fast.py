@@ -178,7 +178,7 @@ def _message_layout(buf: bytes, pos: int, dstart: int, dend: int, conn: _Conn, t
                 cur.string()  # frame_id
                 for _ in range(cur.count()):
                     cur.string()
-                names = ("position", "velocity", "effort")
+                names: tuple[str, ...] = ("position", "velocity", "effort")
             else:
                 names = ("positions", "velocities", "accelerations", "effort")
             for name in names:
@@ -783,8 +783,8 @@ def write(log: RunLog, joint: str, path: Path) -> None:
     extra_matrix = np.column_stack([log.t, *(ch[name] for name in extras)]).astype(np.float64)
     templates.append(_state_template(conn_of[rosschema.TOPIC_EXTRAS], [rosschema.TIME_NAME, *extras], [extra_matrix, None, None]))
     meta_payload = rosencode.metadata_text(log, joint)
-    meta_record, meta_time_at = _record(conn_of[rosschema.TOPIC_METADATA], [_ros1_string(meta_payload)])
-    meta_record = bytearray(meta_record)
+    meta_bytes, meta_time_at = _record(conn_of[rosschema.TOPIC_METADATA], [_ros1_string(meta_payload)])
+    meta_record = bytearray(meta_bytes)
     meta_record[meta_time_at : meta_time_at + 8] = _time(int(ns[0]))
 
     builder = _Rows(templates, ns)

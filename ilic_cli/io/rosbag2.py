@@ -90,7 +90,7 @@ def _write_columns(path: Path, plugin: Any, columns: rosencode.Columns) -> None:
         connections = {spec.topic: writer.add_connection(spec.topic, spec.msgtype, typestore=ts) for spec in columns.topics}
         first = int(columns.log_ns[0])
         writer.write(connections[rosschema.TOPIC_METADATA], first, columns.metadata)
-        assert writer.storage is not None
+        assert isinstance(writer.storage, (BulkSqlite3Storage, BulkMcapStorage))  # BulkBagWriter's plugins
         writer.storage.add_samples(columns, {topic: conn.id for topic, conn in connections.items()})
         for topic in columns.sample_topics():
             writer.counts[connections[topic].id] += len(columns.log_ns)
@@ -221,7 +221,7 @@ def _feed_sqlite(storage: Any, wanted: list[Any], sinks: dict[int, Any], path: P
         joined = db.execute("PRAGMA encoding").fetchone()[0] == "UTF-8"  # group_concat joins blobs as UTF-8 text
         if _id_is_rowid(db):
             joined_sql, rows_sql = (SQL_JOINED.format(ids=ids) if joined else None), SQL_ROWS.format(ids=ids)
-            batches = (_range_batch(db, joined_sql, rows_sql, first, last) for first, last in _id_ranges(db))
+            batches: Iterator[Batch] = (_range_batch(db, joined_sql, rows_sql, first, last) for first, last in _id_ranges(db))
         else:
             batches = _cursor_batches(db, SQL_ALL_ROWS.format(ids=ids))
         with current_progress(path) as progress:
@@ -451,7 +451,7 @@ def _rosbags_sqlite_settings(uncounted: bool = False) -> Iterator[None]:
         yield
         return
 
-    class Uncounted(apsw.Cursor):  # type: ignore[misc]
+    class Uncounted(apsw.Cursor):
         def execute(self, statements: str, *args: Any, **kwargs: Any) -> Any:
             for part, instead in ROSBAGS_UNCOUNTED:
                 statements = statements.replace(part, instead)

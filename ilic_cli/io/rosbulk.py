@@ -73,7 +73,7 @@ class BulkSqlite3Storage(Sqlite3Writer):
             stop = min(start + SAMPLES_PER_INSERT, len(columns.log_ns))
             stamps = np.char.zfill(columns.log_ns[start:stop].astype(f"S{STAMP_DIGITS}"), STAMP_DIGITS)
             messages = np.hstack([columns.rows(topic, start, stop) for topic in topics])
-            self.cursor.execute(sql, [stop - start, memoryview(stamps), memoryview(messages)])  # bound as blobs, not copied to bytes first
+            self.cursor.execute(sql, [stop - start, memoryview(stamps), memoryview(messages)])  # type: ignore[arg-type]  # bound as blobs, not copied to bytes first; numpy's stubs give ndarray the buffer protocol only for Python >= 3.12
 
 
 def insert_rows_sql(topic_ids: list[int], sizes: list[int], most: int) -> str:

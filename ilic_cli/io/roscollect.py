@@ -128,6 +128,7 @@ class _Sink:
                 continue
             self._backoff = 1
             self._window = min(self._window * 2, 1 << 20) if n == todo else 256
+            assert lay is not None  # n > 0 only with a layout
             self._log_ns.block(np.asarray(log_ns[i : i + n], dtype=np.int64))
             self._columns(buf, start, stride, n, lay)
             self.count += n
@@ -175,12 +176,12 @@ class _Sink:
                 return lay
         if not walk:
             return None
-        lay = cdrcols.layout(data, self.topic.msgtype)
-        if lay is None or not self._agrees(lay, data):
+        walked = cdrcols.layout(data, self.topic.msgtype)
+        if walked is None or not self._agrees(walked, data):
             return None
-        fixed = np.flatnonzero(~lay.varying)
-        self._last = (lay, fixed, np.frombuffer(data, dtype=np.uint8)[fixed].copy())
-        return lay
+        fixed = np.flatnonzero(~walked.varying)
+        self._last = (walked, fixed, np.frombuffer(data, dtype=np.uint8)[fixed].copy())
+        return walked
 
     def _agrees(self, lay: cdrcols.Layout, data: bytes) -> bool:
         """Whether ``rosbags`` decodes ``data`` to the values ``lay`` finds (a check per run)."""
@@ -228,7 +229,7 @@ class _Sink:
 
 
 class _JointStateSink(_Sink):
-    arrays = ("position", "velocity", "effort")
+    arrays: tuple[str, ...] = ("position", "velocity", "effort")
 
     def __init__(self, topic: RawTopic) -> None:
         super().__init__(topic)

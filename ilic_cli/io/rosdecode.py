@@ -230,7 +230,7 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
         no_position = _first(pos_counts <= jj)
         if no_position is not None:
             raise LogError(path, f"message {no_position} on {topic}: no {what} for joint '{joint}'")
-        out = {"joint": joint, "log_ns": series.log_ns, "stamp_ns": series.stamp_ns, "message_id": series.message_id}
+        out: dict[str, Any] = {"joint": joint, "log_ns": series.log_ns, "stamp_ns": series.stamp_ns, "message_id": series.message_id}
         for key, fieldname in fields.items():
             out[key] = series.values_at(fieldname, jj)
         return out
@@ -249,7 +249,7 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
     all_kept = bool(keep.all())
     mask = None if all_kept else keep
     jk = j if all_kept else j[keep]
-    out: dict[str, Any] = {
+    out = {
         "joint": joint,
         "log_ns": series.log_ns if all_kept else series.log_ns[keep],
         "stamp_ns": series.stamp_ns if all_kept else series.stamp_ns[keep],

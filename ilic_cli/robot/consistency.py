@@ -163,12 +163,13 @@ def consistent_fit(robot: RobotModel, base: BaseParameters, theta: np.ndarray, c
     link_max = np.repeat([np.abs(prior[k * j : k * j + len(INERTIAL)]).max() for j in range(n)], k)
     scale = np.maximum(np.abs(prior), 1e-2 * link_max + 1e-12)
     # x: per joint 10 log-Cholesky coordinates, then Ia, Fv, Fc (>= 0), offset
-    x0, lo = [], []
+    x0_list: list[Any] = []
+    lo_list: list[float] = []
     for j in range(n):
         p = prior[k * j : k * (j + 1)]
-        x0 += [*_link_theta(p[: len(INERTIAL)]), *np.maximum(p[len(INERTIAL) : len(INERTIAL) + 3], 0.0), p[-1]]
-        lo += [-np.inf] * len(INERTIAL) + [0.0] * 3 + [-np.inf]
-    x0, lo = np.array(x0), np.array(lo)
+        x0_list += [*_link_theta(p[: len(INERTIAL)]), *np.maximum(p[len(INERTIAL) : len(INERTIAL) + 3], 0.0), p[-1]]
+        lo_list += [-np.inf] * len(INERTIAL) + [0.0] * 3 + [-np.inf]
+    x0, lo = np.array(x0_list), np.array(lo_list)
 
     def standard(x: np.ndarray) -> np.ndarray:
         pi = np.empty(k * n)

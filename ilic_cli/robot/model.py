@@ -241,7 +241,7 @@ def _check(robot: RobotModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) ->
     for name, a in zip(("q", "qd", "qdd"), arrays):
         if a.ndim != 2 or a.shape[1] != robot.n or a.shape != arrays[0].shape:
             raise ValueError(f"{name} has shape {a.shape}; expected (N, {robot.n}) like q")
-    return arrays
+    return arrays[0], arrays[1], arrays[2]
 
 
 def _drive_columns(robot: RobotModel, Y: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> None:
