@@ -23,6 +23,7 @@ from plant.controllers import CTCSettings, OpenLoopSettings, PDSettings, chi_vec
 from plant.dynamics import P_LAG, STICK_VELOCITY, RigidParameters, drive_lag_s, plant_vector
 from plant.generic import kernel_for
 from plant.sensors import TAU_SENSORS, draw_disturbance, draw_noise, measured_force
+from plant.trajectories import Multisine, Trajectory
 
 
 @dataclass
@@ -321,3 +322,38 @@ def loop_log(
         m["ilic_windows"] = [w.to_dict() for w in res.windows]
     m.update(meta or {})
     return RunLog(chans, units, m)
+
+
+def trajectory_log(
+    traj: Trajectory | Multisine,
+    n: int,
+    *,
+    params: RigidParameters,
+    effects: Effects,
+    controller: CTCSettings | PDSettings,
+    fs_hz: float,
+    seed: int,
+    tau_sensor: str,
+    scenario: dict[str, Any],
+    substeps: int = 10,
+    progress: Callable[[int, int], None] | None = None,
+) -> RunLog:
+    """The run log of the loop on ``n`` samples of ``traj`` (:meth:`~plant.trajectories.Sampled.sample_both`: the reference, and the
+    logged derivatives the controller sees), with ``scenario`` and the trajectory in its metadata (``meta['scenario']``)."""
+    _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, fs_hz)  # = sample(), sample_centred()
+    res = simulate_loop(
+        q_r=q_r,
+        qd_r=qd_r,
+        qdd_r=qdd_r,
+        qd_log=qd_log,
+        qdd_log=qdd_log,
+        params=params,
+        effects=effects,
+        controller=controller,
+        fs_hz=fs_hz,
+        substeps=substeps,
+        seed=seed,
+        tau_sensor=tau_sensor,
+        progress=progress,
+    )
+    return loop_log(res, q_ref=q_r, qd_ref=qd_log, qdd_ref=qdd_log, meta={"scenario": {**scenario, "trajectory": traj.to_dict()}})

@@ -552,7 +552,7 @@ def revolute_log(
     """
     from ilic_cli.effects import make_effects
     from ilic_cli.parameters import unit
-    from plant.closed_loop import loop_log, simulate_loop  # deferred: numba and the compiled loop
+    from plant.closed_loop import trajectory_log  # deferred: numba and the compiled loop
     from plant.controllers import CTCSettings
     from plant.dynamics import RigidParameters
     from plant.trajectories import multisine
@@ -562,22 +562,9 @@ def revolute_log(
     spec = {**(REVOLUTE_SENSOR if sensor else {}), **(effects or {})}
     traj = multisine(seed, v_rms=v_rms, q0=0.0)
     n = int(round(duration_s * fs_hz))
-    _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, fs_hz)
     ctl = CTCSettings(chi0={"M": 1.05 * rigid["M"], "Fv": 0.9 * rigid["Fv"], "Fc": 0.9 * rigid["Fc"]}, ilic=False)
-    res = simulate_loop(
-        q_r=q_r,
-        qd_r=qd_r,
-        qdd_r=qdd_r,
-        qd_log=qd_log,
-        qdd_log=qdd_log,
-        params=params,
-        effects=make_effects(spec),
-        controller=ctl,
-        fs_hz=fs_hz,
-        seed=seed,
-        tau_sensor="command",
-    )
-    log = loop_log(res, q_ref=q_r, qd_ref=qd_log, qdd_ref=qdd_log, meta={"scenario": {"name": f"revolute-{joint}", "trajectory": traj.to_dict()}})
+    scenario = {"name": f"revolute-{joint}"}
+    log = trajectory_log(traj, n, params=params, effects=make_effects(spec), controller=ctl, fs_hz=fs_hz, seed=seed, tau_sensor="command", scenario=scenario)
     log.units.update({"q": "rad", "q_ref": "rad", "qd_ref": "rad/s", "qdd_ref": "rad/s^2", "tau": "N·m", "qd_plant": "rad/s", "qdd_plant": "rad/s^2"})
     log.units.update({c: unit(c[: -len("_hat")], "revolute") for c in log.channels if c.endswith("_hat")})
     log.meta["source"] = f"revolute-{joint}-s{seed}"

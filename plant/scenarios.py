@@ -38,7 +38,7 @@ from ilic_cli.effects import Effects, effects_to_dict, make_effects
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.io import read_log
 from ilic_cli.runlog import RunLog
-from plant.closed_loop import loop_log, simulate_loop
+from plant.closed_loop import trajectory_log
 from plant.controllers import CTCSettings, PDSettings
 from plant.dynamics import RigidParameters, plant_vector
 from plant.replay import simulate_replay
@@ -212,25 +212,20 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
     assert duration is not None  # only the scenarios that replay a log (handled above) have no duration of their own
     n = int(round(duration * FS_HZ))
     traj = make_trajectory(ov.trajectory or "paper", ov.trajectory_seed)
-    _, q_r, qd_r, qdd_r, qd_log, qdd_log = traj.sample_both(n, FS_HZ)  # = sample(), sample_centred()
     sensor = ov.tau_sensor or ("centred" if isinstance(ctl, CTCSettings) else "command")
-    res = simulate_loop(
-        q_r=q_r,
-        qd_r=qd_r,
-        qdd_r=qdd_r,
-        qd_log=qd_log,
-        qdd_log=qdd_log,
+    return trajectory_log(
+        traj,
+        n,
         params=params,
         effects=effects,
         controller=ctl,
         fs_hz=FS_HZ,
-        substeps=ov.substeps,
         seed=ov.seed,
         tau_sensor=sensor,
+        scenario=scen_meta,
+        substeps=ov.substeps,
         progress=progress,
     )
-    scen_meta["trajectory"] = traj.to_dict()
-    return loop_log(res, q_ref=q_r, qd_ref=qd_log, qdd_ref=qdd_log, meta={"scenario": scen_meta})
 
 
 def _read_reference_log(path: str | Path | None) -> RunLog:
