@@ -1,0 +1,461 @@
+"""The library's shape, checked from its source (issue 32): layers that point one way, no cycle, small modules and functions.
+
+Layers, lowest first (``docs/layout.md``). A module may import only from its own layer or a lower one:
+
+0. types: the run-log model and the errors every layer speaks (``runlog``, ``errors``, ``parallel``);
+1. io: the readers and writers (``io/``), which fill a run log;
+2. preparation: repairs and the usable rows (``quality``, ``prepare``);
+3. vocabulary: parameters, effects, regressor, least squares, filtering, the LM solver, the rigid-body model;
+4. estimators: IDIM-LS, IDIM-ILIC, IV, DIDIM, OE and the n-joint estimators. The closed-loop ones are handed the loop
+   simulation as a function, so they import no plant;
+5. simulation: the plant, its controllers, the replay of a log and the loop timing (``plant/``, ``ilic_cli/simulation/``),
+   and the composition that binds estimators to the loop (``identify``, the method registry);
+6. diagnosis: propose, decide, refit (``diagnosis/``);
+7. reports: typed results rendered as Markdown, CSV, JSON and plots, and the fleet's tables and trends;
+8. commands: the command line, the only place that speaks of flags.
+
+``plant/`` imports no estimator and no I/O: the online ILIC update is handed to the loop as a function.
+
+Each ``*_PENDING`` set lists what is still to mend; it may only shrink (a listed entry that no longer occurs fails too).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGES = ("ilic_cli", "plant")
+
+LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("types", ("ilic_cli", "ilic_cli.errors", "ilic_cli.runlog", "ilic_cli.parallel")),
+    ("io", ("ilic_cli.io",)),
+    ("preparation", ("ilic_cli.quality", "ilic_cli.prepare")),
+    (
+        "vocabulary",
+        (
+            "ilic_cli.parameters",
+            "ilic_cli.effects",
+            "ilic_cli.regressor",
+            "ilic_cli.lsq",
+            "ilic_cli.filtering",
+            "ilic_cli.lm",
+            "ilic_cli.robot.model",
+            "ilic_cli.robot.base",
+            "ilic_cli.robot.kernel",
+        ),
+    ),
+    (
+        "estimators",
+        (
+            "ilic_cli.estimators",
+            "ilic_cli.idim_ls",
+            "ilic_cli.idim_ilic",
+            "ilic_cli.closed_loop_id",
+            "ilic_cli.output_error",
+            "ilic_cli.modelfile",
+            "ilic_cli.robot.idim",
+            "ilic_cli.robot.consistency",
+        ),
+    ),
+    ("simulation", ("plant", "ilic_cli.simulation", "ilic_cli.identify", "ilic_cli.methods", "ilic_cli.robot.simulate")),
+    ("diagnosis", ("ilic_cli.diagnosis",)),
+    (
+        "reports",
+        ("ilic_cli.reports", "ilic_cli.identify_report", "ilic_cli.diagnosis.report", "ilic_cli.diagnosis.plots", "ilic_cli.plotting", "ilic_cli.fleet"),
+    ),
+    ("commands", ("ilic_cli.commands", "ilic_cli.cli", "ilic_cli.__main__")),
+)
+
+MAX_MODULE_LINES = 500
+MAX_FUNCTION_LINES = 100
+
+# (importer, imported) pairs that point upward, or out of plant/ into an estimator or io
+LAYER_PENDING: set[tuple[str, str]] = {
+    ("ilic_cli.closed_loop_id", "ilic_cli.diagnosis.compare"),
+    ("ilic_cli.closed_loop_id", "plant.replay"),
+    ("ilic_cli.identify", "ilic_cli.diagnosis.timing"),
+    ("ilic_cli.io.csvlog", "ilic_cli.quality"),
+    ("ilic_cli.io.mat", "ilic_cli.quality"),
+    ("ilic_cli.io.rosdecode", "ilic_cli.quality"),
+    ("ilic_cli.output_error", "ilic_cli.diagnosis.compare"),
+    ("ilic_cli.output_error", "plant.closed_loop"),
+    ("ilic_cli.output_error", "plant.dynamics"),
+    ("ilic_cli.output_error", "plant.replay"),
+    ("ilic_cli.runlog", "ilic_cli.quality"),
+    ("plant.closed_loop", "ilic_cli.idim_ilic"),
+    ("plant.corpus", "ilic_cli.idim_ls"),
+    ("plant.scenarios", "ilic_cli.io"),
+}
+
+CYCLE_PENDING: set[frozenset[str]] = {
+    frozenset(["plant", "plant.closed_loop", "plant.generic", "plant.replay", "plant.scenarios"]),
+    frozenset(["ilic_cli.diagnosis", "ilic_cli.diagnosis.core", "ilic_cli.diagnosis.decide", "ilic_cli.diagnosis.null"]),
+}
+
+MODULE_PENDING: set[str] = {
+    "ilic_cli/diagnosis/core.py",
+    "ilic_cli/diagnosis/decide.py",
+    "ilic_cli/diagnosis/refit.py",
+    "ilic_cli/diagnosis/select.py",
+    "ilic_cli/effects.py",
+    "ilic_cli/filtering.py",
+    "ilic_cli/idim_ls.py",
+    "ilic_cli/identify.py",
+    "ilic_cli/io/ros1fast.py",
+    "ilic_cli/io/rosbag2.py",
+    "ilic_cli/io/roscollect.py",
+    "ilic_cli/quality.py",
+    "plant/corpus.py",
+    "plant/kernel.py",
+}
+
+FUNCTION_PENDING: set[str] = {
+    "ilic_cli/closed_loop_id.py:closed_loop_identify",
+    "ilic_cli/commands/identify.py:command",
+    "ilic_cli/commands/simulate.py:command",
+    "ilic_cli/diagnosis/core.py:diagnose",
+    "ilic_cli/diagnosis/core.py:_segment_refit",
+    "ilic_cli/diagnosis/decide.py:replay_decide",
+    "ilic_cli/diagnosis/refit.py:closed_loop_refit",
+    "ilic_cli/diagnosis/report.py:to_markdown",
+    "ilic_cli/diagnosis/select.py:forward_select",
+    "ilic_cli/identify.py:identify",
+    "ilic_cli/io/ros1fast.py:write",
+    "ilic_cli/lm.py:levenberg_marquardt",
+    "ilic_cli/robot/kernel.py:inertial_regressor",
+    "plant/closed_loop.py:simulate_loop",
+    "plant/kernel.py:run_periods",
+    "plant/replay.py:simulate_replay",
+}
+
+# in-function imports without a comment (on the line or the one above) that gives the reason for deferring
+DEFERRED_PENDING: set[str] = {
+    "ilic_cli/commands/batch.py:69",
+    "ilic_cli/commands/batch.py:70",
+    "ilic_cli/commands/batch.py:71",
+    "ilic_cli/commands/batch.py:72",
+    "ilic_cli/commands/common.py:129",
+    "ilic_cli/commands/common.py:130",
+    "ilic_cli/commands/common.py:195",
+    "ilic_cli/commands/diagnose.py:186",
+    "ilic_cli/commands/info.py:137",
+    "ilic_cli/commands/info.py:180",
+    "ilic_cli/commands/trend.py:51",
+    "ilic_cli/commands/trend.py:52",
+    "ilic_cli/commands/trend.py:53",
+    "ilic_cli/commands/trend.py:54",
+    "ilic_cli/diagnosis/core.py:614",
+    "ilic_cli/diagnosis/core.py:615",
+    "ilic_cli/diagnosis/core.py:616",
+    "ilic_cli/diagnosis/decide.py:124",
+    "ilic_cli/diagnosis/locate.py:185",
+    "ilic_cli/diagnosis/plots.py:22",
+    "ilic_cli/diagnosis/plots.py:25",
+    "ilic_cli/diagnosis/stats.py:124",
+    "ilic_cli/diagnosis/stats.py:131",
+    "ilic_cli/diagnosis/stats.py:138",
+    "ilic_cli/diagnosis/stats.py:145",
+    "ilic_cli/fleet/batch.py:131",
+    "ilic_cli/fleet/execute.py:103",
+    "ilic_cli/fleet/execute.py:104",
+    "ilic_cli/fleet/execute.py:105",
+    "ilic_cli/fleet/execute.py:124",
+    "ilic_cli/fleet/execute.py:179",
+    "ilic_cli/fleet/execute.py:79",
+    "ilic_cli/fleet/generate.py:105",
+    "ilic_cli/fleet/generate.py:125",
+    "ilic_cli/fleet/generate.py:126",
+    "ilic_cli/fleet/generate.py:85",
+    "ilic_cli/fleet/table.py:157",
+    "ilic_cli/fleet/table.py:177",
+    "ilic_cli/fleet/table.py:183",
+    "ilic_cli/fleet/table.py:184",
+    "ilic_cli/fleet/trend.py:168",
+    "ilic_cli/identify.py:132",
+    "ilic_cli/identify.py:406",
+    "ilic_cli/identify_report.py:234",
+    "ilic_cli/idim_ilic.py:115",
+    "ilic_cli/idim_ls.py:121",
+    "ilic_cli/io/__init__.py:182",
+    "ilic_cli/io/__init__.py:229",
+    "ilic_cli/io/__init__.py:230",
+    "ilic_cli/io/__init__.py:241",
+    "ilic_cli/io/container.py:50",
+    "ilic_cli/io/csvlog.py:160",
+    "ilic_cli/io/mat.py:104",
+    "ilic_cli/io/mat.py:118",
+    "ilic_cli/io/mat.py:163",
+    "ilic_cli/io/mat.py:164",
+    "ilic_cli/io/mat.py:296",
+    "ilic_cli/io/matfast.py:205",
+    "ilic_cli/io/mcapframe.py:131",
+    "ilic_cli/io/mcapframe.py:153",
+    "ilic_cli/io/mcapframe.py:160",
+    "ilic_cli/io/mcapframe.py:172",
+    "ilic_cli/io/mcapframe.py:257",
+    "ilic_cli/io/mcapframe.py:292",
+    "ilic_cli/io/mcapframe.py:337",
+    "ilic_cli/io/mcapframe.py:349",
+    "ilic_cli/io/mcapframe.py:350",
+    "ilic_cli/io/mcapframe.py:351",
+    "ilic_cli/io/mcapframe.py:42",
+    "ilic_cli/io/mcapframe.py:46",
+    "ilic_cli/io/mcapframe.py:71",
+    "ilic_cli/io/mcapframe.py:97",
+    "ilic_cli/io/mcaplog.py:107",
+    "ilic_cli/io/mcaplog.py:130",
+    "ilic_cli/io/mcaplog.py:157",
+    "ilic_cli/io/mcaplog.py:159",
+    "ilic_cli/io/mcaplog.py:182",
+    "ilic_cli/io/mcaplog.py:194",
+    "ilic_cli/io/mcaplog.py:200",
+    "ilic_cli/io/mcaplog.py:206",
+    "ilic_cli/io/mcaplog.py:238",
+    "ilic_cli/io/mcaplog.py:256",
+    "ilic_cli/io/mcaplog.py:258",
+    "ilic_cli/io/mcaplog.py:259",
+    "ilic_cli/io/mcaplog.py:280",
+    "ilic_cli/io/mcaplog.py:300",
+    "ilic_cli/io/mcaplog.py:313",
+    "ilic_cli/io/mcaplog.py:314",
+    "ilic_cli/io/mcaplog.py:380",
+    "ilic_cli/io/mcaplog.py:48",
+    "ilic_cli/io/mcaplog.py:77",
+    "ilic_cli/io/mcaplog.py:79",
+    "ilic_cli/io/mcapscan.py:172",
+    "ilic_cli/io/mcapscan.py:173",
+    "ilic_cli/io/mcapscan.py:83",
+    "ilic_cli/io/mcapscan.py:84",
+    "ilic_cli/io/overview.py:119",
+    "ilic_cli/io/overview.py:120",
+    "ilic_cli/io/overview.py:147",
+    "ilic_cli/io/overview.py:149",
+    "ilic_cli/io/overview.py:174",
+    "ilic_cli/io/overview.py:91",
+    "ilic_cli/io/ros1fast.py:380",
+    "ilic_cli/io/ros1fast.py:384",
+    "ilic_cli/io/ros1fast.py:396",
+    "ilic_cli/io/ros1fast.py:418",
+    "ilic_cli/io/ros1fast.py:429",
+    "ilic_cli/io/ros1fast.py:459",
+    "ilic_cli/io/ros1fast.py:577",
+    "ilic_cli/io/ros1fast.py:639",
+    "ilic_cli/io/rosbag1.py:120",
+    "ilic_cli/io/rosbag1.py:154",
+    "ilic_cli/io/rosbag1.py:52",
+    "ilic_cli/io/rosbag1.py:56",
+    "ilic_cli/io/rosbag1.py:64",
+    "ilic_cli/io/rosbag1.py:66",
+    "ilic_cli/io/rosbag2.py:139",
+    "ilic_cli/io/rosbag2.py:191",
+    "ilic_cli/io/rosbag2.py:193",
+    "ilic_cli/io/rosbag2.py:270",
+    "ilic_cli/io/rosbag2.py:272",
+    "ilic_cli/io/rosbag2.py:351",
+    "ilic_cli/io/rosbag2.py:383",
+    "ilic_cli/io/rosbag2.py:403",
+    "ilic_cli/io/rosbag2.py:491",
+    "ilic_cli/io/rosbag2.py:52",
+    "ilic_cli/io/rosbag2.py:79",
+    "ilic_cli/io/rosbag2.py:81",
+    "ilic_cli/io/rosbulk.py:110",
+    "ilic_cli/io/rosbulk.py:111",
+    "ilic_cli/io/rosbulk.py:112",
+    "ilic_cli/io/rosbulk.py:125",
+    "ilic_cli/io/rosbulk.py:146",
+    "ilic_cli/io/rosbulk.py:47",
+    "ilic_cli/io/rosbulk.py:66",
+    "ilic_cli/io/rosbulk.py:90",
+    "ilic_cli/io/rosdecode.py:113",
+    "ilic_cli/io/rosdecode.py:384",
+    "ilic_cli/io/rosdecode.py:385",
+    "ilic_cli/io/rosencode.py:232",
+    "ilic_cli/io/rosencode.py:277",
+    "ilic_cli/io/rosschema.py:108",
+    "ilic_cli/io/rosschema.py:80",
+    "ilic_cli/io/rosschema.py:96",
+    "ilic_cli/io/sqlitepages.py:102",
+    "ilic_cli/io/sqlitepages.py:216",
+    "ilic_cli/io/sqlitepages.py:223",
+    "ilic_cli/output_error.py:245",
+    "ilic_cli/output_error.py:246",
+    "ilic_cli/output_error.py:410",
+    "ilic_cli/plotting.py:20",
+    "ilic_cli/plotting.py:23",
+    "ilic_cli/plotting.py:47",
+    "ilic_cli/robot/consistency.py:154",
+    "ilic_cli/runlog.py:147",
+    "plant/__init__.py:30",
+    "plant/__init__.py:34",
+    "plant/__init__.py:38",
+    "plant/__init__.py:42",
+    "plant/corpus.py:168",
+    "plant/corpus.py:553",
+    "plant/corpus.py:554",
+    "plant/corpus.py:556",
+    "plant/corpus.py:557",
+    "plant/corpus.py:558",
+}
+
+
+def _sources() -> dict[str, Path]:
+    out: dict[str, Path] = {}
+    for pkg in PACKAGES:
+        for p in sorted((ROOT / pkg).rglob("*.py")):
+            parts = list(p.relative_to(ROOT).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = p
+    return out
+
+
+SOURCES = _sources()
+
+
+def _layer(module: str) -> int:
+    best = (-1, -1)
+    for rank, (_, prefixes) in enumerate(LAYERS):
+        for prefix in prefixes:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > best[1]:
+                best = (rank, len(prefix))
+    assert best[0] >= 0, f"{module} is in no layer: add it to LAYERS"
+    return best[0]
+
+
+def _resolve(name: str) -> str | None:
+    parts = name.split(".")
+    while parts and ".".join(parts) not in SOURCES:
+        parts.pop()
+    return ".".join(parts) if parts else None
+
+
+def _imports(module: str) -> list[tuple[str, ast.stmt, bool]]:
+    """(imported internal module, statement, inside a function) for every import of ``module``."""
+    path = SOURCES[module]
+    tree = ast.parse(path.read_text())
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found: list[tuple[str, ast.stmt, bool]] = []
+
+    def visit(node: ast.AST, nested: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            inner = nested or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+            names: list[str] = []
+            if isinstance(child, ast.Import):
+                names = [a.name for a in child.names]
+            elif isinstance(child, ast.ImportFrom):
+                if child.level:
+                    base = package.split(".")[: len(package.split(".")) - child.level + 1]
+                    stem = ".".join([*base, *([child.module] if child.module else [])])
+                else:
+                    stem = child.module or ""
+                names = [stem, *(f"{stem}.{a.name}" for a in child.names)]
+            for name in names:
+                target = _resolve(name) if name.split(".")[0] in PACKAGES else name
+                if target is not None and target != module:
+                    found.append((target, child, nested))  # type: ignore[arg-type]
+            visit(child, inner)
+
+    visit(tree, False)
+    return found
+
+
+def _internal_edges() -> set[tuple[str, str]]:
+    return {(m, t) for m in SOURCES for t, _, _ in _imports(m) if t in SOURCES}
+
+
+def test_layers_point_one_way() -> None:
+    bad = set()
+    for a, b in _internal_edges():
+        upward = _layer(b) > _layer(a)
+        plant_out = a.split(".")[0] == "plant" and (b.startswith("ilic_cli.io") or _layer(b) == 4)
+        if upward or plant_out:
+            bad.add((a, b))
+    assert bad - LAYER_PENDING == set(), sorted(bad - LAYER_PENDING)
+    assert LAYER_PENDING - bad == set(), f"mended, remove from LAYER_PENDING: {sorted(LAYER_PENDING - bad)}"
+
+
+def test_no_import_cycle() -> None:
+    edges = _internal_edges()
+    graph: dict[str, set[str]] = {m: set() for m in SOURCES}
+    for a, b in edges:
+        graph[a].add(b)
+    # strongly connected components (Tarjan), iterative enough for this tree's depth
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    comps: list[frozenset[str]] = []
+
+    def strong(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = set()
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.add(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                comps.append(frozenset(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            strong(v)
+    found = set(comps)
+    assert found - CYCLE_PENDING == set(), [sorted(c) for c in found - CYCLE_PENDING]
+    assert CYCLE_PENDING - found == set(), "mended, remove from CYCLE_PENDING"
+
+
+def test_modules_are_small() -> None:
+    big = {str(p.relative_to(ROOT)) for p in SOURCES.values() if len(p.read_text().splitlines()) > MAX_MODULE_LINES}
+    assert big - MODULE_PENDING == set(), sorted(big - MODULE_PENDING)
+    assert MODULE_PENDING - big == set(), f"mended, remove from MODULE_PENDING: {sorted(MODULE_PENDING - big)}"
+
+
+def test_functions_are_short() -> None:
+    long = set()
+    for p in SOURCES.values():
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno is not None:
+                if node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES:
+                    long.add(f"{p.relative_to(ROOT)}:{node.name}")
+    assert long - FUNCTION_PENDING == set(), sorted(long - FUNCTION_PENDING)
+    assert FUNCTION_PENDING - long == set(), f"mended, remove from FUNCTION_PENDING: {sorted(FUNCTION_PENDING - long)}"
+
+
+def _commented(lines: list[str], i: int) -> bool:
+    """A comment on line ``i``, or above it within the run of import and comment lines it belongs to."""
+    if "#" in lines[i]:
+        return True
+    j = i - 1
+    while j >= 0:
+        text = lines[j].strip()
+        if text.startswith("#"):
+            return True
+        if not (text.startswith(("import ", "from ")) or text.endswith((",", "(")) or text == ")"):
+            return False
+        j -= 1
+    return False
+
+
+def test_deferred_imports_say_why() -> None:
+    """An import inside a function defers a heavy library for start-up; a comment on its line or the line above says which and why."""
+    silent = set()
+    for module, path in SOURCES.items():
+        lines = path.read_text().splitlines()
+        for _, stmt, nested in _imports(module):
+            if nested:
+                if not _commented(lines, stmt.lineno - 1):
+                    silent.add(f"{path.relative_to(ROOT)}:{stmt.lineno}")
+    assert silent - DEFERRED_PENDING == set(), sorted(silent - DEFERRED_PENDING)
+    assert DEFERRED_PENDING - silent == set(), "mended, remove from DEFERRED_PENDING"
