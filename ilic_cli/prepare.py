@@ -5,7 +5,7 @@ data-quality warnings, the saturation masking and the contiguous parts
 between gaps of the time stamps are worked out once and the same way for
 each. The rules:
 
-* **rate**: the log's nominal rate (:func:`ilic_cli.quality.nominal_rate_hz`:
+* **rate**: the log's nominal rate (:func:`ilic_cli.timebase.nominal_rate_hz`:
   the mean step over the log, gaps left out, rounded to a round rate within
   0.05 %), so that stamp jitter of a fixed-rate loop averages out;
 * **gaps** (steps above 1.5 periods): identification filters, differentiates
@@ -13,14 +13,14 @@ each. The rules:
   (IDIM-LS stacks their rows, IDIM-ILIC drops the windows a gap cuts);
   ``diagnose`` and ``replay`` refuse such a log (a closed-loop replay cannot
   span a gap);
-* **irregular sampling** (:func:`ilic_cli.quality.sampling_kind`): the
+* **irregular sampling** (:func:`ilic_cli.timebase.sampling_kind`): the
   samples of a fixed-rate loop whose stamps only jitter are kept, and the
   stamps are put back on the loop's grid (:func:`restamped`): the samples
   were taken on time, so time-based work (a delay's shift, the sample hold,
   a replay) must not read the jitter as timing; a log sampled
   irregularly is interpolated linearly onto a uniform grid at its mean rate,
   within each part between gaps (:func:`to_uniform_grid`), and a warning
-  says so and states the rule (:data:`ilic_cli.quality.SAMPLING_RULE`);
+  says so and states the rule (:data:`ilic_cli.timebase.SAMPLING_RULE`);
 * **saturation**: samples on the plateau of a saturated drive are masked;
 * **rest**: samples where the axis stands still are masked too
   (:func:`ilic_cli.idim_ls.with_rest`, the rule :data:`ilic_cli.idim_ls.REST_RULE`):
@@ -40,8 +40,9 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.errors import LogError, ParameterError
-from ilic_cli.quality import SAMPLING_RULE, assess_log, clock_deviation, irregular_grid, nominal_rate_hz, sampling_kind, saturation_mask, segments
+from ilic_cli.quality import assess_log, saturation_mask
 from ilic_cli.runlog import RunLog
+from ilic_cli.timebase import SAMPLING_RULE, clock_deviation, irregular_grid, nominal_rate_hz, sampling_kind, segments
 
 
 @dataclass(frozen=True)
@@ -197,7 +198,7 @@ def to_uniform_grid(log: RunLog, rate_hz: float, parts: tuple[tuple[int, int], .
 def resample(log: RunLog, rate_hz: float) -> RunLog:
     """Return ``log`` on a uniform grid at ``rate_hz`` (``ilic convert --resample``).
 
-    A fixed-rate loop whose stamps only jitter (:func:`ilic_cli.quality.sampling_kind`)
+    A fixed-rate loop whose stamps only jitter (:func:`ilic_cli.timebase.sampling_kind`)
     at ``rate_hz`` keeps its samples and is restamped on the uniform grid:
     interpolating between jittered stamps would distort samples taken on
     time. Any other log is interpolated linearly (:func:`to_uniform_grid`)

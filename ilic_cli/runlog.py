@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.errors import LogError
-from ilic_cli.quality import nominal_rate_hz
+from ilic_cli.timebase import nominal_rate_hz
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -105,7 +105,7 @@ class RunLog:
 
     @property
     def dt_s(self) -> float:
-        """Nominal sample period (s): from ``sample_rate_hz``, else :func:`ilic_cli.quality.nominal_rate_hz` of the stamps."""
+        """Nominal sample period (s): from ``sample_rate_hz``, else :func:`ilic_cli.timebase.nominal_rate_hz` of the stamps."""
         rate = self.meta.get("sample_rate_hz")
         if rate:
             return 1.0 / float(rate)

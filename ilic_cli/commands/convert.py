@@ -41,7 +41,7 @@ def command(
     columns: str | None,
 ) -> None:
     """Read IN, optionally resample, write OUT atomically (never over IN)."""
-    from ilic_cli.quality import sampling_kind  # deferred: numpy; `ilic convert --help` stays instant
+    from ilic_cli.timebase import sampling_kind  # deferred: numpy; `ilic convert --help` stays instant
 
     if same_path(source, target):
         raise LogError(target, "output would overwrite the input; choose another output path")

@@ -37,7 +37,8 @@ def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
         ``scenario``, ``true_parameters``, ``joint``, ``meta`` (the rest) and
         ``quality`` (:meth:`QualityReport.to_dict`).
     """
-    from ilic_cli.quality import assess_log, nominal_rate_hz  # deferred: numpy; `ilic info --help` stays instant
+    from ilic_cli.quality import assess_log  # deferred: numpy; `ilic info --help` stays instant
+    from ilic_cli.timebase import nominal_rate_hz  # deferred: numpy; `ilic info --help` stays instant
 
     meta = log.meta
     rate = meta.get("sample_rate_hz")

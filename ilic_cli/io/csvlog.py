@@ -31,8 +31,8 @@ import numpy as np
 
 from ilic_cli.errors import LogError
 from ilic_cli.io.rosjson import dump_json, meta_for_writing, parse_json_object
-from ilic_cli.quality import TIME_UNITS, nominal_rate_hz, time_unit
 from ilic_cli.runlog import RunLog
+from ilic_cli.timebase import TIME_UNITS, nominal_rate_hz, time_unit
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -266,7 +266,7 @@ def _log(channels: dict[str, np.ndarray], units: dict[str, str], meta: dict[str,
       (``--columns``), else from the first name of :data:`ALIASES` present
       (any case); the choice is recorded in ``meta["columns"]``;
     * the time is in seconds: the declared unit (``# units: t=ns`` or a name
-      such as ``time_ns``) or :func:`ilic_cli.quality.time_unit`'s (the rule is
+      such as ``time_ns``) or :func:`ilic_cli.timebase.time_unit`'s (the rule is
       recorded in ``meta["time_unit"]``).
 
     ilic's own CSV files keep their names, and are in seconds.

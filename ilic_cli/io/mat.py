@@ -20,7 +20,7 @@ any other      same name           e.g. ``qd_ref``, ``qdd_ref``
 
 Reading a file without ``ilic_meta`` (the EMPS recordings) derives the
 metadata: ``sample_rate_hz`` (nominal, see
-:func:`ilic_cli.quality.nominal_rate_hz`), ``drive_gain`` and the PD
+:func:`ilic_cli.timebase.nominal_rate_hz`), ``drive_gain`` and the PD
 ``controller``. Files written by ilic carry ``ilic_meta``/``ilic_units`` and
 read back to the same channels, units and metadata bit for bit. Writing uses
 zlib compression and a fixed file header text, so the same log gives the same
@@ -160,8 +160,8 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     RunLog
         With ``tau = gtau * vir`` unless the file has a ``tau`` variable.
     """
-    from ilic_cli.quality import nominal_rate_hz
     from ilic_cli.runlog import RunLog
+    from ilic_cli.timebase import nominal_rate_hz
 
     data = {k: v for k, v in _load(path).items() if not k.startswith("__")}
     for required in ("t", "qm"):

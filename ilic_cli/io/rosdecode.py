@@ -381,8 +381,8 @@ def _effort(source: Collected, selection: Selection, path: Path) -> tuple[str, s
 
 
 def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunLog:
-    from ilic_cli.quality import nominal_rate_hz
     from ilic_cli.runlog import RunLog
+    from ilic_cli.timebase import nominal_rate_hz
 
     topic = _choose_state_topic(source, selection, path)
     states = _joint_state_series(source, topic, selection.joint, path, strict=False)

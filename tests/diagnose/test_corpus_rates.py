@@ -120,7 +120,7 @@ def test_stamp_jitter_is_not_read_as_timing() -> None:
     the clean stamps. At +-0.3 ms the steps scatter over 0.4-1.6 periods: read by the steps alone, the log was
     irregular sampling, interpolated between the noisy stamps, and the replay of that log diverged (t = 4.4 s; on a
     clean EMPS-reference log it named a flexibility). The stamps are within 0.3 periods of one clock
-    (:func:`ilic_cli.quality.jittered_clock`), so they are restamped as at +-0.2 ms.
+    (:func:`ilic_cli.timebase.jittered_clock`), so they are restamped as at +-0.2 ms.
     """
     case = CASES["delay-multisine-sensor-s250"]
     log = build_case(case)

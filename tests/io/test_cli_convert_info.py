@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ilic_cli import quality
+from ilic_cli import quality, timebase
 from ilic_cli.io import read_log, write_log
 from ilic_cli.runlog import RunLog
 from tests.clirun import run_cli
@@ -187,20 +187,20 @@ def test_help_lists_convert_and_info() -> None:
 )
 def test_nominal_rate(step: float, expected: float) -> None:
     t = np.arange(200) * step
-    assert quality.nominal_rate_hz(t) == pytest.approx(expected, rel=1e-9)
+    assert timebase.nominal_rate_hz(t) == pytest.approx(expected, rel=1e-9)
 
 
 def test_nominal_rate_needs_two_samples() -> None:
-    assert quality.nominal_rate_hz(np.array([0.0])) is None
+    assert timebase.nominal_rate_hz(np.array([0.0])) is None
 
 
 def test_gaps_and_jitter() -> None:
     t = np.arange(1000) * 0.001
     t[500:] += 0.003  # 3 samples dropped in one gap
-    stats = quality.sampling_stats(t)
+    stats = timebase.sampling_stats(t)
     assert stats["gaps"] == 1 and stats["dropped_samples"] == 3 and stats["irregular"] is True
     assert stats["jitter"] < 1e-9
-    clean = quality.sampling_stats(np.arange(1000) * 0.001)
+    clean = timebase.sampling_stats(np.arange(1000) * 0.001)
     assert clean["gaps"] == 0 and clean["irregular"] is False
 
 

@@ -16,9 +16,9 @@ from ilic_cli.identify import identify
 from ilic_cli.idim_ls import LSSettings, idim_ls, prepare
 from ilic_cli.io import read_log, write_log
 from ilic_cli.lsq import solve
-from ilic_cli.quality import nominal_rate_hz, segments
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
+from ilic_cli.timebase import nominal_rate_hz, segments
 from tests.clirun import run_cli
 
 M_PUBLISHED = 95.1089
@@ -333,7 +333,7 @@ def test_stamps_within_04_periods_of_one_clock_are_a_fixed_rate_loop_whatever_th
     sampling, interpolated).
     """
     from ilic_cli.prepare import prepare_log
-    from ilic_cli.quality import gap_starts, jittered_clock, sampling_kind
+    from ilic_cli.timebase import gap_starts, jittered_clock, sampling_kind
 
     n = 6000
     k = np.arange(n)
