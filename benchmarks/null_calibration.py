@@ -68,9 +68,9 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
     from ilic_cli.diagnosis.select import Searcher, Step, at_edge, fit_system, moving_rows, system
     from ilic_cli.effects import EFFECTS, applicable, catalogue_ids
     from ilic_cli.idim_ls import LSSettings
-    from ilic_cli.parameters import joint_type
     from ilic_cli.prepare import prepare_log
     from ilic_cli.regressor import get_model
+    from ilic_cli.runlog import joint_type
     from plant.corpus import build_case, score
 
     case = CASES[name] if name in CASES else extra_clean_case(name)

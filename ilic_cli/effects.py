@@ -215,7 +215,7 @@ class Effect:
         plant effects that realise the estimate (:meth:`plant_entries`;
         default: this effect with its own parameters).
     joints : tuple of str
-        The joint types (:func:`ilic_cli.parameters.joint_type`) diagnosis
+        The joint types (:func:`ilic_cli.runlog.joint_type`) diagnosis
         proposes it on (``gravity``: a revolute joint only).
     """
 

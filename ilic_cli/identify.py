@@ -290,7 +290,7 @@ def identify(
         warnings=list(prepared.warnings),
         effects=effects,
         joint=log.meta.get("joint"),
-        joint_type=parameters.joint_type(log.units.get("q")),
+        joint_type=log.sensor.joint_type,
         method=method,
         usable=usable_rows(prepared, ls_settings),
     )

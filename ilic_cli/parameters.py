@@ -89,26 +89,6 @@ DEFAULTS = {"M": 95.0, "Fv": 200.0, "Fc": 20.0, "offset": 0.0}
 """The plant's default rigid parameters (paper section VI-E)."""
 
 
-ROTARY_UNITS = frozenset({"rad", "radian", "radians"})
-"""Position units of a revolute joint."""
-
-
-def joint_type(position_unit: str | None) -> str:
-    """``revolute`` for a position in radians, else ``prismatic`` (the EMPS, the default)."""
-    return "revolute" if (position_unit or "").strip().lower() in ROTARY_UNITS else "prismatic"
-
-
-VERTICAL_KEYS = ("vertical", "axis_vertical")
-"""Log metadata that says a prismatic axis moves along the vertical (a true value): its constant force is the load's weight."""
-
-
-def vertical(meta: Mapping[str, object]) -> bool:
-    """Whether the log's metadata says the axis is vertical (:data:`VERTICAL_KEYS`, or ``orientation: vertical``)."""
-    if str(meta.get("orientation", "")).strip().lower() == "vertical":
-        return True
-    return any(meta.get(k) is True or str(meta.get(k, "")).strip().lower() in ("1", "true", "yes") for k in VERTICAL_KEYS)
-
-
 def weight(constant_N: float, std_N: float | None = None) -> dict[str, tuple[float, float | None, str]]:
     """The constant force of a vertical axis as the weight it is: ``weight = M·g`` (N) and the implied mass (kg), with standard deviations.
 

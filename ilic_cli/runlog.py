@@ -18,11 +18,17 @@ Metadata keys (all optional)
 ``controller`` dict with ``kind`` (``"pd"``, ``"ctc"``) and its gains;
 ``true_parameters`` dict when simulated; ``scenario`` and ``simulation``
 dicts written by ``ilic simulate``; ``source`` the file it was read from;
-``joint`` the joint name.
+``joint`` the joint name; ``vertical`` (or ``orientation: vertical``) a vertical axis.
+
+The library reads the metadata through three typed views, never by key: :attr:`RunLog.controller`
+(:class:`Controller`: the loop that ran and its drive gain), :attr:`RunLog.sensor` (:class:`Sensor`: the
+joint, its type and units, the declared rate) and :attr:`RunLog.provenance` (:class:`Provenance`: where
+the samples come from). The dictionary stays the serialised form the readers fill and the writers store.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -51,6 +57,125 @@ DEFAULT_UNITS: dict[str, str] = {
 """Units assumed for the standard channels when a file does not say."""
 
 CANONICAL_ORDER: tuple[str, ...] = ("t", "q", "qd", "q_ref", "qd_ref", "qdd_ref", "tau", "vir", "pulses")
+
+ROTARY_UNITS = frozenset({"rad", "radian", "radians"})
+"""Position units of a revolute joint."""
+
+VERTICAL_KEYS = ("vertical", "axis_vertical")
+"""Log metadata that says a prismatic axis moves along the vertical (a true value): its constant force is the load's weight."""
+
+
+def joint_type(position_unit: str | None) -> str:
+    """``revolute`` for a position in radians, else ``prismatic`` (the EMPS, the default)."""
+    return "revolute" if (position_unit or "").strip().lower() in ROTARY_UNITS else "prismatic"
+
+
+def vertical(meta: Mapping[str, object]) -> bool:
+    """Whether the log's metadata says the axis is vertical (:data:`VERTICAL_KEYS`, or ``orientation: vertical``)."""
+    if str(meta.get("orientation", "")).strip().lower() == "vertical":
+        return True
+    return any(meta.get(k) is True or str(meta.get(k, "")).strip().lower() in ("1", "true", "yes") for k in VERTICAL_KEYS)
+
+
+def _number(value: Any) -> float | None:
+    """``float(value)``, or None for a missing or non-numeric value."""
+    try:
+        return None if value is None or isinstance(value, bool) else float(value)
+    except (TypeError, ValueError):
+        return None
+
+
+@dataclass(frozen=True)
+class Controller:
+    """The loop that ran, as the log records it (``meta["controller"]`` and ``meta["drive_gain"]``).
+
+    ``kind`` is ``"pd"``, ``"ctc"``, another recorded name, or ``""`` when the log gives gains without a kind.
+    ``kp`` (1/s) and ``kv`` (V·s/m or V·s/rad) are the PD gains (top-level ``kp``/``kv`` keys are read too);
+    ``drive_gain`` the force per volt of the command (N/V or N·m/V; the controller's ``gtau`` when no top-level key);
+    ``settings`` every recorded key as it is (the CTC's settings, ``vmax``, ``pulse_input``, ``delay_samples``).
+    """
+
+    kind: str
+    kp: float | None = None
+    kv: float | None = None
+    drive_gain: float | None = None
+    settings: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_meta(cls, meta: Mapping[str, Any]) -> Controller | None:
+        """The controller of metadata ``meta``; None when it records none (no ``controller`` entry)."""
+        ctl = meta.get("controller")
+        if not ctl:
+            return None
+        doc = dict(ctl) if isinstance(ctl, Mapping) else {"kind": str(ctl)}
+        return cls(
+            kind=str(doc.get("kind", "")).lower(),
+            kp=_number(doc.get("kp", meta.get("kp"))),
+            kv=_number(doc.get("kv", meta.get("kv"))),
+            drive_gain=_number(meta.get("drive_gain", doc.get("gtau"))),
+            settings=doc,
+        )
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """What the samples measure: the joint (name, type from the position unit, vertical or not), the units and the declared rate."""
+
+    joint: str | None
+    joint_type: str
+    vertical: bool
+    position_unit: str
+    force_unit: str
+    sample_rate_hz: float | None
+    drive_gain: float | None
+
+    @classmethod
+    def of(cls, units: Mapping[str, str], meta: Mapping[str, Any]) -> Sensor:
+        """The sensor view of a log's ``units`` and ``meta``."""
+        q_unit = units.get("q", DEFAULT_UNITS["q"])
+        return cls(
+            joint=None if meta.get("joint") is None else str(meta["joint"]),
+            joint_type=joint_type(q_unit),
+            vertical=vertical(meta),
+            position_unit=q_unit,
+            force_unit=units.get("tau", DEFAULT_UNITS["tau"]),
+            sample_rate_hz=_number(meta.get("sample_rate_hz")),
+            drive_gain=_number(meta.get("drive_gain")),
+        )
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where the samples come from: the file read (``source``), a simulation's scenario and true parameters, a replay's source."""
+
+    source: str | None
+    scenario: Mapping[str, Any] | None = None
+    simulation: Mapping[str, Any] | None = None
+    true_parameters: Mapping[str, float] | None = None
+    replay_of: str | None = None
+    model_file: str | None = None
+    machine: str | None = None
+    start_time_ns: int | None = None
+
+    @classmethod
+    def from_meta(cls, meta: Mapping[str, Any]) -> Provenance:
+        """The provenance view of metadata ``meta``."""
+
+        def text(key: str) -> str | None:
+            value = meta.get(key)
+            return None if value is None else str(value)
+
+        start = meta.get("start_time_ns")
+        return cls(
+            source=text("source"),
+            scenario=meta.get("scenario"),
+            simulation=meta.get("simulation"),
+            true_parameters=meta.get("true_parameters"),
+            replay_of=text("replay_of"),
+            model_file=text("model_file"),
+            machine=text("machine"),
+            start_time_ns=None if start is None else int(start),
+        )
 
 
 @dataclass
@@ -97,6 +222,21 @@ class RunLog:
             return self.channels[name]
         except KeyError:
             raise LogError(self.meta.get("source"), f"missing required channel '{name}'") from None
+
+    @property
+    def controller(self) -> Controller | None:
+        """The loop that ran (:class:`Controller`), None when the log records none."""
+        return Controller.from_meta(self.meta)
+
+    @property
+    def sensor(self) -> Sensor:
+        """What the samples measure (:class:`Sensor`)."""
+        return Sensor.of(self.units, self.meta)
+
+    @property
+    def provenance(self) -> Provenance:
+        """Where the samples come from (:class:`Provenance`)."""
+        return Provenance.from_meta(self.meta)
 
     @property
     def t(self) -> np.ndarray:

@@ -17,9 +17,8 @@ from ilic_cli.diagnosis.locate import Region, locate
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import relative_error_pct
-from ilic_cli.parameters import joint_type
 from ilic_cli.prepare import tau_sensor
-from ilic_cli.runlog import RunLog
+from ilic_cli.runlog import RunLog, joint_type
 from plant.controllers import PDSettings
 from plant.replay import simulate_replay
 

@@ -43,10 +43,10 @@ from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.idim_ls import IDIMData, LSSettings, UsableRows, prepare, usable_rows, with_rest
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
-from ilic_cli.parameters import PARAMETERS, joint_type, structure_of, vertical, weight
+from ilic_cli.parameters import PARAMETERS, structure_of, weight
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
-from ilic_cli.runlog import RunLog
+from ilic_cli.runlog import RunLog, joint_type, vertical
 
 
 @dataclass(frozen=True)
@@ -153,7 +153,7 @@ class Diagnosis:
     usable: UsableRows | None = None
     """The rows every fit of the log uses (the rule for samples at rest, as ``identify``'s); ``rows_total`` of them, ``rows_used`` beyond the timing rows."""
     joint: str = "prismatic"
-    """``prismatic`` or ``revolute`` (:func:`ilic_cli.parameters.joint_type`): the units the report writes."""
+    """``prismatic`` or ``revolute`` (:func:`ilic_cli.runlog.joint_type`): the units the report writes."""
 
     @property
     def conclusion(self) -> str:

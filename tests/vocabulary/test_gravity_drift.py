@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ilic_cli import effects as fx
-from ilic_cli import parameters
+from ilic_cli import parameters, runlog
 from ilic_cli.effects import EFFECTS, make_effects
 from ilic_cli.regressor import GRAVITY_COLUMNS, Kinematics, get_model
 from plant import kernel
@@ -51,7 +51,7 @@ def test_gravity_estimates_read_back_as_first_moments() -> None:
 
 
 def test_gravity_is_proposed_on_a_revolute_joint_only() -> None:
-    assert parameters.joint_type("rad") == "revolute" and parameters.joint_type("m") == "prismatic"
+    assert runlog.joint_type("rad") == "revolute" and runlog.joint_type("m") == "prismatic"
     assert "gravity" in fx.catalogue_ids("revolute") and "gravity" not in fx.catalogue_ids("prismatic")
     assert fx.catalogue_ids("prismatic") == tuple(i for i in fx.catalogue_ids() if i != "gravity")
     assert "spring" in fx.catalogue_ids("revolute")  # both are tried there: the data choose
@@ -84,8 +84,8 @@ def test_drift_law_warms_up_exponentially_and_wears_linearly() -> None:
 
 
 def test_a_vertical_axis_constant_force_is_a_weight() -> None:
-    assert parameters.vertical({"vertical": True}) and parameters.vertical({"orientation": "Vertical"}) and parameters.vertical({"axis_vertical": "yes"})
-    assert not parameters.vertical({}) and not parameters.vertical({"vertical": False})
+    assert runlog.vertical({"vertical": True}) and runlog.vertical({"orientation": "Vertical"}) and runlog.vertical({"axis_vertical": "yes"})
+    assert not runlog.vertical({}) and not runlog.vertical({"vertical": False})
     w = parameters.weight(117.68, 0.49)
     assert w["weight"] == (117.68, 0.49, "N")
     assert w["implied_mass"][0] == pytest.approx(12.0, rel=1e-4) and w["implied_mass"][1] == pytest.approx(0.05, rel=1e-3) and w["implied_mass"][2] == "kg"
