@@ -277,7 +277,8 @@ def _layer(module: str) -> int:
     best = (-1, -1)
     for rank, (_, prefixes) in enumerate(LAYERS):
         for prefix in prefixes:
-            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > best[1]:
+            covers = module == prefix or (prefix != "ilic_cli" and module.startswith(prefix + "."))  # the package's own __init__ only
+            if covers and len(prefix) > best[1]:
                 best = (rank, len(prefix))
     assert best[0] >= 0, f"{module} is in no layer: add it to LAYERS"
     return best[0]
