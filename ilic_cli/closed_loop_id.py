@@ -2,7 +2,7 @@
 
 Both start from the IDIM-LS estimate and, at each iteration ``k``, replay the
 log's reference through the log's own controller with the plant of the
-previous estimate ``theta_{k-1}`` (:func:`ilic_cli.diagnosis.compare.replay`),
+previous estimate ``theta_{k-1}`` (:func:`ilic_cli.simulation.replay.replay`),
 and build the IDIM regressor ``W_s`` on the simulated position with the same
 filtering, differentiation and parallel decimation as IDIM-LS
 (:func:`ilic_cli.idim_ls.prepare`):
@@ -151,7 +151,7 @@ class ClosedLoopResult:
     closed_loop_error_pct : dict
         Relative errors (%) of position, velocity and force of the replay
         with the final estimate against the log
-        (:func:`ilic_cli.diagnosis.compare.relative_errors`).
+        (:func:`ilic_cli.simulation.replay.relative_errors`).
     t, y, y_hat : ndarray
         Time of the decimated rows, measured force, and the final model's
         force on them (DIDIM: ``W_s theta``; IV: ``W theta``).
@@ -237,7 +237,7 @@ Simulator = Callable[[dict[str, float], dict[str, dict[str, float]]], RunLog]
 
 
 def _default_simulator(log: RunLog) -> Simulator:
-    from ilic_cli.diagnosis.compare import replay  # deferred: the plant pulls in numba
+    from ilic_cli.simulation.replay import replay  # deferred: the plant pulls in numba
 
     return lambda params, effects: replay(log, params, effects)
 
@@ -353,7 +353,7 @@ def closed_loop_identify(
     assert res is not None  # max_iterations >= 1
     if method == "didim":  # the criterion DIDIM minimises, at the final estimate
         res = replace(res, error_norm=eps, relative_error_pct=100.0 * eps / y_norm)
-    from ilic_cli.diagnosis.compare import relative_errors  # deferred: with the replay
+    from ilic_cli.simulation.replay import relative_errors  # deferred: with the replay
 
     return ClosedLoopResult(
         method=name,

@@ -28,7 +28,7 @@ from ilic_cli.regressor import Column, Model, get_model
 from ilic_cli.runlog import RunLog
 
 if TYPE_CHECKING:
-    from ilic_cli.diagnosis.timing import ControlTiming
+    from ilic_cli.simulation.timing import ControlTiming
 
 
 @dataclass(frozen=True)
@@ -266,7 +266,7 @@ def identify(
     pd_timing : {"recorded", "documented"}
         How DIDIM / IDIM-IV's replays time a PD log's command: as read from
         the recording with the IDIM-LS estimate
-        (:func:`ilic_cli.diagnosis.timing.recorded_loop`), or as the log's
+        (:func:`ilic_cli.simulation.timing.recorded_loop`), or as the log's
         metadata states it.
     """
     prepared = with_rest(prepare_log(log), ls_settings)  # the samples every method fits (no saturated drive, no standstill)
@@ -310,7 +310,7 @@ def identify(
             report.warnings.append("IDIM-LS: the observation matrix is rank-deficient; the trajectory does not excite every parameter")
     timed = prepared
     if (closed or method == "cloe") and pd_timing == "recorded":  # the loop that ran: its timing read with the IDIM-LS start
-        from ilic_cli.diagnosis.timing import recorded_loop  # deferred: with the replay
+        from ilic_cli.simulation.timing import recorded_loop  # deferred: with the replay
 
         assert report.ls is not None
         timed_log, report.timing = recorded_loop(log, *plant_of(model.names, report.ls.result.theta, effects), ls_settings)

@@ -364,7 +364,7 @@ def closed_loop_oe(
     drowns the other whatever their units.
     """
     if replay is None:
-        from ilic_cli.diagnosis.compare import replay as replay_log  # deferred: the plant pulls in numba (as DIDIM's replays)
+        from ilic_cli.simulation.replay import replay as replay_log  # deferred: the plant pulls in numba (as DIDIM's replays)
 
         def replay(params: dict[str, float], eff: dict[str, dict[str, float]]) -> RunLog:
             return replay_log(log, params, eff)

@@ -84,7 +84,6 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ilic_cli.closed_loop_id import ClosedLoopResult, closed_loop_identify, plant_of
-from ilic_cli.diagnosis.compare import replay
 from ilic_cli.diagnosis.segments import SegmentFit
 from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, extended, search_range
 from ilic_cli.diagnosis.stats import gls_covariance, lag1_autocorrelation
@@ -96,6 +95,7 @@ from ilic_cli.parallel import ordered_map
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.replay import replay
 
 METHOD = "DIDIM closed-loop refit"
 """The method the findings and the model file name when the refit is accepted."""
@@ -340,7 +340,7 @@ def closed_loop_refit(
     ls : LSSettings
         Filtering and decimation (as the inverse model).
     simulate : callable, optional
-        ``(rigid parameters, effects) -> simulated log``; default the replay of ``log`` (:func:`ilic_cli.diagnosis.compare.replay`).
+        ``(rigid parameters, effects) -> simulated log``; default the replay of ``log`` (:func:`ilic_cli.simulation.replay.replay`).
     inverse_fit : callable, optional
         The inverse model's fit of ``base + steps`` (:data:`InverseFit`). When DIDIM does not lower the
         output error, the nonlinear values are still searched on the closed loop, the linear parameters

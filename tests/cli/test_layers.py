@@ -72,10 +72,9 @@ MAX_FUNCTION_LINES = 100
 
 # (importer, imported) pairs that point upward, or out of plant/ into an estimator or io
 LAYER_PENDING: set[tuple[str, str]] = {
-    ("ilic_cli.closed_loop_id", "ilic_cli.diagnosis.compare"),
+    ("ilic_cli.closed_loop_id", "ilic_cli.simulation.replay"),
     ("ilic_cli.closed_loop_id", "plant.replay"),
-    ("ilic_cli.identify", "ilic_cli.diagnosis.timing"),
-    ("ilic_cli.output_error", "ilic_cli.diagnosis.compare"),
+    ("ilic_cli.output_error", "ilic_cli.simulation.replay"),
     ("ilic_cli.output_error", "plant.closed_loop"),
     ("ilic_cli.output_error", "plant.dynamics"),
     ("ilic_cli.output_error", "plant.replay"),

@@ -81,7 +81,7 @@ def test_diagnose_and_replay_refuse_a_gap(emps: RunLog, tmp_path: Path) -> None:
 def test_a_log_without_its_controller_is_refused_or_given_one(emps: RunLog, tmp_path: Path) -> None:
     """diagnose and replay use the controller the log records; without one they refuse unless the options give it,
     and the "held command" rule applies only to a log whose force is the recorded command."""
-    from ilic_cli.diagnosis.compare import tau_sensor
+    from ilic_cli.simulation.replay import tau_sensor
 
     bare = RunLog({k: emps[k] for k in ("t", "q", "tau", "q_ref")}, {}, {"source": "bare.csv"})
     assert tau_sensor(emps) == "command" and tau_sensor(bare) is None

@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.compare import relative_errors, replay
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.replay import relative_errors, replay
 from plant.controllers import PDSettings
 from plant.replay import controller_from_log
 
