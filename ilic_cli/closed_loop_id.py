@@ -5,7 +5,7 @@ log's reference through the log's own controller with the plant of the
 previous estimate ``theta_{k-1}`` (:func:`ilic_cli.simulation.replay.replay`),
 and build the IDIM regressor ``W_s`` on the simulated position with the same
 filtering, differentiation and parallel decimation as IDIM-LS
-(:func:`ilic_cli.idim_ls.prepare`):
+(:func:`ilic_cli.idim_ls.lsq_rows`):
 
 * **DIDIM** (Gautier, Janot, Vandanjon, IEEE TCST 21(2), 2013): the
   parameters minimise the error between the measured force and the force of
@@ -39,7 +39,7 @@ import numpy as np
 
 from ilic_cli.effects import EFFECTS, Fit
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
-from ilic_cli.idim_ls import LSSettings, prepare, with_rest
+from ilic_cli.idim_ls import LSSettings, lsq_rows, with_rest
 from ilic_cli.lsq import LSResult, finite_or_none, solve, solve_iv
 from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import PreparedLog, prepare_log
@@ -302,7 +302,7 @@ def closed_loop_identify(
     simulate = simulate or _default_simulator(log)
     t, tau, fs = log.t, log["tau"], prepared.fs_hz
     names = model.names
-    measured = prepare(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid)
+    measured = lsq_rows(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid)
     y = measured.y
 
     y_norm = float(np.linalg.norm(y))
@@ -313,7 +313,7 @@ def closed_loop_identify(
             sim = simulate(*plant_of(names, theta, effects, hold_s))
         except IlicError as exc:
             raise IdentificationError(src, f"{name} iteration {k}: the estimate cannot be simulated: {exc.problem}") from None
-        data = prepare(t, sim["q"], tau, fs, model, ls_settings, valid=prepared.valid)
+        data = lsq_rows(t, sim["q"], tau, fs, model, ls_settings, valid=prepared.valid)
         return sim, data.W, data.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls_settings.trim :])
 
     def residual(theta: np.ndarray, tau_s: np.ndarray) -> float:

@@ -316,7 +316,7 @@ def held(data: IDIMData, model: Model, shift_s: float) -> IDIMData:
     Parameters
     ----------
     data : IDIMData
-        Prepared with ``model`` (:func:`prepare`).
+        Prepared with ``model`` (:func:`lsq_rows`).
     model : Model
         The regressor of ``data.W``.
     shift_s : float
@@ -355,7 +355,7 @@ def rebuilt(data: IDIMData, model: Model, kin: Kinematics) -> IDIMData:
     return replace(data, kin=kin, W=np.ascontiguousarray(data.decimate(model.matrix(kin))), memo={})
 
 
-def prepare(
+def lsq_rows(
     t: np.ndarray,
     q: np.ndarray,
     tau: np.ndarray,
@@ -424,7 +424,7 @@ def _columns(model: Model, kin: Kinematics, *more: np.ndarray) -> Iterator[np.nd
 
 
 def min_samples(settings: LSSettings) -> int:
-    """Fewest samples :func:`prepare` takes (edge trim plus the decimation filter's padding)."""
+    """Fewest samples :func:`lsq_rows` takes (edge trim plus the decimation filter's padding)."""
     return settings.trim + 3 * settings.decimation * 9 + 1
 
 
@@ -449,7 +449,7 @@ def _systems(
     for a, b in spans:
         if b - a < min_samples(settings) and len(spans) > 1:
             continue
-        data = held(prepare(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, valid=None if valid is None else valid[a:b]), model, hold_s)
+        data = held(lsq_rows(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, valid=None if valid is None else valid[a:b]), model, hold_s)
         kept = np.ones(len(kept_indices(b - a - settings.trim, settings.decimation)), dtype=bool) if data.rows is None else data.rows
         parts.append((data.W, data.y, data.t_dec, kept))
     if not parts:
@@ -473,7 +473,7 @@ def idim_ls(
     """IDIM-LS estimate of ``model`` from measured position and force.
 
     ``valid`` (boolean, one per sample) masks samples such as a saturated
-    drive: the decimated rows they touch are left out (see :func:`prepare`).
+    drive: the decimated rows they touch are left out (see :func:`lsq_rows`).
     ``segments`` (``(start, stop)`` sample ranges between gaps of the time
     stamps): each is filtered, differentiated and decimated on its own, never
     across a gap, and their rows are solved together; the estimate equals that

@@ -39,7 +39,7 @@ from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit, applicable
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
-from ilic_cli.idim_ls import IDIMData, LSSettings, UsableRows, prepare, usable_rows, with_rest
+from ilic_cli.idim_ls import IDIMData, LSSettings, UsableRows, lsq_rows, usable_rows, with_rest
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, structure_of, weight
@@ -242,7 +242,7 @@ def _prepare(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMD
     """The IDIM system of ``prepared``, its regressor evaluated like the logged force (:func:`ilic_cli.diagnosis.baseline.held`)."""
     log = prepared.log
     try:
-        data = prepare(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
+        data = lsq_rows(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
     except ValueError as exc:
         raise IdentificationError(prepared.source, str(exc)) from None
     data = held(data, model, hold_s(tau_sensor(log), prepared.fs_hz))

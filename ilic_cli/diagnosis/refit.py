@@ -89,7 +89,7 @@ from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, extended, sea
 from ilic_cli.diagnosis.stats import gls_covariance, lag1_autocorrelation
 from ilic_cli.effects import Fit
 from ilic_cli.errors import IlicError, ParameterError
-from ilic_cli.idim_ls import LSSettings, prepare
+from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.lsq import finite_or_none, lstsq
 from ilic_cli.parallel import ordered_map
 from ilic_cli.prepare import PreparedLog
@@ -362,7 +362,7 @@ def closed_loop_refit(
     steps = [*known, *kept]
     names0 = extended(base, steps, prepared.fs_hz).names
     t, tau, fs = log.t, np.asarray(log["tau"], dtype=np.float64), prepared.fs_hz
-    recorded = prepare(t, log["q"], tau, fs, base, ls, valid=prepared.valid)
+    recorded = lsq_rows(t, log["q"], tau, fs, base, ls, valid=prepared.valid)
     y = recorded.y
     y_norm = float(np.linalg.norm(y))
     if problem := plant_problem(steps, names0, theta0):
@@ -375,7 +375,7 @@ def closed_loop_refit(
     def point(model_steps: list[Step], anchor: np.ndarray, sim: RunLog) -> _Point:
         """One DIDIM step from ``anchor``, whose replay is ``sim``."""
         names = extended(base, model_steps, fs).names
-        d = prepare(t, sim["q"], tau, fs, extended(base, model_steps, fs), ls, valid=prepared.valid)
+        d = lsq_rows(t, sim["q"], tau, fs, extended(base, model_steps, fs), ls, valid=prepared.valid)
         r = y - d.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
         delta, rss = lstsq(d.W, r)
         at_anchor = 100.0 * float(np.linalg.norm(r)) / y_norm
@@ -519,7 +519,7 @@ def closed_loop_refit(
             ]
     model = extended(base, chosen, fs)
     theta = res0.result.theta
-    d = prepare(t, sim["q"], tau, fs, model, ls, valid=prepared.valid)
+    d = lsq_rows(t, sim["q"], tau, fs, model, ls, valid=prepared.valid)
     tau_s = d.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
     out.accepted, out.steps, out.names, out.theta, out.didim, out.simulated = True, chosen[len(known) :], model.names, theta, res0, sim
     out.cov = gls_covariance(d.W, y - tau_s + d.W @ theta, theta)

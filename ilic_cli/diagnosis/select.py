@@ -465,7 +465,7 @@ def forward_select(
     Parameters
     ----------
     data : IDIMData
-        The fitting log, prepared with ``base`` (:func:`ilic_cli.idim_ls.prepare`).
+        The fitting log, prepared with ``base`` (:func:`ilic_cli.idim_ls.lsq_rows`).
     base : Model
         The starting regressor.
     fs_hz : float
