@@ -39,8 +39,10 @@ import numpy as np
 
 from ilic_cli.effects import EFFECTS, Fit
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
+from ilic_cli.estimators.base import LoopSimulator
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import LSSettings, lsq_rows, with_rest
-from ilic_cli.lsq import LSResult, finite_or_none, solve, solve_iv
+from ilic_cli.lsq import LSResult, finite_or_none, relative_error_pct, solve, solve_iv
 from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import Model
@@ -151,7 +153,7 @@ class ClosedLoopResult:
     closed_loop_error_pct : dict
         Relative errors (%) of position, velocity and force of the replay
         with the final estimate against the log
-        (:func:`ilic_cli.simulation.replay.relative_errors`).
+        (:func:`relative_errors`).
     t, y, y_hat : ndarray
         Time of the decimated rows, measured force, and the final model's
         force on them (DIDIM: ``W_s theta``; IV: ``W theta``).
@@ -220,11 +222,33 @@ def plant_of(
     return rigid, out
 
 
-def require_closed_loop(log: RunLog, source: str, what: str) -> None:
-    """Refuse a log ``what`` (DIDIM, IDIM-IV) cannot simulate: no recorded controller, or no reference."""
-    from plant.replay import records_controller  # deferred: the plant pulls in numba
+def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float]:
+    """Relative errors (%) of position, velocity and force of ``sim`` against ``rec`` (first ``trim`` samples dropped).
 
-    if not records_controller(log):
+    The benchmark's simulation table: position, and velocity from the filtered position (as IDIM-LS); force
+    ``100 ||tau_sim - tau|| / ||tau||``.
+    """
+    fs = rec.fs_hz
+    n = min(len(rec), len(sim))
+    s = slice(ls.trim, n)
+
+    def vel(q: np.ndarray) -> np.ndarray:
+        return central_difference(butter_lowpass_zero_phase(q[:n], ls.cutoff_hz, fs, ls.order, matlab=ls.matlab), 1.0 / fs)
+
+    return {
+        "position": relative_error_pct(rec["q"][s], sim["q"][s]),
+        "velocity": relative_error_pct(vel(rec["q"])[s], vel(sim["q"])[s]),
+        "force": relative_error_pct(rec["tau"][s], sim["tau"][s]),
+    }
+
+
+def require_closed_loop(log: RunLog, source: str, what: str) -> None:
+    """Refuse a log ``what`` (DIDIM, IDIM-IV, CLOE) cannot simulate: no recorded controller, or no reference.
+
+    The log records its controller when its metadata names one (:attr:`ilic_cli.runlog.RunLog.controller`) or it
+    holds the PD command ``vir`` (the rule of :func:`plant.replay.records_controller`).
+    """
+    if log.controller is None and "vir" not in log:
         raise IdentificationError(
             source, f"{what} needs the loop that ran: the log records no controller (its kind and gains, or the PD command vir with kp, kv and drive gain)"
         )
@@ -236,10 +260,13 @@ Simulator = Callable[[dict[str, float], dict[str, dict[str, float]]], RunLog]
 """``(rigid parameters, effects) -> simulated log`` on the recorded log's time base."""
 
 
-def _default_simulator(log: RunLog) -> Simulator:
-    from ilic_cli.simulation.replay import replay  # deferred: the plant pulls in numba
-
-    return lambda params, effects: replay(log, params, effects)
+def _simulator_of(log: RunLog, simulate: Simulator | None, loop: LoopSimulator | None) -> Simulator:
+    """``simulate``, else the replay of ``log`` through its own controller by ``loop``."""
+    if simulate is not None:
+        return simulate
+    if loop is None:
+        raise ParameterError("loop", None, "a loop simulator (ilic_cli.simulation.loop.PLANT_LOOP) or a simulate function")
+    return lambda params, effects: loop.replay(log, params, effects)
 
 
 def closed_loop_identify(
@@ -254,6 +281,7 @@ def closed_loop_identify(
     prepared: PreparedLog | None = None,
     simulate: Simulator | None = None,
     hold_s: float = 0.0,
+    loop: LoopSimulator | None = None,
 ) -> ClosedLoopResult:
     """DIDIM (``method="didim"``) or IDIM-IV (``"iv"``) of ``model`` on ``log``, from ``theta0``.
 
@@ -282,7 +310,9 @@ def closed_loop_identify(
         ``prepare_log(log)`` when the caller has it.
     simulate : callable, optional
         ``(params, effects) -> simulated log``; default the replay of ``log``
-        through its own controller.
+        through its own controller by ``loop``.
+    loop : LoopSimulator, optional
+        The loop simulation (:class:`ilic_cli.estimators.base.LoopSimulator`); needed without ``simulate``.
 
     Raises
     ------
@@ -299,7 +329,7 @@ def closed_loop_identify(
     src = prepared.source
     require_closed_loop(log, src, name)
     prepared.require_contiguous(name)
-    simulate = simulate or _default_simulator(log)
+    simulate = _simulator_of(log, simulate, loop)
     t, tau, fs = log.t, log["tau"], prepared.fs_hz
     names = model.names
     measured = lsq_rows(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid)
@@ -353,8 +383,6 @@ def closed_loop_identify(
     assert res is not None  # max_iterations >= 1
     if method == "didim":  # the criterion DIDIM minimises, at the final estimate
         res = replace(res, error_norm=eps, relative_error_pct=100.0 * eps / y_norm)
-    from ilic_cli.simulation.replay import relative_errors  # deferred: with the replay
-
     return ClosedLoopResult(
         method=name,
         model=model.name,
