@@ -41,12 +41,13 @@ from ilic_cli.effects import EFFECTS, Fit
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.estimators.base import LoopSimulator
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
-from ilic_cli.idim_ls import LSSettings, lsq_rows, with_rest
+from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.lsq import LSResult, finite_or_none, relative_error_pct, solve, solve_iv
 from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
+from ilic_cli.usable import with_rest
 
 METHODS = {"didim": "DIDIM", "iv": "IDIM-IV"}
 """Closed-loop methods: option value -> the name reports use."""

@@ -24,13 +24,14 @@ from ilic_cli.estimators.inverse import TRACKING_LIMIT, ilic_unusable
 from ilic_cli.estimators.output import OutputErrorFitSettings, inverse_model_error
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ilic import ILICResult, ILICSettings
-from ilic_cli.idim_ls import IDIMLSResult, LSSettings, UsableRows, cross_validate, identification_hold_s, usable_rows, with_rest
+from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate
 from ilic_cli.lsq import LSResult
 from ilic_cli.methods import CHOICES, METHODS, effect_methods, label, methods_of, model_method
 from ilic_cli.output_error import OEResult, OESettings
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.loop import PLANT_LOOP
+from ilic_cli.usable import UsableRows, identification_hold_s, usable_rows, with_rest
 
 if TYPE_CHECKING:
     from ilic_cli.simulation.timing import ControlTiming
@@ -80,7 +81,7 @@ class IdentifyReport:
     timing: ControlTiming | None = None
     """The PD loop's timing read from the recording for the closed-loop methods, if read."""
     usable: UsableRows | None = None
-    """The rows every method fits and the rule for samples at rest (:func:`ilic_cli.idim_ls.with_rest`)."""
+    """The rows every method fits and the rule for samples at rest (:func:`ilic_cli.usable.with_rest`)."""
 
     def fit(self, name: str) -> Fit | None:
         """The fit of method ``name`` (``ls``, ``ilic``, ...), if run."""

@@ -39,7 +39,7 @@ from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit, applicable
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
-from ilic_cli.idim_ls import IDIMData, LSSettings, UsableRows, lsq_rows, usable_rows, with_rest
+from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, structure_of, weight
@@ -48,6 +48,7 @@ from ilic_cli.regressor import MODELS, Model, get_model
 from ilic_cli.runlog import RunLog, joint_type, vertical
 from ilic_cli.simulation.replay import tau_sensor
 from ilic_cli.simulation.timing import ControlTiming, recorded_loop
+from ilic_cli.usable import UsableRows, usable_rows, with_rest
 
 
 @dataclass(frozen=True)

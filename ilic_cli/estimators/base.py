@@ -138,7 +138,7 @@ class Estimator(Protocol[SettingsT_contra]):
     """An identification method: ``fit(prepared, model, settings) -> Fit``.
 
     ``prepared``: the one prepared log (:func:`ilic_cli.prepare.prepare_log`, its rows at rest marked by
-    :func:`ilic_cli.idim_ls.with_rest`); ``model``: which parameters (:class:`ModelSpec`); ``settings``: the
+    :func:`ilic_cli.usable.with_rest`); ``model``: which parameters (:class:`ModelSpec`); ``settings``: the
     method's typed, frozen settings.
     """
 

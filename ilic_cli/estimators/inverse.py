@@ -15,10 +15,11 @@ from ilic_cli.closed_loop_id import plant_of
 from ilic_cli.errors import IdentificationError
 from ilic_cli.estimators.base import Fit, ModelSpec
 from ilic_cli.idim_ilic import ILICResult, ILICSettings, identify_ilic, tracking_error_ratio
-from ilic_cli.idim_ls import IDIMLSResult, LSSettings, identification_hold_s, idim_ls
+from ilic_cli.idim_ls import IDIMLSResult, LSSettings, idim_ls
 from ilic_cli.lsq import LSResult
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.runlog import RunLog
+from ilic_cli.usable import identification_hold_s
 
 Plant = tuple[dict[str, float], dict[str, dict[str, float]]]
 """Rigid parameters and effects, as a model file holds them."""

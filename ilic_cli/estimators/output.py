@@ -17,11 +17,12 @@ from ilic_cli.effects import get
 from ilic_cli.errors import IlicError
 from ilic_cli.estimators.base import Fit, LoopSimulator, ModelSpec, with_effects
 from ilic_cli.estimators.inverse import IDIMLS
-from ilic_cli.idim_ls import LSSettings, cross_validate, identification_hold_s
+from ilic_cli.idim_ls import LSSettings, cross_validate
 from ilic_cli.lsq import LSResult
 from ilic_cli.output_error import METHODS, OEResult, OESettings, closed_loop_oe, open_loop_oe
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.runlog import RunLog
+from ilic_cli.usable import identification_hold_s
 
 
 @dataclass(frozen=True)
