@@ -290,13 +290,9 @@ def closed_loop_identify(
     ----------
     method : {"didim", "iv"}
     log : RunLog
-        Needs ``t, q, tau, q_ref`` and its controller (``meta["controller"]``
-        or the PD command ``vir`` with its gains,
-        :func:`plant.replay.records_controller`); one contiguous recording.
+        Needs ``t, q, tau, q_ref`` and its controller (:func:`require_closed_loop`); one contiguous recording.
     model : Model
-        Regressor columns (a structure, possibly extended by effect columns
-        with :meth:`Model.extend`); the plant of each estimate is
-        :func:`plant_of`.
+        Regressor columns (a structure, possibly extended by effect columns); each estimate's plant is :func:`plant_of`.
     theta0 : ndarray
         Start, normally the IDIM-LS estimate of ``model``.
     effects : dict, optional
@@ -310,16 +306,14 @@ def closed_loop_identify(
     prepared : PreparedLog, optional
         ``prepare_log(log)`` when the caller has it.
     simulate : callable, optional
-        ``(params, effects) -> simulated log``; default the replay of ``log``
-        through its own controller by ``loop``.
+        ``(params, effects) -> simulated log``; default the replay of ``log`` through its own controller by ``loop``.
     loop : LoopSimulator, optional
         The loop simulation (:class:`ilic_cli.estimators.base.LoopSimulator`); needed without ``simulate``.
 
     Raises
     ------
     IdentificationError, LogError
-        No controller, no reference, a log with gaps, or an estimate that is
-        not a plant (e.g. a negative mass) during the iteration.
+        No controller, no reference, a log with gaps, or an estimate that is not a plant (a negative mass) on the way.
     """
     if method not in METHODS:
         raise ParameterError("method", method, f"one of {', '.join(METHODS)}")
@@ -331,11 +325,9 @@ def closed_loop_identify(
     require_closed_loop(log, src, name)
     prepared.require_contiguous(name)
     simulate = _simulator_of(log, simulate, loop)
-    t, tau, fs = log.t, log["tau"], prepared.fs_hz
-    names = model.names
+    t, tau, fs, names = log.t, log["tau"], prepared.fs_hz, model.names
     measured = lsq_rows(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid)
     y = measured.y
-
     y_norm = float(np.linalg.norm(y))
 
     def replay_at(theta: np.ndarray, k: int) -> tuple[RunLog, np.ndarray, np.ndarray]:
@@ -354,34 +346,14 @@ def closed_loop_identify(
     theta = np.asarray(theta0, dtype=np.float64)
     if theta.shape != (len(names),) or not np.all(np.isfinite(theta)):
         raise IdentificationError(src, f"{name} needs a finite start for {len(names)} parameters (the IDIM-LS estimate)")
-    sim, Ws, tau_s = replay_at(theta, 0)
-    eps = residual(theta, tau_s)
-    history = [Iteration(0, theta, eps, 100.0 * eps / y_norm)]
-    converged, reason = False, f"iteration limit ({settings.max_iterations}) reached"
-    res: LSResult | None = None
-    tol = settings.tolerance_pct
-    for k in range(1, settings.max_iterations + 1):
+
+    def step(Ws: np.ndarray, tau_s: np.ndarray, theta: np.ndarray) -> LSResult:
+        """DIDIM: the least squares of ``y - tau_s + W_s theta`` on ``W_s``; IDIM-IV: the instruments ``W_s``."""
         if method == "didim":
-            # Gauss-Newton on the output error with the Jacobian d tau_s / d theta ~= W_s:
-            # theta_k = theta_{k-1} + W_s^+ (y - tau_s), i.e. the LS of y - tau_s + W_s theta_{k-1} on W_s
-            res = solve(Ws, y - tau_s + Ws @ theta, names, sigma=ls_settings.sigma)
-        else:
-            res = solve_iv(Ws, measured.W, y, names, sigma=ls_settings.sigma)
-        new = res.theta
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dtheta = float(100.0 * np.max(np.abs(new - theta) / np.abs(theta)))
-        sim, Ws, tau_s = replay_at(new, k)
-        new_eps = residual(new, tau_s)
-        deps = 100.0 * abs(new_eps - eps) / eps if eps > 0 else 0.0
-        history.append(Iteration(k, new, new_eps, 100.0 * new_eps / y_norm, dtheta, deps))
-        theta, eps = new, new_eps
-        if deps < tol:
-            converged, reason = True, f"the residual norm moved by {deps:.3g} % (< {tol:g} %) at iteration {k}"
-            break
-        if dtheta < tol:
-            converged, reason = True, f"the largest relative parameter change was {dtheta:.3g} % (< {tol:g} %) at iteration {k}"
-            break
-    assert res is not None  # max_iterations >= 1
+            return solve(Ws, y - tau_s + Ws @ theta, names, sigma=ls_settings.sigma)
+        return solve_iv(Ws, measured.W, y, names, sigma=ls_settings.sigma)
+
+    history, res, theta, eps, sim, tau_s, converged, reason = _iterate(theta, replay_at, residual, step, y_norm, settings)
     if method == "didim":  # the criterion DIDIM minimises, at the final estimate
         res = replace(res, error_norm=eps, relative_error_pct=100.0 * eps / y_norm)
     return ClosedLoopResult(
@@ -398,3 +370,45 @@ def closed_loop_identify(
         y=y,
         y_hat=tau_s if method == "didim" else measured.W @ theta,
     )
+
+
+Step = Callable[[np.ndarray, np.ndarray, np.ndarray], LSResult]
+"""``(W_s, tau_s, theta_{k-1}) -> the linear step's estimate`` (DIDIM's Gauss-Newton least squares, IDIM-IV's IV)."""
+
+
+def _iterate(
+    theta: np.ndarray,
+    replay_at: Callable[[np.ndarray, int], tuple[RunLog, np.ndarray, np.ndarray]],
+    residual: Callable[[np.ndarray, np.ndarray], float],
+    step: Step,
+    y_norm: float,
+    settings: ClosedLoopSettings,
+) -> tuple[list[Iteration], LSResult, np.ndarray, float, RunLog, np.ndarray, bool, str]:
+    """The iteration from ``theta`` (the module's stop rule): history, last step's estimate, last theta and residual norm,
+    last replay and its force, converged, why it stopped."""
+    sim, Ws, tau_s = replay_at(theta, 0)
+    eps = residual(theta, tau_s)
+    history = [Iteration(0, theta, eps, 100.0 * eps / y_norm)]
+    converged, reason = False, f"iteration limit ({settings.max_iterations}) reached"
+    res: LSResult | None = None
+    tol = settings.tolerance_pct
+    for k in range(1, settings.max_iterations + 1):
+        # DIDIM: Gauss-Newton on the output error with the Jacobian d tau_s / d theta ~= W_s:
+        # theta_k = theta_{k-1} + W_s^+ (y - tau_s), i.e. the LS of y - tau_s + W_s theta_{k-1} on W_s; IDIM-IV: Z = W_s
+        res = step(Ws, tau_s, theta)
+        new = res.theta
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dtheta = float(100.0 * np.max(np.abs(new - theta) / np.abs(theta)))
+        sim, Ws, tau_s = replay_at(new, k)
+        new_eps = residual(new, tau_s)
+        deps = 100.0 * abs(new_eps - eps) / eps if eps > 0 else 0.0
+        history.append(Iteration(k, new, new_eps, 100.0 * new_eps / y_norm, dtheta, deps))
+        theta, eps = new, new_eps
+        if deps < tol:
+            converged, reason = True, f"the residual norm moved by {deps:.3g} % (< {tol:g} %) at iteration {k}"
+            break
+        if dtheta < tol:
+            converged, reason = True, f"the largest relative parameter change was {dtheta:.3g} % (< {tol:g} %) at iteration {k}"
+            break
+    assert res is not None  # max_iterations >= 1
+    return history, res, theta, eps, sim, tau_s, converged, reason

@@ -98,7 +98,6 @@ MODULE_PENDING: set[str] = {
 }
 
 FUNCTION_PENDING: set[str] = {
-    "ilic_cli/closed_loop_id.py:closed_loop_identify",
     "ilic_cli/commands/identify.py:command",
     "ilic_cli/commands/simulate.py:command",
     "ilic_cli/diagnosis/core.py:diagnose",
@@ -108,7 +107,6 @@ FUNCTION_PENDING: set[str] = {
     "ilic_cli/diagnosis/report.py:to_markdown",
     "ilic_cli/diagnosis/select.py:forward_select",
     "ilic_cli/io/ros1fast.py:write",
-    "ilic_cli/lm.py:levenberg_marquardt",
     "ilic_cli/robot/kernel.py:inertial_regressor",
     "plant/closed_loop.py:simulate_loop",
     "plant/kernel.py:run_periods",
