@@ -134,6 +134,21 @@ def with_effects(structure: str, effects: dict[str, Any] | None, fs_hz: float) -
     return model.extend(*columns, name=structure + "".join(f"+{e}" for e in effects))
 
 
+def regressor_effects(effects: Mapping[str, Mapping[str, float]], mass: float, *, keep_all: bool = False) -> tuple[dict[str, Any], list[str]]:
+    """The nonlinear values of the columns of the plant effects ``effects`` (id -> plant parameters, as a model file holds
+    them) at the mass ``mass`` (:meth:`ilic_cli.effects.Effect.value_from_plant`), for :class:`ModelSpec`; and the effects
+    with no column (a time shift, a measurement effect), left out unless ``keep_all``."""
+    chosen: dict[str, Any] = {}
+    skipped: list[str] = []
+    for eid, values in effects.items():
+        effect = get(eid)
+        if not keep_all and not effect.columns:  # a time shift or a measurement effect: nothing to add to the regressor
+            skipped.append(eid)
+            continue
+        chosen[eid] = effect.value_from_plant(effect.values(values), mass)
+    return chosen, skipped
+
+
 class Estimator(Protocol[SettingsT_contra]):
     """An identification method: ``fit(prepared, model, settings) -> Fit``.
 
