@@ -12,12 +12,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from ilic_cli.closed_loop_id import METHODS as CLOSED_LOOP_LABELS
 from ilic_cli.estimators.base import Estimator, LoopSimulator
 from ilic_cli.estimators.closed_loop import ClosedLoop, ClosedLoopFitSettings
 from ilic_cli.estimators.inverse import IDIMILIC, IDIMLS
 from ilic_cli.estimators.output import OutputError, OutputErrorFitSettings
 from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
+from ilic_cli.output_error import METHODS as OUTPUT_ERROR_LABELS
 from ilic_cli.simulation.loop import PLANT_LOOP
 
 
@@ -84,7 +86,7 @@ METHODS: dict[str, Method] = {
         ),
         Method(
             "didim",
-            "DIDIM",
+            CLOSED_LOOP_LABELS["didim"],
             "closed-loop output error of the force, Gauss-Newton on replays of the loop, from IDIM-LS",
             ClosedLoopFitSettings,
             lambda loop: ClosedLoop("didim", loop),
@@ -93,7 +95,7 @@ METHODS: dict[str, Method] = {
         ),
         Method(
             "iv",
-            "IDIM-IV",
+            CLOSED_LOOP_LABELS["iv"],
             "instrumental variables from replays of the loop, from IDIM-LS",
             ClosedLoopFitSettings,
             lambda loop: ClosedLoop("iv", loop),
@@ -102,7 +104,7 @@ METHODS: dict[str, Method] = {
         ),
         Method(
             "oe",
-            "OE",
+            OUTPUT_ERROR_LABELS["oe"],
             "open-loop output error of the position, the recorded drive command in (docs/output-error.md)",
             OutputErrorFitSettings,
             lambda loop: OutputError("oe", loop),
@@ -111,7 +113,7 @@ METHODS: dict[str, Method] = {
         ),
         Method(
             "cloe",
-            "CLOE",
+            OUTPUT_ERROR_LABELS["cloe"],
             "closed-loop output error of the position (and force), the log's reference through its controller",
             OutputErrorFitSettings,
             lambda loop: OutputError("cloe", loop),
@@ -146,6 +148,11 @@ COMPOSITES: dict[str, Composite] = {
 CHOICES: tuple[str, ...] = ("ls", "ilic", "both", "didim", "iv", "all", "oe", "cloe")
 """Values of ``--method`` and of ``identify(method=...)``: the methods and the composites, in the help's order
 (every name of :data:`METHODS` and :data:`COMPOSITES`, checked by tests/identify/test_methods.py)."""
+
+
+def choices(*, output_error: bool = True) -> tuple[str, ...]:
+    """:data:`CHOICES`, without the output-error methods unless ``output_error`` (``ilic batch`` runs none)."""
+    return tuple(c for c in CHOICES if output_error or not any(METHODS[m].output_error for m in methods_of(c)))
 
 
 def methods_of(choice: str) -> tuple[str, ...]:

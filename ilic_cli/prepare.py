@@ -85,13 +85,13 @@ def tau_sensor(log: RunLog) -> str | None:
     (``--controller pd --drive-gain``: the force of that loop is its command);
     nothing is assumed for any other log.
     """
-    sensor = (log.meta.get("simulation") or {}).get("tau_sensor")
+    sensor = (log.provenance.simulation or {}).get("tau_sensor")
     if sensor:
         return str(sensor)
-    if not log.meta.get("drive_gain"):
+    if not log.sensor.drive_gain:
         return None
-    controller = log.meta.get("controller")
-    declared_pd = isinstance(controller, dict) and controller.get("kind") == "pd"
+    controller = log.controller
+    declared_pd = controller is not None and controller.kind == "pd"
     return "command" if "vir" in log or declared_pd else None
 
 
@@ -145,7 +145,8 @@ class PreparedLog:
 
     @property
     def source(self) -> str:
-        return str(self.log.meta.get("source", ""))
+        source = self.log.provenance.source
+        return "" if source is None else source
 
     @property
     def gap_samples(self) -> np.ndarray:

@@ -253,7 +253,8 @@ def with_recorded_timing(log: RunLog, timing: ControlTiming | None) -> RunLog:
     """
     if timing is None or not timing.mismatch or timing.best is None:
         return log
-    controller = {**(log.meta.get("controller") or {}), "kind": "pd", "delay_samples": float(timing.best)}
+    recorded = log.controller
+    controller = {**(recorded.settings if recorded is not None else {}), "kind": "pd", "delay_samples": float(timing.best)}
     return RunLog(dict(log.channels), dict(log.units), {**log.meta, "controller": controller})
 
 
