@@ -95,27 +95,27 @@ class IdentifyReport:
     # the methods' own results, by name: views over :attr:`fits` for the renderers and callers
     @property
     def ls(self) -> IDIMLSResult | None:
-        return self.result("ls")  # type: ignore[no-any-return]
+        return self.result("ls")
 
     @property
     def ilic(self) -> ILICResult | None:
-        return self.result("ilic")  # type: ignore[no-any-return]
+        return self.result("ilic")
 
     @property
     def didim(self) -> ClosedLoopResult | None:
-        return self.result("didim")  # type: ignore[no-any-return]
+        return self.result("didim")
 
     @property
     def iv(self) -> ClosedLoopResult | None:
-        return self.result("iv")  # type: ignore[no-any-return]
+        return self.result("iv")
 
     @property
     def oe(self) -> OEResult | None:
-        return self.result("oe")  # type: ignore[no-any-return]
+        return self.result("oe")
 
     @property
     def cloe(self) -> OEResult | None:
-        return self.result("cloe")  # type: ignore[no-any-return]
+        return self.result("cloe")
 
     def closed_loop(self) -> list[ClosedLoopResult]:
         """The results of the closed-loop methods that iterate on the inverse model (DIDIM, IDIM-IV), in the registry's order."""

@@ -157,8 +157,10 @@ class Estimator(Protocol[SettingsT_contra]):
     method's typed, frozen settings.
     """
 
-    name: str
-    """The registry name (``ls``, ``ilic``, ...)."""
+    @property
+    def name(self) -> str:
+        """The registry name (``ls``, ``ilic``, ...)."""
+        ...
 
     def fit(self, prepared: PreparedLog, model: ModelSpec, settings: SettingsT_contra) -> Fit: ...
 

@@ -124,7 +124,10 @@ class IDIMILIC:
             cov = np.full((len(nan), len(nan)), np.nan)
             return Fit(self.name, "IDIM-ILIC", res.names, nan, cov, nan, nan, float("nan"), None, 0, {"windows": 0}, tuple(warnings), ({}, {}), res)
         last = res.windows[-1]
-        essential = ({n: float(v) for n, v, e in zip(last.result.names, last.result.theta, last.essential, strict=True) if e}, {})
+        essential: tuple[dict[str, float], dict[str, dict[str, float]]] = (
+            {n: float(v) for n, v, e in zip(last.result.names, last.result.theta, last.essential, strict=True) if e},
+            {},
+        )
         return ls_fit(
             self.name,
             "IDIM-ILIC",
