@@ -61,7 +61,6 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
 
     from ilic_cli.diagnosis import dwell
     from ilic_cli.diagnosis.baseline import hold_s
-    from ilic_cli.diagnosis.compare import tau_sensor
     from ilic_cli.diagnosis.core import _prepare, diagnose, effect_fit, model_parameters
     from ilic_cli.diagnosis.decide import materiality, replay_decide
     from ilic_cli.diagnosis.null import MonteCarloNull, reproposed
@@ -71,6 +70,7 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
     from ilic_cli.prepare import prepare_log
     from ilic_cli.regressor import get_model
     from ilic_cli.runlog import joint_type
+    from ilic_cli.simulation.replay import tau_sensor
     from plant.corpus import build_case, score
 
     case = CASES[name] if name in CASES else extra_clean_case(name)

@@ -51,12 +51,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from ilic_cli.diagnosis import segments  # noqa: E402
-from ilic_cli.diagnosis.compare import replay  # noqa: E402
 from ilic_cli.diagnosis.decide import band_force_error  # noqa: E402
 from ilic_cli.filtering import decimate_matlab  # noqa: E402
 from ilic_cli.idim_ls import LSSettings  # noqa: E402
 from ilic_cli.parallel import ordered_map  # noqa: E402
 from ilic_cli.runlog import RunLog  # noqa: E402
+from ilic_cli.simulation.replay import replay  # noqa: E402
 from plant.closed_loop import simulate_segments  # noqa: E402
 from plant.corpus import CASES, Case, build_case, case_of, reseeded  # noqa: E402
 from plant.dynamics import plant_model  # noqa: E402

@@ -2,10 +2,10 @@
 
 Both start from the IDIM-LS estimate and, at each iteration ``k``, replay the
 log's reference through the log's own controller with the plant of the
-previous estimate ``theta_{k-1}`` (:func:`ilic_cli.diagnosis.compare.replay`),
+previous estimate ``theta_{k-1}`` (:func:`ilic_cli.simulation.replay.replay`),
 and build the IDIM regressor ``W_s`` on the simulated position with the same
 filtering, differentiation and parallel decimation as IDIM-LS
-(:func:`ilic_cli.idim_ls.prepare`):
+(:func:`ilic_cli.idim_ls.lsq_rows`):
 
 * **DIDIM** (Gautier, Janot, Vandanjon, IEEE TCST 21(2), 2013): the
   parameters minimise the error between the measured force and the force of
@@ -39,12 +39,15 @@ import numpy as np
 
 from ilic_cli.effects import EFFECTS, Fit
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
-from ilic_cli.idim_ls import LSSettings, prepare, with_rest
-from ilic_cli.lsq import LSResult, finite_or_none, solve, solve_iv
+from ilic_cli.estimators.base import LoopSimulator
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.idim_ls import LSSettings, lsq_rows
+from ilic_cli.lsq import LSResult, finite_or_none, relative_error_pct, solve, solve_iv
 from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
+from ilic_cli.usable import with_rest
 
 METHODS = {"didim": "DIDIM", "iv": "IDIM-IV"}
 """Closed-loop methods: option value -> the name reports use."""
@@ -151,7 +154,7 @@ class ClosedLoopResult:
     closed_loop_error_pct : dict
         Relative errors (%) of position, velocity and force of the replay
         with the final estimate against the log
-        (:func:`ilic_cli.diagnosis.compare.relative_errors`).
+        (:func:`relative_errors`).
     t, y, y_hat : ndarray
         Time of the decimated rows, measured force, and the final model's
         force on them (DIDIM: ``W_s theta``; IV: ``W theta``).
@@ -220,11 +223,33 @@ def plant_of(
     return rigid, out
 
 
-def require_closed_loop(log: RunLog, source: str, what: str) -> None:
-    """Refuse a log ``what`` (DIDIM, IDIM-IV) cannot simulate: no recorded controller, or no reference."""
-    from plant.replay import records_controller  # deferred: the plant pulls in numba
+def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float]:
+    """Relative errors (%) of position, velocity and force of ``sim`` against ``rec`` (first ``trim`` samples dropped).
 
-    if not records_controller(log):
+    The benchmark's simulation table: position, and velocity from the filtered position (as IDIM-LS); force
+    ``100 ||tau_sim - tau|| / ||tau||``.
+    """
+    fs = rec.fs_hz
+    n = min(len(rec), len(sim))
+    s = slice(ls.trim, n)
+
+    def vel(q: np.ndarray) -> np.ndarray:
+        return central_difference(butter_lowpass_zero_phase(q[:n], ls.cutoff_hz, fs, ls.order, matlab=ls.matlab), 1.0 / fs)
+
+    return {
+        "position": relative_error_pct(rec["q"][s], sim["q"][s]),
+        "velocity": relative_error_pct(vel(rec["q"])[s], vel(sim["q"])[s]),
+        "force": relative_error_pct(rec["tau"][s], sim["tau"][s]),
+    }
+
+
+def require_closed_loop(log: RunLog, source: str, what: str) -> None:
+    """Refuse a log ``what`` (DIDIM, IDIM-IV, CLOE) cannot simulate: no recorded controller, or no reference.
+
+    The log records its controller when its metadata names one (:attr:`ilic_cli.runlog.RunLog.controller`) or it
+    holds the PD command ``vir`` (the rule of :func:`plant.replay.records_controller`).
+    """
+    if log.controller is None and "vir" not in log:
         raise IdentificationError(
             source, f"{what} needs the loop that ran: the log records no controller (its kind and gains, or the PD command vir with kp, kv and drive gain)"
         )
@@ -236,10 +261,13 @@ Simulator = Callable[[dict[str, float], dict[str, dict[str, float]]], RunLog]
 """``(rigid parameters, effects) -> simulated log`` on the recorded log's time base."""
 
 
-def _default_simulator(log: RunLog) -> Simulator:
-    from ilic_cli.diagnosis.compare import replay  # deferred: the plant pulls in numba
-
-    return lambda params, effects: replay(log, params, effects)
+def _simulator_of(log: RunLog, simulate: Simulator | None, loop: LoopSimulator | None) -> Simulator:
+    """``simulate``, else the replay of ``log`` through its own controller by ``loop``."""
+    if simulate is not None:
+        return simulate
+    if loop is None:
+        raise ParameterError("loop", None, "a loop simulator (ilic_cli.simulation.loop.PLANT_LOOP) or a simulate function")
+    return lambda params, effects: loop.replay(log, params, effects)
 
 
 def closed_loop_identify(
@@ -254,6 +282,7 @@ def closed_loop_identify(
     prepared: PreparedLog | None = None,
     simulate: Simulator | None = None,
     hold_s: float = 0.0,
+    loop: LoopSimulator | None = None,
 ) -> ClosedLoopResult:
     """DIDIM (``method="didim"``) or IDIM-IV (``"iv"``) of ``model`` on ``log``, from ``theta0``.
 
@@ -261,13 +290,9 @@ def closed_loop_identify(
     ----------
     method : {"didim", "iv"}
     log : RunLog
-        Needs ``t, q, tau, q_ref`` and its controller (``meta["controller"]``
-        or the PD command ``vir`` with its gains,
-        :func:`plant.replay.records_controller`); one contiguous recording.
+        Needs ``t, q, tau, q_ref`` and its controller (:func:`require_closed_loop`); one contiguous recording.
     model : Model
-        Regressor columns (a structure, possibly extended by effect columns
-        with :meth:`Model.extend`); the plant of each estimate is
-        :func:`plant_of`.
+        Regressor columns (a structure, possibly extended by effect columns); each estimate's plant is :func:`plant_of`.
     theta0 : ndarray
         Start, normally the IDIM-LS estimate of ``model``.
     effects : dict, optional
@@ -281,14 +306,14 @@ def closed_loop_identify(
     prepared : PreparedLog, optional
         ``prepare_log(log)`` when the caller has it.
     simulate : callable, optional
-        ``(params, effects) -> simulated log``; default the replay of ``log``
-        through its own controller.
+        ``(params, effects) -> simulated log``; default the replay of ``log`` through its own controller by ``loop``.
+    loop : LoopSimulator, optional
+        The loop simulation (:class:`ilic_cli.estimators.base.LoopSimulator`); needed without ``simulate``.
 
     Raises
     ------
     IdentificationError, LogError
-        No controller, no reference, a log with gaps, or an estimate that is
-        not a plant (e.g. a negative mass) during the iteration.
+        No controller, no reference, a log with gaps, or an estimate that is not a plant (a negative mass) on the way.
     """
     if method not in METHODS:
         raise ParameterError("method", method, f"one of {', '.join(METHODS)}")
@@ -299,12 +324,10 @@ def closed_loop_identify(
     src = prepared.source
     require_closed_loop(log, src, name)
     prepared.require_contiguous(name)
-    simulate = simulate or _default_simulator(log)
-    t, tau, fs = log.t, log["tau"], prepared.fs_hz
-    names = model.names
-    measured = prepare(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid)
+    simulate = _simulator_of(log, simulate, loop)
+    t, tau, fs, names = log.t, log["tau"], prepared.fs_hz, model.names
+    measured = lsq_rows(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid)
     y = measured.y
-
     y_norm = float(np.linalg.norm(y))
 
     def replay_at(theta: np.ndarray, k: int) -> tuple[RunLog, np.ndarray, np.ndarray]:
@@ -313,7 +336,7 @@ def closed_loop_identify(
             sim = simulate(*plant_of(names, theta, effects, hold_s))
         except IlicError as exc:
             raise IdentificationError(src, f"{name} iteration {k}: the estimate cannot be simulated: {exc.problem}") from None
-        data = prepare(t, sim["q"], tau, fs, model, ls_settings, valid=prepared.valid)
+        data = lsq_rows(t, sim["q"], tau, fs, model, ls_settings, valid=prepared.valid)
         return sim, data.W, data.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls_settings.trim :])
 
     def residual(theta: np.ndarray, tau_s: np.ndarray) -> float:
@@ -323,6 +346,46 @@ def closed_loop_identify(
     theta = np.asarray(theta0, dtype=np.float64)
     if theta.shape != (len(names),) or not np.all(np.isfinite(theta)):
         raise IdentificationError(src, f"{name} needs a finite start for {len(names)} parameters (the IDIM-LS estimate)")
+
+    def step(Ws: np.ndarray, tau_s: np.ndarray, theta: np.ndarray) -> LSResult:
+        """DIDIM: the least squares of ``y - tau_s + W_s theta`` on ``W_s``; IDIM-IV: the instruments ``W_s``."""
+        if method == "didim":
+            return solve(Ws, y - tau_s + Ws @ theta, names, sigma=ls_settings.sigma)
+        return solve_iv(Ws, measured.W, y, names, sigma=ls_settings.sigma)
+
+    history, res, theta, eps, sim, tau_s, converged, reason = _iterate(theta, replay_at, residual, step, y_norm, settings)
+    if method == "didim":  # the criterion DIDIM minimises, at the final estimate
+        res = replace(res, error_norm=eps, relative_error_pct=100.0 * eps / y_norm)
+    return ClosedLoopResult(
+        method=name,
+        model=model.name,
+        result=res,
+        settings=settings,
+        ls_settings=ls_settings,
+        iterations=tuple(history),
+        converged=converged,
+        stop_reason=reason,
+        closed_loop_error_pct=relative_errors(log, sim, ls_settings),
+        t=measured.t_dec,
+        y=y,
+        y_hat=tau_s if method == "didim" else measured.W @ theta,
+    )
+
+
+Step = Callable[[np.ndarray, np.ndarray, np.ndarray], LSResult]
+"""``(W_s, tau_s, theta_{k-1}) -> the linear step's estimate`` (DIDIM's Gauss-Newton least squares, IDIM-IV's IV)."""
+
+
+def _iterate(
+    theta: np.ndarray,
+    replay_at: Callable[[np.ndarray, int], tuple[RunLog, np.ndarray, np.ndarray]],
+    residual: Callable[[np.ndarray, np.ndarray], float],
+    step: Step,
+    y_norm: float,
+    settings: ClosedLoopSettings,
+) -> tuple[list[Iteration], LSResult, np.ndarray, float, RunLog, np.ndarray, bool, str]:
+    """The iteration from ``theta`` (the module's stop rule): history, last step's estimate, last theta and residual norm,
+    last replay and its force, converged, why it stopped."""
     sim, Ws, tau_s = replay_at(theta, 0)
     eps = residual(theta, tau_s)
     history = [Iteration(0, theta, eps, 100.0 * eps / y_norm)]
@@ -330,12 +393,9 @@ def closed_loop_identify(
     res: LSResult | None = None
     tol = settings.tolerance_pct
     for k in range(1, settings.max_iterations + 1):
-        if method == "didim":
-            # Gauss-Newton on the output error with the Jacobian d tau_s / d theta ~= W_s:
-            # theta_k = theta_{k-1} + W_s^+ (y - tau_s), i.e. the LS of y - tau_s + W_s theta_{k-1} on W_s
-            res = solve(Ws, y - tau_s + Ws @ theta, names, sigma=ls_settings.sigma)
-        else:
-            res = solve_iv(Ws, measured.W, y, names, sigma=ls_settings.sigma)
+        # DIDIM: Gauss-Newton on the output error with the Jacobian d tau_s / d theta ~= W_s:
+        # theta_k = theta_{k-1} + W_s^+ (y - tau_s), i.e. the LS of y - tau_s + W_s theta_{k-1} on W_s; IDIM-IV: Z = W_s
+        res = step(Ws, tau_s, theta)
         new = res.theta
         with np.errstate(divide="ignore", invalid="ignore"):
             dtheta = float(100.0 * np.max(np.abs(new - theta) / np.abs(theta)))
@@ -351,21 +411,4 @@ def closed_loop_identify(
             converged, reason = True, f"the largest relative parameter change was {dtheta:.3g} % (< {tol:g} %) at iteration {k}"
             break
     assert res is not None  # max_iterations >= 1
-    if method == "didim":  # the criterion DIDIM minimises, at the final estimate
-        res = replace(res, error_norm=eps, relative_error_pct=100.0 * eps / y_norm)
-    from ilic_cli.diagnosis.compare import relative_errors  # deferred: with the replay
-
-    return ClosedLoopResult(
-        method=name,
-        model=model.name,
-        result=res,
-        settings=settings,
-        ls_settings=ls_settings,
-        iterations=tuple(history),
-        converged=converged,
-        stop_reason=reason,
-        closed_loop_error_pct=relative_errors(log, sim, ls_settings),
-        t=measured.t_dec,
-        y=y,
-        y_hat=tau_s if method == "didim" else measured.W @ theta,
-    )
+    return history, res, theta, eps, sim, tau_s, converged, reason

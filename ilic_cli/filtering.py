@@ -9,7 +9,7 @@ aligned on the end of the record.
 Everything here is NumPy (``import scipy.signal`` alone costs about a
 second of start-up): the filters are designed by SciPy's algorithms
 (analog prototype, pre-warping, bilinear transform, pole-zero pairing into
-second-order sections) and the linear recursion runs blockwise
+second-order sections) and the linear recursion runs blockwise (the designs: :mod:`ilic_cli.filter_design`)
 (:func:`_run`). ``tests/unit/test_filtering_scipy.py`` checks every
 function against ``scipy.signal``.
 """
@@ -23,98 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ilic_cli.filter_design import bilinear_ba, butter_ba, butter_sos, cheby1_ba
 from ilic_cli.parallel import ordered_map
-
-
-# ---------------------------------------------------------------------------
-# filter design (SciPy's algorithms in NumPy: importing scipy.signal costs ~1 s)
-# ---------------------------------------------------------------------------
-def _lowpass_zpk(poles: np.ndarray, gain: float, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """Digital low-pass ``(z, p, k)`` from an analog prototype with no zeros, cut-off ``wn`` (fraction of Nyquist).
-
-    Pre-warping, low-pass scaling and bilinear transform at ``fs = 2`` (``scipy.signal.iirfilter``).
-    """
-    if not 0.0 < wn < 1.0:
-        raise ValueError(f"normalised cut-off {wn} must lie strictly between 0 and 1")
-    warped = 4.0 * math.tan(math.pi * wn / 2.0)
-    p = warped * poles
-    k = gain * warped ** len(p)
-    z_d = -np.ones(len(p))
-    p_d = (4.0 + p) / (4.0 - p)
-    k_d = k * float(np.real(1.0 / np.prod(4.0 - p)))
-    return z_d, p_d, k_d
-
-
-def _butter_zpk(order: int, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """Butterworth low-pass of ``order`` (analog prototype ``scipy.signal.buttap``)."""
-    m = np.arange(-order + 1, order, 2)
-    return _lowpass_zpk(-np.exp(1j * math.pi * m / (2 * order)), 1.0, wn)
-
-
-def _cheby1_zpk(order: int, ripple_db: float, wn: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """Chebyshev type I low-pass (analog prototype ``scipy.signal.cheb1ap``)."""
-    eps = math.sqrt(10 ** (0.1 * ripple_db) - 1.0)
-    mu = math.asinh(1 / eps) / order
-    theta = math.pi * np.arange(-order + 1, order, 2) / (2 * order)
-    p = -np.sinh(mu + 1j * theta)
-    k = float(np.prod(-p).real)
-    if order % 2 == 0:
-        k = k / math.sqrt(1 + eps * eps)
-    return _lowpass_zpk(p, k, wn)
-
-
-def _zpk2tf(z: np.ndarray, p: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray]:
-    """Transfer-function coefficients ``(b, a)`` of ``(z, p, k)`` (conjugate pairs give real polynomials)."""
-    return k * np.real(np.poly(z)), np.real(np.poly(p))
-
-
-def _section(z: list[complex], p: list[complex]) -> np.ndarray:
-    """One second-order section ``[b0, b1, b2, 1, a1, a2]`` with unit gain (``scipy.signal`` ``_single_zpksos``)."""
-    sos = np.zeros(6)
-    b, a = _zpk2tf(np.array(z), np.array(p), 1.0)
-    sos[3 - len(b) : 3] = b
-    sos[6 - len(a) : 6] = a
-    return sos
-
-
-def _zpk2sos(z: np.ndarray, p: np.ndarray, k: float) -> np.ndarray:
-    """Second-order sections of a low-pass with real zeros (``scipy.signal.zpk2sos``, pairing ``nearest``).
-
-    Poles are taken from the closest to the unit circle, which go last, each
-    paired with its nearest zeros.
-    """
-    if len(p) % 2:
-        p, z = np.append(p, 0.0), np.append(z, 0.0)
-    n_sections = len(p) // 2
-    # one pole of each conjugate pair (sorted as scipy's _cplxreal), then the real poles
-    p = p[np.lexsort((abs(p.imag), p.real))]
-    is_real = abs(p.imag) <= 100 * np.finfo(float).eps * abs(p)
-    p = np.concatenate([(p[~is_real & (p.imag > 0)] + p[~is_real & (p.imag < 0)].conj()) / 2, p[is_real].real])
-    z = np.sort(z.real)
-    sos = np.zeros((n_sections, 6))
-    for si in range(n_sections - 1, -1, -1):
-        i = int(np.argmin(np.abs(1 - np.abs(p))))
-        p1, p = p[i], np.delete(p, i)
-        reals = np.flatnonzero(np.isreal(p))
-        if np.isreal(p1) and len(reals) == 0:
-            j = int(np.argmin(abs(z - p1)))
-            sos[si] = _section([z[j], 0], [p1, 0])
-            z = np.delete(z, j)
-            continue
-        if np.isreal(p1):
-            i2 = reals[int(np.argmin(np.abs(1 - np.abs(p[reals]))))]
-            p2, p = p[i2], np.delete(p, i2)
-        else:
-            p2 = np.conj(p1)
-        pair = []
-        for _ in range(2):
-            j = int(np.argsort(abs(z - p1), kind="stable")[0])
-            pair.append(z[j])
-            z = np.delete(z, j)
-        sos[si] = _section(pair, [p1, p2])
-    sos[0, :3] *= k
-    return sos
-
 
 # ---------------------------------------------------------------------------
 # linear recursion, blockwise (exact linear algebra, vectorised over blocks)
@@ -420,18 +330,6 @@ def filtfilt_matlab(b: np.ndarray, a: np.ndarray, x: np.ndarray, axis: int = 0, 
     return _in_threads(_filtfilt_rows(_tf_system(b, a), padlen), x, axis, keep)
 
 
-@functools.lru_cache(maxsize=32)
-def _butter_ba(order: int, wn: float) -> tuple[np.ndarray, np.ndarray]:
-    """Butterworth low-pass ``(b, a)`` (``scipy.signal.butter(order, wn)``; cached)."""
-    return _zpk2tf(*_butter_zpk(order, wn))
-
-
-@functools.lru_cache(maxsize=32)
-def _butter_sos(order: int, wn: float) -> np.ndarray:
-    """Butterworth low-pass in second-order sections (``scipy.signal.butter(order, wn, output="sos")``; cached: the online loop designs it every window)."""
-    return _zpk2sos(*_butter_zpk(order, wn))
-
-
 def _sos_system(sos: np.ndarray) -> System:
     """Second-order sections in series as one state-space filter (cached by the sections' bytes)."""
     return _sos_sections(np.asarray(sos, dtype=np.float64).tobytes())
@@ -441,12 +339,6 @@ def _sos_system(sos: np.ndarray) -> System:
 def _sos_sections(key: bytes) -> System:
     """:func:`_sos_system` of the sections stored in ``key``."""
     return _cascade([(row[:3], row[3:]) for row in np.frombuffer(key).reshape(-1, 6)])
-
-
-@functools.lru_cache(maxsize=32)
-def _cheby1_ba(order: int, ripple_db: float, wn: float) -> tuple[np.ndarray, np.ndarray]:
-    """Chebyshev type I low-pass ``(b, a)`` (``scipy.signal.cheby1(order, ripple_db, wn)``; cached)."""
-    return _zpk2tf(*_cheby1_zpk(order, ripple_db, wn))
 
 
 def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, order: int = 4, *, matlab: bool = True, axis: int = 0) -> np.ndarray:
@@ -469,8 +361,8 @@ def butter_lowpass_zero_phase(x: np.ndarray, cutoff_hz: float, fs_hz: float, ord
     if not 0.0 < wn < 1.0:
         raise ValueError(f"cut-off {cutoff_hz} Hz must lie between 0 and the Nyquist frequency {fs_hz / 2} Hz")
     if matlab:
-        return filtfilt_matlab(*_butter_ba(order, wn), x, axis=axis)
-    sos = _butter_sos(order, wn)
+        return filtfilt_matlab(*butter_ba(order, wn), x, axis=axis)
+    sos = butter_sos(order, wn)
     return _in_threads(_filtfilt_rows(_sos_system(sos), _sos_padlen(sos)), x, axis)
 
 
@@ -504,7 +396,7 @@ def decimate_matlab(x: np.ndarray, r: int, axis: int = 0) -> np.ndarray:
     """
     if r == 1:
         return np.asarray(x)
-    b, a = _cheby1_ba(8, 0.05, 0.8 / r)
+    b, a = cheby1_ba(8, 0.05, 0.8 / r)
     x = np.asarray(x)
     return filtfilt_matlab(b, a, x, axis=axis, keep=kept_indices(x.shape[axis], r))
 
@@ -517,7 +409,7 @@ def lowpass_decimate(x: np.ndarray, r: int, cutoff_hz: float, fs_hz: float, orde
     cut-offs (5 Hz at 1 kHz) where the transfer-function form is not. Kept
     samples are aligned on the end of the record, as :func:`decimate_matlab`.
     """
-    sos = _butter_sos(order, cutoff_hz / (fs_hz / 2.0))
+    sos = butter_sos(order, cutoff_hz / (fs_hz / 2.0))
     n = x.shape[axis]
     return _in_threads(_filtfilt_rows(_sos_system(sos), min(n - 1, 3 * (2 * len(sos) + 1))), x, axis, kept_indices(n, r))
 
@@ -529,36 +421,8 @@ def bilinear_lfilter(b_s: list[float], a_s: list[float], fs_hz: float, x: np.nda
     ``s`` is replaced by ``2 fs (z - 1)/(z + 1)`` (``scipy.signal.bilinear``).
     """
     y = np.array(x, dtype=np.float64).reshape(1, -1)
-    _steady_start(_tf_system(*_bilinear(tuple(b_s), tuple(a_s), float(fs_hz))), y)
+    _steady_start(_tf_system(*bilinear_ba(tuple(b_s), tuple(a_s), float(fs_hz))), y)
     return y.reshape(np.shape(x))
-
-
-@functools.lru_cache(maxsize=64)
-def _bilinear(b_s: tuple[float, ...], a_s: tuple[float, ...], fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Digital ``(b, a)`` of the analog ``B(s)/A(s)`` by the bilinear transform (``scipy.signal.bilinear``; cached).
-
-    ``sum_q c_q ((z + 1)/f)^(N - q) ((z - 1) f)^q`` with ``f = sqrt(2 fs)``, for
-    the numerator and the denominator, in ascending powers of ``z``.
-    """
-    b, a = np.trim_zeros(np.atleast_1d(np.asarray(b_s, dtype=float)), "f"), np.trim_zeros(np.atleast_1d(np.asarray(a_s, dtype=float)), "f")
-    fac = math.sqrt(fs_hz * 2)
-    zp1, zm1 = np.array([1.0, 1.0]) / fac, np.array([-1.0, 1.0]) * fac
-    n = max(len(a), len(b)) - 1
-
-    def power(c: np.ndarray, k: int) -> np.ndarray:
-        out = np.ones(1)
-        for _ in range(k):
-            out = np.convolve(out, c)
-        return out
-
-    def transformed(coef: np.ndarray) -> np.ndarray:
-        total = np.zeros(n + 1)
-        for q, c in enumerate(coef[::-1]):
-            total += c * np.convolve(power(zp1, n - q), power(zm1, q))
-        return total[::-1]
-
-    bz, az = transformed(b), transformed(a)
-    return bz / az[0], az / az[0]
 
 
 # ---------------------------------------------------------------------------

@@ -191,9 +191,7 @@ def _closed_loop_markdown(report: IdentifyReport) -> list[str]:
 def _output_error_markdown(report: IdentifyReport) -> list[str]:
     """OE / CLOE: the estimate beside its IDIM-LS start, the criterion and the stopping rule."""
     out: list[str] = []
-    for r in (report.oe, report.cloe):
-        if r is None:
-            continue
+    for r in report.output_errors():
         what = "open loop, the recorded drive command in" if r.method == "OE" else "closed loop, the log's reference through its controller"
         out += [f"## {r.method} (output error, {what})", ""]
         out += _table(

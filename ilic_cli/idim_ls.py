@@ -7,7 +7,7 @@ parallel decimation of the force and of every column, least squares with
 standard deviations (eq. 9) and relative standard deviations (eq. 10).
 With the defaults it reproduces the published EMPS tables to every digit.
 
-The rows every fit uses, the one definition (:func:`with_rest`, :data:`REST_RULE`): a
+The rows every fit uses, the one definition (:func:`ilic_cli.usable.with_rest`, :data:`ilic_cli.usable.REST_RULE`): a
 decimated row is left out when the drive saturates or the axis stands still
 anywhere in its span. A stuck axis carries any force within the static
 friction, so the sign of the Coulomb column is undefined there. A log without
@@ -25,7 +25,6 @@ import numpy as np
 
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference, decimate_matlab, kept_indices, lowpass_decimate
 from ilic_cli.lsq import LSResult, SigmaConvention, evaluate, solve
-from ilic_cli.prepare import PreparedLog, RestSamples
 from ilic_cli.regressor import Kinematics, Model
 
 
@@ -168,155 +167,13 @@ def valid_rows(valid: np.ndarray, r: int) -> np.ndarray:
     return (np.take(csum, hi, axis=-1) - np.take(csum, lo, axis=-1)) == 0
 
 
-STANDSTILL_FRACTION = 0.01
-"""A sample may be at rest when its filtered speed is below this fraction of the top speed (the 99.5th percentile)."""
-
-REST_MIN_S = 0.03
-"""Samples below that speed are at rest when they last at least this long (s): longer than a reversal takes to pass
-through the band (DATA_EMPS.mat's 31 reversals: 9 ms; the corpus's trapezoid ramps: 3 ms), shorter than any dwell a
-trajectory plans (the corpus's: 100 ms). In seconds, not samples: a reversal takes as long at any rate."""
-
-REST_RULE = (
-    f"a sample is at rest where the filtered speed stays below {100 * STANDSTILL_FRACTION:g} % of the top speed for at least "
-    f"{1e3 * REST_MIN_S:g} ms (a dwell; a reversal passes through faster), and so is every sample within the position filter's reach "
-    "(1/cutoff) of one; a decimated row whose span touches such a sample is left out of every fit: a stuck axis carries any force "
-    "within the static friction, so the sign of the Coulomb column is undefined there"
-)
-"""The rule for samples at rest, in words (the reports state it)."""
-
-
-def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(), segments: tuple[tuple[int, int], ...] | None = None) -> RestSamples:
-    """The samples of ``q`` at rest, by :data:`REST_RULE`; each contiguous part of ``segments`` on its own.
-
-    The speed is that of the fit (``settings``' position filter, central
-    differences); the top speed is each part's beyond the trimmed edge. A
-    part shorter than :func:`min_samples` is left as it is (IDIM-LS leaves it out).
-    """
-    q = np.asarray(q, dtype=np.float64)
-    mask = np.zeros(len(q), dtype=bool)
-    dwells, threshold = 0, 0.0
-    shortest = max(int(np.ceil(REST_MIN_S * fs_hz - 1e-9)), 1)
-    reach = int(round(fs_hz / settings.cutoff_hz))
-    for a, b in segments or ((0, len(q)),):
-        if b - a < min_samples(settings):
-            continue
-        qf = butter_lowpass_zero_phase(q[a:b], settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab)
-        speed = np.abs(central_difference(qf, 1.0 / fs_hz))
-        below = STANDSTILL_FRACTION * float(np.percentile(speed[settings.trim :], 99.5))
-        threshold = max(threshold, below)
-        edges = np.flatnonzero(np.diff(np.r_[0, (speed < below).astype(np.int8), 0]))
-        part = mask[a:b]
-        for start, stop in zip(edges[::2], edges[1::2], strict=True):
-            if stop - start >= shortest:  # a dwell, widened by the filter's reach
-                dwells += 1
-                part[max(start - reach, 0) : stop + reach] = True
-    return RestSamples(mask=mask, dwells=dwells, speed_threshold=threshold, rule=REST_RULE)
-
-
-def with_rest(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> PreparedLog:
-    """``prepared`` with its samples at rest masked (:func:`rest_samples` of the measured position), the one
-    definition of the samples every fit of the log uses (identify's methods and the diagnosis alike)."""
-    if prepared.rest is not None:
-        return prepared
-    return prepared.with_rest(rest_samples(prepared.log["q"], prepared.fs_hz, settings, prepared.segments))
-
-
-def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[int, int], ...] | None = None) -> tuple[int, int]:
-    """``(decimated rows, rows whose span touches a True sample of mask)`` over the parts IDIM-LS fits (:func:`_systems`)."""
-    spans = segments or ((0, len(mask)),)
-    total = touched = 0
-    for a, b in spans:
-        if b - a < min_samples(settings) and len(spans) > 1:
-            continue
-        part = np.asarray(mask[a:b], dtype=bool)[settings.trim :]
-        rows = valid_rows(~part, settings.decimation)
-        total += len(rows)
-        touched += int(np.count_nonzero(~rows))
-    return total, touched
-
-
-@dataclass(frozen=True)
-class UsableRows:
-    """The decimated rows of a log every fit uses, and why the others are left out (the one rule: :data:`REST_RULE`).
-
-    Attributes
-    ----------
-    decimated : int
-        Decimated rows of the log's contiguous parts.
-    at_rest : int
-        Rows whose span touches a sample at rest (:func:`rest_samples`).
-    saturated : int
-        Rows whose span touches a sample of a saturated drive.
-    usable : int
-        Rows left: those IDIM-LS fits (the diagnosis leaves out its timing rows beyond them).
-    rest : RestSamples or None
-        The samples at rest and the rule.
-    hold_s : float
-        How much later than each sample the regressor is evaluated (:func:`held`): half a period when the force
-        is the drive's held command and rows at rest are left out (:func:`identification_hold_s`), else 0.
-    """
-
-    decimated: int
-    at_rest: int
-    saturated: int
-    usable: int
-    rest: RestSamples | None
-    hold_s: float = 0.0
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "rule": REST_RULE,
-            "decimated_rows": self.decimated,
-            "rows_at_rest": self.at_rest,
-            "rows_saturated": self.saturated,
-            "usable_rows": self.usable,
-            "dwells": None if self.rest is None else self.rest.dwells,
-            "samples_at_rest": None if self.rest is None else self.rest.count,
-            "rest_speed_threshold": None if self.rest is None else self.rest.speed_threshold,
-            "regressor_delay_s": self.hold_s,
-            "force_timing": FORCE_TIMING_RULE,
-        }
-
-
-FORCE_TIMING_RULE = (
-    "a force that is the drive's command held over each period is the model's mean over it: the regressor is evaluated "
-    "half a period later when rows at rest are left out; the published procedure (a log without standstill) evaluates it "
-    "at the sample instants"
-)
-"""When identification evaluates the regressor half a period later (:func:`identification_hold_s`), in words."""
-
-
-def identification_hold_s(prepared: PreparedLog) -> float:
-    """How much later than each sample IDIM-LS evaluates the regressor of ``prepared`` (:data:`FORCE_TIMING_RULE`).
-
-    Half a period when the force is the drive's held command (:attr:`ilic_cli.prepare.PreparedLog.hold_s`) and
-    rows at rest are left out, else 0. Neglecting the hold leaves ``M T/2 dddq`` in the residual: over whole moves
-    it averages out (DATA_EMPS.mat: 0.1 % of M, the published tables), but every move that starts and ends at
-    rest starts and ends with a jerk of the same sign, so once its rows at rest are left out the term biases Fv and
-    Fc (measured on PD dwell-and-move logs at 250 Hz-8 kHz: up to 6 % at 1 kHz without it, within 1 % with it).
-    """
-    rest = prepared.rest
-    return prepared.hold_s if rest is not None and rest.count else 0.0
-
-
-def usable_rows(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> UsableRows:
-    """The :class:`UsableRows` of ``prepared`` (after :func:`with_rest`) under ``settings``."""
-    n = len(prepared.log)
-    segs = prepared.segments or ((0, n),)
-    none = np.zeros(n, dtype=bool)
-    total, at_rest = rows_left_out(none if prepared.rest is None else prepared.rest.mask, settings, segs)
-    _, saturated = rows_left_out(none if prepared.saturated is None else prepared.saturated, settings, segs)
-    _, unusable = rows_left_out(none if prepared.valid is None else ~prepared.valid, settings, segs)
-    return UsableRows(total, at_rest, saturated, total - unusable, prepared.rest, identification_hold_s(prepared))
-
-
 def held(data: IDIMData, model: Model, shift_s: float) -> IDIMData:
     """``data`` with ``model``'s regressor (and every effect column built later) evaluated ``shift_s`` later.
 
     Parameters
     ----------
     data : IDIMData
-        Prepared with ``model`` (:func:`prepare`).
+        Prepared with ``model`` (:func:`lsq_rows`).
     model : Model
         The regressor of ``data.W``.
     shift_s : float
@@ -355,7 +212,7 @@ def rebuilt(data: IDIMData, model: Model, kin: Kinematics) -> IDIMData:
     return replace(data, kin=kin, W=np.ascontiguousarray(data.decimate(model.matrix(kin))), memo={})
 
 
-def prepare(
+def lsq_rows(
     t: np.ndarray,
     q: np.ndarray,
     tau: np.ndarray,
@@ -424,7 +281,7 @@ def _columns(model: Model, kin: Kinematics, *more: np.ndarray) -> Iterator[np.nd
 
 
 def min_samples(settings: LSSettings) -> int:
-    """Fewest samples :func:`prepare` takes (edge trim plus the decimation filter's padding)."""
+    """Fewest samples :func:`lsq_rows` takes (edge trim plus the decimation filter's padding)."""
     return settings.trim + 3 * settings.decimation * 9 + 1
 
 
@@ -449,7 +306,7 @@ def _systems(
     for a, b in spans:
         if b - a < min_samples(settings) and len(spans) > 1:
             continue
-        data = held(prepare(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, valid=None if valid is None else valid[a:b]), model, hold_s)
+        data = held(lsq_rows(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, valid=None if valid is None else valid[a:b]), model, hold_s)
         kept = np.ones(len(kept_indices(b - a - settings.trim, settings.decimation)), dtype=bool) if data.rows is None else data.rows
         parts.append((data.W, data.y, data.t_dec, kept))
     if not parts:
@@ -473,7 +330,7 @@ def idim_ls(
     """IDIM-LS estimate of ``model`` from measured position and force.
 
     ``valid`` (boolean, one per sample) masks samples such as a saturated
-    drive: the decimated rows they touch are left out (see :func:`prepare`).
+    drive: the decimated rows they touch are left out (see :func:`lsq_rows`).
     ``segments`` (``(start, stop)`` sample ranges between gaps of the time
     stamps): each is filtered, differentiated and decimated on its own, never
     across a gap, and their rows are solved together; the estimate equals that

@@ -8,7 +8,7 @@ unidentifiable directions get an infinite standard deviation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -49,6 +49,9 @@ class LSResult:
     condition_number: float
     rows: int
     rank: int
+    cov: np.ndarray | None = field(default=None, compare=False, repr=False)
+    """Covariance of ``theta`` (``sigma_rho^2 (W'W)^-1``; the IV form for :func:`solve_iv`; ``inf`` along an unidentifiable
+    direction); ``None`` where it was not computed (:func:`evaluate`)."""
 
     @property
     def full_rank(self) -> bool:
@@ -159,15 +162,18 @@ def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: 
         sig = err_norm / np.sqrt(max(r - b, 1))
     # diag((W'W)^-1) = sum_i V[j,i]^2 / s_i^2 ; unidentifiable directions -> inf
     var_unit = np.einsum("kij,ki->kj", Vt**2, s_inv**2)
+    cov_unit = np.einsum("kij,ki,kil->kjl", Vt, s_inv**2, Vt)  # (W'W)^+ = V diag(1/s^2) V'
     rank = ok.sum(axis=1)
     results = []
     for k in range(K):
         std = sig[k] * np.sqrt(var_unit[k])
+        cov = sig[k] ** 2 * cov_unit[k]
         if rank[k] < b:
             # a parameter touching a null direction of W is not identifiable
             null = ~ok[k]
             touched = (np.abs(Vt[k][null]) > 1e-8).any(axis=0)
             std = np.where(touched, np.inf, std)
+            cov = np.where(touched[:, None] | touched[None, :], np.inf, cov)
         rel = relative_std_pct(theta[k], std)
         cond = float(s[k, 0] / s[k, -1]) if rank[k] == b else float("inf")
         results.append(
@@ -182,6 +188,7 @@ def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: 
                 condition_number=cond,
                 rows=r,
                 rank=int(rank[k]),
+                cov=cov,
             )
         )
     return results
@@ -234,6 +241,7 @@ def solve_iv(Z: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...]
     if rank < b:
         theta: np.ndarray = pinv(A) @ (Z.T @ y)
         std = np.full(b, np.inf)
+        cov = np.full((b, b), np.inf)
     else:
         theta = np.linalg.solve(A, Z.T @ y)
     e = y - W @ theta
@@ -254,4 +262,5 @@ def solve_iv(Z: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...]
         condition_number=float(s[0] / s[-1]) if rank == b else float("inf"),
         rows=r,
         rank=rank,
+        cov=cov,
     )

@@ -36,12 +36,13 @@ Pure numerics on a :class:`~ilic_cli.runlog.RunLog` in memory: no file I/O.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
+from ilic_cli.estimators.base import LoopSimulator
 from ilic_cli.lm import fd_steps, levenberg_marquardt
 from ilic_cli.lsq import finite_or_none
 from ilic_cli.runlog import RunLog
@@ -164,6 +165,8 @@ class OEResult:
     converged: bool
     stop_reason: str
     settings: OESettings
+    cov: np.ndarray | None = field(default=None, compare=False, repr=False)
+    """Covariance of ``theta`` (``s^2 (J'J)^-1``, the parameters' block)."""
     force_error_pct: float | None = None
     """The inverse model's relative force error with these parameters on the training log (IDIM-LS's processing), if it has that form."""
     extra: dict[str, Any] = field(default_factory=dict)
@@ -239,17 +242,17 @@ def open_loop_oe(
     model_name: str,
     settings: OESettings = OESettings(),
     warnings: list[str] | None = None,
+    loop: LoopSimulator,
 ) -> OEResult:
-    """OE of the plant ``(rigid, effects)`` (its start, normally IDIM-LS's) on ``log``'s ``vir`` (times its drive gain) and ``q``."""
-    from plant.closed_loop import simulate_segments  # deferred: the plant pulls in numba
-    from plant.dynamics import plant_model
-    from plant.replay import initial_state, measured_state
+    """OE of the plant ``(rigid, effects)`` (its start, normally IDIM-LS's) on ``log``'s ``vir`` (times its drive gain) and ``q``.
 
-    src = log.meta.get("source")
+    ``loop``: the plant's open-loop drive and the benchmark's state initialisation (:class:`ilic_cli.estimators.base.LoopSimulator`).
+    """
+    src = log.provenance.source
     if "vir" not in log:
         raise IdentificationError(src, "OE drives the model with the recorded drive command: the log has no vir channel")
     log.require("t", "q")
-    gain = log.meta.get("drive_gain")
+    gain = log.sensor.drive_gain
     if not gain:
         raise IdentificationError(src, "OE drives the model with drive_gain * vir: the log has no drive gain (N/V)")
     fs = log.fs_hz
@@ -263,25 +266,21 @@ def open_loop_oe(
     def layout(segment_s: float | None) -> tuple[list[int], int, np.ndarray]:
         if segment_s is None:
             k0 = settings.init_samples - 1
-            return [k0], n - k0, np.array([initial_state(q_m, settings.init_samples, fs)])
+            return [k0], n - k0, np.array([loop.initial_state(q_m, settings.init_samples, fs)])
         length = max(int(round(segment_s * fs)), 3)
         starts = list(range(settings.init_samples - 1, n - length + 1, length))
         if not starts:
             raise IdentificationError(src, f"OE: the log is shorter than one stretch of {segment_s:g} s")
-        qf, vf = measured_state(q_m, fs)
+        qf, vf = loop.measured_state(q_m, fs)
         return starts, length, np.array([[qf[i], vf[i]] for i in starts])
 
     def fit(starts: list[int], length: int, x0: np.ndarray) -> dict[str, Any]:
         y = np.concatenate([q_m[i : i + length] for i in starts])
 
         def residual(p: np.ndarray, xs: np.ndarray) -> np.ndarray:
-            params, eff = plant_model(*split_plant(names, p))
-            return (
-                simulate_segments(
-                    params=params, effects=eff, command=u, fs_hz=fs, starts=starts, length=length, x0=xs, gain=float(gain), substeps=settings.substeps
-                )
-                - y
-            )
+            rigid_p, eff = split_plant(names, p)
+            q_s = loop.open_loop_segments(rigid_p, eff, command=u, fs_hz=fs, starts=starts, length=length, x0=xs, gain=float(gain), substeps=settings.substeps)
+            return q_s - y
 
         if len(starts) == 1 and not settings.fit_state:
             fixed = x0
@@ -339,6 +338,7 @@ def _result(
         converged=bool(out["converged"]),
         stop_reason=str(out["stop"]),
         settings=settings,
+        cov=np.asarray(out["cov"], dtype=np.float64)[:ng, :ng],
     )
 
 
@@ -356,20 +356,24 @@ def closed_loop_oe(
     settings: OESettings = OESettings(),
     replay: Replay | None = None,
     trim: int = 49,
+    loop: LoopSimulator | None = None,
 ) -> OEResult:
     """CLOE of the plant ``(rigid, effects)`` on ``log``: its reference through its own controller, the simulated position
     (and force, :attr:`OESettings.cloe_output`) against the recorded ones from sample ``trim`` on (the replay's start transient left out).
 
     With position and force, each block is divided by its residual's RMS at the start (fixed weights): neither
-    drowns the other whatever their units.
+    drowns the other whatever their units. ``replay``: ``(params, effects) -> simulated log``; default the replay of ``log``
+    through its own controller by ``loop`` (:class:`ilic_cli.estimators.base.LoopSimulator`).
     """
     if replay is None:
-        from ilic_cli.diagnosis.compare import replay as replay_log  # deferred: the plant pulls in numba (as DIDIM's replays)
+        if loop is None:
+            raise ParameterError("loop", None, "a loop simulator (ilic_cli.simulation.loop.PLANT_LOOP) or a replay function")
+        sim_loop = loop
 
         def replay(params: dict[str, float], eff: dict[str, dict[str, float]]) -> RunLog:
-            return replay_log(log, params, eff)
+            return sim_loop.replay(log, params, eff)
 
-    src = log.meta.get("source")
+    src = log.provenance.source
     log.require("t", "q", "tau")
     q_m = np.asarray(log["q"], dtype=np.float64)[trim:]
     tau_m = np.asarray(log["tau"], dtype=np.float64)[trim:]
@@ -407,6 +411,4 @@ def closed_loop_oe(
         "force_rmse_start": float(np.sqrt(np.mean(et0**2))),
         "weights": {"position_per_m": wq, "force_per_n": wt},
     }
-    from dataclasses import replace
-
     return replace(res, extra=extra)

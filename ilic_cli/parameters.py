@@ -182,6 +182,6 @@ def from_plant(rigid: Mapping[str, float], asymmetric: Mapping[str, float] | Non
 
 PD_TIMINGS = ("recorded", "documented")
 """How a replay times a PD log's command: ``recorded``, as read from the recording
-(:func:`ilic_cli.diagnosis.timing.recorded_loop`: the EMPS recordings' command follows
+(:func:`ilic_cli.simulation.timing.recorded_loop`: the EMPS recordings' command follows
 the same sample's position); ``documented``, as the log's metadata states it (the
 benchmark's documented loop: one period late)."""

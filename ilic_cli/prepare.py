@@ -23,7 +23,7 @@ each. The rules:
   says so and states the rule (:data:`ilic_cli.timebase.SAMPLING_RULE`);
 * **saturation**: samples on the plateau of a saturated drive are masked;
 * **rest**: samples where the axis stands still are masked too
-  (:func:`ilic_cli.idim_ls.with_rest`, the rule :data:`ilic_cli.idim_ls.REST_RULE`):
+  (:func:`ilic_cli.usable.with_rest`, the rule :data:`ilic_cli.usable.REST_RULE`):
   a stuck axis carries any force within the static friction, so the sign of
   the Coulomb column is undefined there. :attr:`PreparedLog.valid` holds both
   masks, so every estimator and the diagnosis fit the same rows;
@@ -47,7 +47,7 @@ from ilic_cli.timebase import SAMPLING_RULE, clock_deviation, irregular_grid, no
 
 @dataclass(frozen=True)
 class RestSamples:
-    """The samples of a log at which the axis stands still (:func:`ilic_cli.idim_ls.rest_samples` finds them).
+    """The samples of a log at which the axis stands still (:func:`ilic_cli.usable.rest_samples` finds them).
 
     Attributes
     ----------
@@ -58,7 +58,7 @@ class RestSamples:
     speed_threshold : float
         The filtered speed below which a sample may be at rest (position unit per second).
     rule : str
-        The rule, in words (:data:`ilic_cli.idim_ls.REST_RULE`).
+        The rule, in words (:data:`ilic_cli.usable.REST_RULE`).
     """
 
     mask: np.ndarray
@@ -85,13 +85,13 @@ def tau_sensor(log: RunLog) -> str | None:
     (``--controller pd --drive-gain``: the force of that loop is its command);
     nothing is assumed for any other log.
     """
-    sensor = (log.meta.get("simulation") or {}).get("tau_sensor")
+    sensor = (log.provenance.simulation or {}).get("tau_sensor")
     if sensor:
         return str(sensor)
-    if not log.meta.get("drive_gain"):
+    if not log.sensor.drive_gain:
         return None
-    controller = log.meta.get("controller")
-    declared_pd = isinstance(controller, dict) and controller.get("kind") == "pd"
+    controller = log.controller
+    declared_pd = controller is not None and controller.kind == "pd"
     return "command" if "vir" in log or declared_pd else None
 
 
@@ -113,7 +113,7 @@ class PreparedLog:
     valid : ndarray of bool or None
         Samples that may be used; False on the plateaus of a saturated drive
         (:func:`ilic_cli.quality.saturation_mask`) and, once
-        :func:`ilic_cli.idim_ls.with_rest` has looked, at rest; ``None`` when every one may.
+        :func:`ilic_cli.usable.with_rest` has looked, at rest; ``None`` when every one may.
     warnings : tuple of str
         The data-quality warnings, prefixed.
     segments : tuple of (int, int)
@@ -145,7 +145,8 @@ class PreparedLog:
 
     @property
     def source(self) -> str:
-        return str(self.log.meta.get("source", ""))
+        source = self.log.provenance.source
+        return "" if source is None else source
 
     @property
     def gap_samples(self) -> np.ndarray:

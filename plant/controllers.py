@@ -31,7 +31,7 @@ delay in control periods. Below 1 the command is computed from the same
 sample's position and acts from ``t_k + delay_samples*T`` on (the plant's drive
 lag carries the fraction): ``vir(k) = sat(v(k), +-vmax) + pulses(k)``, logged at
 sample ``k`` as the EMPS recordings log it (their ``vir(k)`` follows the law on
-``qm(k)``, not ``qm(k-1)``: :mod:`ilic_cli.diagnosis.timing`).
+``qm(k)``, not ``qm(k-1)``: :mod:`ilic_cli.simulation.timing`).
 
 ``pulse_input="held"`` (default) holds ``vir(k)`` over the period, as the rig
 did (the recorded ``vir`` includes the pulses); ``"ramp"`` moves the pulse part

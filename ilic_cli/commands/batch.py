@@ -9,6 +9,7 @@ import click
 
 from ilic_cli.commands.common import STRUCTURES, note, progress_enabled
 from ilic_cli.errors import IlicError
+from ilic_cli.methods import choices
 
 
 @click.command("batch")
@@ -16,9 +17,7 @@ from ilic_cli.errors import IlicError
 @click.option(
     "--out", "out_dir", type=click.Path(path_type=Path), required=True, help="Folder of the batch: table.parquet, table.csv and logs/ (one document per log)."
 )
-@click.option(
-    "--method", type=click.Choice(["ls", "ilic", "both", "didim", "iv", "all"]), default="both", show_default=True, help="What `ilic identify --method` runs."
-)
+@click.option("--method", type=click.Choice(list(choices(output_error=False))), default="both", show_default=True, help="What `ilic identify --method` runs.")
 @click.option("--structure", type=click.Choice(STRUCTURES), default="rigid-offset", show_default=True, help="Model structure (the table's parameter columns).")
 @click.option("--window", "window_s", type=click.FloatRange(min=0, min_open=True), default=6.2, show_default=True, help="IDIM-ILIC window T_obs (s).")
 @click.option("--diagnose", "diagnose", is_flag=True, help="Also diagnose each log; its findings go to the table (seconds per log).")

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -312,6 +313,49 @@ def with_controller(log: RunLog, where: Path, controller: str | None, kp: float 
             raise IlicError("--controller", "--kp, --kv and --drive-gain are PD gains; ctc takes none")
         meta["controller"] = {"kind": "ctc"}
     return RunLog(dict(log.channels), dict(log.units), meta)
+
+
+@dataclass(frozen=True)
+class InputOptions:
+    """``--input-format``, ``--topic``, ``--ref-topic``, ``--joint`` and ``--columns``: how a log is read (:func:`load`)."""
+
+    input_format: str | None
+    topic: str | None
+    ref_topic: str | None
+    joint: str | None
+    columns: str | None
+
+    @classmethod
+    def of(cls, o: Mapping[str, Any]) -> InputOptions:
+        return cls(o["input_format"], o["topic"], o["ref_topic"], o["joint"], o["columns"])
+
+    def load(self, path: Path, *, named_format: bool = True) -> RunLog:
+        """The log at ``path`` (``named_format=False``: its format from its path, as a validation log's)."""
+        return load(path, self.input_format if named_format else None, self.topic, self.ref_topic, self.joint, self.columns)
+
+
+@dataclass(frozen=True)
+class ControllerOptions:
+    """``--controller``, ``--kp``, ``--kv``, ``--drive-gain`` (the loop of a log that records none) and ``--pd-timing``."""
+
+    controller: str | None
+    kp: float | None
+    kv: float | None
+    drive_gain: float | None
+    pd_timing: str = "recorded"
+
+    @classmethod
+    def of(cls, o: Mapping[str, Any]) -> ControllerOptions:
+        return cls(o["controller"], o["kp"], o["kv"], o["drive_gain"], o["pd_timing"])
+
+    @property
+    def given(self) -> bool:
+        """Some controller option was given."""
+        return self.controller is not None or any(v is not None for v in (self.kp, self.kv, self.drive_gain))
+
+    def apply(self, log: RunLog, where: Path) -> RunLog:
+        """``log`` with the options' controller when it records none (:func:`with_controller`)."""
+        return with_controller(log, where, self.controller, self.kp, self.kv, self.drive_gain)
 
 
 def structure_or_model_file(model: str | None, structure: str | None) -> tuple[str | None, Path | None]:

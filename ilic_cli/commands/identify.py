@@ -2,42 +2,46 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import click
 
 from ilic_cli import identify_report as render
-from ilic_cli.closed_loop_id import DEFAULT_SETTINGS
+from ilic_cli.closed_loop_id import DEFAULT_SETTINGS, ClosedLoopSettings
 from ilic_cli.commands.common import (
     STRUCTURES,
+    ControllerOptions,
+    InputOptions,
     controller_options,
     input_options,
-    load,
     note,
     options_named,
     parse_effect_option,
     structure_or_model_file,
-    with_controller,
 )
-from ilic_cli.effects import get
 from ilic_cli.errors import IlicError, ParameterError
-from ilic_cli.identify import identify
+from ilic_cli.estimators.base import ModelSpec, regressor_effects
+from ilic_cli.identify import IdentifyReport, IdentifySettings, identify_with
 from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io.atomic import atomic_write_text, same_path
+from ilic_cli.methods import CHOICES, METHODS, methods_of
 from ilic_cli.modelfile import load_model_file, model_document
 from ilic_cli.output_error import OESettings
 from ilic_cli.parameters import DEFAULTS
 from ilic_cli.plotting import plot_identify
 from ilic_cli.prepare import as_joint, to_load_side
+from ilic_cli.runlog import RunLog
 
 
 @click.command("identify")
 @click.argument("log", type=click.Path(path_type=Path))
 @click.option(
     "--method",
-    type=click.Choice(["ls", "ilic", "both", "didim", "iv", "all", "oe", "cloe"]),
+    type=click.Choice(list(CHOICES)),
     default="both",
     show_default=True,
     help="IDIM-LS, IDIM-ILIC per window, both; DIDIM or IDIM-IV (closed-loop, from IDIM-LS, shown beside it); or all; "
@@ -156,44 +160,7 @@ from ilic_cli.prepare import as_joint, to_load_side
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
 @click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
 @input_options
-def command(
-    log: Path,
-    method: str,
-    structure: str | None,
-    model: str | None,
-    effects: tuple[str, ...],
-    gear_ratio: float | None,
-    torque_constant: float | None,
-    load_joint: str | None,
-    validate: tuple[Path, ...],
-    window_s: float,
-    sigma_max: float,
-    ilic_cutoff: float,
-    ilic_decimation: int | None,
-    ref_lag: int | None,
-    cutoff: float,
-    order: int,
-    decimation: int,
-    trim: int,
-    filtering: str,
-    max_iterations: int | None,
-    tolerance: float | None,
-    oe_segment: float | None,
-    oe_state: str,
-    controller: str | None,
-    kp: float | None,
-    kv: float | None,
-    drive_gain: float | None,
-    pd_timing: str,
-    out_format: str,
-    out_dir: Path | None,
-    plot_format: str,
-    input_format: str | None,
-    topic: str | None,
-    ref_topic: str | None,
-    joint: str | None,
-    columns: str | None,
-) -> None:
+def command(log: Path, **options: Any) -> None:
     """Identify the axis's parameters from LOG by IDIM-LS, IDIM-ILIC, DIDIM or IDIM-IV.
 
     IDIM-LS (paper section III) filters and differentiates the measured
@@ -213,84 +180,82 @@ def command(
       ilic identify sim.mcap --format json --out report/
     """
 
-    structure, model_path = structure_or_model_file(model, structure)
+    o = options
+    spec = _model_spec(o)
+    out = OutputOptions.of(o)
+    validate: tuple[Path, ...] = o["validate"]
+    out.refuse_overwriting(log, validate)
+    inputs = InputOptions.of(o)
+    run = inputs.load(log)
+    controller = ControllerOptions.of(o)
+    method = str(o["method"])
+    if any(METHODS[m].closed_loop for m in methods_of(method)) or controller.given:
+        # the loop that ran: DIDIM / IDIM-IV / CLOE replay it; for every method it says the force is the PD drive's held command
+        run = controller.apply(run, log)
+    oe_settings = _oe_settings(o)
+    others = [inputs.load(p, named_format=False) for p in validate]
+    run, *others = TransmissionOptions.of(o).apply([run, *others])
+    ls_settings = LSSettings(cutoff_hz=o["cutoff"], order=o["order"], decimation=o["decimation"], trim=o["trim"], matlab=(o["filtering"] == "matlab"))
+    ilic_settings = ILICSettings(
+        window_s=o["window_s"], cutoff_hz=o["ilic_cutoff"], decimation=o["ilic_decimation"], sigma_max_pct=o["sigma_max"], ref_lag=o["ref_lag"]
+    )
+    with options_named():
+        settings = IdentifySettings(method, spec, ls_settings, ilic_settings, _closed_loop_settings(o), controller.pd_timing, oe_settings())
+        result = identify_with(run, settings, validate=others)
+    for w in result.warnings:
+        note(f"ilic: warning: {w}")
+    text = {"md": render.to_markdown, "csv": render.to_csv, "json": lambda r: render.to_json(r.to_dict())}[out.out_format](result)
+    if out.out_dir is not None:
+        _write_outputs(result, run, out.out_dir, out.plot_format, inputs=(log, *validate))
+    click.echo(text, nl=False)
+
+
+def _model_spec(o: Mapping[str, Any]) -> ModelSpec:
+    """The model the options name: ``--structure`` or a model file's, with the model file's and ``--effect``'s effect columns."""
+    structure, model_path = structure_or_model_file(o["model"], o["structure"])
     doc = load_model_file(model_path) if model_path is not None else None
     if structure is None:
         structure = str(doc["model"]) if doc is not None and doc.get("model") in STRUCTURES else "rigid-offset"
     mass = float(doc["parameters"].get("M", DEFAULTS["M"])) if doc is not None else DEFAULTS["M"]
-    chosen: dict[str, object] = {}
     try:
-        skipped = []
-        for eid, values in (doc or {}).get("effects", {}).items():
-            if not get(eid).columns:  # a time shift or a measurement effect: nothing to add to the regressor
-                skipped.append(eid)
-                continue
-            chosen[eid] = get(eid).value_from_plant(get(eid).values(values), mass)
+        chosen, skipped = regressor_effects((doc or {}).get("effects", {}), mass)
     except ParameterError as exc:
         raise exc.at(model_path) from None
     if skipped:
         note(f"ilic: warning: {model_path}: not identified as regressor columns: {', '.join(skipped)}")
     try:
-        for text in effects:
+        for text in o["effects"]:
             eid, values = parse_effect_option(text)
-            chosen[eid] = get(eid).value_from_plant(get(eid).values(values), mass)
+            chosen.update(regressor_effects({eid: values}, mass, keep_all=True)[0])
     except ParameterError as exc:
         raise exc.at("--effect") from None
-    if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
-        raise IlicError(out_dir, "--out must be a folder")
-    if out_dir is not None:
-        _refuse_overwriting_inputs(out_dir, plot_format, (log, *validate))
-    run = load(log, input_format, topic, ref_topic, joint, columns)
-    if method in ("didim", "iv", "all", "cloe") or controller is not None or any(v is not None for v in (kp, kv, drive_gain)):
-        # the loop that ran: DIDIM / IDIM-IV / CLOE replay it; for every method it says the force is the PD drive's held command
-        run = with_controller(run, log, controller, kp, kv, drive_gain)
+    return ModelSpec(structure, chosen)
+
+
+def _oe_settings(o: Mapping[str, Any]) -> Callable[[], OESettings]:
+    """OE's options, checked now; the settings built where a domain error names its option (:func:`options_named`)."""
+    method, oe_segment, oe_state, max_iterations = o["method"], o["oe_segment"], o["oe_state"], o["max_iterations"]
     if oe_segment is not None and method != "oe":
         raise IlicError("--oe-segment", "multiple shooting is --method oe's")
     if oe_state != "fitted" and (method != "oe" or oe_segment is not None):
         raise IlicError("--oe-state", "the initial state of --method oe's one shot (without --oe-segment)")
-    others = [load(p, None, topic, ref_topic, joint, columns) for p in validate]
-    if torque_constant is not None and gear_ratio is None:
-        raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
-    if gear_ratio is not None:
-        with options_named():
-            run, *others = [to_load_side(x, gear_ratio, torque_constant, load_joint or "prismatic") for x in (run, *others)]
-    elif load_joint is not None:
-        run, *others = [as_joint(x, load_joint) for x in (run, *others)]
-    ls_settings = LSSettings(cutoff_hz=cutoff, order=order, decimation=decimation, trim=trim, matlab=(filtering == "matlab"))
-    ilic_settings = ILICSettings(window_s=window_s, cutoff_hz=ilic_cutoff, decimation=ilic_decimation, sigma_max_pct=sigma_max, ref_lag=ref_lag)
-    with options_named():
-        closed = {
-            m: replace(
-                s,
-                max_iterations=s.max_iterations if max_iterations is None else max_iterations,
-                tolerance_pct=s.tolerance_pct if tolerance is None else tolerance,
-            )
-            for m, s in DEFAULT_SETTINGS.items()
-        }
-        oe_settings = OESettings(
-            segment_s=oe_segment, fit_state=oe_state == "fitted", max_iterations=OESettings.max_iterations if max_iterations is None else max_iterations
-        )
-        result = identify(
-            run,
-            method=method,
-            structure=structure,
-            effects=chosen,
-            ls_settings=ls_settings,
-            ilic_settings=ilic_settings,
-            validate=others,
-            closed_loop_settings=closed,
-            pd_timing=pd_timing,
-            oe_settings=oe_settings,
-        )
-    for w in result.warnings:
-        note(f"ilic: warning: {w}")
-    text = {"md": render.to_markdown, "csv": render.to_csv, "json": lambda r: render.to_json(r.to_dict())}[out_format](result)
-    if out_dir is not None:
-        _write_outputs(result, run, out_dir, plot_format, inputs=(log, *validate))
-    click.echo(text, nl=False)
+    return lambda: OESettings(
+        segment_s=oe_segment, fit_state=oe_state == "fitted", max_iterations=OESettings.max_iterations if max_iterations is None else max_iterations
+    )
 
 
-def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:
+def _closed_loop_settings(o: Mapping[str, Any]) -> dict[str, ClosedLoopSettings]:
+    """DIDIM's and IDIM-IV's iteration: each method's default (:data:`ilic_cli.closed_loop_id.DEFAULT_SETTINGS`) with the options' limits."""
+    max_iterations, tolerance = o["max_iterations"], o["tolerance"]
+    return {
+        m: replace(
+            s, max_iterations=s.max_iterations if max_iterations is None else max_iterations, tolerance_pct=s.tolerance_pct if tolerance is None else tolerance
+        )
+        for m, s in DEFAULT_SETTINGS.items()
+    }
+
+
+def _write_outputs(result: IdentifyReport, run: RunLog, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "report.md", render.to_markdown(result), inputs=inputs)
@@ -304,6 +269,50 @@ def _write_outputs(result, run, out_dir: Path, plot_format: str, inputs: tuple[P
     if plot_format != "none":
         written += plot_identify(result, run, out_dir, plot_format)
     note(f"ilic: wrote {', '.join(str(p) for p in written)}")
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """``--format``, ``--out`` and ``--plots``."""
+
+    out_format: str
+    out_dir: Path | None
+    plot_format: str
+
+    @classmethod
+    def of(cls, o: Mapping[str, Any]) -> OutputOptions:
+        return cls(o["out_format"], o["out_dir"], o["plot_format"])
+
+    def refuse_overwriting(self, log: Path, validate: tuple[Path, ...]) -> None:
+        """Refuse an --out that is no folder, or where a report file would replace an input (before any work)."""
+        if self.out_dir is not None and self.out_dir.exists() and not self.out_dir.is_dir():
+            raise IlicError(self.out_dir, "--out must be a folder")
+        if self.out_dir is not None:
+            _refuse_overwriting_inputs(self.out_dir, self.plot_format, (log, *validate))
+
+
+@dataclass(frozen=True)
+class TransmissionOptions:
+    """``--gear-ratio``, ``--torque-constant`` and ``--load-joint``: a motor-side log read on the load's side, or the joint's type."""
+
+    gear_ratio: float | None
+    torque_constant: float | None
+    load_joint: str | None
+
+    @classmethod
+    def of(cls, o: Mapping[str, Any]) -> TransmissionOptions:
+        return cls(o["gear_ratio"], o["torque_constant"], o["load_joint"])
+
+    def apply(self, runs: list[RunLog]) -> list[RunLog]:
+        """``runs`` on the load's side (:func:`ilic_cli.prepare.to_load_side`), or declared of the joint's type."""
+        if self.torque_constant is not None and self.gear_ratio is None:
+            raise IlicError("--torque-constant", "needs --gear-ratio (the transmission from the motor to the load)")
+        if self.gear_ratio is not None:
+            with options_named():
+                return [to_load_side(x, self.gear_ratio, self.torque_constant, self.load_joint or "prismatic") for x in runs]
+        if self.load_joint is not None:
+            return [as_joint(x, self.load_joint) for x in runs]
+        return runs
 
 
 def _refuse_overwriting_inputs(out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:

@@ -7,12 +7,12 @@ from pathlib import Path
 import click
 
 from ilic_cli.commands.common import LOG_FORMATS, controller_options, input_options, load, note, plant_of_model_file, with_controller
-from ilic_cli.diagnosis.compare import relative_errors
 from ilic_cli.errors import IlicError
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import write_log
 from ilic_cli.io.atomic import same_path
 from ilic_cli.prepare import prepare_log
+from ilic_cli.simulation.replay import relative_errors
 from plant.replay import simulate_open_loop, simulate_replay
 
 
@@ -95,7 +95,7 @@ def command(
     for w in prepared.warnings:
         note(f"ilic: warning: {w}")
     if pd_timing == "recorded":  # the loop that ran: a PD log's timing read from the recording with this model
-        from ilic_cli.diagnosis.timing import recorded_loop  # deferred: with the replay
+        from ilic_cli.simulation.timing import recorded_loop  # deferred: with the replay
 
         run, timing = recorded_loop(run, params, effects, LSSettings())
         if timing is not None and timing.sentence():

@@ -6,7 +6,7 @@ the model left out, model it, and show the fit improve.
 - :mod:`~ilic_cli.diagnosis.locate`: where a residual is structured (state, time, frequency);
 - :mod:`~ilic_cli.diagnosis.stats`: prewhitened F-tests, blocked folds, Diebold-Mariano;
 - :mod:`~ilic_cli.diagnosis.select`: forward selection on the IDIM least squares;
-- :mod:`~ilic_cli.diagnosis.compare`: replay through the plant, simulation against recording;
+- :mod:`~ilic_cli.diagnosis.compare`: simulation against recording (the replay itself is :mod:`ilic_cli.simulation.replay`);
 - :mod:`~ilic_cli.diagnosis.decide`: materiality, and the replay decides which proposed effects are findings;
 - :mod:`~ilic_cli.diagnosis.dwell`: Stribeck friction at a reference's dwells, which the closed loop proposes;
 - :mod:`~ilic_cli.diagnosis.core`: :func:`diagnose` -> :class:`Diagnosis`;

@@ -1,9 +1,5 @@
-"""Simulation against recording: replay the recorded reference through the plant and compare.
-
-The replay uses the plant's public :func:`plant.simulate_replay` (the
-controller of the log's metadata). Relative errors follow the benchmark's
-simulation table: position, and velocity from the filtered position (as
-IDIM-LS), first samples dropped; force ``100 ||tau_sim - tau|| / ||tau||``.
+"""Simulation against recording: the rigid and the augmented models replayed (:func:`ilic_cli.simulation.replay.replay`),
+their relative errors, and the replay residual located in the motion (:func:`ilic_cli.diagnosis.locate.locate`).
 """
 
 from __future__ import annotations
@@ -14,15 +10,11 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.locate import Region, locate
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import IDIMData, LSSettings
-from ilic_cli.lsq import relative_error_pct
-from ilic_cli.prepare import tau_sensor
 from ilic_cli.runlog import RunLog, joint_type
-from plant.controllers import PDSettings
-from plant.replay import simulate_replay
+from ilic_cli.simulation.replay import relative_errors, replay
 
-__all__ = ["SimulationComparison", "compare_simulation", "relative_errors", "replay", "tau_sensor"]
+__all__ = ["SimulationComparison", "compare_simulation"]
 
 
 @dataclass
@@ -38,37 +30,6 @@ class SimulationComparison:
 
     def to_dict(self) -> dict[str, Any]:
         return {"source": self.source, "before": self.before, "after": self.after, "located": [r.to_dict() for r in self.located], "note": self.note}
-
-
-def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, *, controller: PDSettings | None = None, seed: int = 0) -> RunLog:
-    """Replay ``log``'s reference (and pulses) through the plant (:func:`plant.simulate_replay`).
-
-    The controller is the log's (metadata) unless ``controller`` is given; the force sensor is the one the
-    log was simulated with when it says so, else the benchmark's command
-    (``tau = gtau * vir``). ``payload_change`` times are log times; the
-    closed loop counts from the first sample. ``seed``: of the noise effects
-    (:mod:`ilic_cli.diagnosis.null`'s replicates).
-    """
-    effects = dict(effects or {})
-    if "payload_change" in effects:
-        effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
-    return simulate_replay(log, params, effects, controller, tau_sensor=tau_sensor(log), seed=seed)
-
-
-def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float]:
-    """Relative errors (%) of position, velocity and force of ``sim`` against ``rec`` (first ``trim`` samples dropped)."""
-    fs = rec.fs_hz
-    n = min(len(rec), len(sim))
-    s = slice(ls.trim, n)
-
-    def vel(q: np.ndarray) -> np.ndarray:
-        return central_difference(butter_lowpass_zero_phase(q[:n], ls.cutoff_hz, fs, ls.order, matlab=ls.matlab), 1.0 / fs)
-
-    return {
-        "position": relative_error_pct(rec["q"][s], sim["q"][s]),
-        "velocity": relative_error_pct(vel(rec["q"])[s], vel(sim["q"])[s]),
-        "force": relative_error_pct(rec["tau"][s], sim["tau"][s]),
-    }
 
 
 def compare_simulation(

@@ -16,7 +16,7 @@ import numpy as np
 
 from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.baseline import held, hold_s
-from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation, tau_sensor
+from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation
 from ilic_cli.diagnosis.decide import ReplayVerdict, below_period, decision_sensor, materiality, noisy_output_error, replay_decide
 from ilic_cli.diagnosis.drift import DriftResult, detect_drift, with_drift
 from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
@@ -37,16 +37,18 @@ from ilic_cli.diagnosis.select import (
 )
 from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
-from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate, Fit, applicable
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
-from ilic_cli.idim_ls import IDIMData, LSSettings, UsableRows, prepare, usable_rows, with_rest
+from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, structure_of, weight
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
 from ilic_cli.runlog import RunLog, joint_type, vertical
+from ilic_cli.simulation.replay import tau_sensor
+from ilic_cli.simulation.timing import ControlTiming, recorded_loop
+from ilic_cli.usable import UsableRows, usable_rows, with_rest
 
 
 @dataclass(frozen=True)
@@ -241,7 +243,7 @@ def _prepare(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMD
     """The IDIM system of ``prepared``, its regressor evaluated like the logged force (:func:`ilic_cli.diagnosis.baseline.held`)."""
     log = prepared.log
     try:
-        data = prepare(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
+        data = lsq_rows(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
     except ValueError as exc:
         raise IdentificationError(prepared.source, str(exc)) from None
     data = held(data, model, hold_s(tau_sensor(log), prepared.fs_hz))

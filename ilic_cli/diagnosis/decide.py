@@ -5,7 +5,7 @@ rank effects; on closed-loop data they also accept artefacts that are present
 all along (discretisation, stick at reversals), since held-out blocks of the
 same recording share them. Here each proposed effect, in the order accepted,
 is refitted without each of ``k`` contiguous time blocks, the recorded
-reference is replayed through the plant (:func:`ilic_cli.diagnosis.compare.replay`)
+reference is replayed through the plant (:func:`ilic_cli.simulation.replay.replay`)
 with and without it (with the recording's own position noise and
 quantisation, corrected for the loop on the baseline's replay, one realisation
 shared by every replay: :func:`decision_sensor`),
@@ -39,7 +39,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.diagnosis import dwell
-from ilic_cli.diagnosis.compare import relative_errors, replay
 from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, SystemFit, at_edge, fit_system, minimise, search_range, system
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import blocked_folds, diebold_mariano
@@ -50,6 +49,7 @@ from ilic_cli.lsq import relative_error_pct
 from ilic_cli.parallel import ordered_map
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.replay import relative_errors, replay
 
 if TYPE_CHECKING:
     from ilic_cli.diagnosis.null import MonteCarloNull, NullDistribution
@@ -270,7 +270,7 @@ def replay_decide(
     alpha : float
         Level of the one-sided test that the held-out force error falls.
     validate : (RunLog, LSSettings), optional
-        A validation recording (and the settings of :func:`ilic_cli.diagnosis.compare.relative_errors`):
+        A validation recording (and the settings of :func:`ilic_cli.simulation.replay.relative_errors`):
         its simulated force error, with the model fitted on ``data``, must not rise.
     null : MonteCarloNull, optional
         A Monte-Carlo null of the closed loop (:mod:`ilic_cli.diagnosis.null`): computed when the error

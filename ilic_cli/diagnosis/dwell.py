@@ -54,8 +54,8 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.select import Step
-from ilic_cli.diagnosis.timing import vertex
 from ilic_cli.effects import EFFECTS
+from ilic_cli.simulation.timing import vertex
 
 DWELL_MIN_S = 0.05
 """A rest of the reference at least this long (s) is a dwell."""
@@ -122,7 +122,7 @@ def search(step: Step, vs: np.ndarray, fs: np.ndarray, training_error: Callable[
     the grid points visited are each replayed once. The estimate is then
     refined between the grid's points, one coordinate at a time, by the vertex
     of the parabola through the best point and its neighbours on log scales
-    (:func:`ilic_cli.diagnosis.timing.vertex`). ``vs`` is the less certain of
+    (:func:`ilic_cli.simulation.timing.vertex`). ``vs`` is the less certain of
     the two: on the Stribeck trapezoid the folds' ``vs`` spread over 8.6-11.6
     mm/s (truth 8), their ``Fs`` over 2.45-2.61 N (truth 2.47); a bounded
     search of ``vs`` between the grid points spread them wider (7.8-12.6), and

@@ -47,7 +47,6 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.compare import replay
 from ilic_cli.diagnosis.decide import PlantOf, band_force_error, replay_decide
 from ilic_cli.diagnosis.select import Searcher, Step, fit_system, moving_rows, system
 from ilic_cli.diagnosis.sensor import loop_corrected, position_noise, sensor_effects
@@ -58,6 +57,7 @@ from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.parallel import ordered_map
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.replay import replay
 
 NULL_KINDS = ("dm", "montecarlo")
 """``dm``: the asymptotic Diebold-Mariano test (default); ``montecarlo``: this module's null."""

@@ -84,18 +84,18 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ilic_cli.closed_loop_id import ClosedLoopResult, closed_loop_identify, plant_of
-from ilic_cli.diagnosis.compare import replay
 from ilic_cli.diagnosis.segments import SegmentFit
 from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, at_edge, extended, search_range
 from ilic_cli.diagnosis.stats import gls_covariance, lag1_autocorrelation
 from ilic_cli.effects import Fit
 from ilic_cli.errors import IlicError, ParameterError
-from ilic_cli.idim_ls import LSSettings, prepare
+from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.lsq import finite_or_none, lstsq
 from ilic_cli.parallel import ordered_map
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.replay import replay
 
 METHOD = "DIDIM closed-loop refit"
 """The method the findings and the model file name when the refit is accepted."""
@@ -340,7 +340,7 @@ def closed_loop_refit(
     ls : LSSettings
         Filtering and decimation (as the inverse model).
     simulate : callable, optional
-        ``(rigid parameters, effects) -> simulated log``; default the replay of ``log`` (:func:`ilic_cli.diagnosis.compare.replay`).
+        ``(rigid parameters, effects) -> simulated log``; default the replay of ``log`` (:func:`ilic_cli.simulation.replay.replay`).
     inverse_fit : callable, optional
         The inverse model's fit of ``base + steps`` (:data:`InverseFit`). When DIDIM does not lower the
         output error, the nonlinear values are still searched on the closed loop, the linear parameters
@@ -362,7 +362,7 @@ def closed_loop_refit(
     steps = [*known, *kept]
     names0 = extended(base, steps, prepared.fs_hz).names
     t, tau, fs = log.t, np.asarray(log["tau"], dtype=np.float64), prepared.fs_hz
-    recorded = prepare(t, log["q"], tau, fs, base, ls, valid=prepared.valid)
+    recorded = lsq_rows(t, log["q"], tau, fs, base, ls, valid=prepared.valid)
     y = recorded.y
     y_norm = float(np.linalg.norm(y))
     if problem := plant_problem(steps, names0, theta0):
@@ -375,7 +375,7 @@ def closed_loop_refit(
     def point(model_steps: list[Step], anchor: np.ndarray, sim: RunLog) -> _Point:
         """One DIDIM step from ``anchor``, whose replay is ``sim``."""
         names = extended(base, model_steps, fs).names
-        d = prepare(t, sim["q"], tau, fs, extended(base, model_steps, fs), ls, valid=prepared.valid)
+        d = lsq_rows(t, sim["q"], tau, fs, extended(base, model_steps, fs), ls, valid=prepared.valid)
         r = y - d.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
         delta, rss = lstsq(d.W, r)
         at_anchor = 100.0 * float(np.linalg.norm(r)) / y_norm
@@ -519,7 +519,7 @@ def closed_loop_refit(
             ]
     model = extended(base, chosen, fs)
     theta = res0.result.theta
-    d = prepare(t, sim["q"], tau, fs, model, ls, valid=prepared.valid)
+    d = lsq_rows(t, sim["q"], tau, fs, model, ls, valid=prepared.valid)
     tau_s = d.decimate(np.asarray(sim["tau"], dtype=np.float64)[ls.trim :])
     out.accepted, out.steps, out.names, out.theta, out.didim, out.simulated = True, chosen[len(known) :], model.names, theta, res0, sim
     out.cov = gls_covariance(d.W, y - tau_s + d.W @ theta, theta)

@@ -1,7 +1,7 @@
 """Output error of open-loop segments: the recorded force drives the model, the measured position judges it.
 
 Where the recorded force is the force the drive applied (a held command,
-:func:`ilic_cli.diagnosis.compare.tau_sensor` ``command``) and nothing else
+:func:`ilic_cli.simulation.replay.tau_sensor` ``command``) and nothing else
 pushes the axis, the measured position is the model's response to that force
 plus the sensor's noise, whatever the controller did: the closed loop's answer
 to the noise is in the recorded force already. Its least-squares fit is then

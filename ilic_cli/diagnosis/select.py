@@ -93,7 +93,7 @@ class Step:
 def moving_rows(data: IDIMData) -> np.ndarray:
     """Decimated rows used by the diagnosis (boolean mask over ``data``'s rows).
 
-    ``data``'s rows are already those every fit uses (:func:`ilic_cli.idim_ls.with_rest`: no standstill, no
+    ``data``'s rows are already those every fit uses (:func:`ilic_cli.usable.with_rest`: no standstill, no
     saturated drive, the one definition ``identify`` uses too). Left out here, for the diagnosis's timing:
     mirroring the samples the procedure drops at the start, the rows within as many samples of either end of
     the trimmed record, where the zero-phase filters have their edge transients; and the rows whose decimation
@@ -465,7 +465,7 @@ def forward_select(
     Parameters
     ----------
     data : IDIMData
-        The fitting log, prepared with ``base`` (:func:`ilic_cli.idim_ls.prepare`).
+        The fitting log, prepared with ``base`` (:func:`ilic_cli.idim_ls.lsq_rows`).
     base : Model
         The starting regressor.
     fs_hz : float

@@ -39,6 +39,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "ilic_cli.regressor",
             "ilic_cli.lsq",
             "ilic_cli.filtering",
+            "ilic_cli.filter_design",
             "ilic_cli.lm",
             "ilic_cli.robot.model",
             "ilic_cli.robot.base",
@@ -50,6 +51,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
         (
             "ilic_cli.estimators",
             "ilic_cli.idim_ls",
+            "ilic_cli.usable",
             "ilic_cli.idim_ilic",
             "ilic_cli.closed_loop_id",
             "ilic_cli.output_error",
@@ -72,13 +74,6 @@ MAX_FUNCTION_LINES = 100
 
 # (importer, imported) pairs that point upward, or out of plant/ into an estimator or io
 LAYER_PENDING: set[tuple[str, str]] = {
-    ("ilic_cli.closed_loop_id", "ilic_cli.diagnosis.compare"),
-    ("ilic_cli.closed_loop_id", "plant.replay"),
-    ("ilic_cli.identify", "ilic_cli.diagnosis.timing"),
-    ("ilic_cli.output_error", "ilic_cli.diagnosis.compare"),
-    ("ilic_cli.output_error", "plant.closed_loop"),
-    ("ilic_cli.output_error", "plant.dynamics"),
-    ("ilic_cli.output_error", "plant.replay"),
     ("plant.closed_loop", "ilic_cli.idim_ilic"),
     ("plant.corpus", "ilic_cli.idim_ls"),
     ("plant.scenarios", "ilic_cli.io"),
@@ -95,9 +90,6 @@ MODULE_PENDING: set[str] = {
     "ilic_cli/diagnosis/refit.py",
     "ilic_cli/diagnosis/select.py",
     "ilic_cli/effects.py",
-    "ilic_cli/filtering.py",
-    "ilic_cli/idim_ls.py",
-    "ilic_cli/identify.py",
     "ilic_cli/io/ros1fast.py",
     "ilic_cli/io/rosbag2.py",
     "ilic_cli/io/roscollect.py",
@@ -106,8 +98,6 @@ MODULE_PENDING: set[str] = {
 }
 
 FUNCTION_PENDING: set[str] = {
-    "ilic_cli/closed_loop_id.py:closed_loop_identify",
-    "ilic_cli/commands/identify.py:command",
     "ilic_cli/commands/simulate.py:command",
     "ilic_cli/diagnosis/core.py:diagnose",
     "ilic_cli/diagnosis/core.py:_segment_refit",
@@ -115,9 +105,7 @@ FUNCTION_PENDING: set[str] = {
     "ilic_cli/diagnosis/refit.py:closed_loop_refit",
     "ilic_cli/diagnosis/report.py:to_markdown",
     "ilic_cli/diagnosis/select.py:forward_select",
-    "ilic_cli/identify.py:identify",
     "ilic_cli/io/ros1fast.py:write",
-    "ilic_cli/lm.py:levenberg_marquardt",
     "ilic_cli/robot/kernel.py:inertial_regressor",
     "plant/closed_loop.py:simulate_loop",
     "plant/kernel.py:run_periods",
@@ -163,8 +151,6 @@ DEFERRED_PENDING: set[str] = {
     "ilic_cli/fleet/table.py:pyarrow",
     "ilic_cli/fleet/table.py:pyarrow.csv",
     "ilic_cli/fleet/trend.py:ilic_cli.fleet.table",
-    "ilic_cli/identify.py:ilic_cli.output_error",
-    "ilic_cli/identify.py:pandas",
     "ilic_cli/identify_report.py:numpy",
     "ilic_cli/idim_ilic.py:pandas",
     "ilic_cli/idim_ls.py:pandas",
@@ -238,9 +224,6 @@ DEFERRED_PENDING: set[str] = {
     "ilic_cli/io/rosschema.py:rosbags.typesys",
     "ilic_cli/io/sqlitepages.py:mmap",
     "ilic_cli/io/sqlitepages.py:numpy.lib.stride_tricks",
-    "ilic_cli/output_error.py:dataclasses",
-    "ilic_cli/output_error.py:plant.dynamics",
-    "ilic_cli/output_error.py:plant.replay",
     "ilic_cli/plotting.py:matplotlib",
     "ilic_cli/plotting.py:matplotlib.pyplot",
     "ilic_cli/plotting.py:matplotlib.ticker",

@@ -1,4 +1,4 @@
-"""The PD loop's timing read from the recording (``ilic_cli.diagnosis.timing``) and what the diagnosis says about it."""
+"""The PD loop's timing read from the recording (``ilic_cli.simulation.timing``) and what the diagnosis says about it."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
 from ilic_cli.diagnosis.report import to_markdown
-from ilic_cli.diagnosis.timing import control_timing, pd_law_residuals, vertex
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import read_log
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.timing import control_timing, pd_law_residuals, vertex
 from plant.controllers import PDSettings
 from plant.replay import simulate_replay
 from tests.conftest import make_synthetic_log, require_shared

@@ -16,7 +16,7 @@ from ilic_cli.diagnosis.core import model_parameters
 from ilic_cli.diagnosis.decide import MATERIAL_FORCE, immaterial, materiality, replay_decide
 from ilic_cli.diagnosis.select import Step, moving_rows
 from ilic_cli.effects import EFFECTS
-from ilic_cli.idim_ls import LSSettings, prepare
+from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
 from tests.diagnose.test_diagnose_effects import DEFAULT_MOVES, LOG_META, PD, SLOW, TRUE, exciting_cycle, make_effects, plant_cl
@@ -39,7 +39,7 @@ def test_hold_is_half_a_sample_of_a_held_command_only() -> None:
     t = np.arange(3000) / 1000.0
     q = 0.1 * np.sin(2 * np.pi * 0.7 * t)
     model = get_model("rigid-offset")
-    data = prepare(t, q, np.zeros_like(t), 1000.0, model, LSSettings())
+    data = lsq_rows(t, q, np.zeros_like(t), 1000.0, model, LSSettings())
     later = held(data, model, 0.0005)
     inner = slice(5, -5)
     assert np.allclose(later.kin.qd[inner], np.interp(data.kin.t + 0.0005, data.kin.t, data.kin.qd)[inner], rtol=0, atol=1e-15)
@@ -68,7 +68,7 @@ def test_a_biased_value_is_material_where_the_replay_may_put_it(monkeypatch: pyt
     """
     import ilic_cli.diagnosis.decide as decide
 
-    kin = prepare(np.arange(2000) / 1000.0, 0.1 * np.sin(np.arange(2000) / 300.0), np.zeros(2000), 1000.0, get_model("rigid-offset"), LSSettings()).kin
+    kin = lsq_rows(np.arange(2000) / 1000.0, 0.1 * np.sin(np.arange(2000) / 300.0), np.zeros(2000), 1000.0, get_model("rigid-offset"), LSSettings()).kin
     data = type("Data", (), {"kin": kin, "fs_hz": 1000.0})()
     grid = EFFECTS["stribeck"].scan.grid(kin, 1000.0)
     at = float(grid[16])
@@ -112,7 +112,7 @@ def spurious_and_real() -> tuple[RunLog, RunLog]:
 
 def _decide(log: RunLog, step: Step) -> tuple[list[Step], list]:
     base = get_model("rigid-offset")
-    data = held(prepare(log.t, log["q"], log["tau"], 1000.0, base, LSSettings()), base, hold_s("command", 1000.0))
+    data = held(lsq_rows(log.t, log["q"], log["tau"], 1000.0, base, LSSettings()), base, hold_s("command", 1000.0))
     rows = moving_rows(data)
 
     def plant_of(steps, names, theta):  # type: ignore[no-untyped-def]

@@ -18,7 +18,6 @@ import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
 from ilic_cli.diagnosis.baseline import hold_s
-from ilic_cli.diagnosis.compare import tau_sensor
 from ilic_cli.diagnosis.core import _prepare, model_parameters
 from ilic_cli.diagnosis.decide import replay_decide
 from ilic_cli.diagnosis.null import (
@@ -42,6 +41,7 @@ from ilic_cli.lsq import lstsq
 from ilic_cli.prepare import prepare_log
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.replay import tau_sensor
 from tests.clirun import run_cli
 from tests.conftest import import_or_skip
 

@@ -9,7 +9,6 @@ import pytest
 
 from ilic_cli.diagnosis import segments
 from ilic_cli.diagnosis.baseline import hold_s
-from ilic_cli.diagnosis.compare import tau_sensor
 from ilic_cli.diagnosis.core import NOT_REFITTED, Refit, _prepare, _segment_refit, base_model
 from ilic_cli.diagnosis.segments import SegmentFit, fit_segments, segment_starts
 from ilic_cli.diagnosis.select import Step, moving_rows
@@ -19,6 +18,7 @@ from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.replay import tau_sensor
 from plant.closed_loop import simulate_segments
 from plant.corpus import CASES, build_case
 from plant.dynamics import plant_model

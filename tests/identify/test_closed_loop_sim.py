@@ -27,6 +27,7 @@ from ilic_cli.identify import identify
 from ilic_cli.io import write_log
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.loop import PLANT_LOOP
 from plant.scenarios import PUBLISHED_RIGID, Overrides, run_scenario
 from tests.clirun import run_cli
 from tests.conftest import require_shared
@@ -130,7 +131,7 @@ def without_controller(log: RunLog) -> RunLog:
 def test_refused_without_a_controller_library() -> None:
     log = without_controller(pd_log(0.0))
     with pytest.raises(IdentificationError, match="DIDIM needs the loop that ran") as exc:
-        closed_loop_identify("didim", log, get_model("rigid"), np.array([95.0, 200.0, 20.0]))
+        closed_loop_identify("didim", log, get_model("rigid"), np.array([95.0, 200.0, 20.0]), loop=PLANT_LOOP)
     assert "--" not in str(exc.value)
     with pytest.raises(IdentificationError, match="IDIM-IV needs the loop that ran"):
         identify(log, method="iv")
@@ -191,7 +192,7 @@ def test_irregular_log_is_identified_on_its_uniform_grid() -> None:
     log = pd_log(2e-6)
     keep = np.sort(np.random.default_rng(7).choice(len(log), size=int(0.95 * len(log)), replace=False))
     irregular = RunLog({k: v[keep] for k, v in log.channels.items()}, dict(log.units), dict(log.meta))
-    res = closed_loop_identify("didim", irregular, get_model("rigid"), np.array([95.0, 200.0, 20.0]))
+    res = closed_loop_identify("didim", irregular, get_model("rigid"), np.array([95.0, 200.0, 20.0]), loop=PLANT_LOOP)
     got = dict(zip(res.result.names, res.result.theta, strict=True))
     errs = {n: 100.0 * abs(got[n] - PUBLISHED_RIGID[n]) / PUBLISHED_RIGID[n] for n in RIGID}
     assert max(errs.values()) < 3.0, errs

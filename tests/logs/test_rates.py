@@ -26,10 +26,11 @@ from ilic_cli.diagnosis.decide import below_period
 from ilic_cli.diagnosis.select import Step
 from ilic_cli.effects import EFFECTS
 from ilic_cli.identify import identify
-from ilic_cli.idim_ls import REST_RULE, LSSettings, with_rest
+from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import read_log
 from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
+from ilic_cli.usable import REST_RULE, with_rest
 from plant.controllers import PDSettings
 from plant.replay import simulate_replay
 from plant.trajectories import Move, Trajectory

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.identify import identify
-from ilic_cli.idim_ls import LSSettings, idim_ls, prepare
+from ilic_cli.idim_ls import LSSettings, idim_ls, lsq_rows
 from ilic_cli.io import read_log, write_log
 from ilic_cli.lsq import solve
 from ilic_cli.regressor import get_model
@@ -43,7 +43,7 @@ def test_a_gap_splits_identification_into_its_segments(emps: RunLog, tmp_path: P
     assert abs(M - M_PUBLISHED) <= 1e-3 * M_PUBLISHED, M
     # exactly the identification of the two segments' rows stacked
     model, s = get_model("rigid-offset"), LSSettings()
-    parts = [prepare(gapped.t[a:b], gapped["q"][a:b], gapped["tau"][a:b], 1000.0, model, s) for a, b in ((0, 12000), (12000, len(gapped)))]
+    parts = [lsq_rows(gapped.t[a:b], gapped["q"][a:b], gapped["tau"][a:b], 1000.0, model, s) for a, b in ((0, 12000), (12000, len(gapped)))]
     stacked = solve(np.concatenate([p.W for p in parts]), np.concatenate([p.y for p in parts]), model.names, sigma=s.sigma)
     assert np.array_equal(report.ls.result.theta, stacked.theta)  # type: ignore[union-attr]
     # not across the gap: the whole-log processing (as before this rule) is visibly wrong
@@ -81,7 +81,7 @@ def test_diagnose_and_replay_refuse_a_gap(emps: RunLog, tmp_path: Path) -> None:
 def test_a_log_without_its_controller_is_refused_or_given_one(emps: RunLog, tmp_path: Path) -> None:
     """diagnose and replay use the controller the log records; without one they refuse unless the options give it,
     and the "held command" rule applies only to a log whose force is the recorded command."""
-    from ilic_cli.diagnosis.compare import tau_sensor
+    from ilic_cli.simulation.replay import tau_sensor
 
     bare = RunLog({k: emps[k] for k in ("t", "q", "tau", "q_ref")}, {}, {"source": "bare.csv"})
     assert tau_sensor(emps) == "command" and tau_sensor(bare) is None

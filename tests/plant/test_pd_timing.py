@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ilic_cli.diagnosis.timing import pd_law_residuals
 from ilic_cli.errors import ParameterError
+from ilic_cli.simulation.timing import pd_law_residuals
 from plant.controllers import PDSettings
 from plant.replay import simulate_replay
 from tests.conftest import make_synthetic_log

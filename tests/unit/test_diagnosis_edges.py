@@ -8,7 +8,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.select import EDGE_STEPS, SECONDARY_EDGE, Step, at_edge, effect_columns, extended, shifted_force
 from ilic_cli.effects import EFFECTS
-from ilic_cli.idim_ls import prepare
+from ilic_cli.idim_ls import lsq_rows
 from ilic_cli.regressor import get_model
 from tests.unit.synth import FS, motion, rigid_force
 
@@ -54,7 +54,7 @@ def test_secondary_bounds() -> None:
 
 def _data():  # type: ignore[no-untyped-def]
     t, q, qd, qdd = motion(6000)
-    return prepare(t, q, rigid_force(qd, qdd), FS, get_model("rigid"))
+    return lsq_rows(t, q, rigid_force(qd, qdd), FS, get_model("rigid"))
 
 
 def test_extended_regressor_and_the_columns_kept() -> None:

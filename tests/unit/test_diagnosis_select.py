@@ -12,7 +12,7 @@ import pytest
 from ilic_cli.diagnosis.select import Evaluation, Searcher, SelectSettings, forward_select, moving_rows, parsimonious_first, system, validation_error
 from ilic_cli.diagnosis.stats import nested_f_test
 from ilic_cli.effects import EFFECTS, catalogue_ids
-from ilic_cli.idim_ls import LSSettings, prepare
+from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.lsq import lstsq
 from ilic_cli.regressor import Kinematics, get_model
 from tests.unit.synth import FS, motion, rigid_force
@@ -40,7 +40,7 @@ def concealed_asymmetry(dfv_neg: float = 15.0, noise: float = 2.0, seed: int = 0
     rng = np.random.default_rng(seed)
     extra = dfv_neg * qd * (qd < 0) + stribeck * np.sign(qd) * np.exp(-((qd / 0.02) ** 2))
     tau = rigid_force(qd, qdd) + extra + rng.normal(0.0, noise, n)
-    return prepare(t, q, tau, FS, BASE)
+    return lsq_rows(t, q, tau, FS, BASE)
 
 
 @pytest.fixture(scope="module")
@@ -122,7 +122,7 @@ def test_validation_error_of_the_true_model_is_the_noise() -> None:
 def test_moving_rows_leave_out_standstill_and_edges() -> None:
     t, q, qd, qdd = motion(10_000)
     q[4000:6000] = q[4000]  # a 2-s dwell (q, qd, qdd are 0 at t = 4 s)
-    data = prepare(t, q, rigid_force(np.gradient(q, 1 / FS), np.gradient(np.gradient(q, 1 / FS), 1 / FS)), FS, BASE)
+    data = lsq_rows(t, q, rigid_force(np.gradient(q, 1 / FS), np.gradient(np.gradient(q, 1 / FS), 1 / FS)), FS, BASE)
     rows = moving_rows(data)
     kept = np.arange(len(rows)) * 10 + (9950 - 10 * (len(rows) - 1))
     assert not rows[kept < 49].any() and not rows[kept >= 9951 - 49].any()  # the trimmed edges
@@ -218,7 +218,7 @@ def logged_with(extra_fn, n: int = 20_000, seed: int = 0, delay_s: float = 0.0):
     applied = rigid_force(qd, qdd) + extra_fn(t, qd, qdd)
     logged = np.interp(t - delay_s, t, applied)
     rng = np.random.default_rng(seed)
-    return prepare(t, q, logged + rng.normal(0.0, 2.0, n), FS, BASE)
+    return lsq_rows(t, q, logged + rng.normal(0.0, 2.0, n), FS, BASE)
 
 
 def test_concealed_delay_is_found_with_its_sign() -> None:
@@ -325,7 +325,7 @@ def test_two_concealed_effects_one_step_at_a_time() -> None:
     t, q, qd, qdd = motion(20_000)
     rng = np.random.default_rng(11)
     tau = rigid_force(qd, qdd) + 15.0 * qd * (qd < 0) + 150.0 * q + rng.normal(0.0, 2.0, len(t))
-    data = prepare(t, q, tau, FS, BASE)
+    data = lsq_rows(t, q, tau, FS, BASE)
     s = SelectSettings(effects=("asymmetric_friction", "spring"), max_effects=1)
     one = forward_select(data, BASE, FS, s)
     assert len(one.accepted) == 1 and len(one.tried) == 1
@@ -417,7 +417,7 @@ def test_moving_rows_match_a_direct_loop() -> None:
     t, q, qd, qdd = motion(10_000)
     q[4000:6000] = q[4000]
     qd_ = np.gradient(q, 1 / FS)
-    data = prepare(t, q, rigid_force(qd_, np.gradient(qd_, 1 / FS)), FS, BASE, LSSettings(trim=50))
+    data = lsq_rows(t, q, rigid_force(qd_, np.gradient(qd_, 1 / FS)), FS, BASE, LSSettings(trim=50))
     v = np.abs(data.kin.qd)
     n, r, edge = len(v), 10, 50
     top = np.percentile(v, 99.5)
@@ -482,7 +482,7 @@ def test_concealed_position_ripple_has_its_period() -> None:
     t, q, qd, qdd = motion(20_000)
     rng = np.random.default_rng(14)
     tau = rigid_force(qd, qdd) + 1.5 * np.sin(2 * np.pi * q / 0.01) + rng.normal(0.0, 2.0, len(t))
-    data = prepare(t, q, tau, FS, BASE)
+    data = lsq_rows(t, q, tau, FS, BASE)
     res = forward_select(data, BASE, FS, SelectSettings(effects=("position_ripple",), max_effects=1))
     assert [e.effect for e in res.accepted] == ["position_ripple"]
     assert res.accepted[0].value == pytest.approx(0.01, rel=0.01)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ilic_cli.idim_ls import IDIMData, IDIMLSResult, LSSettings, cross_validate, idim_ls, prepare, usable_mask, valid_rows
+from ilic_cli.idim_ls import IDIMData, IDIMLSResult, LSSettings, cross_validate, idim_ls, lsq_rows, usable_mask, valid_rows
 from ilic_cli.regressor import get_model
 from tests.unit.synth import FS, asymmetric_force, motion, rigid_force
 
@@ -102,7 +102,7 @@ def test_noise_free_log_gives_the_truth(log: tuple[np.ndarray, ...]) -> None:
     d = res.to_dict()
     assert d["method"] == "IDIM-LS" and d["model"] == "rigid-offset" and d["settings"]["trim"] == 49
     assert list(res.to_frame()["parameter"]) == ["M", "Fv", "Fc", "offset"]
-    assert res.y_hat == pytest.approx(res.result.theta @ prepare(t, q, tau, FS, get_model("rigid-offset")).W.T)
+    assert res.y_hat == pytest.approx(res.result.theta @ lsq_rows(t, q, tau, FS, get_model("rigid-offset")).W.T)
     # SciPy filtering instead of MATLAB's: the same answer within the same tolerance
     sci = idim_ls(t, q, tau, FS, get_model("rigid-offset"), LSSettings(matlab=False))
     assert_truth(sci.result.theta)
@@ -113,13 +113,13 @@ def test_trim_and_end_aligned_rows(log: tuple[np.ndarray, ...]) -> None:
     t, q, tau = log
     n = len(t)
     for trim in (49, 50):
-        data = prepare(t, q, tau, FS, get_model("rigid"), LSSettings(trim=trim))
+        data = lsq_rows(t, q, tau, FS, get_model("rigid"), LSSettings(trim=trim))
         assert data.kin.t[0] == t[trim] and len(data.kin.t) == n - trim
         np.testing.assert_array_equal(data.tau, tau[trim:])
         rows = len(range(n - 1, trim - 1, -10))
         assert data.W.shape == (rows, 3) and data.y.shape == (rows,)
         np.testing.assert_array_equal(data.t_dec, t[n - 1 : trim - 1 : -10][::-1])
-    assert prepare(t, q, tau, FS, get_model("rigid")).W.shape[0] == 996  # ceil(9951 / 10)
+    assert lsq_rows(t, q, tau, FS, get_model("rigid")).W.shape[0] == 996  # ceil(9951 / 10)
 
 
 def test_decimate_matches_the_system_columns(log: tuple[np.ndarray, ...]) -> None:
@@ -127,7 +127,7 @@ def test_decimate_matches_the_system_columns(log: tuple[np.ndarray, ...]) -> Non
     valid = np.ones(len(t), dtype=bool)
     valid[3000:3005] = False
     for v in (None, valid):
-        data = prepare(t, q, tau, FS, get_model("rigid"), valid=v)
+        data = lsq_rows(t, q, tau, FS, get_model("rigid"), valid=v)
         np.testing.assert_allclose(data.decimate(data.kin.qd), data.W[:, 1], rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(data.decimate(data.tau), data.y, rtol=1e-12, atol=1e-12)
         assert len(data.t_dec) == len(data.y)
@@ -139,7 +139,7 @@ def test_masked_rows_are_exactly_those_touching_a_saturated_sample(log: tuple[np
     valid = np.ones(n, dtype=bool)
     valid[4321:4330] = False  # a saturated plateau
     valid[7000] = False
-    data = prepare(t, q, tau, FS, get_model("rigid-offset"), valid=valid)
+    data = lsq_rows(t, q, tau, FS, get_model("rigid-offset"), valid=valid)
     keep = brute_valid_rows(valid[trim:], r)
     assert data.rows is not None
     np.testing.assert_array_equal(data.rows, keep)
@@ -164,15 +164,15 @@ def test_everything_masked_is_refused(log: tuple[np.ndarray, ...]) -> None:
     valid = np.zeros(len(t), dtype=bool)
     valid[:80] = True  # 31 valid trimmed samples: rows 0, 10, 20 only, too few for 3 parameters
     with pytest.raises(ValueError, match=r"^only 3 decimated rows are left .* too few for 3 parameters$"):
-        prepare(t, q, tau, FS, get_model("rigid"), valid=valid)
+        lsq_rows(t, q, tau, FS, get_model("rigid"), valid=valid)
     valid[:90] = True  # rows 0, 10, 20, 30: one more than the parameters is still too few
     with pytest.raises(ValueError, match=r"^only 4 decimated rows are left once the invalid \(saturated\) samples are masked; too few for 3 parameters$"):
-        prepare(t, q, tau, FS, get_model("rigid"), valid=valid)
+        lsq_rows(t, q, tau, FS, get_model("rigid"), valid=valid)
     valid[:100] = True  # rows 0..40: five
-    assert len(prepare(t, q, tau, FS, get_model("rigid"), valid=valid).y) == 5
+    assert len(lsq_rows(t, q, tau, FS, get_model("rigid"), valid=valid).y) == 5
     with pytest.raises(ValueError, match=r"^too few samples \(319\) for IDIM-LS with trim 49 and decimation 10$"):
-        prepare(t[:319], q[:319], tau[:319], FS, get_model("rigid"))
-    assert len(prepare(t[:320], q[:320], tau[:320], FS, get_model("rigid")).y) == 28  # the shortest log accepted
+        lsq_rows(t[:319], q[:319], tau[:319], FS, get_model("rigid"))
+    assert len(lsq_rows(t[:320], q[:320], tau[:320], FS, get_model("rigid")).y) == 28  # the shortest log accepted
 
 
 def test_results_and_settings_are_immutable(log: tuple[np.ndarray, ...]) -> None:
@@ -181,7 +181,7 @@ def test_results_and_settings_are_immutable(log: tuple[np.ndarray, ...]) -> None
 
     t, q, tau = log
     res = idim_ls(t, q, tau, FS, get_model("rigid"))
-    data = prepare(t, q, tau, FS, get_model("rigid"))
+    data = lsq_rows(t, q, tau, FS, get_model("rigid"))
     for obj, attr in ((LSSettings(), "trim"), (res, "model"), (data, "fs_hz")):
         with pytest.raises(dataclasses.FrozenInstanceError):
             setattr(obj, attr, 0)
@@ -199,7 +199,7 @@ def test_scipy_anti_alias_filter_keeps_the_band_and_stops_aliases() -> None:
     """matlab=False: Butterworth anti-alias at MATLAB decimate's cut-off, 0.8 of the decimated Nyquist (40 Hz
     for 1 kHz / 10): a 30 Hz tone passes (within 2 %), a 60 Hz one (above the new 50 Hz Nyquist) is stopped."""
     t, q, qd, qdd = motion(10_000)
-    data = prepare(t, q, rigid_force(qd, qdd), FS, get_model("rigid"), LSSettings(matlab=False))
+    data = lsq_rows(t, q, rigid_force(qd, qdd), FS, get_model("rigid"), LSSettings(matlab=False))
     tt, td = data.kin.t, data.t_dec
     for f, lo, hi in ((30.0, 0.98, 1.0), (60.0, 0.0, 0.01)):
         d = data.decimate(np.sin(2 * np.pi * f * tt))[50:-50]

@@ -1,12 +1,13 @@
-"""The rule for samples at rest (``ilic_cli.idim_ls.rest_samples``, ``with_rest``): a dwell is at rest, a reversal passing through zero is not."""
+"""The rule for samples at rest (``ilic_cli.usable.rest_samples``, ``with_rest``): a dwell is at rest, a reversal passing through zero is not."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ilic_cli.idim_ls import REST_MIN_S, LSSettings, rest_samples, rows_left_out, with_rest
+from ilic_cli.idim_ls import LSSettings
 from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
+from ilic_cli.usable import REST_MIN_S, rest_samples, rows_left_out, with_rest
 
 FS = 1000.0
 

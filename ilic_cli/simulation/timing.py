@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.compare import relative_errors, replay
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.replay import relative_errors, replay
 from plant.controllers import PDSettings
 from plant.replay import controller_from_log
 
@@ -253,7 +253,8 @@ def with_recorded_timing(log: RunLog, timing: ControlTiming | None) -> RunLog:
     """
     if timing is None or not timing.mismatch or timing.best is None:
         return log
-    controller = {**(log.meta.get("controller") or {}), "kind": "pd", "delay_samples": float(timing.best)}
+    recorded = log.controller
+    controller = {**(recorded.settings if recorded is not None else {}), "kind": "pd", "delay_samples": float(timing.best)}
     return RunLog(dict(log.channels), dict(log.units), {**log.meta, "controller": controller})
 
 
