@@ -79,13 +79,10 @@ LAYER_PENDING: set[tuple[str, str]] = {
     ("ilic_cli.output_error", "plant.closed_loop"),
     ("ilic_cli.output_error", "plant.dynamics"),
     ("ilic_cli.output_error", "plant.replay"),
-    ("plant.closed_loop", "ilic_cli.idim_ilic"),
     ("plant.corpus", "ilic_cli.idim_ls"),
-    ("plant.scenarios", "ilic_cli.io"),
 }
 
 CYCLE_PENDING: set[frozenset[str]] = {
-    frozenset(["plant", "plant.closed_loop", "plant.generic", "plant.replay", "plant.scenarios"]),
     frozenset(["ilic_cli.diagnosis", "ilic_cli.diagnosis.core", "ilic_cli.diagnosis.decide", "ilic_cli.diagnosis.null"]),
 }
 
@@ -119,9 +116,7 @@ FUNCTION_PENDING: set[str] = {
     "ilic_cli/io/ros1fast.py:write",
     "ilic_cli/lm.py:levenberg_marquardt",
     "ilic_cli/robot/kernel.py:inertial_regressor",
-    "plant/closed_loop.py:simulate_loop",
     "plant/kernel.py:run_periods",
-    "plant/replay.py:simulate_replay",
 }
 
 # in-function imports (file:module) without a comment, on the line or above it in its run of imports, that gives the reason for deferring
@@ -154,10 +149,6 @@ DEFERRED_PENDING: set[str] = {
     "ilic_cli/fleet/execute.py:ilic_cli.idim_ilic",
     "ilic_cli/fleet/execute.py:ilic_cli.io",
     "ilic_cli/fleet/execute.py:multiprocessing",
-    "ilic_cli/fleet/generate.py:argparse",
-    "ilic_cli/fleet/generate.py:ilic_cli.fleet.table",
-    "ilic_cli/fleet/generate.py:json",
-    "ilic_cli/fleet/generate.py:plant.scenarios",
     "ilic_cli/fleet/table.py:ilic_cli.errors",
     "ilic_cli/fleet/table.py:json",
     "ilic_cli/fleet/table.py:pyarrow",
@@ -246,10 +237,6 @@ DEFERRED_PENDING: set[str] = {
     "ilic_cli/plotting.py:matplotlib.ticker",
     "ilic_cli/robot/consistency.py:scipy.stats",
     "ilic_cli/runlog.py:pandas",
-    "plant/__init__.py:plant.closed_loop",
-    "plant/__init__.py:plant.dynamics",
-    "plant/__init__.py:plant.replay",
-    "plant/__init__.py:plant.scenarios",
     "plant/corpus.py:ilic_cli.effects",
     "plant/corpus.py:ilic_cli.parameters",
     "plant/corpus.py:ilic_cli.regressor",
