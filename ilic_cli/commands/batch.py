@@ -9,6 +9,10 @@ import click
 
 from ilic_cli.commands.common import STRUCTURES, note, progress_enabled
 from ilic_cli.errors import IlicError
+from ilic_cli.fleet import execute
+from ilic_cli.fleet.batch import find_logs, group_pattern, run_batch
+from ilic_cli.fleet.table import write_table
+from ilic_cli.parallel import threads
 
 
 @click.command("batch")
@@ -66,11 +70,6 @@ def command(
       ilic batch fleet/ --out batch/ --dask local:2
       ilic batch fleet/ --out batch/ --scheduler tcp://10.0.0.5:8786
     """
-    from ilic_cli.fleet import execute
-    from ilic_cli.fleet.batch import find_logs, group_pattern, run_batch
-    from ilic_cli.fleet.table import write_table
-    from ilic_cli.parallel import threads
-
     if out_dir.exists() and not out_dir.is_dir():
         raise IlicError(out_dir, "--out must be a folder")
     if dask_spec is not None and scheduler is not None:

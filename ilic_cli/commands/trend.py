@@ -8,6 +8,8 @@ import click
 
 from ilic_cli.commands.common import note, options_named
 from ilic_cli.errors import IlicError
+from ilic_cli.fleet.table import read_table
+from ilic_cli.io.atomic import atomic_write_text
 
 
 @click.command("trend")
@@ -48,10 +50,9 @@ def command(table: Path, out_dir: Path | None, method: str, alpha: float, min_ch
       ilic trend batch/table.parquet --out trend/
       ilic trend batch/table.csv --min-change 15 --correction bh --format json
     """
-    from ilic_cli.fleet.table import read_table
+    # deferred: the trends and the JSON renderer load numpy, which `ilic trend --help` must not (tests/fleet/test_fleet_cli.py)
     from ilic_cli.fleet.trend import TrendSettings, to_markdown, trend
     from ilic_cli.identify_report import to_json
-    from ilic_cli.io.atomic import atomic_write_text
 
     if out_dir is not None and out_dir.exists() and not out_dir.is_dir():
         raise IlicError(out_dir, "--out must be a folder")
