@@ -24,6 +24,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from ilic_cli.errors import IlicError
+from ilic_cli.parallel import threads
 
 BLAS_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS", "ILIC_THREADS")
 """Environment variables that set a worker's BLAS, numba and replay threads (:mod:`ilic_cli.parallel`): the workers share the cores."""
@@ -220,3 +221,22 @@ def dask_runner(address: str | None = None, workers: int | None = None) -> Runne
                 cluster.close()
 
     return run
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a batch's tasks run: local processes (``jobs``, None: the cores available, :func:`ilic_cli.parallel.threads`),
+    a dask LocalCluster of ``dask_workers`` processes, or the dask scheduler at ``scheduler`` (at most one of the last two)."""
+
+    jobs: int | None = None
+    dask_workers: int | None = None
+    scheduler: str | None = None
+
+    def runner(self, tasks: int) -> Runner:
+        """The runner for ``tasks`` tasks: dask when asked, else as many local processes as tasks allow (one: this process)."""
+        if self.dask_workers is not None:
+            return dask_runner(workers=self.dask_workers)
+        if self.scheduler is not None:
+            return dask_runner(address=self.scheduler)
+        n = min(self.jobs or threads(), tasks)
+        return local_processes(n) if n > 1 else in_process
