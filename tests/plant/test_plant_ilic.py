@@ -67,9 +67,9 @@ def test_loss_of_excitation_keeps_parameters_and_stays_stable() -> None:
 def test_the_loop_hands_each_full_window_to_the_update_it_is_given() -> None:
     """The plant knows no estimator: a CTC with ``ilic`` needs an update; the update sees every full window and its parameters are used."""
     traj = exciting_cycle(t_offset=0.0)
-    n = 2500  # two full windows of 1 s and half a window
+    n = 500  # two full windows of 0.2 s and half a window
     _, q_r, qd_r, qdd_r = traj.sample(n, 1000.0)
-    ctl = CTCSettings(window_s=1.0)
+    ctl = CTCSettings(window_s=0.2)
     kw = dict(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, params=RigidParameters(95, 200, 20), effects={}, controller=ctl)
     with pytest.raises(ParameterError, match="online update"):
         simulate_loop(**kw)
@@ -88,8 +88,8 @@ def test_the_loop_hands_each_full_window_to_the_update_it_is_given() -> None:
 
     res = simulate_loop(**kw, update=update)
     assert [w.k for w in seen] == [1, 2] and [r.k for r in res.windows] == [1, 2]
-    assert [(w.t[0], len(w.t)) for w in seen] == [(0.0, 1000), (1.0, 1000)]
-    np.testing.assert_array_equal(seen[1].q, res.q[1000:2000])
-    np.testing.assert_array_equal(seen[1].q_ref, q_r[1000:2000])
+    assert [(w.t[0], len(w.t)) for w in seen] == [(0.0, 200), (0.2, 200)]
+    np.testing.assert_array_equal(seen[1].q, res.q[200:400])
+    np.testing.assert_array_equal(seen[1].q_ref, q_r[200:400])
     m0 = ctl.initial()["M"]
-    assert res.chi[999, 0] == m0 and res.chi[1000, 0] == m0 + 1.0 and res.chi[2499, 0] == m0 + 2.0
+    assert res.chi[199, 0] == m0 and res.chi[200, 0] == m0 + 1.0 and res.chi[499, 0] == m0 + 2.0
