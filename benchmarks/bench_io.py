@@ -57,7 +57,7 @@ def paper_sim(samples: int) -> Any:
     """A ``paper-sim`` log of ``samples`` samples at 1 kHz (deterministic, seed 1)."""
     sys.path.insert(0, str(ROOT))
     from ilic_cli.runlog import RunLog
-    from plant.scenarios import Overrides, run_scenario
+    from ilic_cli.simulation.scenarios import Overrides, run_scenario
 
     log = run_scenario("paper-sim", Overrides(duration_s=max(samples / 1000.0, 31.0), seed=1))
     if len(log) > samples:
@@ -169,7 +169,7 @@ SIMULATE_OUTPUTS: list[tuple[str, list[str]]] = [
 
 SIMULATION_ONLY = (
     "import sys; sys.argv = ['ilic', 'simulate']; from ilic_cli.commands import simulate; "
-    "from plant.scenarios import Overrides, run_scenario; run_scenario('paper-sim', Overrides(duration_s={duration}, seed=0))"
+    "from ilic_cli.simulation.scenarios import Overrides, run_scenario; run_scenario('paper-sim', Overrides(duration_s={duration}, seed=0))"
 )
 """The baseline of ``ilic simulate``: the same imports and simulation in a process that writes nothing."""
 
@@ -209,7 +209,7 @@ import time
 c0 = time.process_time()
 from ilic_cli.commands import simulate
 from ilic_cli.io import WriteOptions, write_log
-from plant.scenarios import Overrides, run_scenario
+from ilic_cli.simulation.scenarios import Overrides, run_scenario
 c1 = time.process_time()
 run_scenario('paper-sim', Overrides(duration_s=1.0, seed=0))
 c2 = time.process_time()

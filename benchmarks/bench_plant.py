@@ -33,7 +33,7 @@ def best_of(fn, repeat: int = 3) -> float:  # type: ignore[no-untyped-def]
 
 
 def ours_paper_sim(duration: float = 124.0) -> float:
-    from plant.scenarios import Overrides, run_scenario
+    from ilic_cli.simulation.scenarios import Overrides, run_scenario
 
     run_scenario("paper-sim", Overrides(duration_s=6.3))  # JIT compile, scipy.signal import: outside the timing
     wall = best_of(lambda: run_scenario("paper-sim", Overrides(duration_s=duration)))
@@ -41,7 +41,7 @@ def ours_paper_sim(duration: float = 124.0) -> float:
 
 
 def ours_emps() -> float | None:
-    from plant.scenarios import DEFAULT_EMPS_LOG, Overrides, run_scenario
+    from ilic_cli.simulation.scenarios import DEFAULT_EMPS_LOG, Overrides, run_scenario
 
     if not DEFAULT_EMPS_LOG.exists():
         return None
@@ -79,7 +79,7 @@ def scipy_baseline(duration: float = 6.2) -> float:
 def pure_python(duration: float = 2.0) -> float:
     code = (
         "import time,sys; sys.path.insert(0, %r)\n"
-        "from plant.scenarios import Overrides, run_scenario\n"
+        "from ilic_cli.simulation.scenarios import Overrides, run_scenario\n"
         "t0=time.perf_counter(); run_scenario('paper-sim', Overrides(duration_s=%r)); print(time.perf_counter()-t0)\n"
     ) % (str(ROOT), duration)
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")

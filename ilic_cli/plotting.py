@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -17,10 +18,11 @@ if TYPE_CHECKING:
 
 
 def _pyplot():
+    # deferred: matplotlib takes about half a second to import, and only writing a plot needs it
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: matplotlib (above), after its backend is chosen
 
     return plt
 
@@ -44,10 +46,11 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
     output error, IDIM-IV's an inverse-model residual).
     """
     plt = _pyplot()
-    from matplotlib.ticker import MaxNLocator
+    from matplotlib.ticker import MaxNLocator  # deferred: matplotlib (see _pyplot)
 
     written: list[Path] = []
-    true = (log.meta.get("true_parameters") or {}) if isinstance(log.meta.get("true_parameters"), dict) else {}
+    recorded = log.provenance.true_parameters
+    true = dict(recorded) if isinstance(recorded, Mapping) else {}
     if report.ilic is not None and report.ilic.windows:
         names = report.ilic.names
         fig, axes = plt.subplots(len(names), 1, figsize=(8, 2.2 * len(names)), sharex=True, squeeze=False)

@@ -115,7 +115,7 @@ def expected_delay_s(case: Case) -> float:
 
 def _rigid(case: Case) -> dict[str, float]:
     if case.trajectory == "emps":
-        from plant.scenarios import PUBLISHED_RIGID  # deferred: the scenarios pull in the plant (numba)
+        from ilic_cli.simulation.scenarios import PUBLISHED_RIGID  # deferred: the scenarios pull in the plant (numba)
 
         return dict(PUBLISHED_RIGID)
     return dict(PLANT)
@@ -123,7 +123,7 @@ def _rigid(case: Case) -> dict[str, float]:
 
 def simulate_case(case: Case, effects: dict[str, dict[str, float]] | None = None) -> RunLog:
     """The raw simulated log of ``case`` (all its metadata) with ``effects`` concealed instead of the case's own (``None``: its own)."""
-    from plant.scenarios import Overrides, run_scenario  # deferred: numba and the compiled loop
+    from ilic_cli.simulation.scenarios import Overrides, run_scenario  # deferred: numba and the compiled loop
 
     if case.trajectory not in TRAJECTORY_KINDS:
         raise ValueError(f"case {case.name}: trajectory {case.trajectory!r} is not one of {', '.join(TRAJECTORY_KINDS)}")

@@ -13,7 +13,7 @@ from ilic_cli.effects import EffectParams, make_effects
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.regressor import get_model
-from ilic_cli.runlog import RunLog
+from ilic_cli.runlog import Controller, RunLog
 from plant.closed_loop import LoopResult, loop_log, simulate_loop
 from plant.controllers import CTCSettings, OpenLoopSettings, PDSettings
 from plant.dynamics import RigidParameters, plant_model
@@ -24,39 +24,41 @@ CTC_REPLAY_KEYS = ("omega", "xi", "alpha", "model", "window_s", "sigma_max_pct",
 
 
 def records_controller(log: RunLog) -> bool:
-    """Whether ``log`` records the controller that ran (``meta["controller"]``, or the PD command ``vir``)."""
-    return bool(log.meta.get("controller")) or "vir" in log
+    """Whether ``log`` records the controller that ran (its :attr:`~ilic_cli.runlog.RunLog.controller`, or the PD command ``vir``)."""
+    return log.controller is not None or "vir" in log
 
 
-def _gain(value: Any) -> float:
-    """``float(value)``; a gain missing from the metadata (None) raises TypeError, as float(None) does."""
+def _gain(value: float | None) -> float:
+    """``value``; a gain missing from the metadata (None) raises TypeError, as float(None) does."""
     if value is None:
         raise TypeError("a controller gain is missing")
     return float(value)
 
 
 def controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
-    """The controller the log records (:func:`records_controller`); a log with none is refused."""
+    """The controller the log records (:func:`records_controller`, read through :attr:`~ilic_cli.runlog.RunLog.controller`);
+    a log with none is refused. A log with a ``vir`` channel and no controller entry is a PD loop of unnamed kind."""
     if not records_controller(log):
         raise SimulationError(
-            log.meta.get("source"),
+            log.provenance.source,
             "the log records no controller (its kind and gains): a replay needs the loop that ran; give the PD loop's gains and drive gain, or choose CTC",
         )
-    ctl = dict(log.meta.get("controller") or {})
-    kind = str(ctl.get("kind", "")).lower()
-    if kind == "pd" or (not kind and "vir" in log):
-        gtau = log.meta.get("drive_gain", ctl.get("gtau"))
+    # no controller entry (a PD log known by its vir): the view of an entry of no kind, its gains read from the top-level keys
+    view = log.controller or Controller.from_meta({**log.meta, "controller": {"kind": ""}})
+    assert view is not None  # an entry was given above
+    ctl = view.settings
+    if view.kind == "pd" or (not view.kind and "vir" in log):
         try:
             return PDSettings(
-                kp=_gain(ctl.get("kp", log.meta.get("kp"))),
-                kv=_gain(ctl.get("kv", log.meta.get("kv"))),
-                gtau=_gain(gtau),
+                kp=_gain(view.kp),
+                kv=_gain(view.kv),
+                gtau=_gain(view.drive_gain),
                 vmax=float(ctl.get("vmax", 10.0)),
                 pulse_input=str(ctl.get("pulse_input", "held")),
                 delay_samples=float(ctl.get("delay_samples", 1.0)),
             )
         except (TypeError, ValueError):
-            raise SimulationError(log.meta.get("source"), "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
+            raise SimulationError(log.provenance.source, "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None
     kw = {k: ctl[k] for k in CTC_REPLAY_KEYS if k in ctl}
     return CTCSettings(**kw, ilic=False)
 
@@ -101,7 +103,7 @@ def simulate_replay(
         another period the reference (and pulses) are interpolated linearly
         at ``k*clock_s`` and the result is on that clock, sample ``k`` for
         sample ``k`` of the log (the published benchmark simulation ran its
-        controller at ``t(10) - t(9)`` of the file, see ``plant.scenarios``).
+        controller at ``t(10) - t(9)`` of the file, see ``ilic_cli.simulation.scenarios``).
 
     Returns
     -------
@@ -116,9 +118,56 @@ def simulate_replay(
         params, eff = plant_model(params, effects)
     log.require("t", "q_ref")
     ctl = controller or controller_from_log(log)
+    ref = _replay_reference(log, clock_s)
+    q_ctl, qd_ctl, qdd_ctl = ref.q_ref, ref.qd_ref, ref.qdd_ref
+    traj = None if ref.grid is not None else _trajectory_from_meta(log, ref.fs)
+    if traj is not None:  # a log of ilic simulate: the controller's exact (point) reference
+        _, q_ctl, qd_ctl, qdd_ctl = traj.sample(len(log), ref.fs)
+    sensor = tau_sensor or ("command" if isinstance(ctl, PDSettings) else "centred")
+    ctl, sched = _replay_controller(log, ctl, params)
+    res = simulate_loop(
+        q_r=q_ctl,
+        qd_r=qd_ctl,
+        qdd_r=qdd_ctl,
+        qd_log=ref.qd_ref,
+        qdd_log=ref.qdd_ref,
+        params=params,
+        effects=eff,
+        controller=ctl,
+        fs_hz=ref.fs,
+        substeps=substeps,
+        seed=seed,
+        pulses=ref.pulses,
+        tau_sensor=sensor,
+        chi_schedule=sched,
+        x0=_measured_start(log, 1.0 / ref.fs) if isinstance(ctl, PDSettings) else None,
+    )
+    res.t = ref.grid if ref.grid is not None else np.asarray(log.t, dtype=np.float64).copy()
+    source = log.provenance.source
+    meta: dict[str, Any] = {"replay_of": source, "scenario": {"name": "replay", "source": source}}
+    if ref.grid is not None:
+        meta["replay_clock_s"] = clock_s
+    return loop_log(res, q_ref=ref.q_ref, qd_ref=ref.qd_ref, qdd_ref=ref.qdd_ref, meta=meta)
+
+
+@dataclass(frozen=True)
+class _Reference:
+    """The reference a replay logs: on the log's clock (``grid`` None) or interpolated at ``k*clock_s`` (``grid`` those instants)."""
+
+    fs: float
+    q_ref: np.ndarray
+    qd_ref: np.ndarray
+    qdd_ref: np.ndarray
+    pulses: np.ndarray | None
+    grid: np.ndarray | None
+
+
+def _replay_reference(log: RunLog, clock_s: float | None) -> _Reference:
+    """The log's reference and pulses on the replay's clock (:func:`simulate_replay`'s ``clock_s``); derivatives logged or differenced."""
     fs = log.fs_hz
     q_ref = log["q_ref"]
     pulses = log["pulses"] if "pulses" in log else None
+    grid = None
     resampled = clock_s is not None and clock_s != log.dt_s
     if resampled:
         if not (clock_s is not None and math.isfinite(clock_s) and clock_s > 0):
@@ -130,57 +179,41 @@ def simulate_replay(
     dt = 1.0 / fs
     qd_ref = log["qd_ref"] if "qd_ref" in log and not resampled else central_difference(q_ref, dt)
     qdd_ref = log["qdd_ref"] if "qdd_ref" in log and not resampled else central_difference(qd_ref, dt)
-    q_ctl, qd_ctl, qdd_ctl = q_ref, qd_ref, qdd_ref
-    traj = None if resampled else _trajectory_from_meta(log, fs)
-    if traj is not None:  # a log of ilic simulate: the controller's exact (point) reference
-        _, q_ctl, qd_ctl, qdd_ctl = traj.sample(len(log), fs)
-    sensor = tau_sensor or ("command" if isinstance(ctl, PDSettings) else "centred")
-    sched = None
-    if isinstance(ctl, CTCSettings):
-        names = get_model(ctl.model).names
-        if all(f"{n}_hat" in log for n in names):
-            sched = np.stack([log[f"{n}_hat"] for n in names], axis=1)
-        else:
-            ctl = CTCSettings(
-                **{
-                    **{k: getattr(ctl, k) for k in CTC_REPLAY_KEYS},
-                    "ilic": False,
-                    "chi0": {n: getattr(params, n, 0.0) for n in names if n in RigidParameters.NAMES},
-                }
-            )
-    x0 = None
-    if "q" in log and isinstance(ctl, PDSettings):
-        # start where the recording starts: measured position, velocity of its first samples
-        q_meas = log["q"]
-        v0 = float((q_meas[min(2, len(q_meas) - 1)] - q_meas[0]) / (min(2, len(q_meas) - 1) * dt)) if len(q_meas) > 1 else 0.0
-        x0 = (float(q_meas[0]), v0)
-    res = simulate_loop(
-        q_r=q_ctl,
-        qd_r=qd_ctl,
-        qdd_r=qdd_ctl,
-        qd_log=qd_ref,
-        qdd_log=qdd_ref,
-        params=params,
-        effects=eff,
-        controller=ctl,
-        fs_hz=fs,
-        substeps=substeps,
-        seed=seed,
-        pulses=pulses,
-        tau_sensor=sensor,
-        chi_schedule=sched,
-        x0=x0,
+    return _Reference(fs, q_ref, qd_ref, qdd_ref, pulses, grid)
+
+
+def _replay_controller(log: RunLog, ctl: CTCSettings | PDSettings, params: RigidParameters) -> tuple[CTCSettings | PDSettings, np.ndarray | None]:
+    """The replay's controller, and the CTC's parameters at each sample from the log's ``*_hat`` channels (else None).
+
+    A CTC without them runs with the plant's parameters, no online update.
+    """
+    if not isinstance(ctl, CTCSettings):
+        return ctl, None
+    names = get_model(ctl.model).names
+    if all(f"{n}_hat" in log for n in names):
+        return ctl, np.stack([log[f"{n}_hat"] for n in names], axis=1)
+    fixed = CTCSettings(
+        **{
+            **{k: getattr(ctl, k) for k in CTC_REPLAY_KEYS},
+            "ilic": False,
+            "chi0": {n: getattr(params, n, 0.0) for n in names if n in RigidParameters.NAMES},
+        }
     )
-    res.t = grid if resampled else np.asarray(log.t, dtype=np.float64).copy()
-    meta: dict[str, Any] = {"replay_of": log.meta.get("source"), "scenario": {"name": "replay", "source": log.meta.get("source")}}
-    if resampled:
-        meta["replay_clock_s"] = clock_s
-    return loop_log(res, q_ref=q_ref, qd_ref=qd_ref, qdd_ref=qdd_ref, meta=meta)
+    return fixed, None
+
+
+def _measured_start(log: RunLog, dt: float) -> tuple[float, float] | None:
+    """Where the recording starts (a PD replay starts there): measured position, velocity of its first samples; None without ``q``."""
+    if "q" not in log:
+        return None
+    q_meas = log["q"]
+    v0 = float((q_meas[min(2, len(q_meas) - 1)] - q_meas[0]) / (min(2, len(q_meas) - 1) * dt)) if len(q_meas) > 1 else 0.0
+    return (float(q_meas[0]), v0)
 
 
 def _trajectory_from_meta(log: RunLog, fs: float) -> Any:
     """The exciting trajectory recorded by ``ilic simulate``, if it matches the log's samples."""
-    doc = (log.meta.get("scenario") or {}).get("trajectory")
+    doc = (log.provenance.scenario or {}).get("trajectory")
     if not isinstance(doc, dict) or "segments" not in doc:
         return None
     try:
@@ -300,9 +333,9 @@ def simulate_open_loop(
     else:
         params, eff = plant_model(params, effects)
     log.require("t", "q", "vir")
-    gain = log.meta.get("drive_gain")
+    gain = log.sensor.drive_gain
     if not gain:
-        raise SimulationError(log.meta.get("source"), "the log has no drive gain (N/V): the benchmark drives the model with drive_gain * vir")
+        raise SimulationError(log.provenance.source, "the log has no drive gain (N/V): the benchmark drives the model with drive_gain * vir")
     n = len(log)
     if not 3 <= init_samples < n - 2:
         raise ParameterError("init_samples", init_samples, f"between 3 and {n - 3}")
@@ -319,6 +352,6 @@ def simulate_open_loop(
     zero = np.zeros(len(q))
     rmse = float(np.sqrt(np.mean((res.q_true - q) ** 2)))
     figure = BenchmarkFigure(rmse_mm=1e3 * rmse, fit_pct=100.0 * (1.0 - rmse / float(np.std(q))), samples=len(q), init_samples=init_samples)
-    out = loop_log(res, q_ref=q, qd_ref=zero, qdd_ref=zero, meta={"replay_of": log.meta.get("source"), "benchmark": figure.to_dict()})
+    out = loop_log(res, q_ref=q, qd_ref=zero, qdd_ref=zero, meta={"replay_of": log.provenance.source, "benchmark": figure.to_dict()})
     out.channels["q"] = res.q_true  # the simulated output (no sensor effects in the benchmark's comparison)
     return out, figure

@@ -8,8 +8,33 @@ from pathlib import Path
 import click
 
 from ilic_cli.commands.common import STRUCTURES, note, progress_enabled
+from ilic_cli.commands.groups import option_group
 from ilic_cli.errors import IlicError
+from ilic_cli.fleet import execute
+from ilic_cli.fleet.batch import find_logs, group_pattern, run_batch
+from ilic_cli.fleet.table import write_table
 from ilic_cli.methods import choices
+
+
+def _placement(jobs: int | None, dask_spec: str | None, scheduler: str | None) -> execute.Placement:
+    """The placement ``--jobs``, ``--dask local:N`` and ``--scheduler`` ask for; a contradiction or a malformed value is refused."""
+    if dask_spec is not None and scheduler is not None:
+        raise IlicError("--dask", "give --dask local:N or --scheduler, not both")
+    if (dask_spec is not None or scheduler is not None) and jobs is not None:
+        raise IlicError("--jobs", "sets local processes; with dask the cluster decides")
+    workers = None
+    if dask_spec is not None:
+        kind, _, n = dask_spec.partition(":")
+        if kind != "local" or not n.isdigit() or int(n) < 1:
+            raise IlicError("--dask", f"'{dask_spec}': expected local:N with N >= 1 workers")
+        workers = int(n)
+    if scheduler is not None and "://" not in scheduler:
+        raise IlicError("--scheduler", f"'{scheduler}': expected an address such as tcp://HOST:PORT")
+    return execute.Placement(jobs=jobs, dask_workers=workers, scheduler=scheduler)
+
+
+def _task_settings(method: str, structure: str, window_s: float, diagnose: bool) -> execute.TaskSettings:
+    return execute.TaskSettings(method=method, structure=structure, window_s=window_s, diagnose=diagnose)
 
 
 @click.command("batch")
@@ -17,10 +42,22 @@ from ilic_cli.methods import choices
 @click.option(
     "--out", "out_dir", type=click.Path(path_type=Path), required=True, help="Folder of the batch: table.parquet, table.csv and logs/ (one document per log)."
 )
-@click.option("--method", type=click.Choice(list(choices(output_error=False))), default="both", show_default=True, help="What `ilic identify --method` runs.")
-@click.option("--structure", type=click.Choice(STRUCTURES), default="rigid-offset", show_default=True, help="Model structure (the table's parameter columns).")
-@click.option("--window", "window_s", type=click.FloatRange(min=0, min_open=True), default=6.2, show_default=True, help="IDIM-ILIC window T_obs (s).")
-@click.option("--diagnose", "diagnose", is_flag=True, help="Also diagnose each log; its findings go to the table (seconds per log).")
+@option_group(
+    "settings",
+    _task_settings,
+    click.option(
+        "--method",
+        type=click.Choice(list(choices(output_error=False))),
+        default="both",
+        show_default=True,
+        help="What `ilic identify --method` runs.",
+    ),
+    click.option(
+        "--structure", type=click.Choice(STRUCTURES), default="rigid-offset", show_default=True, help="Model structure (the table's parameter columns)."
+    ),
+    click.option("--window", "window_s", type=click.FloatRange(min=0, min_open=True), default=6.2, show_default=True, help="IDIM-ILIC window T_obs (s)."),
+    click.option("--diagnose", "diagnose", is_flag=True, help="Also diagnose each log; its findings go to the table (seconds per log)."),
+)
 @click.option(
     "--group-by",
     "group_by",
@@ -29,23 +66,22 @@ from ilic_cli.methods import choices
     help="Read the machine, joint and start from each path with named groups (?P<machine>...), (?P<joint>...), (?P<start>...) "
     "[default: from the logs' metadata].",
 )
-@click.option("--jobs", type=click.IntRange(min=1), default=None, help="Local processes [default: the cores available, $ILIC_THREADS].")
-@click.option("--dask", "dask_spec", default=None, metavar="local:N", help="Run the tasks on a dask.distributed LocalCluster of N worker processes.")
-@click.option(
-    "--scheduler", default=None, metavar="tcp://HOST:PORT", help="Run the tasks on this dask.distributed scheduler (its workers must see the logs' paths)."
+@option_group(
+    "placement",
+    _placement,
+    click.option("--jobs", type=click.IntRange(min=1), default=None, help="Local processes [default: the cores available, $ILIC_THREADS]."),
+    click.option("--dask", "dask_spec", default=None, metavar="local:N", help="Run the tasks on a dask.distributed LocalCluster of N worker processes."),
+    click.option(
+        "--scheduler", default=None, metavar="tcp://HOST:PORT", help="Run the tasks on this dask.distributed scheduler (its workers must see the logs' paths)."
+    ),
 )
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="What to print on stdout: a summary or JSON.")
 def command(
     logs: tuple[str, ...],
     out_dir: Path,
-    method: str,
-    structure: str,
-    window_s: float,
-    diagnose: bool,
+    settings: execute.TaskSettings,
     group_by: str | None,
-    jobs: int | None,
-    dask_spec: str | None,
-    scheduler: str | None,
+    placement: execute.Placement,
     out_format: str,
 ) -> None:
     """Identify every log in LOGS (paths, globs, folders) and write one table.
@@ -65,17 +101,8 @@ def command(
       ilic batch fleet/ --out batch/ --dask local:2
       ilic batch fleet/ --out batch/ --scheduler tcp://10.0.0.5:8786
     """
-    from ilic_cli.fleet import execute
-    from ilic_cli.fleet.batch import find_logs, group_pattern, run_batch
-    from ilic_cli.fleet.table import write_table
-    from ilic_cli.parallel import threads
-
     if out_dir.exists() and not out_dir.is_dir():
         raise IlicError(out_dir, "--out must be a folder")
-    if dask_spec is not None and scheduler is not None:
-        raise IlicError("--dask", "give --dask local:N or --scheduler, not both")
-    if (dask_spec is not None or scheduler is not None) and jobs is not None:
-        raise IlicError("--jobs", "sets local processes; with dask the cluster decides")
     try:
         rx = group_pattern(group_by)
     except IlicError as exc:  # the library names the pattern; the command names its option
@@ -83,21 +110,9 @@ def command(
     paths = [p for p in find_logs(logs) if out_dir.resolve() not in p.resolve().parents]  # not the batch's own table.csv
     if not paths:
         raise IlicError(logs[0], f"no log outside --out {out_dir}")
-    if dask_spec is not None:
-        kind, _, n = dask_spec.partition(":")
-        if kind != "local" or not n.isdigit() or int(n) < 1:
-            raise IlicError("--dask", f"'{dask_spec}': expected local:N with N >= 1 workers")
-        runner = execute.dask_runner(workers=int(n))
-    elif scheduler is not None:
-        if "://" not in scheduler:
-            raise IlicError("--scheduler", f"'{scheduler}': expected an address such as tcp://HOST:PORT")
-        runner = execute.dask_runner(address=scheduler)
-    else:
-        n_jobs = min(jobs or threads(), len(paths))
-        runner = execute.local_processes(n_jobs) if n_jobs > 1 else execute.in_process
-    settings = execute.TaskSettings(method=method, structure=structure, window_s=window_s, diagnose=diagnose)
+    runner = placement.runner(len(paths))
     result = run_batch(paths, out_dir, settings, runner, progress=_progress() if progress_enabled() else None)
-    result.written = write_table(result, structure, rx)
+    result.written = write_table(result, settings.structure, rx)
     summary = result.to_dict()
     if out_format == "json":
         click.echo(json.dumps(summary, indent=2))

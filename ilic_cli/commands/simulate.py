@@ -20,7 +20,7 @@ from ilic_cli.commands.common import (
 from ilic_cli.errors import SimulationError
 from ilic_cli.io import WriteOptions, write_log
 from ilic_cli.io.atomic import same_path
-from plant.scenarios import DEFAULT_EMPS_LOG, Overrides, check, get_scenario, run_scenario
+from ilic_cli.simulation.scenarios import DEFAULT_EMPS_LOG, Overrides, check, get_scenario, run_scenario
 
 SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
 

@@ -18,6 +18,7 @@ import math
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -128,8 +129,6 @@ def path_groups(rx: re.Pattern[str] | None, path: Path) -> tuple[dict[str, Any],
 
 def parse_start(text: str) -> int | None:
     """Nanoseconds since 1970 UTC of an ISO 8601 date or date and time (UTC unless it says otherwise); ``None`` if not one."""
-    from datetime import UTC, datetime
-
     try:
         when = datetime.fromisoformat(text)
     except ValueError:

@@ -17,10 +17,14 @@ This module imports nothing heavy at import time: a spawned worker unpickles
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
+
+from ilic_cli.errors import IlicError
+from ilic_cli.parallel import threads
 
 BLAS_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS", "ILIC_THREADS")
 """Environment variables that set a worker's BLAS, numba and replay threads (:mod:`ilic_cli.parallel`): the workers share the cores."""
@@ -76,8 +80,6 @@ def run_task(task: Task) -> dict[str, Any]:
     ids, ``None`` without ``diagnose``), ``error`` (``None`` when identified),
     ``warnings``.
     """
-    from ilic_cli.errors import IlicError
-
     doc: dict[str, Any] = {
         "key": task.key,
         "path": task.path,
@@ -100,6 +102,8 @@ def run_task(task: Task) -> dict[str, Any]:
 
 
 def _identify_into(doc: dict[str, Any], task: Task) -> None:
+    # deferred: these load numpy, and a spawned worker imports this module (to unpickle run_task) before one_blas_thread
+    # has set its BLAS threads; numpy must load after that (module docstring)
     from ilic_cli.identify import identify
     from ilic_cli.idim_ilic import ILICSettings
     from ilic_cli.io import read_log
@@ -121,7 +125,6 @@ def _identify_into(doc: dict[str, Any], task: Task) -> None:
             doc["estimates"].append(_estimate("IDIM-ILIC", int(w["k"]), w["t_start"], w["t_end"], w))
     if s.diagnose:
         from ilic_cli.diagnosis import DiagnoseSettings, diagnose  # deferred: only with --diagnose
-        from ilic_cli.errors import IlicError
 
         try:  # a diagnosis that cannot run leaves the log's estimates, and says why in its rows
             diagnosis = diagnose(log, settings=DiagnoseSettings(model=s.structure)).to_dict()
@@ -176,7 +179,6 @@ def local_processes(workers: int) -> Runner:
     """Run the tasks in ``workers`` spawned local processes (one BLAS thread each)."""
 
     def run(tasks: Sequence[Task]) -> Iterator[dict[str, Any]]:
-        import multiprocessing
         from concurrent.futures import ProcessPoolExecutor, as_completed  # deferred: only for a parallel batch
 
         # a fork server, not a fork of this process (whose BLAS may run threads): it sets one BLAS thread before numpy loads and
@@ -219,3 +221,22 @@ def dask_runner(address: str | None = None, workers: int | None = None) -> Runne
                 cluster.close()
 
     return run
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a batch's tasks run: local processes (``jobs``, None: the cores available, :func:`ilic_cli.parallel.threads`),
+    a dask LocalCluster of ``dask_workers`` processes, or the dask scheduler at ``scheduler`` (at most one of the last two)."""
+
+    jobs: int | None = None
+    dask_workers: int | None = None
+    scheduler: str | None = None
+
+    def runner(self, tasks: int) -> Runner:
+        """The runner for ``tasks`` tasks: dask when asked, else as many local processes as tasks allow (one: this process)."""
+        if self.dask_workers is not None:
+            return dask_runner(workers=self.dask_workers)
+        if self.scheduler is not None:
+            return dask_runner(address=self.scheduler)
+        n = min(self.jobs or threads(), tasks)
+        return local_processes(n) if n > 1 else in_process

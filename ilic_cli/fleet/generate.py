@@ -18,9 +18,15 @@ needs no ``--group-by``.
 
 from __future__ import annotations
 
+import argparse
+import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+
+from ilic_cli.fleet.table import format_time
 
 DAY_NS = 86400 * 10**9
 START_NS = 1767225600 * 10**9
@@ -61,8 +67,6 @@ class MachinePlan:
 
 def plan(machines: int, days: int, seed: int = 0) -> list[MachinePlan]:
     """The fleet's machines (module docstring), drawn from ``seed``."""
-    import numpy as np  # deferred: the plan's draws only
-
     rng = np.random.default_rng(seed)
     out = []
     for i in range(machines):
@@ -82,8 +86,6 @@ def plan(machines: int, days: int, seed: int = 0) -> list[MachinePlan]:
 
 def log_path(folder: Path, machine: str, day: int) -> Path:
     """``FOLDER/mNN/mNN_YYYY-MM-DD.mcap``."""
-    from ilic_cli.fleet.table import format_time
-
     return folder / machine / f"{machine}_{format_time(START_NS + day * DAY_NS)[:10]}.mcap"
 
 
@@ -101,8 +103,9 @@ def write_fleet(folder: Path, machines: int = 20, days: int = 30, *, seed: int =
     duration_s : float
         Each log's length (8 s: one IDIM-ILIC window of 6.2 s and IDIM-LS's excitation).
     """
-    from ilic_cli.io import write_log  # deferred: the plant pulls in numba
-    from plant.scenarios import Overrides, run_scenario
+    # deferred: the scenarios import the plant, whose compiled loop pulls in numba (about a second), and only writing a fleet needs it
+    from ilic_cli.io import write_log
+    from ilic_cli.simulation.scenarios import Overrides, run_scenario
 
     fleet = plan(machines, days, seed)
     for i, m in enumerate(fleet):
@@ -122,9 +125,6 @@ def write_fleet(folder: Path, machines: int = 20, days: int = 30, *, seed: int =
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m ilic_cli.fleet.generate FOLDER [--machines 20] [--days 30] [--seed 0] [--duration 8]``: write a fleet and its truth."""
-    import argparse
-    import json
-
     p = argparse.ArgumentParser(prog="python -m ilic_cli.fleet.generate", description=__doc__.split("\n\n")[0])
     p.add_argument("folder", type=Path)
     p.add_argument("--machines", type=int, default=20)

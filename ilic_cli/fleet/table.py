@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 from collections.abc import Sequence
 from datetime import UTC, datetime
@@ -35,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from ilic_cli import parameters
+from ilic_cli.errors import IlicError
 from ilic_cli.fleet.batch import BatchResult, path_groups
 from ilic_cli.io.atomic import atomic_path, atomic_write_text
 
@@ -154,8 +156,6 @@ def write_parquet(table: Sequence[dict[str, Any]], structure: str, target: Path)
 
 
 def _units_json(structure: str) -> str:
-    import json
-
     return json.dumps({jt: {n: parameters.unit(n, jt) for n in parameters.structure_names(structure)} for jt in ("prismatic", "revolute")}, sort_keys=True)
 
 
@@ -174,12 +174,11 @@ def read_table(path: Path) -> Any:
     # deferred: pandas and pyarrow, only for reading a table
     import pandas as pd
 
-    from ilic_cli.errors import IlicError
-
     try:
         if path.suffix.lower() == ".parquet":
             frame = pd.read_parquet(path)
         else:
+            # deferred: pyarrow's CSV reader (pyarrow takes ~0.2 s to import), only for a CSV table
             import pyarrow as pa
             import pyarrow.csv as pacsv
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from ilic_cli import parameters
 from ilic_cli.errors import ParameterError
+from ilic_cli.fleet.table import format_time
 
 MIN_POINTS = 6
 MIN_SIDE = 2
@@ -165,8 +166,6 @@ class Series:
     @property
     def step_day(self) -> str | None:
         """The day (YYYY-MM-DD, UTC) of the first log after the step."""
-        from ilic_cli.fleet.table import format_time
-
         return None if self.step_index is None or self.kind != "step" else format_time(self.times_ns[self.step_index])[:10]
 
     def fit(self) -> None:

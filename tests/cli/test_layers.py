@@ -74,13 +74,10 @@ MAX_FUNCTION_LINES = 100
 
 # (importer, imported) pairs that point upward, or out of plant/ into an estimator or io
 LAYER_PENDING: set[tuple[str, str]] = {
-    ("plant.closed_loop", "ilic_cli.idim_ilic"),
     ("plant.corpus", "ilic_cli.idim_ls"),
-    ("plant.scenarios", "ilic_cli.io"),
 }
 
 CYCLE_PENDING: set[frozenset[str]] = {
-    frozenset(["plant", "plant.closed_loop", "plant.generic", "plant.replay", "plant.scenarios"]),
     frozenset(["ilic_cli.diagnosis", "ilic_cli.diagnosis.core", "ilic_cli.diagnosis.decide", "ilic_cli.diagnosis.null"]),
 }
 
@@ -107,27 +104,17 @@ FUNCTION_PENDING: set[str] = {
     "ilic_cli/diagnosis/select.py:forward_select",
     "ilic_cli/io/ros1fast.py:write",
     "ilic_cli/robot/kernel.py:inertial_regressor",
-    "plant/closed_loop.py:simulate_loop",
     "plant/kernel.py:run_periods",
-    "plant/replay.py:simulate_replay",
 }
 
 # in-function imports (file:module) without a comment, on the line or above it in its run of imports, that gives the reason for deferring
 DEFERRED_PENDING: set[str] = {
-    "ilic_cli/commands/batch.py:ilic_cli.fleet",
-    "ilic_cli/commands/batch.py:ilic_cli.fleet.batch",
-    "ilic_cli/commands/batch.py:ilic_cli.fleet.table",
-    "ilic_cli/commands/batch.py:ilic_cli.parallel",
     "ilic_cli/commands/common.py:os",
     "ilic_cli/commands/common.py:plant.dynamics",
     "ilic_cli/commands/common.py:sys",
     "ilic_cli/commands/diagnose.py:json",
     "ilic_cli/commands/info.py:json",
     "ilic_cli/commands/info.py:numpy",
-    "ilic_cli/commands/trend.py:ilic_cli.fleet.table",
-    "ilic_cli/commands/trend.py:ilic_cli.fleet.trend",
-    "ilic_cli/commands/trend.py:ilic_cli.identify_report",
-    "ilic_cli/commands/trend.py:ilic_cli.io.atomic",
     "ilic_cli/diagnosis/core.py:plant.closed_loop",
     "ilic_cli/diagnosis/core.py:plant.dynamics",
     "ilic_cli/diagnosis/core.py:plant.replay",
@@ -136,21 +123,6 @@ DEFERRED_PENDING: set[str] = {
     "ilic_cli/diagnosis/plots.py:matplotlib",
     "ilic_cli/diagnosis/plots.py:matplotlib.pyplot",
     "ilic_cli/diagnosis/stats.py:scipy.special",
-    "ilic_cli/fleet/batch.py:datetime",
-    "ilic_cli/fleet/execute.py:ilic_cli.errors",
-    "ilic_cli/fleet/execute.py:ilic_cli.identify",
-    "ilic_cli/fleet/execute.py:ilic_cli.idim_ilic",
-    "ilic_cli/fleet/execute.py:ilic_cli.io",
-    "ilic_cli/fleet/execute.py:multiprocessing",
-    "ilic_cli/fleet/generate.py:argparse",
-    "ilic_cli/fleet/generate.py:ilic_cli.fleet.table",
-    "ilic_cli/fleet/generate.py:json",
-    "ilic_cli/fleet/generate.py:plant.scenarios",
-    "ilic_cli/fleet/table.py:ilic_cli.errors",
-    "ilic_cli/fleet/table.py:json",
-    "ilic_cli/fleet/table.py:pyarrow",
-    "ilic_cli/fleet/table.py:pyarrow.csv",
-    "ilic_cli/fleet/trend.py:ilic_cli.fleet.table",
     "ilic_cli/identify_report.py:numpy",
     "ilic_cli/idim_ilic.py:pandas",
     "ilic_cli/idim_ls.py:pandas",
@@ -224,15 +196,8 @@ DEFERRED_PENDING: set[str] = {
     "ilic_cli/io/rosschema.py:rosbags.typesys",
     "ilic_cli/io/sqlitepages.py:mmap",
     "ilic_cli/io/sqlitepages.py:numpy.lib.stride_tricks",
-    "ilic_cli/plotting.py:matplotlib",
-    "ilic_cli/plotting.py:matplotlib.pyplot",
-    "ilic_cli/plotting.py:matplotlib.ticker",
     "ilic_cli/robot/consistency.py:scipy.stats",
     "ilic_cli/runlog.py:pandas",
-    "plant/__init__.py:plant.closed_loop",
-    "plant/__init__.py:plant.dynamics",
-    "plant/__init__.py:plant.replay",
-    "plant/__init__.py:plant.scenarios",
     "plant/corpus.py:ilic_cli.effects",
     "plant/corpus.py:ilic_cli.parameters",
     "plant/corpus.py:ilic_cli.regressor",

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.io import read_log
-from plant.scenarios import Overrides, run_scenario
+from ilic_cli.simulation.scenarios import Overrides, run_scenario
 from tests.clirun import run_cli
 from tests.conftest import require_shared
 from tests.plant.test_plant_emps import _relative_errors

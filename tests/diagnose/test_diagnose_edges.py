@@ -7,7 +7,7 @@ import numpy as np
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
 from ilic_cli.diagnosis.select import at_edge
 from ilic_cli.effects import EFFECTS
-from plant.scenarios import Overrides, run_scenario
+from ilic_cli.simulation.scenarios import Overrides, run_scenario
 
 
 def test_at_edge_of_the_grid_and_of_a_secondary_bound() -> None:

@@ -86,8 +86,8 @@ def test_a_clean_revolute_log_gets_no_gravity(seed: int) -> None:
 def test_a_vertical_axis_reports_its_constant_force_as_a_weight() -> None:
     """A 12 kg load hanging on the EMPS-like axis (its metadata says ``vertical``): 117.7 N, read as that weight and that mass."""
     from ilic_cli.diagnosis.report import to_markdown
+    from ilic_cli.simulation.scenarios import Overrides, run_scenario
     from plant.corpus import CTC_CHI0, NOISE_MODELS, PLANT
-    from plant.scenarios import Overrides, run_scenario
 
     g = 9.80665
     ov = Overrides(

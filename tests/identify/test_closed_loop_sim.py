@@ -28,7 +28,7 @@ from ilic_cli.io import write_log
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.loop import PLANT_LOOP
-from plant.scenarios import PUBLISHED_RIGID, Overrides, run_scenario
+from ilic_cli.simulation.scenarios import PUBLISHED_RIGID, Overrides, run_scenario
 from tests.clirun import run_cli
 from tests.conftest import require_shared
 

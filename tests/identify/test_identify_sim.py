@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from ilic_cli.io import write_log
-from plant.scenarios import Overrides, run_scenario
+from ilic_cli.simulation.scenarios import Overrides, run_scenario
 from tests.clirun import run_cli
 
 TABLE = json.loads((Path(__file__).parents[2] / "fixtures" / "paper_table1.json").read_text())

@@ -15,7 +15,7 @@ from ilic_cli.identify import identify
 from ilic_cli.lm import levenberg_marquardt
 from ilic_cli.output_error import OESettings
 from ilic_cli.runlog import RunLog
-from plant.scenarios import PUBLISHED_RIGID, Overrides, run_scenario
+from ilic_cli.simulation.scenarios import PUBLISHED_RIGID, Overrides, run_scenario
 from tests.conftest import require_shared
 
 RIGID = ("M", "Fv", "Fc")

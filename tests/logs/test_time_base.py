@@ -288,7 +288,7 @@ def test_an_irregular_log_is_simulated_open_loop_on_its_uniform_grid(emps_pulses
     """
     import json
 
-    from plant.scenarios import PUBLISHED_RIGID
+    from ilic_cli.simulation.scenarios import PUBLISHED_RIGID
 
     model = tmp_path / "rigid.json"
     model.write_text(json.dumps(PUBLISHED_RIGID))

@@ -10,8 +10,8 @@ import pytest
 
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.io import read_log
+from ilic_cli.simulation.scenarios import Overrides, run_scenario
 from plant.replay import simulate_replay
-from plant.scenarios import Overrides, run_scenario
 from tests.conftest import require_shared
 
 FIXTURE = json.loads((Path(__file__).parents[2] / "fixtures" / "emps_simulation_table.json").read_text())

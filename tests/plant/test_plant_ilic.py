@@ -5,10 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from plant.closed_loop import simulate_loop
+from ilic_cli.errors import ParameterError
+from ilic_cli.simulation.online import ilic_update
+from ilic_cli.simulation.scenarios import Overrides, run_scenario
+from plant.closed_loop import LoopWindow, simulate_loop
 from plant.controllers import CTCSettings
 from plant.dynamics import RigidParameters
-from plant.scenarios import Overrides, run_scenario
 from plant.trajectories import T_CYCLE, exciting_cycle, with_constant_velocity
 
 
@@ -33,7 +35,17 @@ def test_loss_of_excitation_keeps_parameters_and_stays_stable() -> None:
     n = int(round(6.2 * 5 * 1000))
     _, q_r, qd_r, qdd_r = traj.sample(n, 1000.0)
     _, _, qd_c, qdd_c = traj.sample_centred(n, 1000.0)
-    res = simulate_loop(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, qd_log=qd_c, qdd_log=qdd_c, params=RigidParameters(95, 200, 20), effects={}, controller=CTCSettings())
+    res = simulate_loop(
+        q_r=q_r,
+        qd_r=qd_r,
+        qdd_r=qdd_r,
+        qd_log=qd_c,
+        qdd_log=qdd_c,
+        params=RigidParameters(95, 200, 20),
+        effects={},
+        controller=CTCSettings(),
+        update=ilic_update,
+    )
     wins = res.windows
     # window 4 = [18.6, 24.8) s: constant velocity only
     lost = wins[3]
@@ -50,3 +62,34 @@ def test_loss_of_excitation_keeps_parameters_and_stays_stable() -> None:
     e = np.abs(q_r - res.q)
     assert e[a:].max() < 5 * e[int(6.2 * 1000) : a].max()
     assert e.max() < 1e-3
+
+
+def test_the_loop_hands_each_full_window_to_the_update_it_is_given() -> None:
+    """The plant knows no estimator: a CTC with ``ilic`` needs an update; the update sees every full window and its parameters are used."""
+    traj = exciting_cycle(t_offset=0.0)
+    n = 500  # two full windows of 0.2 s and half a window
+    _, q_r, qd_r, qdd_r = traj.sample(n, 1000.0)
+    ctl = CTCSettings(window_s=0.2)
+    kw = dict(q_r=q_r, qd_r=qd_r, qdd_r=qdd_r, params=RigidParameters(95, 200, 20), effects={}, controller=ctl)
+    with pytest.raises(ParameterError, match="online update"):
+        simulate_loop(**kw)
+    seen: list[LoopWindow] = []
+
+    class Record:
+        def __init__(self, k: int) -> None:
+            self.k = k
+
+        def to_dict(self) -> dict[str, int]:
+            return {"k": self.k}
+
+    def update(chi: np.ndarray, window: LoopWindow) -> tuple[np.ndarray, Record]:
+        seen.append(window)
+        return chi + 1.0, Record(window.k)
+
+    res = simulate_loop(**kw, update=update)
+    assert [w.k for w in seen] == [1, 2] and [r.k for r in res.windows] == [1, 2]
+    assert [(w.t[0], len(w.t)) for w in seen] == [(0.0, 200), (0.2, 200)]
+    np.testing.assert_array_equal(seen[1].q, res.q[200:400])
+    np.testing.assert_array_equal(seen[1].q_ref, q_r[200:400])
+    m0 = ctl.initial()["M"]
+    assert res.chi[199, 0] == m0 and res.chi[200, 0] == m0 + 1.0 and res.chi[499, 0] == m0 + 2.0

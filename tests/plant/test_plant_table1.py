@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plant.scenarios import Overrides, run_scenario
+from ilic_cli.simulation.scenarios import Overrides, run_scenario
 
 FIXTURE = json.loads((Path(__file__).parents[2] / "fixtures" / "paper_table1.json").read_text())
 NAMES = ("M", "Fv", "Fc")

@@ -23,7 +23,8 @@ pulses enter interpolated in continuous time (``PDSettings.pulse_input =
 per sample, as the rig applied them (closer to the measurement).
 
 Every value can be overridden (:class:`Overrides`, the ``ilic simulate``
-options). :func:`run_scenario` returns the simulated :class:`RunLog`.
+options). :func:`run_scenario` returns the simulated :class:`RunLog`; the CTC's
+online IDIM-ILIC is handed to the loop here (:func:`ilic_cli.simulation.online.ilic_update`).
 """
 
 from __future__ import annotations
@@ -38,13 +39,14 @@ from ilic_cli.effects import Effects, effects_to_dict, make_effects
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.io import read_log
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.online import ilic_update
 from plant.closed_loop import trajectory_log
 from plant.controllers import CTCSettings, PDSettings
 from plant.dynamics import RigidParameters, plant_vector
 from plant.replay import simulate_replay
 from plant.trajectories import TRAJECTORIES, make_trajectory
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_EMPS_LOG = REPO_ROOT.parent / "shared" / "emps" / "DATA_EMPS.mat"
 """``../shared/emps/DATA_EMPS.mat`` relative to the repository root."""
 
@@ -203,7 +205,7 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
             if isinstance(ctl, PDSettings):
                 ctl = replace(ctl, pulse_input="ramp")
         out = simulate_replay(log, params, effects, ctl, substeps=ov.substeps, seed=ov.seed, tau_sensor=ov.tau_sensor, clock_s=clock)
-        out.meta["scenario"] = {**scen_meta, "log": str(log.meta.get("source"))}
+        out.meta["scenario"] = {**scen_meta, "log": str(log.provenance.source)}
         if ov.published_setup:
             out.meta["scenario"]["published_setup"] = {"clock_s": clock, "pulse_input": "ramp"}
         out.meta.pop("replay_of", None)
@@ -225,6 +227,7 @@ def run_scenario(name: str, ov: Overrides | None = None, progress: Any = None) -
         scenario=scen_meta,
         substeps=ov.substeps,
         progress=progress,
+        update=ilic_update,
     )
 
 
@@ -239,14 +242,15 @@ def _read_reference_log(path: str | Path | None) -> RunLog:
 
 
 def _pd_from_log(log: RunLog, default: PDSettings) -> PDSettings:
-    ctl = log.meta.get("controller") or {}
+    """``default`` with the gains the log records (its controller's ``kp``, ``kv``; its drive gain)."""
+    view = log.controller
     kw: dict[str, float] = {}
-    if "kp" in ctl:
-        kw["kp"] = float(ctl["kp"])
-    if "kv" in ctl:
-        kw["kv"] = float(ctl["kv"])
-    if log.meta.get("drive_gain"):
-        kw["gtau"] = float(log.meta["drive_gain"])
+    if view is not None and view.kp is not None:
+        kw["kp"] = view.kp
+    if view is not None and view.kv is not None:
+        kw["kv"] = view.kv
+    if log.sensor.drive_gain:
+        kw["gtau"] = log.sensor.drive_gain
     return _pd_with(default, kw)
 
 
