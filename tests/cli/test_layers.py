@@ -94,7 +94,6 @@ MODULE_PENDING: set[str] = {
     "ilic_cli/diagnosis/decide.py",
     "ilic_cli/diagnosis/refit.py",
     "ilic_cli/diagnosis/select.py",
-    "ilic_cli/effects.py",
     "ilic_cli/filtering.py",
     "ilic_cli/idim_ls.py",
     "ilic_cli/identify.py",
@@ -102,7 +101,6 @@ MODULE_PENDING: set[str] = {
     "ilic_cli/io/rosbag2.py",
     "ilic_cli/io/roscollect.py",
     "plant/corpus.py",
-    "plant/kernel.py",
 }
 
 FUNCTION_PENDING: set[str] = {
@@ -120,7 +118,6 @@ FUNCTION_PENDING: set[str] = {
     "ilic_cli/lm.py:levenberg_marquardt",
     "ilic_cli/robot/kernel.py:inertial_regressor",
     "plant/closed_loop.py:simulate_loop",
-    "plant/kernel.py:run_periods",
     "plant/replay.py:simulate_replay",
 }
 
