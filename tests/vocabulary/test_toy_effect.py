@@ -22,11 +22,13 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
-from ilic_cli.effects import Effect, EffectColumn, PlantParam, register, unregister
+from ilic_cli.effects import Effect, EffectColumn, PlantParam, make_effects, register, unregister
 from ilic_cli.io import read_log
 from ilic_cli.regressor import COLUMNS, Kinematics
 from ilic_cli.runlog import RunLog
+from plant.generic import kernel_for
 from tests.clirun import run_cli
+from tests.vocabulary.test_compiled_forms import check_against_definition
 
 F3 = 800.0
 """Cubic friction of the concealed effect (N/(m/s)^3): about 3 N rms, 11 N at the top speed of paper-sim."""
@@ -61,41 +63,27 @@ def concealed(toy: Effect, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def test_simulated_force_is_its_columns_times_theta(toy: Effect, tmp_path: Path) -> None:
-    """Noise-free, the logged command: at every sliding sample the applied force is ``Y @ theta``, the rigid columns and the toy's own."""
+def test_simulated(toy: Effect, concealed: Path, tmp_path: Path) -> None:
+    """The plant integrated the toy's force, its columns times its parameter: exactly (noise-free, the logged command),
+    in the compiled loop's dynamics (sliding, stuck and at break-away), and in a fit of the concealed log."""
     path = tmp_path / "exact.mcap"
-    res = run_cli(
-        "simulate",
-        "--scenario",
-        "paper-sim",
-        "--duration",
-        "4",
-        "--seed",
-        "1",
-        "--tau-sensor",
-        "command",
-        "--effect",
-        f"cubic_friction:F3={F3}",
-        "-o",
-        str(path),
-    )
+    args = ("--scenario", "paper-sim", "--duration", "4", "--seed", "1", "--tau-sensor", "command", "--effect", f"cubic_friction:F3={F3}")
+    res = run_cli("simulate", *args, "-o", str(path))
     assert res.status == 0, res.stderr
-    log = read_log(path)
-    truth = log.provenance.true_parameters
+    exact = read_log(path)
+    truth = exact.provenance.true_parameters
     assert truth is not None
-    kin = Kinematics(qd=log["qd_plant"], qdd=log["qdd_plant"], q=log["q"], t=log.t)
+    kin = Kinematics(qd=exact["qd_plant"], qdd=exact["qdd_plant"], q=exact["q"], t=exact.t)
     rigid = np.column_stack([COLUMNS[n].build(kin) for n in ("M", "Fv", "Fc", "offset")]) @ [truth[n] for n in ("M", "Fv", "Fc", "offset")]
     toy_force = toy.matrix(kin) @ [F3]  # Y of the toy's own column, times its parameter
     np.testing.assert_array_equal(toy.plant_force({"F3": F3}, kin), toy_force)
     sliding = np.abs(kin.qd) > 1e-6
     assert sliding.mean() > 0.9 and np.abs(toy_force[sliding]).max() > 5.0
-    np.testing.assert_allclose(rigid[sliding] + toy_force[sliding], log["tau"][sliding], rtol=0, atol=1e-9 * np.abs(log["tau"]).max())
-    # and the toy is what makes the difference: without it the rigid columns miss its force
-    assert np.abs(rigid[sliding] - log["tau"][sliding]).max() > 5.0
+    np.testing.assert_allclose(rigid[sliding] + toy_force[sliding], exact["tau"][sliding], rtol=0, atol=1e-9 * np.abs(exact["tau"]).max())
+    assert np.abs(rigid[sliding] - exact["tau"][sliding]).max() > 5.0  # without the toy's column the force is missed
+    eff = make_effects({"cubic_friction": {"F3": F3}})
+    check_against_definition(kernel_for(eff), eff)  # the loop compiled for it, against its definition
 
-
-def test_simulated(concealed: Path) -> None:
-    """The plant integrated the toy's force: its own states and the logged force hold F3, and nothing without the effect does."""
     log = read_log(concealed)
     assert log.meta["effects"]["cubic_friction"] == {"F3": F3}
     qd, qdd = log["qd_plant"], log["qdd_plant"]
