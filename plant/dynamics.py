@@ -5,16 +5,19 @@ The plant is a 1-DOF prismatic axis (the EMPS)::
     tau = M*qdd + Fv*qd + Fc*sign(qd) + offset            (paper eq. 29 + offset)
 
 plus the effects of :mod:`ilic_cli.effects` (one definition each: parameters,
-ranges, force term, identification columns, words). This module packs them
+ranges, identification columns, words; the plant force of an effect linear in
+its parameters is its columns times coefficients). This module packs them
 into the flat vector the compiled loop reads (:func:`plant_vector`): the
 built-in effects into fixed slots (:data:`SLOTS`, their compiled form, checked
-against the definitions by the tests), any other effect's parameters after
-them (:data:`N_PLANT`), for the loop that compiles its ``force``.
+against the definitions by tests/vocabulary/test_compiled_forms.py), any other
+effect's linear form after them (:data:`N_PLANT`), for the loop that compiles
+its columns (:mod:`plant.generic`).
 
-:func:`force_model` is the vectorised inverse dynamics with these effects (the
-measurement effects ``quantization`` and ``noise``, the actuator limit
-``saturation``, the random ``disturbance`` and the drive's ``current_loop``
-are not part of it).
+:func:`force_model` is the vectorised inverse dynamics with these effects,
+``W(q, qd, qdd, t) @ theta`` from the columns of the definitions plus the
+blocks (:mod:`plant.blocks`: the flexible load, the delay); the measurement
+effects ``quantization`` and ``noise``, the actuator limit ``saturation``, the
+random ``disturbance`` and the drive's ``current_loop`` are not part of it.
 """
 
 from __future__ import annotations

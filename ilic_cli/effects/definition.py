@@ -392,7 +392,7 @@ class EffectParams:
         return self.params[name]
 
     def vector(self) -> np.ndarray:
-        """The values in the order of the definition's parameters (the ``prm`` of ``force``)."""
+        """The values in the order of the definition's parameters."""
         return np.array([self.params[n] for n in self.effect.names], dtype=np.float64)
 
     def to_dict(self) -> dict[str, float]:
