@@ -5,16 +5,19 @@ The plant is a 1-DOF prismatic axis (the EMPS)::
     tau = M*qdd + Fv*qd + Fc*sign(qd) + offset            (paper eq. 29 + offset)
 
 plus the effects of :mod:`ilic_cli.effects` (one definition each: parameters,
-ranges, force term, identification columns, words). This module packs them
+ranges, identification columns, words; the plant force of an effect linear in
+its parameters is its columns times coefficients). This module packs them
 into the flat vector the compiled loop reads (:func:`plant_vector`): the
 built-in effects into fixed slots (:data:`SLOTS`, their compiled form, checked
-against the definitions by the tests), any other effect's parameters after
-them (:data:`N_PLANT`), for the loop that compiles its ``force``.
+against the definitions by tests/vocabulary/test_compiled_forms.py), any other
+effect's linear form after them (:data:`N_PLANT`), for the loop that compiles
+its columns (:mod:`plant.generic`).
 
-:func:`force_model` is the vectorised inverse dynamics with these effects (the
-measurement effects ``quantization`` and ``noise``, the actuator limit
-``saturation``, the random ``disturbance`` and the drive's ``current_loop``
-are not part of it).
+:func:`force_model` is the vectorised inverse dynamics with these effects,
+``W(q, qd, qdd, t) @ theta`` from the columns of the definitions plus the
+blocks (:mod:`plant.blocks`: the flexible load, the delay); the measurement
+effects ``quantization`` and ``noise``, the actuator limit ``saturation``, the
+random ``disturbance`` and the drive's ``current_loop`` are not part of it.
 """
 
 from __future__ import annotations
@@ -27,8 +30,10 @@ import numpy as np
 
 from ilic_cli import effects as fx
 from ilic_cli import parameters
-from ilic_cli.effects import EffectParams, Effects, make_effects
+from ilic_cli.effects import Effect, EffectParams, Effects, LinearForm, make_effects
 from ilic_cli.errors import ParameterError
+from ilic_cli.regressor import COLUMNS, Kinematics
+from plant.blocks import load_force, shifted
 
 
 # ---------------------------------------------------------------------------
@@ -168,12 +173,13 @@ def plant_vector(params: RigidParameters, effects: Mapping[str, EffectParams]) -
     """The parameters and effects as the flat float64 vector read by the integrator.
 
     Slots ``0 .. N_PLANT-1``: the rigid parameters and the built-in effects
-    (:data:`SLOTS`); after them, the parameters of every effect without a
-    compiled form (:func:`generic_effects`), in order.
+    (:data:`SLOTS`); after them, per effect without a compiled form
+    (:func:`generic_effects`), in order, its linear form (:func:`generic_form`):
+    the nonlinear value (NaN without one) and one coefficient per column.
     """
     parameters.check_rigid(params.to_dict())
-    generic = generic_effects(effects)
-    p = np.zeros(N_PLANT + sum(len(e.effect.params) for e in generic))
+    generic = [(e, generic_form(e)) for e in generic_effects(effects)]
+    p = np.zeros(N_PLANT + sum(1 + len(e.effect.columns) for e, _ in generic))
     p[P_M] = params.M
     p[P_FV_POS] = p[P_FV_NEG] = params.Fv
     p[P_FC_POS] = p[P_FC_NEG] = params.Fc
@@ -185,14 +191,41 @@ def plant_vector(params: RigidParameters, effects: Mapping[str, EffectParams]) -
         if eid in effects:
             for name, slot in slots.items():
                 p[slot] = effects[eid][name]
+    i = N_PLANT
+    for e, (value, theta) in generic:
+        p[i] = np.nan if value is None else float(value)
+        p[i + 1 : i + 1 + len(e.effect.columns)] = [theta.get(c.name, 0.0) for c in e.effect.columns]
+        for name in set(theta) - set(e.effect.column_names):  # a coefficient of a rigid column (as the spring's offset)
+            for slot in RIGID_SLOTS[name]:
+                p[slot] += theta[name]
+        i += 1 + len(e.effect.columns)
     if "stribeck" in effects and min(p[P_FC_POS], p[P_FC_NEG]) + p[P_FS] < 0:
         raise ParameterError("stribeck.Fs", p[P_FS], f">= -{min(p[P_FC_POS], p[P_FC_NEG]):g} (the static friction level Fc + Fs below 0)")
     p[P_LAG] = drive_lag_s(effects)
-    i = N_PLANT
-    for e in generic:
-        p[i : i + len(e.effect.params)] = e.vector()
-        i += len(e.effect.params)
     return p
+
+
+RIGID_SLOTS: dict[str, tuple[int, ...]] = {
+    "M": (P_M,),
+    "Fv": (P_FV_POS, P_FV_NEG),
+    "Fc": (P_FC_POS, P_FC_NEG),
+    "offset": (P_OFFSET,),
+    "Fv_pos": (P_FV_POS,),
+    "Fv_neg": (P_FV_NEG,),
+    "Fc_pos": (P_FC_POS,),
+    "Fc_neg": (P_FC_NEG,),
+}
+"""The slots of each rigid column's coefficient (:data:`ilic_cli.regressor.COLUMNS`; ``Fc_neg`` is a magnitude, as its column's sign)."""
+
+
+def generic_form(e: EffectParams) -> LinearForm:
+    """The linear form of an effect without a compiled form; :class:`ParameterError` when it has none the loop can compile."""
+    form = e.effect.linear_form(e.params)
+    if form is None or not all(c.of is not None for c in e.effect.columns):
+        raise ParameterError("effect", e.id, "linear in columns with pointwise forms (EffectColumn.of), or a compiled form in plant.kernel")
+    if not (form[0] is None or np.isscalar(form[0])):
+        raise ParameterError("effect", e.id, "a scalar nonlinear value in the compiled plant")
+    return form
 
 
 # ---------------------------------------------------------------------------
@@ -203,21 +236,17 @@ def force_model(
 ) -> np.ndarray:
     """Inverse dynamics with effects, vectorised: the force that produces ``q, qd, qdd``.
 
-    ``tau = M(t)*qdd + friction(qd) + offset + ripple(q) + spring(q)`` with
-    ``sign(0) = 0``; ``payload_change`` raises the mass from ``t_change``;
-    ``friction_drift`` changes ``Fv`` and ``Fc`` with ``t`` (:func:`ilic_cli.effects.drift_of`);
-    ``gravity`` adds ``g·(MX cos q - MY sin q)``;
-    ``flexibility`` adds the force that accelerates the load mass, obtained by
-    simulating the linear load dynamics driven by the given motor motion
-    (load at rest relative to the motor at ``t[0]``; uniform ``t`` expected);
-    ``delay`` returns the force ``delay`` seconds earlier (later for a
-    negative delay; linear interpolation, the end values held). ``saturation``,
-    ``quantization``, ``noise``, ``disturbance`` and ``current_loop`` are
-    measurement/actuator effects and are ignored here.
-
-    The built-in structural effects (asymmetric friction, payload, flexibility,
-    delay) come from the plant vector; every effect with a ``force`` term
-    (:mod:`ilic_cli.effects`) adds it.
+    ``tau = W(q, qd, qdd, t) @ theta``: the rigid columns (:data:`ilic_cli.regressor.COLUMNS`, ``sign(0) = 0``) and
+    every effect linear in its parameters as its own columns times coefficients
+    (:meth:`ilic_cli.effects.Effect.linear_form`: ``asymmetric_friction`` in place of ``Fv, Fc``, ``stribeck``,
+    ``position_ripple``, ``spring``, ``gravity``, ``payload_change``, an effect added by a definition alone);
+    ``friction_drift`` changes the friction coefficients with ``t`` (:func:`ilic_cli.effects.drift_of`, Coulomb
+    levels kept >= 0); the blocks (:mod:`plant.blocks`): ``flexibility`` adds the force that accelerates the load
+    mass, the acceleration terms of the effects (``payload_change``) landing on the load, obtained by simulating the
+    linear load dynamics driven by the given motor motion (load at rest relative to the motor at ``t[0]``; uniform
+    ``t`` expected); ``delay`` returns the force ``delay`` seconds earlier (:func:`plant.blocks.shifted`).
+    ``saturation``, ``quantization``, ``noise``, ``disturbance`` and ``current_loop`` are measurement/actuator
+    effects and are ignored here.
 
     Parameters
     ----------
@@ -233,53 +262,72 @@ def force_model(
         params, eff = plant_model(params, effects)
     else:
         eff = make_effects(effects)
-    p = plant_vector(params, eff)
+    plant_vector(params, eff)  # the plant's rules (rigid ranges, the static friction level)
     q, qd, qdd, t = (np.asarray(a, dtype=np.float64) for a in (q, qd, qdd, t))
-    pos, neg = qd > 0, qd < 0
-    fv_pos, fv_neg, fc_pos, fc_neg = p[P_FV_POS], p[P_FV_NEG], p[P_FC_POS], p[P_FC_NEG]
-    if "friction_drift" in eff:  # friction that changes over time (t: the plant's time, as payload_change's)
-        dfv = fx.drift_of(t, p[P_DR_DFV], p[P_DR_TAU], p[P_DR_RFV])
-        dfc = fx.drift_of(t, p[P_DR_DFC], p[P_DR_TAU], p[P_DR_RFC])
-        fv_pos, fv_neg = fv_pos + dfv, fv_neg + dfv
-        fc_pos, fc_neg = np.maximum(fc_pos + dfc, 0.0), np.maximum(fc_neg + dfc, 0.0)
-    fric = np.where(pos, fv_pos * qd + fc_pos, 0.0) + np.where(neg, fv_neg * qd - fc_neg, 0.0)
-    dm = np.where(t >= p[P_TCH], p[P_DM], 0.0)
-    if p[P_FLEX_K] > 0.0:
-        m_motor = (1.0 - p[P_FLEX_R]) * p[P_M]
-        m_load = p[P_FLEX_R] * p[P_M] + dm
-        coupling = _load_force(p, q, qd, t, m_load)
-        tau = m_motor * qdd + coupling
+    kin = Kinematics(qd, qdd, q, t)
+    rigid, own = linear_terms(params, eff)
+    if "friction_drift" in eff:
+        rigid = _drifted(rigid, eff["friction_drift"], t)
+    if "flexibility" not in eff:
+        tau = _columns_force(rigid, own, kin)
     else:
-        tau = (p[P_M] + dm) * qdd
-    tau = tau + fric + p[P_OFFSET]
-    for e in (eff[i] for i in fx.EFFECTS if i in eff):
-        if e.effect.force is not None:
-            tau = tau + e.effect.force(q, qd, e.vector())
-    d = eff["delay"]["delay"] if "delay" in eff else 0.0
-    if d != 0:
-        tau = np.interp(t - d, t, tau)
+        flex = eff["flexibility"]
+        still = Kinematics(qd, np.zeros_like(qdd), q, t)
+        moved = Kinematics(qd, np.ones_like(qdd), q, t)
+        m_rigid = rigid.pop("M")
+        rest = _columns_force(rigid, own, still)
+        m_load = flex["load_fraction"] * m_rigid + (_columns_force(rigid, own, moved) - rest)  # the acceleration terms: mass on the load
+        tau = (1.0 - flex["load_fraction"]) * m_rigid * qdd + load_force(flex["stiffness"], flex["damping"], q, qd, t, m_load) + rest
+    return shifted(tau, t, eff["delay"]["delay"] if "delay" in eff else 0.0)
+
+
+OwnTerms = list[tuple[Effect, Any, dict[str, Any]]]
+"""Per effect with columns of its own in the force: ``(definition, nonlinear value, {its column: coefficient})``."""
+
+
+def linear_terms(params: RigidParameters, effects: Mapping[str, EffectParams]) -> tuple[dict[str, Any], OwnTerms]:
+    """The plant force as columns times coefficients: ``({rigid column: coefficient}, own terms)``.
+
+    The rigid parameters, less those an effect replaces (:attr:`ilic_cli.effects.Effect.replaces`), plus the
+    coefficients the effects' linear forms give to rigid columns; and each effect's coefficients of its own columns.
+    """
+    eff = [effects[i] for i in fx.EFFECTS if i in effects]
+    replaced = {n for e in eff for n in e.effect.replaces}
+    rigid: dict[str, Any] = {n: v for n, v in params.to_dict().items() if n not in replaced}
+    own: OwnTerms = []
+    for e in eff:
+        form = e.effect.linear_form(e.params)
+        if form is None:
+            continue
+        value, theta = form
+        mine = {n: c for n, c in theta.items() if n in e.effect.column_names}
+        for n, c in theta.items():
+            if n not in mine:
+                rigid[n] = rigid.get(n, 0.0) + c
+        if mine:
+            own.append((e.effect, value, mine))
+    return rigid, own
+
+
+def _columns_force(rigid: Mapping[str, Any], own: OwnTerms, kin: Kinematics) -> np.ndarray:
+    tau = np.zeros(len(kin.qd))
+    for name, coef in rigid.items():
+        tau = tau + coef * COLUMNS[name].build(kin)
+    for effect, value, theta in own:
+        W = effect.matrix(kin, value)
+        for name, coef in theta.items():
+            tau = tau + coef * W[:, effect.column_names.index(name)]
     return tau
 
 
-def _load_force(p: np.ndarray, q: np.ndarray, qd: np.ndarray, t: np.ndarray, m_load: np.ndarray) -> np.ndarray:
-    """Spring-damper force on the load when the motor follows ``q, qd`` (exact discretisation per step)."""
-    k, c = p[P_FLEX_K], p[P_FLEX_C]
-    n = len(q)
-    out = np.empty(n)
-    ql, vl = float(q[0]), float(qd[0]) if n else 0.0
-    for i in range(n):
-        f = k * (q[i] - ql) + c * (qd[i] - vl)
-        out[i] = f
-        if i + 1 < n:
-            h = float(t[i + 1] - t[i])
-            m = float(m_load[i])
-            # semi-implicit, 20 sub-steps: the load dynamics are linear and fast
-            sub = 20
-            hs = h / sub
-            for j in range(sub):
-                a = j / sub
-                qm = q[i] + a * (q[i + 1] - q[i])
-                vm = qd[i] + a * (qd[i + 1] - qd[i])
-                vl += hs * (k * (qm - ql) + c * (vm - vl)) / m
-                ql += hs * vl
+def _drifted(rigid: Mapping[str, Any], drift: EffectParams, t: np.ndarray) -> dict[str, Any]:
+    """The friction coefficients at ``t`` under ``friction_drift`` (viscous ``Fv*`` and Coulomb ``Fc*`` columns; Coulomb kept >= 0)."""
+    dfv = fx.drift_of(t, drift["dFv"], drift["tau"], drift["Fv_rate"])
+    dfc = fx.drift_of(t, drift["dFc"], drift["tau"], drift["Fc_rate"])
+    out = dict(rigid)
+    for name, coef in rigid.items():
+        if name.startswith("Fv"):
+            out[name] = coef + dfv
+        elif name.startswith("Fc"):
+            out[name] = np.maximum(coef + dfc, 0.0)
     return out

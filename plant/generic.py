@@ -1,12 +1,14 @@
 """The compiled loop for effects that have no compiled form of their own.
 
 The built-in effects are compiled into :mod:`plant.kernel` (cached on disk).
-An effect defined only in :mod:`ilic_cli.effects` -- a force of position and
-velocity, ``force(q, qd, prm)`` -- gets a copy of the kernel compiled with
-that force added to the net force on the axis (and the stick/slip decision),
-at first use in a process (a few seconds, not cached on disk). Its
-parameters follow the built-in slots in the plant vector
-(:func:`plant.dynamics.plant_vector`).
+An effect defined only in :mod:`ilic_cli.effects` is linear in its own columns:
+its plant force is ``sum_i theta_i * of_i(q, qd, 0, t, value)``, the columns'
+pointwise forms (:attr:`ilic_cli.effects.EffectColumn.of`) times the
+coefficients of its linear form (:meth:`ilic_cli.effects.Effect.linear_form`).
+It gets a copy of the kernel compiled with that force added to the net force
+on the axis (and the stick/slip decision), at first use in a process (a few
+seconds, not cached on disk). Its value and coefficients follow the built-in
+slots in the plant vector (:func:`plant.dynamics.plant_vector`).
 """
 
 from __future__ import annotations
@@ -31,28 +33,32 @@ def kernel_for(effects: Mapping[str, EffectParams]) -> ModuleType:
 
 
 def _summed_force(ids: tuple[str, ...]) -> Callable[..., float]:
-    """One compiled ``(g, q, qd) -> force``: the effects' forces, each reading its parameters from ``g`` in turn."""
+    """One compiled ``(g, q, qd, t) -> force``: each effect's columns times their coefficients, read from ``g`` in turn.
+
+    Per effect ``g`` holds its nonlinear value (NaN without one) and then one coefficient per column (:func:`plant.dynamics.plant_vector`).
+    """
     total: Callable[..., float] = _zero
     start = 0
     for eid in ids:
         effect = EFFECTS[eid]
-        assert effect.force is not None, f"effect '{eid}' has neither a compiled form nor a force term"
-        total = _plus(total, njit(effect.force), start, start + len(effect.params))
-        start += len(effect.params)
+        for i, column in enumerate(effect.columns):
+            assert column.of is not None, f"effect '{eid}': column '{column.name}' has no pointwise form"  # plant_vector refused it
+            total = _plus(total, njit(column.of), start, start + 1 + i)
+        start += 1 + len(effect.columns)
     return total
 
 
 @njit
-def _zero(g: Any, q: float, qd: float) -> float:
+def _zero(g: Any, q: float, qd: float, t: float) -> float:
     return 0.0
 
 
-def _plus(rest: Callable[..., float], force: Callable[..., float], a: int, b: int) -> Callable[..., float]:
-    """``rest`` plus one effect's force on parameters ``g[a:b]`` (compiled; the closure's values are constants)."""
+def _plus(rest: Callable[..., float], column: Callable[..., float], at_value: int, at_coef: int) -> Callable[..., float]:
+    """``rest`` plus one column times its coefficient ``g[at_coef]``, at the value ``g[at_value]`` (compiled; the indices are constants)."""
 
     @njit
-    def total(g: Any, q: float, qd: float) -> float:
-        return rest(g, q, qd) + force(q, qd, g[a:b])
+    def total(g: Any, q: float, qd: float, t: float) -> float:
+        return rest(g, q, qd, t) + g[at_coef] * column(q, qd, 0.0, t, g[at_value])
 
     return total
 

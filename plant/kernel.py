@@ -26,12 +26,20 @@ depend on luck at zero crossings.
 
 Rigid axis without smooth effects (no Stribeck term, ripple, spring, gravity, friction drift or
 flexibility; payload change, asymmetric friction, offset and the measurement
-effects allowed): between direction changes the dynamics are linear with a
-constant force, so the four RK4 stages sum to a closed form
-(:func:`_rk4_linear`), and a period that slides in one direction throughout is
-advanced in one composed step (:func:`_linear_period`). Same steps, same
-stick/slip and zero-crossing logic: the results equal the general path's up to
-round-off (positions within ~1e-14 relative), some 20x faster.
+effects allowed): the closed-form RK4 step of :mod:`plant.kernel_linear`.
+
+Effects
+-------
+The compiled forms of the built-in effects read the slots of the plant vector
+(:data:`plant.dynamics.SLOTS`); ``tests/vocabulary/test_compiled_forms.py``
+checks every one against its definition (:meth:`ilic_cli.effects.Effect.plant_force`)
+sliding, stuck and at break-away. An effect without a compiled form is linear
+in its own columns: a copy of this module is compiled with the columns' pointwise
+forms times their coefficients (:mod:`plant.generic`) in the net force.
+The stateful effects are blocks (:mod:`plant.blocks`), each advanced by its own
+function of a period: the current loop (:func:`_current_loop_period`), the
+drive lag (:func:`_lag_split`, the command of earlier periods) and the
+flexible load (the state ``x2, x3``).
 """
 
 from __future__ import annotations
@@ -76,6 +84,7 @@ from plant.dynamics import (
     P_VEPS,
     P_VS,
 )
+from plant.kernel_linear import linear_acceleration, linear_coefficients, linear_period, rest_direction
 
 # A copy of this module compiled for effects without a compiled form
 # (plant.generic.kernel_for) finds their summed force in _GENERIC_FORCE.
@@ -85,7 +94,7 @@ CACHE = not HAS_GENERIC  # only the built-in kernel is cached on disk
 
 
 @njit(cache=CACHE, nogil=True)
-def _no_generic_force(g, q, qd):  # pragma: no cover - compiled away (HAS_GENERIC is False)
+def _no_generic_force(g, q, qd, t):  # pragma: no cover - compiled away (HAS_GENERIC is False)
     return 0.0
 
 
@@ -96,8 +105,8 @@ TWO_OVER_PI = 2.0 / math.pi
 
 
 @njit(cache=CACHE, nogil=True)
-def _nonfriction(p, u, x0, x1, x2, x3, flex):
-    """Net force on the motor side without friction, and the coupling force on the load."""
+def _nonfriction(p, u, x0, x1, x2, x3, t, flex):
+    """Net force on the motor side at time ``t`` without friction, and the coupling force on the load."""
     f = u - p[P_OFFSET]
     if p[P_RIP_A] != 0.0:
         f -= p[P_RIP_A] * math.sin(TWO_PI * x0 / p[P_RIP_L] + p[P_RIP_PH])
@@ -106,7 +115,7 @@ def _nonfriction(p, u, x0, x1, x2, x3, flex):
     if p[P_MX] != 0.0 or p[P_MY] != 0.0:  # gravity on a revolute link (ilic_cli.effects.GRAVITY)
         f -= STANDARD_GRAVITY * (p[P_MX] * math.cos(x0) - p[P_MY] * math.sin(x0))
     if HAS_GENERIC:
-        f -= _generic_force(p[N_PLANT:], x0, x1)
+        f -= _generic_force(p[N_PLANT:], x0, x1, t)
     fc = 0.0
     if flex:
         fc = p[P_FLEX_K] * (x0 - x2) + p[P_FLEX_C] * (x1 - x3)
@@ -115,8 +124,8 @@ def _nonfriction(p, u, x0, x1, x2, x3, flex):
 
 
 @njit(cache=CACHE, nogil=True)
-def _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex):
-    f, fc = _nonfriction(p, u, x0, x1, x2, x3, flex)
+def _deriv(p, s, u, x0, x1, x2, x3, t, mm, ml, flex):
+    f, fc = _nonfriction(p, u, x0, x1, x2, x3, t, flex)
     al = fc / ml if flex else 0.0
     if s == 0:
         return 0.0, 0.0, x3, al
@@ -131,12 +140,12 @@ def _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex):
 
 
 @njit(cache=CACHE, nogil=True)
-def _rk4(p, s, u, x0, x1, x2, x3, h, mm, ml, flex):
-    a0, a1, a2, a3 = _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex)
+def _rk4(p, s, u, x0, x1, x2, x3, t, h, mm, ml, flex):
+    a0, a1, a2, a3 = _deriv(p, s, u, x0, x1, x2, x3, t, mm, ml, flex)
     hh = 0.5 * h
-    b0, b1, b2, b3 = _deriv(p, s, u, x0 + hh * a0, x1 + hh * a1, x2 + hh * a2, x3 + hh * a3, mm, ml, flex)
-    c0, c1, c2, c3 = _deriv(p, s, u, x0 + hh * b0, x1 + hh * b1, x2 + hh * b2, x3 + hh * b3, mm, ml, flex)
-    d0, d1, d2, d3 = _deriv(p, s, u, x0 + h * c0, x1 + h * c1, x2 + h * c2, x3 + h * c3, mm, ml, flex)
+    b0, b1, b2, b3 = _deriv(p, s, u, x0 + hh * a0, x1 + hh * a1, x2 + hh * a2, x3 + hh * a3, t + hh, mm, ml, flex)
+    c0, c1, c2, c3 = _deriv(p, s, u, x0 + hh * b0, x1 + hh * b1, x2 + hh * b2, x3 + hh * b3, t + hh, mm, ml, flex)
+    d0, d1, d2, d3 = _deriv(p, s, u, x0 + h * c0, x1 + h * c1, x2 + h * c2, x3 + h * c3, t + h, mm, ml, flex)
     h6 = h / 6.0
     return (
         x0 + h6 * (a0 + 2.0 * b0 + 2.0 * c0 + d0),
@@ -147,13 +156,13 @@ def _rk4(p, s, u, x0, x1, x2, x3, h, mm, ml, flex):
 
 
 @njit(cache=CACHE, nogil=True)
-def _direction(p, u, x0, x1, x2, x3, flex):
+def _direction(p, u, x0, x1, x2, x3, t, flex):
     """Friction direction for the next step (sliding sign, or the Karnopp stick/slip decision)."""
     if x1 > p[P_VEPS]:
         return 1
     if x1 < -p[P_VEPS]:
         return -1
-    f, _ = _nonfriction(p, u, x0, x1, x2, x3, flex)
+    f, _ = _nonfriction(p, u, x0, x1, x2, x3, t, flex)
     if f > p[P_FC_POS] + p[P_FS]:
         return 1
     if f < -(p[P_FC_NEG] + p[P_FS]):
@@ -171,175 +180,42 @@ def _masses(p, t, flex):
 
 
 @njit(cache=CACHE, nogil=True)
-def _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex):
+def _acceleration(p, u, x0, x1, x2, x3, t, mm, ml, flex):
     """Motor-side acceleration of the state under force ``u`` (0 when the axis sticks)."""
-    s = _direction(p, u, x0, x1, x2, x3, flex)
+    s = _direction(p, u, x0, x1, x2, x3, t, flex)
     if s == 0:
         return 0.0
-    return _deriv(p, s, u, x0, x1, x2, x3, mm, ml, flex)[1]
+    return _deriv(p, s, u, x0, x1, x2, x3, t, mm, ml, flex)[1]
 
 
 @njit(cache=CACHE, nogil=True)
-def _step(p, u, x0, x1, x2, x3, h, mm, ml, flex):
-    s = _direction(p, u, x0, x1, x2, x3, flex)
+def _step(p, u, x0, x1, x2, x3, t, h, mm, ml, flex):
+    s = _direction(p, u, x0, x1, x2, x3, t, flex)
     if s == 0:
         x1 = 0.0
-    y0, y1, y2, y3 = _rk4(p, s, u, x0, x1, x2, x3, h, mm, ml, flex)
+    y0, y1, y2, y3 = _rk4(p, s, u, x0, x1, x2, x3, t, h, mm, ml, flex)
     if s != 0 and y1 * s < 0.0:
         th = x1 / (x1 - y1)
         if th < 0.0:
             th = 0.0
         elif th > 1.0:
             th = 1.0
-        y0, y1, y2, y3 = _rk4(p, s, u, x0, x1, x2, x3, th * h, mm, ml, flex)
+        y0, y1, y2, y3 = _rk4(p, s, u, x0, x1, x2, x3, t, th * h, mm, ml, flex)
         y1 = 0.0
-        s2 = _direction(p, u, y0, y1, y2, y3, flex)
-        y0, y1, y2, y3 = _rk4(p, s2, u, y0, y1, y2, y3, (1.0 - th) * h, mm, ml, flex)
+        s2 = _direction(p, u, y0, y1, y2, y3, t + th * h, flex)
+        y0, y1, y2, y3 = _rk4(p, s2, u, y0, y1, y2, y3, t + th * h, (1.0 - th) * h, mm, ml, flex)
         if s2 == 0 or y1 * s2 < 0.0:
             y1 = 0.0
     return y0, y1, y2, y3
 
 
 @njit(cache=CACHE, nogil=True)
-def _rk4_linear(x0, v0, g, k, h):
-    """One RK4 step of ``x' = v, v' = g - k*v``, its four stages summed in closed form.
-
-    For this linear, autonomous system the classical RK4 update is exactly
-    ``v1 = v0 + h*a*w``, ``x1 = x0 + h*v0 + h**2*b*w`` with ``w = g - k*v0``,
-    ``a = 1 - kh/2 + (kh)**2/6 - (kh)**3/24`` and ``b = 1/2 - kh/6 + (kh)**2/24``:
-    the same step as :func:`_rk4`, up to round-off, at a fraction of the cost.
-    """
-    kh = k * h
-    b = 0.5 - kh * (1.0 / 6.0 - kh / 24.0)
-    a = 1.0 - kh * b
-    w = g - k * v0
-    return x0 + h * v0 + (h * h * b) * w, v0 + (h * a) * w
-
-
-L_FC, L_INVM, L_K, L_HA, L_HB, L_P1, L_P2, L_P3 = range(8)
-"""Layout of the last axis of :func:`_linear_coefficients`."""
-
-
-@njit(cache=CACHE, nogil=True)
-def _linear_coefficients(p, h, substeps):
-    """Step coefficients of the linear (rigid, no smooth effect) axis, ``cf[r, d, :]``.
-
-    ``r``: 0 before the payload change, 1 after; ``d``: 0 sliding forwards, 1
-    backwards. Per substep (:func:`_rk4_linear` with ``g = (f - cf[L_FC])*cf[L_INVM]``,
-    ``k = cf[L_K]``): ``w = g - k*v``, ``v += cf[L_HA]*w``, ``x += h*v + cf[L_HB]*w``.
-    Over the ``substeps`` steps of a period without a change of direction
-    (the acceleration ``w`` then decays geometrically, ``w_j = A**j*w_0`` with
-    ``A = 1 - k*cf[L_HA]``): ``v_N = v_0 + cf[L_P1]*w_0``,
-    ``x_N = x_0 + N*h*v_0 + cf[L_P2]*w_0``, ``v_(N-1) = v_0 + cf[L_P3]*w_0``.
-    """
-    cf = np.empty((2, 2, 8))
-    for r in range(2):
-        mm = p[P_M] + (p[P_DM] if r == 1 else 0.0)
-        for d in range(2):
-            fv = p[P_FV_POS] if d == 0 else p[P_FV_NEG]
-            k = fv / mm
-            kh = k * h
-            bb = 0.5 - kh * (1.0 / 6.0 - kh / 24.0)
-            ha = h * (1.0 - kh * bb)
-            hb = h * h * bb
-            A = 1.0 - k * ha
-            sj, q, s_last = 0.0, 0.0, 0.0
-            for _ in range(substeps):  # sj = sum_{i<j} A**i, q = sum_{j<N} sj
-                q += sj
-                s_last = sj
-                sj = sj * A + 1.0
-            cf[r, d, L_FC] = p[P_FC_POS] if d == 0 else -p[P_FC_NEG]
-            cf[r, d, L_INVM] = 1.0 / mm
-            cf[r, d, L_K] = k
-            cf[r, d, L_HA] = ha
-            cf[r, d, L_HB] = hb
-            cf[r, d, L_P1] = ha * sj
-            cf[r, d, L_P2] = h * ha * q + hb * sj
-            cf[r, d, L_P3] = ha * s_last
-            if not A > 0.0:  # not monotone (a huge step): no composed period (P1 = NaN disables it)
-                cf[r, d, L_P1] = np.nan
-    return cf
-
-
-@njit(cache=CACHE, nogil=True)
-def _linear_period(x0, x1, f, s_rest, tk, h, substeps, tch, veps, cf):
-    """The substeps of one period on the rigid axis without smooth effects (``_step`` specialised).
-
-    With no Stribeck term, ripple, spring or flexibility the motion between
-    friction-direction changes is linear with a constant force ``f`` (control
-    minus offset), so each RK4 step is :func:`_rk4_linear`. ``s_rest`` is the
-    stick/slip decision at rest (constant over the period: ``f`` is); ``cf``
-    from :func:`_linear_coefficients`. A period that slides in one direction
-    throughout (``|v| > veps`` at the start of every substep, no sign change
-    at its end; the velocity is monotone over it) is done in one composed
-    step; otherwise substep by substep, as :func:`_step`.
-    """
-    r0 = 1 if tk >= tch - 1e-12 else 0
-    if r0 == (1 if tk + (substeps - 1) * h >= tch - 1e-12 else 0) and (x1 > veps or x1 < -veps):
-        d = 0 if x1 > 0.0 else 1
-        s = 1.0 if d == 0 else -1.0
-        w = (f - cf[r0, d, L_FC]) * cf[r0, d, L_INVM] - cf[r0, d, L_K] * x1
-        vn = x1 + cf[r0, d, L_P1] * w
-        if (x1 + cf[r0, d, L_P3] * w) * s > veps and vn * s >= 0.0:
-            return x0 + (substeps * h) * x1 + cf[r0, d, L_P2] * w, vn
-    for j in range(substeps):
-        r = 1 if tk + j * h >= tch - 1e-12 else 0
-        if x1 > veps:
-            s = 1
-        elif x1 < -veps:
-            s = -1
-        else:
-            s = s_rest
-        if s == 0:
-            x1 = 0.0
-            continue
-        d = 0 if s > 0 else 1
-        g = (f - cf[r, d, L_FC]) * cf[r, d, L_INVM]
-        k = cf[r, d, L_K]
-        w = g - k * x1
-        y1 = x1 + cf[r, d, L_HA] * w
-        if y1 * s >= 0.0:
-            x0 = x0 + h * x1 + cf[r, d, L_HB] * w
-            x1 = y1
-            continue
-        # the velocity changes sign within the step: as _step
-        th = x1 / (x1 - y1)
-        if th < 0.0:
-            th = 0.0
-        elif th > 1.0:
-            th = 1.0
-        x0, y1 = _rk4_linear(x0, x1, g, k, th * h)
-        x1 = 0.0
-        if s_rest != 0:
-            d = 0 if s_rest > 0 else 1
-            x0, x1 = _rk4_linear(x0, 0.0, (f - cf[r, d, L_FC]) * cf[r, d, L_INVM], cf[r, d, L_K], (1.0 - th) * h)
-            if x1 * s_rest < 0.0:
-                x1 = 0.0
-    return x0, x1
-
-
-@njit(cache=CACHE, nogil=True)
-def _rest(f, static_pos, static_neg):
-    """Stick/slip decision at rest under the net force ``f`` (constant over a period)."""
-    return 1 if f > static_pos else (-1 if f < static_neg else 0)
-
-
-@njit(cache=CACHE, nogil=True)
-def _linear_acceleration(p, f, x1, tk, static_pos, static_neg, veps, cf):
-    """:func:`_acceleration` of the rigid axis without smooth effects (net force ``f``), from the step coefficients."""
-    s = 1 if x1 > veps else (-1 if x1 < -veps else _rest(f, static_pos, static_neg))
-    if s == 0:
-        return 0.0
-    r, d = (1 if tk >= p[P_TCH] - 1e-12 else 0), (0 if s > 0 else 1)
-    return (f - cf[r, d, L_FC]) * cf[r, d, L_INVM] - cf[r, d, L_K] * x1
-
-
-@njit(cache=CACHE, nogil=True)
 def _substeps(p, u, x0, x1, x2, x3, tk, h, nsub, flex):
     """``nsub`` steps of ``h`` from ``tk`` under the constant force ``u`` (general path, :func:`_step`)."""
     for j in range(nsub):
-        mm, ml = _masses(p, tk + j * h, flex)
-        x0, x1, x2, x3 = _step(p, u, x0, x1, x2, x3, h, mm, ml, flex)
+        t = tk + j * h
+        mm, ml = _masses(p, t, flex)
+        x0, x1, x2, x3 = _step(p, u, x0, x1, x2, x3, t, h, mm, ml, flex)
     return x0, x1, x2, x3
 
 
@@ -348,14 +224,15 @@ def _current_loop_substeps(p, c, y, d, x0, x1, x2, x3, tk, h, nsub, flex, tau_i)
     """``nsub`` steps of ``h`` from ``tk`` with the applied force ``y`` following the command ``c`` as a first-order lag.
 
     Per step the force on the axis is the exact mean of ``c + (y - c) exp(-t/tau_i)``
-    over the step, plus the disturbance ``d``; ``y`` is advanced exactly.
+    over the step, plus the disturbance ``d``; ``y`` is advanced exactly (:class:`plant.blocks.CurrentLoop`).
     Returns the state and the applied force at the end.
     """
     e = math.exp(-h / tau_i)
     g = tau_i / h * (1.0 - e)
     for j in range(nsub):
-        mm, ml = _masses(p, tk + j * h, flex)
-        x0, x1, x2, x3 = _step(p, c + (y - c) * g + d, x0, x1, x2, x3, h, mm, ml, flex)
+        t = tk + j * h
+        mm, ml = _masses(p, t, flex)
+        x0, x1, x2, x3 = _step(p, c + (y - c) * g + d, x0, x1, x2, x3, t, h, mm, ml, flex)
         y = c + (y - c) * e
     return x0, x1, x2, x3, y
 
@@ -378,12 +255,146 @@ def _drifted(p, base, t):
 
 
 @njit(cache=CACHE, nogil=True)
+def _lag_split(p, T, h, substeps):
+    """The drive lag (``delay`` < 0) as ``lag_n`` whole periods plus ``phi``: the force switches to the lagged command at ``tk + phi``.
+
+    Returns ``lag_n`` (-1: no lag), ``phi`` and the substeps ``n1, n2`` of ``h1, h2`` before and after the switch.
+    """
+    lag_n, phi = -1, 0.0
+    n1, n2, h1, h2 = 0, 0, h, h
+    if p[P_LAG] > 0.0:
+        lag_n = int(math.floor(p[P_LAG] / T + 1e-9))
+        phi = p[P_LAG] - lag_n * T
+        if phi < 1e-9 * T:
+            phi = 0.0
+        else:
+            n1 = min(max(1, int(round(substeps * phi / T))), max(substeps - 1, 1))
+            n2 = max(substeps - n1, 1)
+            h1, h2 = phi / n1, (T - phi) / n2
+    return lag_n, phi, n1, n2, h1, h2
+
+
+@njit(cache=CACHE, nogil=True)
+def _command(k, x0, x1, cs, q_r, qd_r, qdd_r, pulses, noise_q, c, chi, T, res, fmax):
+    """The controller of period ``k``: measured position, applied force (clipped), control signal, pulse ramp.
+
+    PD (the benchmark's loop, ``c[C_KIND] == 1``) or CTC (the paper's eqs. 11-16); ``cs`` is updated in place.
+    """
+    du = 0.0  # change of the applied force over the period (pulses ramped between control instants)
+    qm = x0 + noise_q[k]
+    if res > 0.0:
+        qm = math.floor(qm / res + 0.5) * res
+    if cs[3] == 0.0:
+        cs[0] = qm
+        cs[1] = qm
+        cs[2] = 0.0
+        cs[3] = 1.0
+    if c[C_KIND] == 1.0:
+        qfm = 0.5 * qm + 0.5 * cs[0]
+        qdm = (qfm - cs[1]) / T
+        v = c[C_PD_KV] * (c[C_PD_KP] * (q_r[k] - qm) - qdm)
+        vd = v if c[C_PD_SAME] == 1.0 else cs[2]  # same: computed from this sample, delayed by the drive lag (plant.controllers)
+        if vd > c[C_VMAX]:
+            vd = c[C_VMAX]
+        elif vd < -c[C_VMAX]:
+            vd = -c[C_VMAX]
+        vir = vd + pulses[k]
+        u = c[C_GTAU] * vir
+        if c[C_PULSE_RAMP] == 1.0 and k + 1 < len(pulses):
+            du = c[C_GTAU] * (pulses[k + 1] - pulses[k])
+        cs[1] = qfm
+        cs[2] = v
+    else:
+        qd_hat = x1 if c[C_EXACT_VEL] == 1.0 else (qm - cs[0]) / T
+        w = c[C_KP] * (q_r[k] - qm) + c[C_KV] * (qd_r[k] - qd_hat) + qdd_r[k]
+        sg = TWO_OVER_PI * math.atan(c[C_ALPHA] * qd_r[k])
+        if c[C_ASYM] != 0.0:
+            P = 0.5 * (1.0 + sg)
+            N = 0.5 * (1.0 - sg)
+            u = chi[0] * w + (chi[4] * qd_r[k] + chi[5] * sg) * P + (chi[6] * qd_r[k] + chi[7] * sg) * N
+        else:
+            u = chi[0] * w + chi[1] * qd_r[k] + chi[2] * sg + chi[3]
+        vir = u
+    cs[0] = qm
+    if u > fmax:
+        u = fmax
+    elif u < -fmax:
+        u = -fmax
+    return qm, u, vir, du
+
+
+@njit(cache=CACHE, nogil=True)
+def _current_loop_period(p, ua, ub, y, dk, x0, x1, x2, x3, tk, h, substeps, lag, flex, tau_i):
+    """One period with the current loop (block state ``y``, the applied force): acceleration at ``tk+``, state, ``y``."""
+    phi, n1, n2, h1, h2 = lag
+    if math.isnan(y):
+        y = ua
+    mm, ml = _masses(p, tk, flex)
+    qdd = _acceleration(p, y + dk, x0, x1, x2, x3, tk, mm, ml, flex)
+    if phi > 0.0:
+        x0, x1, x2, x3, y = _current_loop_substeps(p, ua, y, dk, x0, x1, x2, x3, tk, h1, n1, flex, tau_i)
+        x0, x1, x2, x3, y = _current_loop_substeps(p, ub, y, dk, x0, x1, x2, x3, tk + phi, h2, n2, flex, tau_i)
+    else:
+        x0, x1, x2, x3, y = _current_loop_substeps(p, ub, y, dk, x0, x1, x2, x3, tk, h, substeps, flex, tau_i)
+    return qdd, x0, x1, x2, x3, y
+
+
+@njit(cache=CACHE, nogil=True)
+def _ramped_period(p, u, du, x0, x1, x2, x3, tk, h, substeps, fmax, flex):
+    """One period with the pulses ramped within it: the force changes every substep (general path; no drive lag)."""
+    mm, ml = _masses(p, tk, flex)
+    qdd = _acceleration(p, u, x0, x1, x2, x3, tk, mm, ml, flex)
+    for j in range(substeps):
+        uj = min(max(u + du * (j / substeps), -fmax), fmax)
+        t = tk + j * h
+        mm, ml = _masses(p, t, flex)
+        x0, x1, x2, x3 = _step(p, uj, x0, x1, x2, x3, t, h, mm, ml, flex)
+    return qdd, x0, x1, x2, x3
+
+
+@njit(cache=CACHE, nogil=True)
+def _linear_period_of(p, ua, ub, x0, x1, tk, h, substeps, lag, static, veps, cfs):
+    """One period of the rigid axis without smooth effects (:mod:`plant.kernel_linear`): acceleration at ``tk+`` and ``x0, x1``."""
+    phi, n1, n2, h1, h2 = lag
+    static_pos, static_neg = static
+    cf, cf1, cf2 = cfs
+    fa = ua - p[P_OFFSET]
+    qdd = linear_acceleration(p, fa, x1, tk, static_pos, static_neg, veps, cf)
+    if phi > 0.0:
+        x0, x1 = linear_period(x0, x1, fa, rest_direction(fa, static_pos, static_neg), tk, h1, n1, p[P_TCH], veps, cf1)
+        fb = ub - p[P_OFFSET]
+        x0, x1 = linear_period(x0, x1, fb, rest_direction(fb, static_pos, static_neg), tk + phi, h2, n2, p[P_TCH], veps, cf2)
+    else:
+        x0, x1 = linear_period(x0, x1, fa, rest_direction(fa, static_pos, static_neg), tk, h, substeps, p[P_TCH], veps, cf)
+    return qdd, x0, x1
+
+
+@njit(cache=CACHE, nogil=True)
+def _general_period(p, ua, ub, x0, x1, x2, x3, tk, h, substeps, lag, flex):
+    """One period of the general path (:func:`_step`): acceleration at ``tk+`` and the state."""
+    phi, n1, n2, h1, h2 = lag
+    mm, ml = _masses(p, tk, flex)
+    qdd = _acceleration(p, ua, x0, x1, x2, x3, tk, mm, ml, flex)
+    if phi > 0.0:
+        x0, x1, x2, x3 = _substeps(p, ua, x0, x1, x2, x3, tk, h1, n1, flex)
+        x0, x1, x2, x3 = _substeps(p, ub, x0, x1, x2, x3, tk + phi, h2, n2, flex)
+    else:
+        x0, x1, x2, x3 = _substeps(p, ub, x0, x1, x2, x3, tk, h, substeps, flex)
+    return qdd, x0, x1, x2, x3
+
+
+@njit(cache=CACHE, nogil=True)
+def _finite(x0, x1, x2, x3):
+    return math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)
+
+
+@njit(cache=CACHE, nogil=True)
 def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd, dist=None):
     """Advance the closed loop over periods ``k0 <= k < k1``.
 
     ``dist`` (optional) is the disturbance force on the axis per period.
     ``current_loop``: the applied force lags the command
-    (:func:`_current_loop_substeps`); ``x`` then has a fifth entry, that force
+    (:func:`_current_loop_period`); ``x`` then has a fifth entry, that force
     (NaN before the first period: the first command).
     ``x`` (motor q, qd, load q, qd) and ``cs`` (previous measured q, previous
     filtered q, previous PD output, initialised flag) are updated in place.
@@ -402,77 +413,20 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
     base = np.array([p[P_FV_POS], p[P_FV_NEG], p[P_FC_POS], p[P_FC_NEG]])
     if drift:
         p = p.copy()
-    pd = c[C_KIND] == 1.0
-    same = c[C_PD_SAME] == 1.0
-    exact_vel = c[C_EXACT_VEL] == 1.0
-    res = p[P_RES]
     fmax = p[P_FMAX]
-    # rigid axis without smooth effects: the closed-form RK4 step (_linear_period)
+    # rigid axis without smooth effects: the closed-form RK4 step (plant.kernel_linear)
     linear = not flex and p[P_FS] == 0.0 and p[P_RIP_A] == 0.0 and p[P_K] == 0.0 and p[P_MX] == 0.0 and p[P_MY] == 0.0 and not drift and not HAS_GENERIC
-    cf = _linear_coefficients(p, h, substeps)
-    veps = p[P_VEPS]
-    static_pos = p[P_FC_POS] + p[P_FS]
-    static_neg = -(p[P_FC_NEG] + p[P_FS])
-    # drive lag = lag_n periods + phi: the force switches to the (lagged) new command at tk + phi
-    lag_n, phi = -1, 0.0
-    n1, n2, h1, h2 = 0, 0, h, h
-    cf1, cf2 = cf, cf
-    if p[P_LAG] > 0.0:
-        lag_n = int(math.floor(p[P_LAG] / T + 1e-9))
-        phi = p[P_LAG] - lag_n * T
-        if phi < 1e-9 * T:
-            phi = 0.0
-        else:
-            n1 = min(max(1, int(round(substeps * phi / T))), max(substeps - 1, 1))
-            n2 = max(substeps - n1, 1)
-            h1, h2 = phi / n1, (T - phi) / n2
-            cf1, cf2 = _linear_coefficients(p, h1, n1), _linear_coefficients(p, h2, n2)
-    ramp = c[C_PULSE_RAMP] == 1.0
+    cf = linear_coefficients(p, h, substeps)
+    static = (p[P_FC_POS] + p[P_FS], -(p[P_FC_NEG] + p[P_FS]))
+    lag_n, phi, n1, n2, h1, h2 = _lag_split(p, T, h, substeps)
+    lag = (phi, n1, n2, h1, h2)
+    cfs = (cf, linear_coefficients(p, h1, n1), linear_coefficients(p, h2, n2)) if phi > 0.0 else (cf, cf, cf)
     tau_i = 1.0 / (TWO_PI * p[P_CL_BW]) if p[P_CL_BW] > 0.0 else 0.0
     y = x[4] if len(x) > 4 else math.nan
     for k in range(k0, k1):
         if drift:
             _drifted(p, base, (k + 0.5) * T)
-        du = 0.0  # change of the applied force over the period (pulses ramped between control instants)
-        qm = x0 + noise_q[k]
-        if res > 0.0:
-            qm = math.floor(qm / res + 0.5) * res
-        if cs[3] == 0.0:
-            cs[0] = qm
-            cs[1] = qm
-            cs[2] = 0.0
-            cs[3] = 1.0
-        if pd:
-            qfm = 0.5 * qm + 0.5 * cs[0]
-            qdm = (qfm - cs[1]) / T
-            v = c[C_PD_KV] * (c[C_PD_KP] * (q_r[k] - qm) - qdm)
-            vd = v if same else cs[2]  # same: computed from this sample, delayed by the drive lag (plant.controllers)
-            if vd > c[C_VMAX]:
-                vd = c[C_VMAX]
-            elif vd < -c[C_VMAX]:
-                vd = -c[C_VMAX]
-            vir = vd + pulses[k]
-            u = c[C_GTAU] * vir
-            if ramp and k + 1 < len(pulses):
-                du = c[C_GTAU] * (pulses[k + 1] - pulses[k])
-            cs[1] = qfm
-            cs[2] = v
-        else:
-            qd_hat = x1 if exact_vel else (qm - cs[0]) / T
-            w = c[C_KP] * (q_r[k] - qm) + c[C_KV] * (qd_r[k] - qd_hat) + qdd_r[k]
-            sg = TWO_OVER_PI * math.atan(c[C_ALPHA] * qd_r[k])
-            if c[C_ASYM] != 0.0:
-                P = 0.5 * (1.0 + sg)
-                N = 0.5 * (1.0 - sg)
-                u = chi[0] * w + (chi[4] * qd_r[k] + chi[5] * sg) * P + (chi[6] * qd_r[k] + chi[7] * sg) * N
-            else:
-                u = chi[0] * w + chi[1] * qd_r[k] + chi[2] * sg + chi[3]
-            vir = u
-        cs[0] = qm
-        if u > fmax:
-            u = fmax
-        elif u < -fmax:
-            u = -fmax
+        qm, u, vir, du = _command(k, x0, x1, cs, q_r, qd_r, qdd_r, pulses, noise_q, c, chi, T, p[P_RES], fmax)
         out_q[k] = qm
         out_u[k] = u
         out_vir[k] = vir
@@ -483,59 +437,16 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
         if lag_n >= 0:  # drive lag: the commands lag_n (+1) periods back
             ub = out_u[max(k - lag_n, 0)]
             ua = out_u[max(k - lag_n - 1, 0)] if phi > 0.0 else ub
-        if dist is None:
-            dk = 0.0
-        else:
-            dk = dist[k]
+        dk = 0.0 if dist is None else dist[k]
         if tau_i > 0.0:  # current loop: the applied force y lags the (lagged) command
-            if math.isnan(y):
-                y = ua
-            mm, ml = _masses(p, tk, flex)
-            out_qdd[k] = _acceleration(p, y + dk, x0, x1, x2, x3, mm, ml, flex)
-            if phi > 0.0:
-                x0, x1, x2, x3, y = _current_loop_substeps(p, ua, y, dk, x0, x1, x2, x3, tk, h1, n1, flex, tau_i)
-                x0, x1, x2, x3, y = _current_loop_substeps(p, ub, y, dk, x0, x1, x2, x3, tk + phi, h2, n2, flex, tau_i)
-            else:
-                x0, x1, x2, x3, y = _current_loop_substeps(p, ub, y, dk, x0, x1, x2, x3, tk, h, substeps, flex, tau_i)
-            if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
-                x[0], x[1], x[2], x[3] = x0, x1, x2, x3
-                return k
-            continue
-        ua += dk
-        ub += dk
-        u += dk  # the ramped pulses' path: the disturbance with the command (out_u keeps the command)
-        if du != 0.0:  # pulses ramped within the period: force changes every substep (general path; no drive lag)
-            mm, ml = _masses(p, tk, flex)
-            out_qdd[k] = _acceleration(p, u, x0, x1, x2, x3, mm, ml, flex)
-            for j in range(substeps):
-                uj = min(max(u + du * (j / substeps), -fmax), fmax)
-                mm, ml = _masses(p, tk + j * h, flex)
-                x0, x1, x2, x3 = _step(p, uj, x0, x1, x2, x3, h, mm, ml, flex)
-            if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
-                x[0], x[1], x[2], x[3] = x0, x1, x2, x3
-                return k
-            continue
-        if linear:
-            fa = ua - p[P_OFFSET]
-            out_qdd[k] = _linear_acceleration(p, fa, x1, tk, static_pos, static_neg, veps, cf)
-            if phi > 0.0:
-                x0, x1 = _linear_period(x0, x1, fa, _rest(fa, static_pos, static_neg), tk, h1, n1, p[P_TCH], veps, cf1)
-                fb = ub - p[P_OFFSET]
-                x0, x1 = _linear_period(x0, x1, fb, _rest(fb, static_pos, static_neg), tk + phi, h2, n2, p[P_TCH], veps, cf2)
-            else:
-                x0, x1 = _linear_period(x0, x1, fa, _rest(fa, static_pos, static_neg), tk, h, substeps, p[P_TCH], veps, cf)
-            if not (math.isfinite(x0) and math.isfinite(x1)):
-                x[0], x[1], x[2], x[3] = x0, x1, x2, x3
-                return k
-            continue
-        mm, ml = _masses(p, tk, flex)
-        out_qdd[k] = _acceleration(p, ua, x0, x1, x2, x3, mm, ml, flex)
-        if phi > 0.0:
-            x0, x1, x2, x3 = _substeps(p, ua, x0, x1, x2, x3, tk, h1, n1, flex)
-            x0, x1, x2, x3 = _substeps(p, ub, x0, x1, x2, x3, tk + phi, h2, n2, flex)
+            out_qdd[k], x0, x1, x2, x3, y = _current_loop_period(p, ua, ub, y, dk, x0, x1, x2, x3, tk, h, substeps, lag, flex, tau_i)
+        elif du != 0.0:  # the ramped pulses' path: the disturbance with the command (out_u keeps the command)
+            out_qdd[k], x0, x1, x2, x3 = _ramped_period(p, u + dk, du, x0, x1, x2, x3, tk, h, substeps, fmax, flex)
+        elif linear:
+            out_qdd[k], x0, x1 = _linear_period_of(p, ua + dk, ub + dk, x0, x1, tk, h, substeps, lag, static, p[P_VEPS], cfs)
         else:
-            x0, x1, x2, x3 = _substeps(p, ub, x0, x1, x2, x3, tk, h, substeps, flex)
-        if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)):
+            out_qdd[k], x0, x1, x2, x3 = _general_period(p, ua + dk, ub + dk, x0, x1, x2, x3, tk, h, substeps, lag, flex)
+        if not _finite(x0, x1, x2, x3):
             x[0], x[1], x[2], x[3] = x0, x1, x2, x3
             return k
     x[0], x[1], x[2], x[3] = x0, x1, x2, x3

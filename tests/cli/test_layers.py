@@ -86,12 +86,10 @@ MODULE_PENDING: set[str] = {
     "ilic_cli/diagnosis/decide.py",
     "ilic_cli/diagnosis/refit.py",
     "ilic_cli/diagnosis/select.py",
-    "ilic_cli/effects.py",
     "ilic_cli/io/ros1fast.py",
     "ilic_cli/io/rosbag2.py",
     "ilic_cli/io/roscollect.py",
     "plant/corpus.py",
-    "plant/kernel.py",
 }
 
 FUNCTION_PENDING: set[str] = {
@@ -104,7 +102,6 @@ FUNCTION_PENDING: set[str] = {
     "ilic_cli/diagnosis/select.py:forward_select",
     "ilic_cli/io/ros1fast.py:write",
     "ilic_cli/robot/kernel.py:inertial_regressor",
-    "plant/kernel.py:run_periods",
 }
 
 # in-function imports (file:module) without a comment, on the line or above it in its run of imports, that gives the reason for deferring

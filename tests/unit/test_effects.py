@@ -94,11 +94,13 @@ def test_make_effects_and_its_json() -> None:
 
 
 def test_force_terms() -> None:
+    """The plant force of an effect is its columns times the coefficients of its linear form."""
     q = np.array([0.0, 0.0025, 0.005])
     qd = np.array([-0.02, 0.0, 0.01])
-    np.testing.assert_allclose(EFFECTS["stribeck"].force(q, qd, np.array([5.0, 0.01])), [-5.0 * math.exp(-4.0), 0.0, 5.0 * math.exp(-1.0)], rtol=1e-15)
-    np.testing.assert_allclose(EFFECTS["position_ripple"].force(q, qd, np.array([2.0, 0.01, 0.0])), [0.0, 2.0, 0.0], atol=1e-15)
-    np.testing.assert_allclose(EFFECTS["spring"].force(q, qd, np.array([100.0, 0.0025])), [-0.25, 0.0, 0.25], rtol=1e-15)
+    kin = Kinematics(qd=qd, qdd=np.zeros(3), q=q, t=np.zeros(3))
+    np.testing.assert_allclose(EFFECTS["stribeck"].plant_force({"Fs": 5.0, "vs": 0.01}, kin), [-5.0 * math.exp(-4.0), 0.0, 5.0 * math.exp(-1.0)], rtol=1e-15)
+    np.testing.assert_allclose(EFFECTS["position_ripple"].plant_force({"A": 2.0, "L": 0.01, "phase": 0.0}, kin), [0.0, 2.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(EFFECTS["spring"].plant_force({"k": 100.0, "q0": 0.0025}, kin), [-0.25, 0.0, 0.25], rtol=1e-15)
 
 
 def test_columns() -> None:
@@ -275,11 +277,11 @@ def test_record_defaults() -> None:
     assert (fit.value, fit.value_std, fit.hold_s) == (None, None, 0.0) and fit.get("b") == 0.0
     assert Estimate(1.0, None).to_dict() == {"value": 1.0, "std": None, "unit": ""}
     assert Estimate(math.inf, 2.0, "N").to_dict() == {"value": None, "std": 2.0, "unit": "N"}
-    assert fx.EffectColumn("c", "N").description == ""
+    assert (fx.EffectColumn("c", "N").description, fx.EffectColumn("c", "N").of) == ("", None)
     e = fx.Effect("x", "t", "e.")
-    assert (e.params, e.force, e.plant, e.check, e.form, e.signature, e.signature_kinds, e.columns, e.build, e.scan, e.shift) == (
+    assert (e.coefficients, e.replaces, e.strategy, e.linear_form({})) == (None, (), None, None)
+    assert (e.params, e.plant, e.check, e.form, e.signature, e.signature_kinds, e.columns, e.build, e.scan, e.shift) == (
         (),
-        None,
         True,
         None,
         "",

@@ -37,7 +37,8 @@ def test_gravity_columns_times_the_first_moments_are_the_plant_torque() -> None:
     np.testing.assert_allclose(Y @ theta, tau, rtol=1e-12, atol=1e-12)
     # the effect's own columns are the same pair, and its force is the definition's g (MX cos q - MY sin q)
     np.testing.assert_array_equal(EFFECTS["gravity"].matrix(Kinematics(qd=qd, qdd=qdd, q=q)), Y[:, 4:])
-    np.testing.assert_allclose(EFFECTS["gravity"].force(q, qd, np.array([0.021, -0.013])), G * (0.021 * np.cos(q) + 0.013 * np.sin(q)), rtol=1e-14)
+    force = EFFECTS["gravity"].plant_force(moments, Kinematics(qd=qd, qdd=qdd, q=q))
+    np.testing.assert_allclose(force, G * (0.021 * np.cos(q) + 0.013 * np.sin(q)), rtol=1e-14, atol=1e-15)
     assert parameters.unit("MX", "revolute") == "kg·m" and fx.unit_of("MY") == "kg·m"
 
 

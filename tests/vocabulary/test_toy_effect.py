@@ -1,9 +1,12 @@
 """Adding an effect is one definition: a toy effect works end to end without touching another module.
 
-The toy is a cubic viscous friction ``F3 * qd**3``, defined here and registered in
-:data:`ilic_cli.effects.EFFECTS`. Nothing else is edited, and yet it is
+The toy is a cubic viscous friction ``F3 * qd**3``, defined here -- its parameter and
+its one regressor column, with the column's pointwise form -- and registered in
+:data:`ilic_cli.effects.EFFECTS`. It has no force term of its own: its plant force is
+its column times its parameter. Nothing else is edited, and yet it is
 
-- simulated by the plant (``ilic simulate --effect``; the loop is compiled for it),
+- simulated by the plant (``ilic simulate --effect``; the loop is compiled for it from
+  the column), the simulated force being ``Y @ theta`` of its columns,
 - identified as a regressor column (``ilic identify --effect``),
 - found by ``ilic diagnose`` in a log where it is concealed,
 - written to the model file and replayed by ``ilic replay``.
@@ -19,10 +22,13 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
-from ilic_cli.effects import Effect, EffectColumn, PlantParam, register, unregister
+from ilic_cli.effects import Effect, EffectColumn, PlantParam, make_effects, register, unregister
 from ilic_cli.io import read_log
+from ilic_cli.regressor import COLUMNS, Kinematics
 from ilic_cli.runlog import RunLog
+from plant.generic import kernel_for
 from tests.clirun import run_cli
+from tests.vocabulary.test_compiled_forms import check_against_definition
 
 F3 = 800.0
 """Cubic friction of the concealed effect (N/(m/s)^3): about 3 N rms, 11 N at the top speed of paper-sim."""
@@ -32,12 +38,10 @@ TOY = Effect(
     "cubic viscous friction",
     "Shear of a thick lubricant film adds friction growing with the cube of the sliding speed.",
     params=(PlantParam("F3", "N/(m/s)^3", 0.0, "cubic viscous coefficient"),),
-    force=lambda q, qd, prm: prm[0] * qd**3,
     form="F3 * qd^3",
     signature="residual odd in velocity, growing fastest at the top speeds",
     signature_kinds=("velocity",),
-    columns=(EffectColumn("F3", "N/(m/s)^3", "cubic viscous coefficient"),),
-    build=lambda kin, value, fs_hz: np.c_[kin.qd**3],
+    columns=(EffectColumn("F3", "N/(m/s)^3", "cubic viscous coefficient", of=lambda q, qd, qdd, t, value: qd**3),),
 )
 
 
@@ -59,8 +63,27 @@ def concealed(toy: Effect, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def test_simulated(concealed: Path) -> None:
-    """The plant integrated the toy's force: its own states and the logged force hold F3, and nothing without the effect does."""
+def test_simulated(toy: Effect, concealed: Path, tmp_path: Path) -> None:
+    """The plant integrated the toy's force, its columns times its parameter: exactly (noise-free, the logged command),
+    in the compiled loop's dynamics (sliding, stuck and at break-away), and in a fit of the concealed log."""
+    path = tmp_path / "exact.mcap"
+    args = ("--scenario", "paper-sim", "--duration", "4", "--seed", "1", "--tau-sensor", "command", "--effect", f"cubic_friction:F3={F3}")
+    res = run_cli("simulate", *args, "-o", str(path))
+    assert res.status == 0, res.stderr
+    exact = read_log(path)
+    truth = exact.provenance.true_parameters
+    assert truth is not None
+    kin = Kinematics(qd=exact["qd_plant"], qdd=exact["qdd_plant"], q=exact["q"], t=exact.t)
+    rigid = np.column_stack([COLUMNS[n].build(kin) for n in ("M", "Fv", "Fc", "offset")]) @ [truth[n] for n in ("M", "Fv", "Fc", "offset")]
+    toy_force = toy.matrix(kin) @ [F3]  # Y of the toy's own column, times its parameter
+    np.testing.assert_array_equal(toy.plant_force({"F3": F3}, kin), toy_force)
+    sliding = np.abs(kin.qd) > 1e-6
+    assert sliding.mean() > 0.9 and np.abs(toy_force[sliding]).max() > 5.0
+    np.testing.assert_allclose(rigid[sliding] + toy_force[sliding], exact["tau"][sliding], rtol=0, atol=1e-9 * np.abs(exact["tau"]).max())
+    assert np.abs(rigid[sliding] - exact["tau"][sliding]).max() > 5.0  # without the toy's column the force is missed
+    eff = make_effects({"cubic_friction": {"F3": F3}})
+    check_against_definition(kernel_for(eff), eff)  # the loop compiled for it, against its definition
+
     log = read_log(concealed)
     assert log.meta["effects"]["cubic_friction"] == {"F3": F3}
     qd, qdd = log["qd_plant"], log["qdd_plant"]

@@ -1,0 +1,73 @@
+"""Data-driven search grids of the effects' nonlinear parameters, and the flexible load's response."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ilic_cli.filtering import bilinear_lfilter
+from ilic_cli.regressor import Kinematics
+
+
+def _vmax(kin: Kinematics) -> float:
+    v = float(np.percentile(np.abs(kin.qd), 99.5))
+    return v if v > 0 else 1.0
+
+
+def stribeck_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    # from 1 % (below: standstill, left out of the fit) to 40 % of the top speed
+    vmax = _vmax(kin)
+    return np.geomspace(0.01 * vmax, 0.4 * vmax, 32)
+
+
+def ripple_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    # spatial periods from what the IDIM bandwidth (40 Hz after decimation) can
+    # see at the median moving speed up to half the stroke, spaced so that the
+    # phase over the stroke moves by less than a tenth of a cycle per step
+    q = kin.q if kin.q is not None else np.cumsum(kin.qd) / fs_hz
+    stroke = float(np.ptp(q)) or 1.0
+    moving = np.abs(kin.qd) > 0.05 * _vmax(kin)
+    v_typ = float(np.median(np.abs(kin.qd[moving]))) if moving.any() else _vmax(kin)
+    p_min = max(v_typ / 40.0, stroke / 2000.0)
+    p_max = stroke / 2.0
+    if p_max <= p_min:
+        return np.array([p_max])
+    # d(stroke/P) = 0.1  ->  P_{k+1} = P_k / (1 - 0.1 P_k / stroke)
+    out = [p_min]
+    while out[-1] < p_max:
+        out.append(out[-1] / max(1.0 - 0.1 * out[-1] / stroke, 0.5))
+    return np.array(out)
+
+
+def change_time_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    t = kin.t if kin.t is not None else np.arange(len(kin.qd)) / fs_hz
+    t0, t1 = float(t[0]), float(t[-1])
+    margin = 0.05 * (t1 - t0)
+    return np.linspace(t0 + margin, t1 - margin, 200)
+
+
+def delay_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    # +-25 ms in steps of half a sample (refined afterwards)
+    step = 0.5 / fs_hz
+    return np.arange(-0.025, 0.025 + step / 2, step)
+
+
+def resonance_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    # what survives the IDIM low-pass: up to 0.8 of the decimated Nyquist (40 Hz at 1 kHz / 10)
+    return np.geomspace(2.0, 0.08 * fs_hz / 2 * 1.0, 40)
+
+
+FLEX_DAMPING = 0.05
+"""Damping ratio of the flexible mode while its frequency is searched (then refined)."""
+
+
+def flexible_acceleration(qdd: np.ndarray, f_hz: float, fs_hz: float, zeta: float = FLEX_DAMPING) -> np.ndarray:
+    """Acceleration of a load coupled to the measured side by a spring-damper.
+
+    ``qdd_L = H(s) qdd`` with ``H = (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2)``,
+    ``w = 2 pi f_hz``, discretised by the bilinear transform and applied
+    forward only (causal, like the physics).
+    """
+    w = 2.0 * math.pi * f_hz
+    return bilinear_lfilter([2.0 * zeta * w, w * w], [1.0, 2.0 * zeta * w, w * w], fs_hz, qdd)
