@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import click
@@ -183,8 +184,6 @@ def command(
 
 
 def _write_outputs(result, out_dir: Path, inputs: tuple[Path, ...]) -> None:
-    import json
-
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "report.md", to_markdown(result), inputs=inputs)
     atomic_write_text(out_dir / "report.json", to_json(result), inputs=inputs)
