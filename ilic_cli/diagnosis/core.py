@@ -27,7 +27,7 @@ from ilic_cli.diagnosis.refit import NOT_REFITTED, FinalFit, Refit, final_fit, r
 from ilic_cli.diagnosis.refit import refit as refit_stage
 from ilic_cli.diagnosis.refit import segment_refit as _segment_refit
 from ilic_cli.diagnosis.select import Evaluation, Selection, validation_error
-from ilic_cli.diagnosis.settings import DiagnoseSettings, replay_alpha
+from ilic_cli.diagnosis.settings import DiagnoseSettings, DiagnosisSettings, replay_alpha
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.system import system
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
@@ -42,6 +42,7 @@ from ilic_cli.runlog import RunLog
 __all__ = [  # the pipeline, and the names its callers import from here as before the stages were split out
     "NOT_REFITTED",
     "DiagnoseSettings",
+    "DiagnosisSettings",
     "Diagnosis",
     "Finding",
     "Refit",
@@ -115,7 +116,7 @@ class Diagnosis:
     tried: list[list[Evaluation]]
     decisions: list[ReplayVerdict]
     model_file: dict[str, Any]
-    settings: DiagnoseSettings
+    settings: DiagnosisSettings
     simulation: SimulationComparison | None = None
     refit: Refit | None = None
     validation_source: str | None = None
@@ -187,7 +188,7 @@ class Baseline:
     effects: dict[str, Any]
 
 
-def _baseline(prop: Proposal, model_doc: dict[str, Any] | None, settings: DiagnoseSettings) -> Baseline:
+def _baseline(prop: Proposal, model_doc: dict[str, Any] | None, settings: DiagnosisSettings) -> Baseline:
     W0, y0, names0 = system(prop.data, prop.base, prop.known, prop.rows)
     res0 = solve(W0, y0, names0, sigma=settings.ls.sigma)
     before_params = dict(model_doc["parameters"]) if model_doc else {n: float(v) for n, v in zip(names0, res0.theta, strict=True) if n in PARAMETERS}
@@ -198,7 +199,7 @@ def _baseline(prop: Proposal, model_doc: dict[str, Any] | None, settings: Diagno
 def diagnose(
     log: RunLog,
     *,
-    settings: DiagnoseSettings | None = None,
+    settings: DiagnosisSettings | None = None,
     model_doc: dict[str, Any] | None = None,
     against: RunLog | None = None,
     validate: RunLog | None = None,
@@ -209,8 +210,8 @@ def diagnose(
     ----------
     log : RunLog
         The recording (``t``, ``q``, ``tau``; ``q_ref`` for the simulation comparison).
-    settings : DiagnoseSettings, optional
-        Default :class:`DiagnoseSettings` (every effect of the catalogue).
+    settings : DiagnosisSettings, optional
+        Default :class:`~ilic_cli.diagnosis.settings.DiagnosisSettings` (every effect of the catalogue, the measured tuning).
     model_doc : dict, optional
         A parsed model file (:func:`ilic_cli.modelfile.parse_model`): its
         structure is the starting model, its values are replayed as "before",
@@ -220,7 +221,7 @@ def diagnose(
     validate : RunLog, optional
         Another recording: candidates must not raise the error there.
     """
-    settings = settings or DiagnoseSettings()
+    settings = settings or DiagnosisSettings()
     settings.null.check(replay_alpha(settings))
     prop = propose(log, settings, model_doc, validate)  # 1. propose
     log, validate = prop.log, prop.validate
@@ -233,9 +234,9 @@ def diagnose(
             validate, _ = recorded_loop(validate, base.params, base.effects, settings.ls)
     decision = decide(log, prop, settings, validate, against)  # 2. decide
     replayed = settings.simulate and against is None and "q_ref" in log
-    decision, at_dwells = refit_at_dwells(log, prop, decision, settings.ls, replayed)  # 3. refit
+    decision, at_dwells = refit_at_dwells(log, prop, decision, settings, replayed)  # 3. refit
     final = final_fit(prop, decision.kept, settings.ls, len(base.y))
-    refit = refit_stage(log, prop, decision, final, at_dwells, settings.ls, replayed)
+    refit = refit_stage(log, prop, decision, final, at_dwells, settings, replayed)
     res0 = with_std(res0, gls_covariance(base.W, base.y, res0.theta))
     findings = _findings(prop, decision, final, refit)  # 4. the findings, the model file and the figures the report renders
     doc = _model_file(prop, decision, final, refit)
@@ -293,7 +294,7 @@ def _assembled(
     refit: Refit | None,
     findings: list[Finding],
     doc: dict[str, Any],
-    settings: DiagnoseSettings,
+    settings: DiagnosisSettings,
     timing: ControlTiming | None,
 ) -> Diagnosis:
     """The :class:`Diagnosis`: the fit's figures before and after, where the rigid residual is structured, the drift, the weight."""
@@ -320,7 +321,8 @@ def _assembled(
     located.append(force_lag(data.tau, np.asarray(prop.base.matrix(kin)) @ res0.theta[: len(prop.base.names)], fs))
     for f in findings:
         f.located = sorted([r for r in located if r.kind in f.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
-    drift_found = detect_drift(td, W1, y1, final.names)  # friction that changes over time, from per-window estimates
+    # friction that changes over time, from per-window estimates
+    drift_found = detect_drift(td, W1, y1, final.names, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change)
     if drift_found.found:
         findings.append(Finding(EFFECTS["friction_drift"], drift_found.estimates(), drift_found.plant_effect(), [], drift_evaluation(drift_found)))
         doc = with_drift(doc, drift_found)
@@ -366,7 +368,7 @@ def _weighed(diag: Diagnosis, prop: Proposal, final: FinalFit) -> None:
             f.parameters, f.note = dict(diag.weight), "a vertical axis: the constant force is the load's weight"
 
 
-def _simulated(diag: Diagnosis, log: RunLog, prop: Proposal, base: Baseline, refit: Refit | None, against: RunLog | None, settings: DiagnoseSettings) -> None:
+def _simulated(diag: Diagnosis, log: RunLog, prop: Proposal, base: Baseline, refit: Refit | None, against: RunLog | None, settings: DiagnosisSettings) -> None:
     """The simulation against the recording, before and after (in place): the replay, or the log ``against``."""
     doc = diag.model_file
     try:

@@ -29,7 +29,7 @@ from ilic_cli.diagnosis.model_values import model_parameters
 from ilic_cli.diagnosis.null import MonteCarloNull
 from ilic_cli.diagnosis.propose import Proposal, closed_loop_proposal, prepare_system
 from ilic_cli.diagnosis.select import SelectionResult
-from ilic_cli.diagnosis.settings import DiagnoseSettings, replay_alpha
+from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
 from ilic_cli.diagnosis.system import Step
 from ilic_cli.diagnosis.verdicts import DM_TEST, PROPOSED_BY_INVERSE, PlantOf, ReplayVerdict, Verdict
 from ilic_cli.idim_ls import with_rest
@@ -80,7 +80,7 @@ class Decision:
     sensor: dict[str, Any] | None
 
 
-def decide(log: RunLog, prop: Proposal, settings: DiagnoseSettings, validate: RunLog | None, against: RunLog | None) -> Decision:
+def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: RunLog | None, against: RunLog | None) -> Decision:
     """The proposed steps that are material and, when the log can be replayed, that the replay keeps.
 
     ``log`` is the recording as the replays run it (its loop timing read from it: :func:`ilic_cli.diagnosis.timing.recorded_loop`).
@@ -94,8 +94,8 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnoseSettings, validate: Ru
     replayable = settings.simulate and against is None and "q_ref" in log
     for st in selection.steps:
         # without a replay the inverse model's value is the estimate: a delay too short for a finding goes now
-        why = materiality(data, base, kept_so_far, st, rows)
-        short = None if why or replayable else below_period(st, data.fs_hz)
+        why = materiality(data, base, kept_so_far, st, rows, settings.material_force)
+        short = None if why or replayable else below_period(st, data.fs_hz, settings.min_delay_periods)
         if why or short:
             verdicts.append(ReplayVerdict.unjudged(st.effect.id, Verdict.NOT_MATERIAL if why else Verdict.BELOW_PERIOD, why or short or ""))
         else:
@@ -135,6 +135,8 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnoseSettings, validate: Ru
             null=null,
             sensor_noise=settings.replay_noise,
             sensor=sensor,
+            min_delay_periods=settings.min_delay_periods,
+            fold_xatol_steps=settings.fold_xatol_steps,
         )
         verdicts += judged
         kept = kept[len(known) :]

@@ -79,8 +79,8 @@ SPREAD = "the folds' delete-a-block jackknife (their scatter, the other paramete
 """Where its standard deviations come from (:func:`jackknife_std`), as the report says it."""
 
 
-def reference_dwells(q_ref: np.ndarray, fs_hz: float) -> int:
-    """How many times the reference rests (does not move) for at least :data:`DWELL_MIN_S`."""
+def reference_dwells(q_ref: np.ndarray, fs_hz: float, min_s: float = DWELL_MIN_S) -> int:
+    """How many times the reference rests (does not move) for at least ``min_s`` (:data:`DWELL_MIN_S`)."""
     q = np.asarray(q_ref, dtype=np.float64)
     if len(q) < 2:
         return 0
@@ -88,12 +88,12 @@ def reference_dwells(q_ref: np.ndarray, fs_hz: float) -> int:
     still = np.abs(np.diff(q)) <= 1e-9 * max(span, 1e-12)
     edges = np.diff(np.r_[0, still.astype(np.int8), 0])
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    return int(np.sum((ends - starts) >= DWELL_MIN_S * fs_hz))
+    return int(np.sum((ends - starts) >= min_s * fs_hz))
 
 
-def dwells(q_ref: np.ndarray, fs_hz: float) -> bool:
-    """Whether the reference rests often enough for the search (at least :data:`DWELL_MIN_COUNT` dwells)."""
-    return reference_dwells(q_ref, fs_hz) >= DWELL_MIN_COUNT
+def dwells(q_ref: np.ndarray, fs_hz: float, min_s: float = DWELL_MIN_S, min_count: int = DWELL_MIN_COUNT) -> bool:
+    """Whether the reference rests often enough for the search (at least ``min_count`` dwells of ``min_s``: :data:`DWELL_MIN_COUNT`)."""
+    return reference_dwells(q_ref, fs_hz, min_s) >= min_count
 
 
 def coulomb_N(names: tuple[str, ...], theta: np.ndarray) -> float | None:

@@ -32,7 +32,7 @@ import numpy as np
 
 import ilic_cli.diagnosis.dwell as dwell
 from ilic_cli.diagnosis.compare import relative_errors, replay
-from ilic_cli.diagnosis.materiality import below_period
+from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
 from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, minimise, search_range
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import blocked_folds, diebold_mariano
@@ -109,6 +109,8 @@ def replay_decide(
     null: ReplayNull | None = None,
     sensor_noise: bool = True,
     sensor: dict[str, Any] | None = None,
+    min_delay_periods: float = MIN_DELAY_PERIODS,
+    fold_xatol_steps: float = FOLD_XATOL_STEPS,
 ) -> tuple[list[Step], list[ReplayVerdict]]:
     """Keep the proposed steps that lower the held-out closed-loop output error, in order.
 
@@ -144,6 +146,10 @@ def replay_decide(
         The noise is loop-corrected on the baseline (:func:`decision_sensor`), the validation log's too.
     sensor : dict, optional
         ``log``'s :func:`decision_sensor` when the caller has it already (used when ``sensor_noise``).
+    min_delay_periods : float
+        A judged delay shorter than this share of the sample period is not a finding (:func:`~ilic_cli.diagnosis.materiality.below_period`).
+    fold_xatol_steps : float
+        Tolerance of the per-fold search of a biased value (:func:`fold_value`), in grid steps.
 
     Returns
     -------
@@ -156,6 +162,7 @@ def replay_decide(
         sensor = decision_sensor(log, data.settings, data, base, known, rows, plant_of)
     vsensor = decision_sensor(*validate, data, base, known, rows, plant_of) if sensor_noise and validate is not None else {}
     replays = _Folds(log, data, base, rows, plant_of, folds, sensor)
+    replays.min_delay_periods, replays.fold_xatol_steps = min_delay_periods, fold_xatol_steps
     kept = list(known)
     current = replays.heldout(kept)
     verdicts: list[ReplayVerdict] = []
@@ -212,6 +219,10 @@ class _Folds:
         self.others_of = [np.any([sel for j, sel in enumerate(self.in_block) if j != fold], axis=0) for fold in range(len(self.in_block))]
         self.idx_tau = np.concatenate([np.flatnonzero(sel) for sel in self.in_block])
         self.idx_q = np.concatenate([np.arange(a, b) for a, b in self.blocks])
+        self.min_delay_periods = MIN_DELAY_PERIODS
+        """A judged delay shorter than this share of the sample period is not a finding (:func:`~ilic_cli.diagnosis.materiality.below_period`)."""
+        self.fold_xatol_steps = FOLD_XATOL_STEPS
+        """Tolerance of :func:`fold_value`'s search (grid steps)."""
 
     def fold_replay(self, steps: list[Step], train: np.ndarray, noise: dict[str, Any] | None = None) -> RunLog | None:
         """The replay of the model fitted on ``train`` (with the sensor ``noise``, default :attr:`sensor`), or ``None`` when it is no valid plant."""
@@ -250,7 +261,7 @@ class _Folds:
         noise, 0.94-1.0 ms without). The replay returned, which the held-out block judges, has the noise.
         """
         replay_at, training_error = self.fold_search(train, fold, {})
-        steps = [*given[:-1], fold_value(given[:-1], given[-1], grid, training_error)]
+        steps = [*given[:-1], fold_value(given[:-1], given[-1], grid, training_error, self.fold_xatol_steps)]
         return steps, self.fold_replay(steps, train) if self.sensor else replay_at(steps)
 
     def dwell_fold(self, given: list[Step], train: np.ndarray, fold: int) -> tuple[list[Step], RunLog | None, Step | None]:
@@ -358,7 +369,7 @@ class _Folds:
             sims = [_replayed(vlog, self.plant_of, s, fit_system(self.data, self.base, s, self.rows), vsensor) for s in (kept, [*kept, judged])]
             if sims[0] is not None and sims[1] is not None:
                 vb, va = relative_errors(vlog, sims[0], vls)["force"], relative_errors(vlog, sims[1], vls)["force"]
-        verdict, why = _verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, below_period(judged, self.data.fs_hz))
+        verdict, why = _verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, below_period(judged, self.data.fs_hz, self.min_delay_periods))
         fold_values = tuple(float(v) for v in after[2]) if search and not proposed_here else tuple(dwell.fold_values(after[2])) if proposed_here else None
         ok = verdict is Verdict.AGREES
         return ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc, fold_values, by, verdict), judged
@@ -400,7 +411,7 @@ def _fmt(value: float, unit: str) -> str:
     return f"{value * 1e3:.3g} ms" if unit == "s" else f"{value:.4g} {unit}".strip()
 
 
-def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error: Callable[[list[Step]], float]) -> Step:
+def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error: Callable[[list[Step]], float], xatol_steps: float = FOLD_XATOL_STEPS) -> Step:
     """``step`` with its nonlinear value searched on one fold's closed-loop training error (``prefix`` kept before it).
 
     The inverse model's estimate of some effects is off by several steps of
@@ -427,7 +438,7 @@ def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error:
             memo[v] = training_error([*prefix, Step(step.effect, v)])
         return memo[v]
 
-    best = minimise(err, lo, hi, scan.log and lo > 0, rel_tol=FOLD_XATOL_STEPS / max(len(sub) - 1, 1))
+    best = minimise(err, lo, hi, scan.log and lo > 0, rel_tol=xatol_steps / max(len(sub) - 1, 1))
     if at_edge(step.effect, sub, best) or not err(best) < err(v0):
         return step
     return Step(step.effect, best)

@@ -27,10 +27,10 @@ spurious effects it leaves measured 0.06-0.24 %; a concealed effect that
 raises the rigid error by 0.2 points from 1 % has about 0.66 %."""
 
 
-def immaterial(force_rms: float, total_rms: float) -> str | None:
-    """Why an effect adding ``force_rms`` to a force of ``total_rms`` (N RMS, rows used) is below :data:`MATERIAL_FORCE`, else ``None``."""
-    if total_rms > 0 and force_rms < MATERIAL_FORCE * total_rms:
-        return f"not material: its force ({force_rms:.3g} N RMS) is below {100 * MATERIAL_FORCE:g} % of the force ({total_rms:.3g} N RMS)"
+def immaterial(force_rms: float, total_rms: float, share: float = MATERIAL_FORCE) -> str | None:
+    """Why an effect adding ``force_rms`` to a force of ``total_rms`` (N RMS, rows used) is below ``share`` of it (:data:`MATERIAL_FORCE`), else ``None``."""
+    if total_rms > 0 and force_rms < share * total_rms:
+        return f"not material: its force ({force_rms:.3g} N RMS) is below {100 * share:g} % of the force ({total_rms:.3g} N RMS)"
     return None
 
 
@@ -42,20 +42,20 @@ timing (a clean 2 kHz log got -1.0 us, 0.2 % of a period). The lags that are phy
 corpus's 700 Hz current loop lags 0.23 ms, 23 % of its 1 kHz period."""
 
 
-def below_period(step: Step, fs_hz: float) -> str | None:
-    """Why ``step`` is a delay too short to be a finding (:data:`MIN_DELAY_PERIODS`), else ``None``."""
+def below_period(step: Step, fs_hz: float, min_periods: float = MIN_DELAY_PERIODS) -> str | None:
+    """Why ``step`` is a delay shorter than ``min_periods`` of the sample period, too short to be a finding (:data:`MIN_DELAY_PERIODS`), else ``None``."""
     if step.effect.id != "delay" or step.value is None or isinstance(step.value, tuple):
         return None
     lag, period = abs(float(step.value)), 1.0 / fs_hz
-    if lag < MIN_DELAY_PERIODS * period:
+    if lag < min_periods * period:
         return (
-            f"not a finding: a delay of {1e6 * lag:.3g} us is below {MIN_DELAY_PERIODS:g} of the log's sample period ({1e6 * period:.4g} us), "
+            f"not a finding: a delay of {1e6 * lag:.3g} us is below {min_periods:g} of the log's sample period ({1e6 * period:.4g} us), "
             "what the rows cannot tell from the sample timing"
         )
     return None
 
 
-def materiality(data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray) -> str | None:
+def materiality(data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray, share: float = MATERIAL_FORCE) -> str | None:
     """Why ``step`` is not material on top of ``base + kept`` (:func:`immaterial`), else ``None``.
 
     An effect whose value the closed loop searches (:data:`ilic_cli.diagnosis.select.SEARCH_STEPS`:
@@ -69,7 +69,7 @@ def materiality(data: IDIMData, base: Model, kept: list[Step], step: Step, rows:
     if step.effect.id in SEARCH_STEPS and scan is not None and not isinstance(step.value, tuple):
         for v in search_range(step.effect, scan.grid(data.kin, data.fs_hz), float(step.value)):
             force = max(force, effect_force_rms(data, base, kept, Step(step.effect, float(v)), rows)[0])
-    return immaterial(force, total)
+    return immaterial(force, total, share)
 
 
 def effect_force_rms(data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray) -> tuple[float, float]:

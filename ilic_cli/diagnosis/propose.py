@@ -17,7 +17,7 @@ from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import tau_sensor
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
-from ilic_cli.diagnosis.settings import DiagnoseSettings
+from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.system import Step, fit_system, moving_rows
 from ilic_cli.effects import EFFECTS, applicable
 from ilic_cli.errors import IdentificationError
@@ -96,7 +96,7 @@ def base_model(model_doc: dict[str, Any] | None, default: str) -> Model:
     return get_model(found or default)
 
 
-def propose(log: RunLog, settings: DiagnoseSettings, model_doc: dict[str, Any] | None, validate: RunLog | None) -> Proposal:
+def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] | None, validate: RunLog | None) -> Proposal:
     """Prepare ``log`` (and ``validate``) and let the inverse model propose effects (:func:`~ilic_cli.diagnosis.select.forward_select`)."""
     prepared = with_rest(prepare_log(log), settings.ls)  # the samples every fit uses, as identify's
     log = prepared.log  # an irregularly sampled log is on a uniform grid now
@@ -125,7 +125,7 @@ def propose(log: RunLog, settings: DiagnoseSettings, model_doc: dict[str, Any] |
 
 
 def closed_loop_proposal(
-    log: RunLog, data: IDIMData, base: Model, proposed: list[Step], rows: np.ndarray, settings: DiagnoseSettings, selection: SelectionResult
+    log: RunLog, data: IDIMData, base: Model, proposed: list[Step], rows: np.ndarray, settings: DiagnosisSettings, selection: SelectionResult
 ) -> Step | None:
     """Stribeck friction proposed on the closed loop (:mod:`ilic_cli.diagnosis.dwell`), or ``None``.
 
@@ -137,7 +137,7 @@ def closed_loop_proposal(
     effect = EFFECTS["stribeck"]
     if effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in proposed):
         return None
-    if not selection.unconfirmed(effect.id) and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz):
+    if not selection.unconfirmed(effect.id) and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz, settings.dwell_min_s, settings.dwell_min_count):
         return None
     fit = fit_system(data, base, [], rows)  # the rigid Coulomb level: the scale of the levels searched (each fold's own, there)
     fc = dwell.coulomb_N(fit.names, fit.theta)

@@ -37,6 +37,7 @@ from ilic_cli.diagnosis.oe_fit import output_error_refit as _output_error_refit
 from ilic_cli.diagnosis.propose import Proposal
 from ilic_cli.diagnosis.search import at_edge
 from ilic_cli.diagnosis.sensor import measurement_std, position_noise
+from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.stats import gls_covariance
 from ilic_cli.diagnosis.system import Step, fit_system, system
 from ilic_cli.diagnosis.verdicts import RefitOutcome
@@ -106,26 +107,30 @@ def final_fit(prop: Proposal, kept: list[Step], ls: LSSettings, n_rows: int) -> 
     return FinalFit(W1, y1, names1, with_std(res1, cov1), cov1)
 
 
-def at_dwells(decision: Decision, log: RunLog, replayed: bool) -> bool:
+def at_dwells(decision: Decision, log: RunLog, replayed: bool, settings: DiagnosisSettings) -> bool:
     """Whether the last kept effect, alone of them with a level held, is the closed loop's Stribeck proposal at the reference's dwells."""
     held = [i for i, st in enumerate(decision.kept) if st.level is not None]
-    return held == [len(decision.kept) - 1] and replayed and dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz)
+    return held == [len(decision.kept) - 1] and replayed and _dwells(log, settings)
 
 
-def refit_at_dwells(log: RunLog, prop: Proposal, decision: Decision, ls: LSSettings, replayed: bool) -> tuple[Decision, Refit | None]:
+def refit_at_dwells(log: RunLog, prop: Proposal, decision: Decision, settings: DiagnosisSettings, replayed: bool) -> tuple[Decision, Refit | None]:
     """Stribeck friction found at the dwells, refitted on the open-loop segments (:func:`segment_refit`): the decision (less that
     friction when the segments refute it) and the segments' refit (``None``: none, or refuted)."""
-    if not at_dwells(decision, log, replayed):
+    if not at_dwells(decision, log, replayed, settings):
         return decision, None
     # Stribeck friction found at the dwells: the open-loop segments estimate it, and may refute it
-    found, refuted = segment_refit(log, prop.data, prop.base, prop.rows, ls, prop.known, decision.kept, prop.hold)
+    found, refuted = segment_refit(
+        log, prop.data, prop.base, prop.rows, settings.ls, prop.known, decision.kept, prop.hold, segment_s=settings.segment_s, level_z=settings.segment_level_z
+    )
     if refuted is None:
         return decision, found
     kept, verdicts = without_last(decision.kept, decision.verdicts, refuted)
     return replace(decision, kept=kept, verdicts=verdicts), None
 
 
-def refit(log: RunLog, prop: Proposal, decision: Decision, final: FinalFit, found_at_dwells: Refit | None, ls: LSSettings, replayed: bool) -> Refit | None:
+def refit(
+    log: RunLog, prop: Proposal, decision: Decision, final: FinalFit, found_at_dwells: Refit | None, settings: DiagnosisSettings, replayed: bool
+) -> Refit | None:
     """The refit of the kept effects (``None``: none kept, or the log does not replay).
 
     A level held at the closed loop's estimate (the last candidate judged) joins the refit as a column, the estimate its start,
@@ -133,9 +138,9 @@ def refit(log: RunLog, prop: Proposal, decision: Decision, final: FinalFit, foun
     Not at dwells: there Stribeck friction shows in the creep the sensor noise drives, and the refit replays noise-free
     (measured, refitted so: the two Stribeck trapezoids with the current loop 13 and 10 % -> 37 and 44 % off).
     """
-    kept, known, hold = decision.kept, prop.known, prop.hold
+    kept, known, hold, ls = decision.kept, prop.known, prop.hold, settings.ls
     held = [i for i, st in enumerate(kept) if st.level is not None]
-    if held and not (held == [len(kept) - 1] and replayed and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz)):
+    if held and not (held == [len(kept) - 1] and replayed and not _dwells(log, settings)):
         return found_at_dwells or Refit(False, NOT_REFITTED, list(kept), final.names, outcome=RefitOutcome.AT_DWELLS)
     if not (kept and replayed):
         return None
@@ -154,6 +159,11 @@ def refit(log: RunLog, prop: Proposal, decision: Decision, final: FinalFit, foun
         before = cache(lambda: noisy_output_error(log, ls, *model_parameters([*known, *kept], final.names, final.res.theta, zero, hold), noise))
         confirm = lambda r: noise_objection(r, log, ls, noise, before(), known, hold)  # noqa: E731
     return closed_loop_refit(log, prop.prepared, base, known, columns, theta0, grids, ls=ls, inverse_fit=inverse_fit, hold_s=hold, confirm=confirm)
+
+
+def _dwells(log: RunLog, settings: DiagnosisSettings) -> bool:
+    """Whether the log's reference dwells (:func:`ilic_cli.diagnosis.dwell.dwells`, the settings' dwell)."""
+    return dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz, settings.dwell_min_s, settings.dwell_min_count)
 
 
 def _inverse_fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarray) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
@@ -181,7 +191,17 @@ def noise_objection(refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str,
 
 
 def segment_refit(
-    log: RunLog, data: IDIMData, base: Model, rows: np.ndarray, ls: LSSettings, known: list[Step], kept: list[Step], hold: float
+    log: RunLog,
+    data: IDIMData,
+    base: Model,
+    rows: np.ndarray,
+    ls: LSSettings,
+    known: list[Step],
+    kept: list[Step],
+    hold: float,
+    *,
+    segment_s: float = segments.SEGMENT_S,
+    level_z: float = segments.LEVEL_Z,
 ) -> tuple[Refit, str | None]:
     """The Stribeck friction found at the dwells (the last of ``kept``, its level held), refitted on the open-loop segments.
 
@@ -220,7 +240,7 @@ def segment_refit(
 
     q = np.asarray(log["q"], dtype=np.float64)
     noise = measurement_std(*position_noise(q, fs, ls))
-    length = int(round(segments.SEGMENT_S * fs))
+    length = int(round(segment_s * fs))
     starts = segments.segment_starts(len(q), length, ls.trim)
 
     def simulate(p: np.ndarray, states: np.ndarray) -> np.ndarray:
@@ -243,7 +263,7 @@ def segment_refit(
         )
     except IlicError as exc:  # a sensitivity's step that gives no plant, a segment that diverges: the search's estimate stands
         return Refit(False, f"{NOT_REFITTED}; the {segments.METHOD} failed: {exc.problem}", list(kept), names, outcome=RefitOutcome.AT_DWELLS), None
-    return _segments_judged(fit, model_at(fit.values), st, kept, known, free, names, names_fit, data, fs, noise)
+    return _segments_judged(fit, model_at(fit.values), st, kept, known, free, names, names_fit, data, fs, noise, (segment_s, level_z))
 
 
 def _segments_judged(
@@ -258,22 +278,27 @@ def _segments_judged(
     data: IDIMData,
     fs: float,
     noise: float,
+    tuning: tuple[float, float],
 ) -> tuple[Refit, str | None]:
-    """The open-loop segments' fit of :func:`segment_refit` judged: kept, refuting the friction, or not used (and why)."""
+    """The open-loop segments' fit of :func:`segment_refit` judged: kept, refuting the friction, or not used (and why).
+
+    ``tuning``: the segments' length (s) and the level's least standard deviations above zero.
+    """
+    segment_s, level_z = tuning
     assert st.level is not None
     n_lin = len(names_fit)
     what = (
-        f"{fit.segments} segments of {segments.SEGMENT_S:g} s driven by the recorded force, residual {1e6 * fit.rms_m:.3g} um RMS "
+        f"{fit.segments} segments of {segment_s:g} s driven by the recorded force, residual {1e6 * fit.rms_m:.3g} um RMS "
         f"for a sensor noise of {1e6 * noise:.3g} um (from {1e6 * fit.rms_start_m:.3g} um), {fit.iterations} iterations"
     )
     theta_fit = fit.values[:n_lin]
     at = names_fit.index(st.effect.column_names[0])
     level, level_std = float(theta_fit[at]), float(fit.std[at])
-    if fit.consistent and not level > segments.LEVEL_Z * level_std:
+    if fit.consistent and not level > level_z * level_std:
         refuted = (
             f"refuted by the {segments.METHOD} ({what}): the residual is the sensor's noise, "
             f"and the level it gives Stribeck friction, {level:.3g} +- {level_std:.2g} N, "
-            f"is not {segments.LEVEL_Z:g} standard deviations above zero (the closed-loop search's {st.level[0]:.3g} N is not the recording's)"
+            f"is not {level_z:g} standard deviations above zero (the closed-loop search's {st.level[0]:.3g} N is not the recording's)"
         )
         return Refit(False, refuted, list(kept), names, segments=fit, outcome=RefitOutcome.SEGMENTS_REFUTED), refuted
     problem = plant_problem(final[len(known) :], names_fit, theta_fit)
