@@ -239,6 +239,7 @@ class Effect:
     sentence: Callable[[Mapping[str, Estimate]], str] | None = None
     realise: Callable[[Mapping[str, float], float], dict[str, dict[str, float]]] | None = None
     joints: tuple[str, ...] = ("prismatic", "revolute")
+    strategy: str | None = None  # how the diagnosis identifies it beyond the inverse model (ilic_cli.diagnosis.strategies), by name
 
     def plant_entries(self, plant: Mapping[str, float], hold_s: float = 0.0) -> dict[str, dict[str, float]]:
         """The plant effects (id -> parameters) that realise this effect's plant parameters in a model file and a replay.
@@ -709,6 +710,7 @@ STRIBECK = register(
             if th[0] > 0
             else f"static friction below Coulomb (Fs = {th[0]:.3g} N) is not Stribeck friction (pre-sliding or stuck Coulomb friction: outside the catalogue)"
         ),
+        strategy="dwell_segments",  # the closed loop proposes it at a reference's dwells, the open-loop segments refit it
     )
 )
 

@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-import ilic_cli.diagnosis.dwell as dwell
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation
 from ilic_cli.diagnosis.decide import Decision, ReplayVerdict, decide, without_last
 from ilic_cli.diagnosis.drift import DriftResult, detect_drift, with_drift
@@ -29,6 +28,7 @@ from ilic_cli.diagnosis.refit import segment_refit as _segment_refit
 from ilic_cli.diagnosis.select import Evaluation, Selection, validation_error
 from ilic_cli.diagnosis.settings import DiagnoseSettings, DiagnosisSettings, replay_alpha
 from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
+from ilic_cli.diagnosis.strategies import strategy_of
 from ilic_cli.diagnosis.system import system
 from ilic_cli.diagnosis.timing import ControlTiming, recorded_loop
 from ilic_cli.effects import EFFECTS, Effect, Estimate
@@ -263,7 +263,7 @@ def _findings(prop: Proposal, decision: Decision, final: FinalFit, refit: Refit 
         # a closed-loop proposal's vs is the folds' median, its spread theirs: the inverse model's standard deviation is not its own
         params, plant, note = effect_fit(st, final.names, final.res.theta, final.cov, st.value_std if st.level is not None else ev.value_std, hold)
         inverse = {} if st.level is not None else params  # a level held at a closed-loop estimate is no inverse-model estimate
-        method = dwell.METHOD if st.level is not None else "IDIM-LS"
+        method = _proposer(st.effect) if st.level is not None else "IDIM-LS"
         notes = [s.reason for s in (refit.searches if refit is not None else []) if s.effect == st.effect.id]
         if refitted:
             assert refit is not None and refit.theta is not None and refit.cov is not None
@@ -272,6 +272,13 @@ def _findings(prop: Proposal, decision: Decision, final: FinalFit, refit: Refit 
             method = refit.method
         findings.append(Finding(st.effect, params, plant, [], ev, "; ".join(n for n in [note, *notes] if n), method, inverse))
     return findings
+
+
+def _proposer(effect: Effect) -> str:
+    """The method of the identification strategy that proposed ``effect`` on the closed loop (:mod:`ilic_cli.diagnosis.strategies`)."""
+    strategy = strategy_of(effect)
+    assert strategy is not None  # a level is held only for a strategy's proposal
+    return strategy.method
 
 
 def _model_file(prop: Proposal, decision: Decision, final: FinalFit, refit: Refit | None) -> dict[str, Any]:

@@ -55,7 +55,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.select import Step
 from ilic_cli.diagnosis.timing import vertex
-from ilic_cli.effects import EFFECTS
+from ilic_cli.effects import EFFECTS, Effect
 
 DWELL_MIN_S = 0.05
 """A rest of the reference at least this long (s) is a dwell."""
@@ -102,9 +102,9 @@ def coulomb_N(names: tuple[str, ...], theta: np.ndarray) -> float | None:
     return float(np.mean(fc)) if fc else None
 
 
-def proposal(vs_grid: np.ndarray, fc_N: float) -> Step:
-    """The Stribeck candidate the replay searches (:func:`search`), at the middle of its grid until then."""
-    return Step(EFFECTS["stribeck"], float(vs_grid[len(vs_grid) // 2]), level=(abs(fc_N) * LEVELS_OF_FC[len(LEVELS_OF_FC) // 2],))
+def proposal(vs_grid: np.ndarray, fc_N: float, effect: Effect = EFFECTS["stribeck"]) -> Step:
+    """The Stribeck candidate (``effect``) the replay searches (:func:`search`), at the middle of its grid until then."""
+    return Step(effect, float(vs_grid[len(vs_grid) // 2]), level=(abs(fc_N) * LEVELS_OF_FC[len(LEVELS_OF_FC) // 2],))
 
 
 def grids(vs_grid: np.ndarray, fc_N: float) -> tuple[np.ndarray, np.ndarray]:

@@ -30,12 +30,12 @@ from typing import Any
 
 import numpy as np
 
-import ilic_cli.diagnosis.dwell as dwell
 from ilic_cli.diagnosis.compare import relative_errors, replay
 from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
 from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, minimise, search_range
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import blocked_folds, diebold_mariano
+from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
 from ilic_cli.diagnosis.system import Step, SystemFit, fit_system
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull, ReplayVerdict, Verdict
 from ilic_cli.errors import ParameterError
@@ -168,7 +168,7 @@ def replay_decide(
     verdicts: list[ReplayVerdict] = []
     for st in proposed:
         proposed_here = st.level is not None  # a closed-loop proposal (:mod:`ilic_cli.diagnosis.dwell`): its level and value searched per fold
-        by = dwell.METHOD if proposed_here else PROPOSED_BY_INVERSE
+        by = _strategy(st).method if proposed_here else PROPOSED_BY_INVERSE
         search = proposed_here or (st.effect.id in SEARCH_STEPS and st.effect.scan is not None and not isinstance(st.value, tuple))
         after = replays.heldout([*kept, st], search) if current is not None else None
         if current is None or after is None:
@@ -273,9 +273,8 @@ class _Folds:
         prefix, step = given[:-1], given[-1]
         replay_of, training_error = self.fold_search(train, fold, self.sensor)
         rigid = fit_system(self.data, self.base, prefix, self.rows, train)
-        fc = dwell.coulomb_N(rigid.names, rigid.theta) or 0.0
-        vs, fs = dwell.grids(step.effect.scan.grid(self.data.kin, self.data.fs_hz) if step.effect.scan is not None else np.array([]), fc)
-        found = dwell.search(step, vs, fs, lambda st: training_error([*prefix, st]), training_error(prefix))
+        grid = step.effect.scan.grid(self.data.kin, self.data.fs_hz) if step.effect.scan is not None else np.array([])
+        found = _strategy(step).scan(step, rigid, grid, lambda st: training_error(prefix if st is None else [*prefix, st]))
         steps = prefix if found is None else [*prefix, found]
         return steps, replay_of(steps), found
 
@@ -325,7 +324,7 @@ class _Folds:
         mc, significant = None, p < alpha
         judged, searched = st, ""
         if proposed_here:
-            judged_step, searched_text = dwell.judged(after[2])
+            judged_step, searched_text = _strategy(st).judged(after[2])
             if judged_step is None:
                 return ReplayVerdict(
                     st.effect.id,
@@ -370,9 +369,18 @@ class _Folds:
             if sims[0] is not None and sims[1] is not None:
                 vb, va = relative_errors(vlog, sims[0], vls)["force"], relative_errors(vlog, sims[1], vls)["force"]
         verdict, why = _verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, below_period(judged, self.data.fs_hz, self.min_delay_periods))
-        fold_values = tuple(float(v) for v in after[2]) if search and not proposed_here else tuple(dwell.fold_values(after[2])) if proposed_here else None
+        fold_values = (
+            tuple(float(v) for v in after[2]) if search and not proposed_here else tuple(_strategy(st).fold_values(after[2])) if proposed_here else None
+        )
         ok = verdict is Verdict.AGREES
         return ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc, fold_values, by, verdict), judged
+
+
+def _strategy(step: Step) -> IdentificationStrategy:
+    """The identification strategy of a closed-loop proposal (a step whose level is held: only a strategy proposes one)."""
+    strategy = strategy_of(step.effect)
+    assert strategy is not None, step.effect.id
+    return strategy
 
 
 def _rel(e: np.ndarray, ref: np.ndarray, idx: np.ndarray) -> float:

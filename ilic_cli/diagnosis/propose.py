@@ -1,8 +1,9 @@
 """Stage 1 of the diagnosis, propose: the log prepared, its IDIM system, and the effects the inverse model proposes (:func:`propose`).
 
 The forward selection (:mod:`ilic_cli.diagnosis.select`) proposes effects of the catalogue on the inverse model;
-the closed loop proposes Stribeck friction where the inverse model cannot see it (:func:`closed_loop_proposal`,
-:mod:`ilic_cli.diagnosis.dwell`). The decision (:mod:`ilic_cli.diagnosis.decide`) takes the :class:`Proposal`.
+an effect's identification strategy proposes it on the closed loop where the inverse model cannot see it
+(:func:`closed_loop_proposal`: Stribeck friction at dwells, :mod:`ilic_cli.diagnosis.strategies.stribeck`).
+The decision (:mod:`ilic_cli.diagnosis.decide`) takes the :class:`Proposal`.
 """
 
 from __future__ import annotations
@@ -12,14 +13,14 @@ from typing import Any
 
 import numpy as np
 
-import ilic_cli.diagnosis.dwell as dwell
 from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.compare import tau_sensor
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
 from ilic_cli.diagnosis.settings import DiagnosisSettings
-from ilic_cli.diagnosis.system import Step, fit_system, moving_rows
-from ilic_cli.effects import EFFECTS, applicable
+from ilic_cli.diagnosis.strategies import strategy_of
+from ilic_cli.diagnosis.system import Step, moving_rows
+from ilic_cli.effects import EFFECTS
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, prepare, with_rest
 from ilic_cli.parameters import structure_of
@@ -127,20 +128,19 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
 def closed_loop_proposal(
     log: RunLog, data: IDIMData, base: Model, proposed: list[Step], rows: np.ndarray, settings: DiagnosisSettings, selection: SelectionResult
 ) -> Step | None:
-    """Stribeck friction proposed on the closed loop (:mod:`ilic_cli.diagnosis.dwell`), or ``None``.
+    """An effect proposed on the closed loop by its identification strategy (:mod:`ilic_cli.diagnosis.strategies`: Stribeck friction at
+    a reference's dwells, :mod:`ilic_cli.diagnosis.dwell`), or ``None``.
 
     Only when neither the model file nor the inverse model has it (``proposed`` are the model file's effects and
-    the inverse model's proposals, material or not), and either the reference dwells or the inverse model's last
-    word on it was that its F-test passed and its held-out test did not confirm it
+    the inverse model's proposals, material or not), and either its strategy applies to the log (the reference dwells)
+    or the inverse model's last word on it was that its F-test passed and its held-out test did not confirm it
     (:meth:`~ilic_cli.diagnosis.select.SelectionResult.unconfirmed`).
     """
-    effect = EFFECTS["stribeck"]
-    if effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in proposed):
-        return None
-    if not selection.unconfirmed(effect.id) and not dwell.dwells(np.asarray(log["q_ref"]), log.fs_hz, settings.dwell_min_s, settings.dwell_min_count):
-        return None
-    fit = fit_system(data, base, [], rows)  # the rigid Coulomb level: the scale of the levels searched (each fold's own, there)
-    fc = dwell.coulomb_N(fit.names, fit.theta)
-    if fc is None or not applicable(effect, fit.names):
-        return None
-    return dwell.proposal(effect.scan.grid(data.kin, data.fs_hz), fc)
+    for effect in EFFECTS.values():
+        strategy = strategy_of(effect)
+        if strategy is None or effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in proposed):
+            continue
+        if not selection.unconfirmed(effect.id) and not strategy.applies(log, settings.dwell_min_s, settings.dwell_min_count):
+            continue
+        return strategy.propose(effect, data, base, rows)
+    return None
