@@ -224,4 +224,5 @@ def plant_problem(steps: list[Step] | tuple[Step, ...], names: tuple[str, ...], 
 
 
 def count(n: int, noun: str) -> str:
+    """``n`` and ``noun``, plural unless one (``1 iteration``, ``3 iterations``)."""
     return f"{n} {noun}" if n == 1 else f"{n} {noun}s"

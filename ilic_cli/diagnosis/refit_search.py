@@ -88,6 +88,7 @@ def slots_of(known: list[Step], steps: list[Step], grids: Mapping[str, np.ndarra
 
 
 def slot_value(value: Any, slot: int) -> float:
+    """Slot ``slot`` of an effect's value (a scalar value is its own slot 0)."""
     return float(value[slot]) if isinstance(value, tuple) else float(value)
 
 

@@ -76,9 +76,11 @@ class DwellSegments:
         return dwell.search(step, vs, fs, lambda st: training_error(st), training_error(None))
 
     def judged(self, found: list[Step | None]) -> tuple[Step | None, str]:
+        """The folds' medians, and a sentence (:func:`ilic_cli.diagnosis.dwell.judged`)."""
         return dwell.judged(found)
 
     def fold_values(self, found: list[Step | None]) -> list[Any]:
+        """Each fold's ``(vs, Fs)`` (:func:`ilic_cli.diagnosis.dwell.fold_values`)."""
         return dwell.fold_values(found)
 
     def refit(
@@ -95,6 +97,7 @@ class DwellSegments:
         segment_s: float = segments.SEGMENT_S,
         level_z: float = segments.LEVEL_Z,
     ) -> tuple[Refit, str | None]:
+        """The open-loop segments' refit (:func:`segment_refit`)."""
         return segment_refit(log, data, base, rows, ls, known, kept, hold, segment_s=segment_s, level_z=level_z)
 
 
