@@ -87,7 +87,7 @@ from ilic_cli.closed_loop_id import ClosedLoopResult, closed_loop_identify, plan
 from ilic_cli.diagnosis.compare import replay
 from ilic_cli.diagnosis.fits import INVERSE_METHOD, METHOD, OE_METHOD, InverseFit, Point, Refit, count, estimate, plant_problem
 from ilic_cli.diagnosis.oe_fit import output_error_refit
-from ilic_cli.diagnosis.refit_search import search_all
+from ilic_cli.diagnosis.refit_search import MAX_ROUNDS, ROUND_GAIN, search_all
 from ilic_cli.diagnosis.search import SEARCH_STEPS
 from ilic_cli.diagnosis.stats import gls_covariance, lag1_autocorrelation
 from ilic_cli.diagnosis.system import Step, extended
@@ -114,6 +114,8 @@ def closed_loop_refit(
     inverse_fit: InverseFit | None = None,
     hold_s: float = 0.0,
     confirm: Callable[[Refit], str | None] | None = None,
+    round_gain: float = ROUND_GAIN,
+    max_rounds: int = MAX_ROUNDS,
 ) -> Refit:
     """Refit ``base + known + kept`` on the closed-loop output error: the kept effects' nonlinear values searched, then DIDIM.
 
@@ -148,6 +150,9 @@ def closed_loop_refit(
         The test an estimate must also pass to be kept (the diagnosis: its output error replayed with the
         recording's sensor noise must fall): ``refit -> None``, or why it is not kept. An output-error fit
         (step 1b) it refuses gives way to the value search of :data:`INVERSE_METHOD`.
+    round_gain, max_rounds : float, int
+        The share of the output error an output-error fit, or a round of the value searches, must gain, and the most rounds
+        (:data:`~ilic_cli.diagnosis.refit_search.ROUND_GAIN`, :data:`~ilic_cli.diagnosis.refit_search.MAX_ROUNDS`).
 
     Returns
     -------
@@ -157,6 +162,7 @@ def closed_loop_refit(
     steps = [*known, *kept]
     names0 = extended(base, steps, prepared.fs_hz).names
     loop = _Loop(log, prepared, base, ls, simulate or (lambda params, effects: replay(log, params, effects)), hold_s)
+    loop.round_gain, loop.max_rounds = round_gain, max_rounds
     if problem := plant_problem(steps, names0, theta0):
         return Refit(False, f"no closed-loop refit: the inverse model's estimate is no plant ({problem})", list(kept), names0, outcome=RefitOutcome.NO_PLANT)
     # 1. DIDIM at the inverse model's nonlinear values: the closed loop must do better than the inverse model at all
@@ -188,6 +194,8 @@ class _Loop:
         self.y = self.recorded.y
         self.y_norm = float(np.linalg.norm(self.y))
         self.replays = [0]
+        self.round_gain, self.max_rounds = ROUND_GAIN, MAX_ROUNDS
+        """The gain an output-error fit or a round of the value searches must make, and the most rounds (:data:`ROUND_GAIN`)."""
         """Replays made so far (a list: the searches count theirs in it)."""
 
     @staticmethod
@@ -278,7 +286,7 @@ def _without_didim(
     error_inverse, names0, y_norm = out.error_inverse_pct, out.names, loop.y_norm
     # 1b. every parameter at once on the output error itself, its sensitivities by finite differences of replays
     theta_0 = np.asarray(theta0, dtype=np.float64)
-    oe = output_error_refit(known, steps, names0, theta_0, grids, lambda s, th: loop.residual_of(s, names0, th), error_inverse, y_norm)
+    oe = output_error_refit(known, steps, names0, theta_0, grids, lambda s, th: loop.residual_of(s, names0, th), error_inverse, y_norm, loop.round_gain)
     if isinstance(oe, str):
         out.reason += f"; {oe}"
     elif (final := loop.replayed([*known, *oe.steps], names0, estimate(oe))) is None:
@@ -304,7 +312,7 @@ def _without_didim(
         return Point(e, theta, e, lag1_autocorrelation(r), theta)
 
     start0 = profile_inverse(steps, theta_0)
-    searches, found_steps, end = search_all(known, steps, biased, start0, profile_inverse, loop.replays, len(loop.y))
+    searches, found_steps, end = search_all(known, steps, biased, start0, profile_inverse, loop.replays, len(loop.y), round_gain=loop.round_gain)
     out.searches = searches
     if not any(s.accepted for s in searches) or not end.error < start0.error:
         out.reason += "; no closed-loop search of its nonlinear values lowers the output error: the inverse model's estimates are kept"
@@ -343,7 +351,9 @@ def _with_didim(
     # 2. each nonlinear value searched on the closed loop, from DIDIM's estimate (its last replay is at that estimate)
     inverse_steps = list(steps)
     start_point = loop.point(steps, res0.result.theta, sims0[-1])
-    searches, steps, start = search_all(known, steps, grids, start_point, loop.profile, loop.replays, len(loop.y), restart=True)
+    searches, steps, start = search_all(
+        known, steps, grids, start_point, loop.profile, loop.replays, len(loop.y), restart=True, max_rounds=loop.max_rounds, round_gain=loop.round_gain
+    )
     chosen, error, sim = inverse_steps, error0, sims0[-1]
     if any(s.accepted for s in searches):
         # 3. DIDIM at the values found; kept only when it does better than DIDIM at the inverse model's values

@@ -27,12 +27,13 @@ def output_error_refit(
     residual_of: Callable[[list[Step], np.ndarray], np.ndarray | None],
     error_inverse: float,
     y_norm: float,
+    round_gain: float = ROUND_GAIN,
 ) -> Refit | str:
     """The refit by :func:`output_error_gauss_newton`: the linear parameters ``names`` and every searched value of the kept effects at once.
 
     The values enter as ratios to their start (``steps``'). The estimate is
     refused (the reason returned) when it lowers the output error by less
-    than :data:`ROUND_GAIN` of ``error_inverse`` (%), or ends with a value on
+    than ``round_gain`` (:data:`ROUND_GAIN`) of ``error_inverse`` (%), or ends with a value on
     the edge of the range the closed loop searches it in
     (:func:`~ilic_cli.diagnosis.select.at_edge`). Its covariance is that of the
     final Jacobian, the residual's autocorrelation accounted for
@@ -48,12 +49,12 @@ def output_error_refit(
             new[j] = Step(new[j].effect, with_slot(new[j].value, k, float(v)))
         return new
 
-    fit = output_error_gauss_newton(lambda z: residual_of(steps_at(z[n_lin:]), z[:n_lin]), np.r_[theta0, np.ones(len(slots))], first_gain=ROUND_GAIN)
+    fit = output_error_gauss_newton(lambda z: residual_of(steps_at(z[n_lin:]), z[:n_lin]), np.r_[theta0, np.ones(len(slots))], first_gain=round_gain)
     error = 100.0 * float(np.linalg.norm(fit.residual)) / y_norm
     found = steps_at(fit.z[n_lin:])
     values = [slot_value(found[j].value, k) for j, _, _, k in slots]
-    if not error < (1.0 - ROUND_GAIN) * error_inverse:
-        return f"the {OE_METHOD} gives {error:.3g} %, not {ROUND_GAIN:.0%} lower ({fit.stop})"
+    if not error < (1.0 - round_gain) * error_inverse:
+        return f"the {OE_METHOD} gives {error:.3g} %, not {round_gain:.0%} lower ({fit.stop})"
     ranges = [slot_range(steps[j], k, grids[steps[j].effect.id]) for j, _, _, k in slots]
     for (j, _, _, k), sub in zip(slots, ranges, strict=True):
         if k == 0 and (edge := at_edge(found[j].effect, sub, found[j].value)):

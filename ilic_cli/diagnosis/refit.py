@@ -157,7 +157,21 @@ def refit(
         zero = np.zeros((len(final.res.theta),) * 2)
         before = cache(lambda: noisy_output_error(log, ls, *model_parameters([*known, *kept], final.names, final.res.theta, zero, hold), noise))
         confirm = lambda r: noise_objection(r, log, ls, noise, before(), known, hold)  # noqa: E731
-    return closed_loop_refit(log, prop.prepared, base, known, columns, theta0, grids, ls=ls, inverse_fit=inverse_fit, hold_s=hold, confirm=confirm)
+    return closed_loop_refit(
+        log,
+        prop.prepared,
+        base,
+        known,
+        columns,
+        theta0,
+        grids,
+        ls=ls,
+        inverse_fit=inverse_fit,
+        hold_s=hold,
+        confirm=confirm,
+        round_gain=settings.refit_round_gain,
+        max_rounds=settings.refit_max_rounds,
+    )
 
 
 def _inverse_fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarray) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:

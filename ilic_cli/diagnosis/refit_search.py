@@ -24,6 +24,13 @@ def _scale(log_scale: bool) -> tuple[Callable[[float], float], Callable[[float],
     return (math.log, math.exp) if log_scale else (lambda v: v, lambda u: u)
 
 
+MAX_ROUNDS = 5
+"""Most rounds of the coordinate search of the nonlinear values (:func:`search_all`)."""
+
+ROUND_GAIN = 0.01
+"""A round of the coordinate search is repeated while it lowers the output error by more than this share of it."""
+
+
 def search_all(
     known: list[Step],
     steps: list[Step],
@@ -34,14 +41,16 @@ def search_all(
     n_rows: int,
     *,
     restart: bool = False,
+    max_rounds: int = MAX_ROUNDS,
+    round_gain: float = ROUND_GAIN,
 ) -> tuple[list[ValueSearch], list[Step], Point]:
     """Each nonlinear parameter of ``steps`` (not ``known``'s) searched in turn on ``profile``: the searches, the steps at the values found, the last point.
 
     Each search goes on from the previous one's optimum; ``restart``: from a
     new profile point at its estimate (one replay: a DIDIM step from there),
     and the round of searches is repeated (a coordinate descent) while a
-    round lowers the output error by more than :data:`ROUND_GAIN` of it, at
-    most :data:`MAX_ROUNDS` rounds, when more than one parameter is searched:
+    round lowers the output error by more than ``round_gain`` of it (:data:`ROUND_GAIN`), at
+    most ``max_rounds`` (:data:`MAX_ROUNDS`) rounds, when more than one parameter is searched:
     the values couple. Measured on the corpus's Stribeck + flexibility log
     with the current loop (s303): one round left the drive lag at 0.267 ms
     for the loop's 0.227 ms, the resonance 9.5 % and the Stribeck level 16 %
@@ -53,7 +62,7 @@ def search_all(
     slots = slots_of(known, steps, grids)
     rounds: list[list[ValueSearch]] = []
     point = start
-    for _ in range(MAX_ROUNDS if restart and len(slots) > 1 else 1):
+    for _ in range(max_rounds if restart and len(slots) > 1 else 1):
         searches: list[ValueSearch] = []
         begin = point.error
         for j, pname, unit, slot in slots:
@@ -66,7 +75,7 @@ def search_all(
                 st = steps[j]
                 steps[j] = Step(st.effect, with_slot(st.value, slot, found.value))
         rounds.append(searches)
-        if not any(f.accepted for f in searches) or not point.error < (1.0 - ROUND_GAIN) * begin:
+        if not any(f.accepted for f in searches) or not point.error < (1.0 - round_gain) * begin:
             break
     return _rounds(rounds), steps, point
 
@@ -90,13 +99,6 @@ def slots_of(known: list[Step], steps: list[Step], grids: Mapping[str, np.ndarra
 def slot_value(value: Any, slot: int) -> float:
     """Slot ``slot`` of an effect's value (a scalar value is its own slot 0)."""
     return float(value[slot]) if isinstance(value, tuple) else float(value)
-
-
-MAX_ROUNDS = 5
-"""Most rounds of the coordinate search of the nonlinear values (:func:`search_all`)."""
-
-ROUND_GAIN = 0.01
-"""A round of the coordinate search is repeated while it lowers the output error by more than this share of it."""
 
 
 def _rounds(rounds: list[list[ValueSearch]]) -> list[ValueSearch]:

@@ -16,6 +16,7 @@ from ilic_cli.diagnosis.dwell import DWELL_MIN_COUNT, DWELL_MIN_S
 from ilic_cli.diagnosis.heldout_replay import FOLD_XATOL_STEPS
 from ilic_cli.diagnosis.materiality import MATERIAL_FORCE, MIN_DELAY_PERIODS
 from ilic_cli.diagnosis.null import NullSettings
+from ilic_cli.diagnosis.refit_search import MAX_ROUNDS, ROUND_GAIN
 from ilic_cli.diagnosis.segments import LEVEL_Z, SEGMENT_S
 from ilic_cli.diagnosis.select import SelectSettings
 from ilic_cli.idim_ls import LSSettings
@@ -71,6 +72,12 @@ class DiagnosisSettings:
     segment_level_z: float = LEVEL_Z
     """Refit: the Stribeck level the open-loop segments give must be this many standard deviations above zero, else the recording
     refutes the friction (:data:`ilic_cli.diagnosis.segments.LEVEL_Z`)."""
+    refit_round_gain: float = ROUND_GAIN
+    """Refit: the share of the closed-loop output error an output-error fit must gain to be kept, and a round of the value searches
+    to be repeated. Why 1 %: below it a fit gains what the replay's discretisation moves (:data:`ilic_cli.diagnosis.refit_search.ROUND_GAIN`)."""
+    refit_max_rounds: int = MAX_ROUNDS
+    """Refit: most rounds of the coordinate search of the kept effects' values. Why 5: on the corpus's Stribeck + flexibility log four
+    rounds bring the lag, the resonance and the level to 0.4-4 % (one round left them 9-16 % off; :data:`ilic_cli.diagnosis.refit_search.MAX_ROUNDS`)."""
     drift_windows: int = DRIFT_WINDOWS
     """Report: windows of equal duration the friction drift is read from (a 30 s log: 3 s each; :data:`ilic_cli.diagnosis.drift.WINDOWS`)."""
     drift_alpha: float = DRIFT_ALPHA
