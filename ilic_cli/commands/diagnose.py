@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import click
 
 from ilic_cli.commands.common import STRUCTURES, controller_options, input_options, load, note, with_controller
-from ilic_cli.diagnosis import DiagnoseSettings, SelectSettings, diagnose
-from ilic_cli.diagnosis.core import replay_alpha as replay_alpha_of
+from ilic_cli.diagnosis import DiagnosisSettings, SelectSettings, diagnose
 from ilic_cli.diagnosis.null import NULL_KINDS, NullSettings
 from ilic_cli.diagnosis.plots import write_plots
 from ilic_cli.diagnosis.report import to_json, to_markdown
+from ilic_cli.diagnosis.settings import replay_alpha as replay_alpha_of
 from ilic_cli.effects import catalogue_ids
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.io.atomic import atomic_write_text
@@ -160,7 +161,7 @@ def command(
         run = with_controller(run, log, controller, kp, kv, drive_gain)
     sim = load(against, None, topic, ref_topic, joint, columns) if against is not None else None
     other = load(validate, None, topic, ref_topic, joint, columns) if validate is not None else None
-    settings = DiagnoseSettings(
+    settings = DiagnosisSettings(
         model=structure,
         select=SelectSettings(alpha=alpha, folds=folds, effects=chosen),
         simulate=not no_simulation,
@@ -183,8 +184,6 @@ def command(
 
 
 def _write_outputs(result, out_dir: Path, inputs: tuple[Path, ...]) -> None:
-    import json
-
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "report.md", to_markdown(result), inputs=inputs)
     atomic_write_text(out_dir / "report.json", to_json(result), inputs=inputs)

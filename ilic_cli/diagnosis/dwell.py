@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.select import Step
-from ilic_cli.effects import EFFECTS
+from ilic_cli.effects import EFFECTS, Effect
 from ilic_cli.simulation.timing import vertex
 
 DWELL_MIN_S = 0.05
@@ -79,8 +79,8 @@ SPREAD = "the folds' delete-a-block jackknife (their scatter, the other paramete
 """Where its standard deviations come from (:func:`jackknife_std`), as the report says it."""
 
 
-def reference_dwells(q_ref: np.ndarray, fs_hz: float) -> int:
-    """How many times the reference rests (does not move) for at least :data:`DWELL_MIN_S`."""
+def reference_dwells(q_ref: np.ndarray, fs_hz: float, min_s: float = DWELL_MIN_S) -> int:
+    """How many times the reference rests (does not move) for at least ``min_s`` (:data:`DWELL_MIN_S`)."""
     q = np.asarray(q_ref, dtype=np.float64)
     if len(q) < 2:
         return 0
@@ -88,12 +88,12 @@ def reference_dwells(q_ref: np.ndarray, fs_hz: float) -> int:
     still = np.abs(np.diff(q)) <= 1e-9 * max(span, 1e-12)
     edges = np.diff(np.r_[0, still.astype(np.int8), 0])
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    return int(np.sum((ends - starts) >= DWELL_MIN_S * fs_hz))
+    return int(np.sum((ends - starts) >= min_s * fs_hz))
 
 
-def dwells(q_ref: np.ndarray, fs_hz: float) -> bool:
-    """Whether the reference rests often enough for the search (at least :data:`DWELL_MIN_COUNT` dwells)."""
-    return reference_dwells(q_ref, fs_hz) >= DWELL_MIN_COUNT
+def dwells(q_ref: np.ndarray, fs_hz: float, min_s: float = DWELL_MIN_S, min_count: int = DWELL_MIN_COUNT) -> bool:
+    """Whether the reference rests often enough for the search (at least ``min_count`` dwells of ``min_s``: :data:`DWELL_MIN_COUNT`)."""
+    return reference_dwells(q_ref, fs_hz, min_s) >= min_count
 
 
 def coulomb_N(names: tuple[str, ...], theta: np.ndarray) -> float | None:
@@ -102,9 +102,9 @@ def coulomb_N(names: tuple[str, ...], theta: np.ndarray) -> float | None:
     return float(np.mean(fc)) if fc else None
 
 
-def proposal(vs_grid: np.ndarray, fc_N: float) -> Step:
-    """The Stribeck candidate the replay searches (:func:`search`), at the middle of its grid until then."""
-    return Step(EFFECTS["stribeck"], float(vs_grid[len(vs_grid) // 2]), level=(abs(fc_N) * LEVELS_OF_FC[len(LEVELS_OF_FC) // 2],))
+def proposal(vs_grid: np.ndarray, fc_N: float, effect: Effect = EFFECTS["stribeck"]) -> Step:
+    """The Stribeck candidate (``effect``) the replay searches (:func:`search`), at the middle of its grid until then."""
+    return Step(effect, float(vs_grid[len(vs_grid) // 2]), level=(abs(fc_N) * LEVELS_OF_FC[len(LEVELS_OF_FC) // 2],))
 
 
 def grids(vs_grid: np.ndarray, fc_N: float) -> tuple[np.ndarray, np.ndarray]:

@@ -182,7 +182,7 @@ def time_segments(e: np.ndarray, t: np.ndarray, W: np.ndarray, n: int = 8, alpha
 
 def spectrum_peaks(e: np.ndarray, fs_hz: float, alpha: float = 0.001, max_peaks: int = 3) -> list[Region]:
     """Spectral peaks of the residual above a smooth background (Welch, chi-square test, Bonferroni over bins)."""
-    from scipy.ndimage import median_filter
+    from scipy.ndimage import median_filter  # deferred: scipy.ndimage is slow to import (ilic --help stays fast)
 
     nper = int(min(len(e), max(64, 2 ** int(np.log2(fs_hz * 2)))))
     f, P = welch_psd(e - np.mean(e), fs_hz, nper)

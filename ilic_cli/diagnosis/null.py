@@ -47,10 +47,11 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.decide import PlantOf, band_force_error, replay_decide
+from ilic_cli.diagnosis.heldout_replay import band_force_error, replay_decide
 from ilic_cli.diagnosis.select import Searcher, Step, fit_system, moving_rows, system
 from ilic_cli.diagnosis.sensor import loop_corrected, position_noise, sensor_effects
 from ilic_cli.diagnosis.stats import normal_isf
+from ilic_cli.diagnosis.verdicts import PlantOf
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
@@ -61,8 +62,6 @@ from ilic_cli.simulation.replay import replay
 
 NULL_KINDS = ("dm", "montecarlo")
 """``dm``: the asymptotic Diebold-Mariano test (default); ``montecarlo``: this module's null."""
-
-MC_TEST = "Monte-Carlo null: the kept model simulated in closed loop with the log's noise model, the candidate proposed again on each replicate"
 
 BANDWIDTH_RANGE = (0.5, 0.4)
 """The disturbance's corner frequency is kept within [0.5 Hz, 0.4 times the decimated rate]."""

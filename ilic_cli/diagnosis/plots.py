@@ -19,10 +19,10 @@ if TYPE_CHECKING:
 
 def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     """Write the PNG figures into ``out_dir`` atomically; return their paths."""
-    import matplotlib
+    import matplotlib  # deferred: matplotlib is slow to import, and only --out draws
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # deferred: after the Agg backend is chosen
 
     r = diag.residual
     written: list[Path] = []

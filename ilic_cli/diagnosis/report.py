@@ -8,10 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis import dwell, segments
+import ilic_cli.diagnosis.dwell as dwell
+import ilic_cli.diagnosis.segments as segments
 from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.locate import Region
-from ilic_cli.diagnosis.select import HELDOUT_UNCONFIRMED
+from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, Selection
 from ilic_cli.effects import Estimate
 from ilic_cli.parameters import PARAMETERS
 
@@ -91,52 +92,91 @@ def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], 
 
 def _on_loop(diag: Diagnosis, f: Finding) -> bool:
     """Whether ``f`` was proposed on the closed loop (:mod:`ilic_cli.diagnosis.dwell`), not by the inverse model."""
-    return any(v.effect == f.effect.id and v.proposed_by == dwell.METHOD for v in diag.decisions)
+    return any(v.effect == f.effect.id and v.proposed_by != PROPOSED_BY_INVERSE for v in diag.decisions)
 
 
 def _at_dwells(diag: Diagnosis, f: Finding) -> bool:
     """Whether ``f`` was proposed on the closed loop at the reference's dwells (not for want of the inverse model's held-out test)."""
-    return _on_loop(diag, f) and not f.evidence.reason.startswith(HELDOUT_UNCONFIRMED)
+    return _on_loop(diag, f) and f.evidence.outcome is not Selection.HELDOUT_UNCONFIRMED
 
 
 def to_markdown(diag: Diagnosis) -> str:
     """A report in plain words, then the tables."""
-    fit = diag.fit
     force_unit = PARAMETERS["Fc"].unit_for(diag.joint)  # N, or N·m on a revolute joint
+    at_dwells = any(_at_dwells(diag, f) for f in diag.findings)  # Stribeck found by the closed loop at the dwells
     lines = [f"# Diagnosis of {diag.source or 'the log'}", ""]
+    lines += _summary(diag, force_unit, at_dwells)
+    lines += _estimates_and_simulation(diag, at_dwells)
+    lines += [_rows_sentence(diag), "", "## Findings", ""]
+    if not diag.findings:
+        lines += ["None.", ""]
+    for i, f in enumerate(diag.findings, 1):
+        lines += _finding_section(diag, i, f, force_unit)
+    lines += ["## Where the rigid model's residual is structured", ""]
+    sig = [r for r in diag.located if r.significant]
+    lines += [f"- {_region_words(r, force_unit)}" for r in sorted(sig, key=lambda r: r.p_value)[:12]] or ["- nowhere (no significant region)"]
+    lines.append("")
+    sim = diag.simulation
+    if sim is not None and sim.located:
+        s_sig = [r for r in sim.located if r.significant]
+        lines += ["## Where the simulation differs from the recording (force)", ""]
+        lines += [f"- {_region_words(r, force_unit)}" for r in sorted(s_sig, key=lambda r: r.p_value)[:8]] or ["- nowhere (no significant region)"]
+        lines.append("")
+    if diag.decisions:
+        lines += _decisions_table(diag)
+    lines += ["## Candidates tried", "", "| step | effect | F | p (adjusted) | held out before -> after | decision |", "| --- | --- | --- | --- | --- | --- |"]
+    for k, step in enumerate(diag.tried, 1):
+        for ev in step:
+            ho_s = "" if ev.heldout_before_pct is None else f"{_pct(ev.heldout_before_pct)} -> {_pct(ev.heldout_after_pct)}"
+            lines.append(f"| {k} | {ev.effect} | {ev.test.F:.3g} | {ev.test.p_adjusted:.2g} | {ho_s} | {ev.reason} |")
+    lines.append("")
+    if diag.warnings:
+        lines += ["## Warnings", ""] + [f"- {w}" for w in diag.warnings] + [""]
+    return "\n".join(lines)
+
+
+def _summary(diag: Diagnosis, force_unit: str, at_dwells: bool) -> list[str]:
+    """The first paragraph: no mismatch, or what was left out and the fit before and after."""
+    fit = diag.fit
     rel = fit["relative_error_pct"]
     ho = fit["heldout_relative_error_pct"]
-    at_dwells = any(_at_dwells(diag, f) for f in diag.findings)  # Stribeck found by the closed loop at the dwells
     if not diag.findings:
         judged = f" ({len(diag.decisions)} proposed, none material or kept by the replay: see below)" if diag.decisions else ""
-        lines += [
+        return [
             f"No significant mismatch: none of the {len(diag.tried[0]) if diag.tried else 0} effects of the catalogue passed the F-test, "
             f"the held-out test, materiality and the replay{judged}. The rigid model ({diag.model}) explains the force to {_pct(rel['before'])} "
             f"(held out: {_pct(ho['before'])}).",
             "",
         ]
-    else:
-        for f in diag.findings:
-            where = ""
-            if f.located:
-                r = f.located[0]
-                structured = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} {force_unit}). "
-                where = structured if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
-            lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
-        lines += [
-            "",
-            f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} (held out: {_pct(ho['before'])} -> {_pct(ho['after'])})"
-            + (
-                ": the inverse model's figures, which Stribeck friction at the dwells need not lower, since its filtered kinematics "
-                "do not resolve the stick and break-away there (why the closed loop proposes it; the replay decides)."
-                if at_dwells
-                else "."
-            ),
-        ]
-        v = fit.get("validation_relative_error_pct") or {}
-        if v.get("before") is not None:
-            lines.append(f"On the validation log {diag.validation_source}: {_pct(v['before'])} -> {_pct(v['after'])}.")
-        lines.append("")
+    lines = []
+    for f in diag.findings:
+        where = ""
+        if f.located:
+            r = f.located[0]
+            structured = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} {force_unit}). "
+            where = structured if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
+        lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
+    lines += [
+        "",
+        f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} (held out: {_pct(ho['before'])} -> {_pct(ho['after'])})"
+        + (
+            ": the inverse model's figures, which Stribeck friction at the dwells need not lower, since its filtered kinematics "
+            "do not resolve the stick and break-away there (why the closed loop proposes it; the replay decides)."
+            if at_dwells
+            else "."
+        ),
+    ]
+    v = fit.get("validation_relative_error_pct") or {}
+    if v.get("before") is not None:
+        lines.append(f"On the validation log {diag.validation_source}: {_pct(v['before'])} -> {_pct(v['after'])}.")
+    lines.append("")
+    return lines
+
+
+def _estimates_and_simulation(diag: Diagnosis, at_dwells: bool) -> list[str]:
+    """Whose estimates the report gives (the refit's or the inverse model's, and why), the simulation against the recording,
+    a vertical axis's weight and the control timing."""
+    lines: list[str] = []
     if diag.refit is not None:
         how = "the closed-loop refit's" if diag.refit.accepted else "the inverse model's (IDIM-LS)"
         if diag.refit.accepted and diag.refit.method == segments.METHOD:
@@ -145,7 +185,7 @@ def to_markdown(diag: Diagnosis) -> str:
             how = f"Stribeck friction's from the {dwell.METHOD}, the rest the inverse model's (IDIM-LS)"
         meaning = (
             " The closed-loop output error is the replayed force against the recorded one, in the inverse model's band."
-            if "closed-loop output error" in diag.refit.reason
+            if diag.refit.outcome.quotes_output_error
             else ""
         )
         lines += [f"Estimates: {how}; {diag.refit.reason}.{meaning}", ""]
@@ -169,98 +209,81 @@ def to_markdown(diag: Diagnosis) -> str:
     timing = diag.timing.sentence() if diag.timing is not None else ""
     if timing:
         lines += [f"Control timing: {timing}.", ""]
-    lines += [
-        _rows_sentence(diag),
+    return lines
+
+
+def _finding_section(diag: Diagnosis, i: int, f: Finding, force_unit: str) -> list[str]:
+    """The section of finding ``i``: its physics, its estimates, its evidence, where it is located."""
+    ev = f.evidence
+    lines = [
+        f"### {i}. `{f.effect.id}`: {f.effect.title}",
         "",
-        "## Findings",
+        f"{f.effect.explanation}",
+        "",
+        f"Form: {f.effect.form}. Signature: {f.effect.signature}.",
         "",
     ]
-    if not diag.findings:
-        lines += ["None.", ""]
-    for i, f in enumerate(diag.findings, 1):
-        ev = f.evidence
-        lines += [
-            f"### {i}. `{f.effect.id}`: {f.effect.title}",
-            "",
-            f"{f.effect.explanation}",
-            "",
-            f"Form: {f.effect.form}. Signature: {f.effect.signature}.",
-            "",
-        ]
-        lines += _estimates_table(f.parameters, f.inverse_parameters, f.method, _at_dwells(diag, f))
-        if _on_loop(diag, f):
-            verdict = next((v.reason for v in diag.decisions if v.effect == f.effect.id), "")
-            why = (
-                "proposed on the closed loop at the reference's dwells, where the inverse model cannot see it (its level there is "
-                "outside the effect's physics: see the candidates tried)"
-                if _at_dwells(diag, f)
-                else (
-                    f"proposed on the closed loop, since the inverse model's F-test finds it (p = {ev.test.p_adjusted:.2g}) but its held-out test "
-                    f"does not confirm it (p = {ev.heldout_p_value:.2g}): on closed-loop data the command answers the noise its filtered "
-                    "kinematics carry, so its estimate there is biased"
-                )
+    lines += _estimates_table(f.parameters, f.inverse_parameters, f.method, _at_dwells(diag, f))
+    if _on_loop(diag, f):
+        verdict = next((v.reason for v in diag.decisions if v.effect == f.effect.id), "")
+        why = (
+            "proposed on the closed loop at the reference's dwells, where the inverse model cannot see it (its level there is "
+            "outside the effect's physics: see the candidates tried)"
+            if _at_dwells(diag, f)
+            else (
+                f"proposed on the closed loop, since the inverse model's F-test finds it (p = {ev.test.p_adjusted:.2g}) but its held-out test "
+                f"does not confirm it (p = {ev.heldout_p_value:.2g}): on closed-loop data the command answers the noise its filtered "
+                "kinematics carry, so its estimate there is biased"
             )
-            lines += [f"Evidence: {why}; {verdict}.", ""]
-            lines += ["Located:", ""] + [f"- {_region_words(r, force_unit)}" for r in f.located[:5]] + [""] if f.located else []
-            lines += [f"Note: {f.note}.", ""] if f.note else []
-            continue
+        )
+        lines += [f"Evidence: {why}; {verdict}.", ""]
+        lines += ["Located:", ""] + [f"- {_region_words(r, force_unit)}" for r in f.located[:5]] + [""] if f.located else []
+        lines += [f"Note: {f.note}.", ""] if f.note else []
+        return lines
+    lines += [
+        f"Evidence: F = {ev.test.F:.4g} ({ev.test.df1}, {ev.test.df2} dof, AR({ev.test.ar_order})-prewhitened), "
+        f"p = {ev.test.p_value:.3g}, Bonferroni x{ev.test.trials} -> {ev.test.p_adjusted:.3g}; "
+        f"held-out error {_pct(ev.heldout_before_pct)} -> {_pct(ev.heldout_after_pct)} (Diebold-Mariano p = {ev.heldout_p_value:.3g}).",
+        "",
+    ]
+    if f.located:
+        lines += ["Located:", ""] + [f"- {_region_words(r, force_unit)}" for r in f.located[:5]] + [""]
+    if f.note:
+        lines += [f"Note: {f.note}.", ""]
+    return lines
+
+
+def _decisions_table(diag: Diagnosis) -> list[str]:
+    """The table of the decisions by materiality and the replay, with the replay's test and the sensor noise its replays carried."""
+    lines = ["## Proposed by the inverse model, decided by materiality and the replay", ""]
+    ns = diag.settings.null
+    if ns.kind == "montecarlo":
         lines += [
-            f"Evidence: F = {ev.test.F:.4g} ({ev.test.df1}, {ev.test.df2} dof, AR({ev.test.ar_order})-prewhitened), "
-            f"p = {ev.test.p_value:.3g}, Bonferroni x{ev.test.trials} -> {ev.test.p_adjusted:.3g}; "
-            f"held-out error {_pct(ev.heldout_before_pct)} -> {_pct(ev.heldout_after_pct)} (Diebold-Mariano p = {ev.heldout_p_value:.3g}).",
+            f"The replay's test: a Monte-Carlo null, B = {ns.replicates} replicates of the kept model simulated in closed loop with the log's "
+            f"noise model (seed {ns.seed}); p = (1 + #{{T_b >= T_obs}}) / (B + 1), T the Diebold-Mariano z of the held-out errors.",
             "",
         ]
-        if f.located:
-            lines += ["Located:", ""] + [f"- {_region_words(r, force_unit)}" for r in f.located[:5]] + [""]
-        if f.note:
-            lines += [f"Note: {f.note}.", ""]
-    lines += ["## Where the rigid model's residual is structured", ""]
-    sig = [r for r in diag.located if r.significant]
-    lines += [f"- {_region_words(r, force_unit)}" for r in sorted(sig, key=lambda r: r.p_value)[:12]] or ["- nowhere (no significant region)"]
+    if diag.replay_sensor is not None:
+        noise = _sensor_words(diag.replay_sensor)
+        lines += [f"Every replay here carries the recording's sensor noise, estimated from its position (less what the loop adds to it): {noise}.", ""]
+    lines += [
+        "| effect | held-out simulated force | held-out simulated position | p | decision |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for dv in diag.decisions:
+        force = "" if dv.force_before is None else f"{_pct(dv.force_before)} -> {_pct(dv.force_after)}"
+        pos = "" if dv.position_before is None else f"{dv.position_before:.3g} % -> {dv.position_after:.3g} %"
+        p = "" if dv.p_value is None else f"{dv.p_value:.2g}"
+        if dv.null is not None:
+            n = dv.null.noise
+            p += (
+                f" (Monte-Carlo, B = {len(dv.null.t_null)}: T_obs {dv.null.t_obs:.3g}, null median {np.nanmedian(dv.null.t_null):.3g}, "
+                f"max {np.nanmax(dv.null.t_null):.3g}; noise: position {1e6 * n.q_std:.3g} um, disturbance {n.disturbance_std:.3g} N "
+                f"at {n.bandwidth_hz:.3g} Hz)"
+            )
+        lines.append(f"| {dv.effect} | {force} | {pos} | {p} | {dv.reason} |")
     lines.append("")
-    if sim is not None and sim.located:
-        s_sig = [r for r in sim.located if r.significant]
-        lines += ["## Where the simulation differs from the recording (force)", ""]
-        lines += [f"- {_region_words(r, force_unit)}" for r in sorted(s_sig, key=lambda r: r.p_value)[:8]] or ["- nowhere (no significant region)"]
-        lines.append("")
-    if diag.decisions:
-        lines += ["## Proposed by the inverse model, decided by materiality and the replay", ""]
-        ns = diag.settings.null
-        if ns.kind == "montecarlo":
-            lines += [
-                f"The replay's test: a Monte-Carlo null, B = {ns.replicates} replicates of the kept model simulated in closed loop with the log's "
-                f"noise model (seed {ns.seed}); p = (1 + #{{T_b >= T_obs}}) / (B + 1), T the Diebold-Mariano z of the held-out errors.",
-                "",
-            ]
-        if diag.replay_sensor is not None:
-            noise = _sensor_words(diag.replay_sensor)
-            lines += [f"Every replay here carries the recording's sensor noise, estimated from its position (less what the loop adds to it): {noise}.", ""]
-        lines += [
-            "| effect | held-out simulated force | held-out simulated position | p | decision |",
-            "| --- | --- | --- | --- | --- |",
-        ]
-        for dv in diag.decisions:
-            force = "" if dv.force_before is None else f"{_pct(dv.force_before)} -> {_pct(dv.force_after)}"
-            pos = "" if dv.position_before is None else f"{dv.position_before:.3g} % -> {dv.position_after:.3g} %"
-            p = "" if dv.p_value is None else f"{dv.p_value:.2g}"
-            if dv.null is not None:
-                n = dv.null.noise
-                p += (
-                    f" (Monte-Carlo, B = {len(dv.null.t_null)}: T_obs {dv.null.t_obs:.3g}, null median {np.nanmedian(dv.null.t_null):.3g}, "
-                    f"max {np.nanmax(dv.null.t_null):.3g}; noise: position {1e6 * n.q_std:.3g} um, disturbance {n.disturbance_std:.3g} N "
-                    f"at {n.bandwidth_hz:.3g} Hz)"
-                )
-            lines.append(f"| {dv.effect} | {force} | {pos} | {p} | {dv.reason} |")
-        lines.append("")
-    lines += ["## Candidates tried", "", "| step | effect | F | p (adjusted) | held out before -> after | decision |", "| --- | --- | --- | --- | --- | --- |"]
-    for k, step in enumerate(diag.tried, 1):
-        for ev in step:
-            ho_s = "" if ev.heldout_before_pct is None else f"{_pct(ev.heldout_before_pct)} -> {_pct(ev.heldout_after_pct)}"
-            lines.append(f"| {k} | {ev.effect} | {ev.test.F:.3g} | {ev.test.p_adjusted:.2g} | {ho_s} | {ev.reason} |")
-    lines.append("")
-    if diag.warnings:
-        lines += ["## Warnings", ""] + [f"- {w}" for w in diag.warnings] + [""]
-    return "\n".join(lines)
+    return lines
 
 
 def _sensor_words(sensor: dict[str, Any]) -> str:

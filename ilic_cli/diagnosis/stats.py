@@ -121,28 +121,28 @@ class FTest:
 
 def normal_sf(z: Any) -> Any:
     """Upper tail ``P(Z > z)`` of the standard normal (``scipy.special``: ``scipy.stats`` costs ~0.6 s to import)."""
-    from scipy.special import ndtr
+    from scipy.special import ndtr  # deferred: scipy.special is slow to import (ilic --help stays fast)
 
     return ndtr(-np.asarray(z, dtype=float))
 
 
 def normal_isf(p: Any) -> Any:
     """``z`` with ``P(Z > z) = p`` for the standard normal."""
-    from scipy.special import ndtri
+    from scipy.special import ndtri  # deferred: scipy.special is slow to import (ilic --help stays fast)
 
     return -ndtri(np.asarray(p, dtype=float))
 
 
 def f_sf(F: Any, df1: float, df2: float) -> Any:
     """Upper tail of Fisher's F distribution with ``(df1, df2)`` degrees of freedom."""
-    from scipy.special import fdtrc
+    from scipy.special import fdtrc  # deferred: scipy.special is slow to import (ilic --help stays fast)
 
     return fdtrc(df1, df2, np.asarray(F, dtype=float))
 
 
 def chi2_sf(x: Any, dof: float) -> Any:
     """Upper tail of the chi-square distribution with ``dof`` degrees of freedom."""
-    from scipy.special import chdtrc
+    from scipy.special import chdtrc  # deferred: scipy.special is slow to import (ilic --help stays fast)
 
     return chdtrc(dof, np.asarray(x, dtype=float))
 

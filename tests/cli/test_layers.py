@@ -78,14 +78,9 @@ LAYER_PENDING: set[tuple[str, str]] = {
 }
 
 CYCLE_PENDING: set[frozenset[str]] = {
-    frozenset(["ilic_cli.diagnosis", "ilic_cli.diagnosis.core", "ilic_cli.diagnosis.decide", "ilic_cli.diagnosis.null"]),
 }
 
 MODULE_PENDING: set[str] = {
-    "ilic_cli/diagnosis/core.py",
-    "ilic_cli/diagnosis/decide.py",
-    "ilic_cli/diagnosis/refit.py",
-    "ilic_cli/diagnosis/select.py",
     "ilic_cli/io/ros1fast.py",
     "ilic_cli/io/rosbag2.py",
     "ilic_cli/io/roscollect.py",
@@ -94,12 +89,6 @@ MODULE_PENDING: set[str] = {
 
 FUNCTION_PENDING: set[str] = {
     "ilic_cli/commands/simulate.py:command",
-    "ilic_cli/diagnosis/core.py:diagnose",
-    "ilic_cli/diagnosis/core.py:_segment_refit",
-    "ilic_cli/diagnosis/decide.py:replay_decide",
-    "ilic_cli/diagnosis/refit.py:closed_loop_refit",
-    "ilic_cli/diagnosis/report.py:to_markdown",
-    "ilic_cli/diagnosis/select.py:forward_select",
     "ilic_cli/io/ros1fast.py:write",
     "ilic_cli/robot/kernel.py:inertial_regressor",
 }
@@ -109,17 +98,8 @@ DEFERRED_PENDING: set[str] = {
     "ilic_cli/commands/common.py:os",
     "ilic_cli/commands/common.py:plant.dynamics",
     "ilic_cli/commands/common.py:sys",
-    "ilic_cli/commands/diagnose.py:json",
     "ilic_cli/commands/info.py:json",
     "ilic_cli/commands/info.py:numpy",
-    "ilic_cli/diagnosis/core.py:plant.closed_loop",
-    "ilic_cli/diagnosis/core.py:plant.dynamics",
-    "ilic_cli/diagnosis/core.py:plant.replay",
-    "ilic_cli/diagnosis/decide.py:ilic_cli.diagnosis.null",
-    "ilic_cli/diagnosis/locate.py:scipy.ndimage",
-    "ilic_cli/diagnosis/plots.py:matplotlib",
-    "ilic_cli/diagnosis/plots.py:matplotlib.pyplot",
-    "ilic_cli/diagnosis/stats.py:scipy.special",
     "ilic_cli/identify_report.py:numpy",
     "ilic_cli/idim_ilic.py:pandas",
     "ilic_cli/idim_ls.py:pandas",

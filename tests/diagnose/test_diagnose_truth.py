@@ -66,7 +66,7 @@ def test_a_biased_value_is_material_where_the_replay_may_put_it(monkeypatch: pyt
     On the corpus's Stribeck + flexibility log the inverse model's vs (21 mm/s, truth 8) gave 0.21 % of the force
     once the current loop's lag was kept, and the effect was lost; the search's largest is 0.33 %.
     """
-    import ilic_cli.diagnosis.decide as decide
+    import ilic_cli.diagnosis.materiality as decide  # where materiality finds the force it weighs
 
     kin = lsq_rows(np.arange(2000) / 1000.0, 0.1 * np.sin(np.arange(2000) / 300.0), np.zeros(2000), 1000.0, get_model("rigid-offset"), LSSettings()).kin
     data = type("Data", (), {"kin": kin, "fs_hz": 1000.0})()

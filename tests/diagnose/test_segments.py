@@ -135,12 +135,12 @@ def test_stribeck_friction_a_recording_does_not_carry_is_refuted() -> None:
 
 def test_a_segments_fit_that_fails_leaves_the_closed_loop_search_s_estimate(monkeypatch: pytest.MonkeyPatch) -> None:
     """A segment that diverges (planted): the search's estimate stands, and the refit says why (the diagnosis goes on)."""
-    import plant.closed_loop
+    import ilic_cli.diagnosis.strategies.stribeck as stribeck  # Stribeck's strategy calls the plant's segments
 
     def diverges(**_: object) -> None:
         raise SimulationError(None, "the open-loop segment from t = 1 s diverged")
 
-    monkeypatch.setattr(plant.closed_loop, "simulate_segments", diverges)
+    monkeypatch.setattr(stribeck, "simulate_segments", diverges)
     refit, refuted = _segment_refit_on("stribeck-trapezoid-sensor-s210", Step(EFFECTS["stribeck"], 0.0099, level=(2.55,)))
     assert refuted is None and not refit.accepted and refit.segments is None
     assert refit.reason == f"{NOT_REFITTED}; the {segments.METHOD} failed: the open-loop segment from t = 1 s diverged"

@@ -188,7 +188,7 @@ def test_judged_text_gives_the_folds_ranges() -> None:
 
 def test_a_proposal_that_cannot_be_replayed_is_still_the_closed_loops(monkeypatch: pytest.MonkeyPatch) -> None:
     """Every verdict on a closed-loop proposal names who proposed it, the one without a replay too."""
-    from ilic_cli.diagnosis import decide
+    from ilic_cli.diagnosis import decide, heldout_replay
     from ilic_cli.diagnosis.core import _prepare
     from ilic_cli.diagnosis.select import moving_rows
     from ilic_cli.idim_ls import LSSettings
@@ -199,7 +199,7 @@ def test_a_proposal_that_cannot_be_replayed_is_still_the_closed_loops(monkeypatc
     log = make_synthetic_log(4000)
     base = get_model("rigid-offset")
     data = _prepare(prepare_log(log), base, LSSettings())
-    monkeypatch.setattr(decide, "_replayed", lambda *a, **k: None)  # no model is a valid plant
+    monkeypatch.setattr(heldout_replay, "_replayed", lambda *a, **k: None)  # no model is a valid plant
     step = dwell.proposal(np.geomspace(0.002, 0.08, 32), 20.0)
     plant = lambda steps, names, theta: model_parameters(steps, names, theta, np.zeros((len(theta),) * 2))  # noqa: E731
     _, (verdict,) = decide.replay_decide(log, data, base, [], [step], moving_rows(data), plant, sensor_noise=False)

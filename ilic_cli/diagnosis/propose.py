@@ -1,0 +1,147 @@
+"""Stage 1 of the diagnosis, propose: the log prepared, its IDIM system, and the effects the inverse model proposes (:func:`propose`).
+
+The forward selection (:mod:`ilic_cli.diagnosis.select`) proposes effects of the catalogue on the inverse model;
+an effect's identification strategy proposes it on the closed loop where the inverse model cannot see it
+(:func:`closed_loop_proposal`: Stribeck friction at dwells, :mod:`ilic_cli.diagnosis.strategies.stribeck`).
+The decision (:mod:`ilic_cli.diagnosis.decide`) takes the :class:`Proposal`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.diagnosis.baseline import held, hold_s
+from ilic_cli.diagnosis.model_values import steps_from_effects
+from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
+from ilic_cli.diagnosis.settings import DiagnosisSettings
+from ilic_cli.diagnosis.strategies import strategy_of
+from ilic_cli.diagnosis.system import Step, moving_rows
+from ilic_cli.effects import EFFECTS
+from ilic_cli.errors import IdentificationError
+from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
+from ilic_cli.parameters import structure_of
+from ilic_cli.prepare import PreparedLog, prepare_log
+from ilic_cli.regressor import MODELS, Model, get_model
+from ilic_cli.runlog import RunLog, joint_type
+from ilic_cli.simulation.replay import tau_sensor
+from ilic_cli.usable import with_rest
+
+
+@dataclass
+class Proposal:
+    """What the inverse model proposes on one log, and everything the later stages fit on.
+
+    Attributes
+    ----------
+    prepared, log : PreparedLog, RunLog
+        The log prepared (its samples at rest, as ``identify``'s), and its run log on a uniform grid.
+    data : IDIMData
+        Its IDIM system (:func:`prepare_system`).
+    base : Model
+        The rigid structure.
+    known : list of Step
+        The model file's effects: kept, not searched again.
+    selection : SelectionResult
+        The forward selection (its ``steps`` proposed).
+    select : SelectSettings
+        The selection's settings as used (the catalogue less the joint's misfits and the known effects).
+    rows : ndarray of bool
+        The decimated rows every fit uses (:func:`~ilic_cli.diagnosis.system.moving_rows`).
+    hold : float
+        Half a sample period when the logged force is the held drive command (:mod:`ilic_cli.diagnosis.baseline`), else 0.
+    joint : str
+        ``prismatic`` or ``revolute``.
+    validate, vprepared, vdata : optional
+        The validation log, prepared, and its IDIM system.
+    warnings : list of str
+        What the preparation noted.
+    """
+
+    prepared: PreparedLog
+    log: RunLog
+    data: IDIMData
+    base: Model
+    known: list[Step]
+    selection: SelectionResult
+    select: SelectSettings
+    rows: np.ndarray
+    hold: float
+    joint: str
+    validate: RunLog | None
+    vprepared: PreparedLog | None
+    vdata: IDIMData | None
+    warnings: list[str]
+
+
+def prepare_system(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMData:
+    """The IDIM system of ``prepared``, its regressor evaluated like the logged force (:func:`ilic_cli.diagnosis.baseline.held`)."""
+    log = prepared.log
+    try:
+        data = lsq_rows(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid)
+    except ValueError as exc:
+        raise IdentificationError(prepared.source, str(exc)) from None
+    data = held(data, model, hold_s(tau_sensor(log), prepared.fs_hz))
+    return data
+
+
+def base_model(model_doc: dict[str, Any] | None, default: str) -> Model:
+    """The rigid structure: the model file's (by name, or by its parameter names), else ``default``."""
+    if model_doc is None:
+        return get_model(default)
+    name = model_doc.get("model")
+    if name in MODELS:
+        return MODELS[name]
+    found = structure_of(set(model_doc["parameters"]))
+    return get_model(found or default)
+
+
+def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] | None, validate: RunLog | None) -> Proposal:
+    """Prepare ``log`` (and ``validate``) and let the inverse model propose effects (:func:`~ilic_cli.diagnosis.select.forward_select`)."""
+    prepared = with_rest(prepare_log(log), settings.ls)  # the samples every fit uses, as identify's
+    log = prepared.log  # an irregularly sampled log is on a uniform grid now
+    prepared.require_contiguous("diagnosis")
+    fs = prepared.fs_hz
+    warnings: list[str] = list(prepared.warnings)
+    base = base_model(model_doc, settings.model)
+    data = prepare_system(prepared, base, settings.ls)
+    vprepared = with_rest(prepare_log(validate, prefix=f"validation log {validate.provenance.source or ''}"), settings.ls) if validate is not None else None
+    if vprepared is not None:
+        validate = vprepared.log
+        vprepared.require_contiguous("diagnosis")
+    vdata = prepare_system(vprepared, base, settings.ls) if vprepared is not None else None
+    for p in (prepared, vprepared):
+        if p is not None and p.saturation_note() is not None:
+            warnings.append(f"{p.source}: {p.saturation_note()}")
+    known = steps_from_effects(model_doc.get("effects", {}), float(model_doc["parameters"].get("M", 95.0))) if model_doc else []
+    joint = joint_type(log.units.get("q"))  # gravity is proposed on a revolute joint only (Effect.joints)
+    sel = replace(settings.select, effects=tuple(e for e in settings.select.effects if e not in EFFECTS or joint in EFFECTS[e].joints))
+    if known:
+        sel = replace(sel, effects=tuple(e for e in sel.effects if e not in {s.effect.id for s in known}))
+    selection = forward_select(data, base, fs, sel, validation=vdata, known=known)
+    rows = moving_rows(data)
+    hold = hold_s(tau_sensor(log), fs)
+    return Proposal(prepared, log, data, base, known, selection, sel, rows, hold, joint, validate, vprepared, vdata, warnings)
+
+
+def closed_loop_proposal(
+    log: RunLog, data: IDIMData, base: Model, proposed: list[Step], rows: np.ndarray, settings: DiagnosisSettings, selection: SelectionResult
+) -> Step | None:
+    """An effect proposed on the closed loop by its identification strategy (:mod:`ilic_cli.diagnosis.strategies`: Stribeck friction at
+    a reference's dwells, :mod:`ilic_cli.diagnosis.dwell`), or ``None``.
+
+    Only when neither the model file nor the inverse model has it (``proposed`` are the model file's effects and
+    the inverse model's proposals, material or not), and either its strategy applies to the log (the reference dwells)
+    or the inverse model's last word on it was that its F-test passed and its held-out test did not confirm it
+    (:meth:`~ilic_cli.diagnosis.select.SelectionResult.unconfirmed`).
+    """
+    for effect in EFFECTS.values():
+        strategy = strategy_of(effect)
+        if strategy is None or effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in proposed):
+            continue
+        if not selection.unconfirmed(effect.id) and not strategy.applies(log, settings.dwell_min_s, settings.dwell_min_count):
+            continue
+        return strategy.propose(effect, data, base, rows)
+    return None

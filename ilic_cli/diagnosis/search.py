@@ -1,0 +1,201 @@
+"""The search of an effect's nonlinear parameter on the IDIM least squares: the grid scan, its refinement, and its edges.
+
+:class:`Searcher` scans a grid with cached columns and refines between its points; :func:`at_edge` says when an
+estimate is on the edge of the range searched (never a finding); :data:`SEARCH_STEPS` and :func:`search_range`
+give the part of the grid the closed loop searches again (the replay per fold, the refit).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.diagnosis.stats import batched_rss, lag1_autocorrelation, shifted_rss
+from ilic_cli.diagnosis.system import effect_columns, shifted_force
+from ilic_cli.effects import Effect
+from ilic_cli.idim_ls import IDIMData
+from ilic_cli.lsq import lstsq
+from ilic_cli.regressor import Kinematics
+
+EXACT_GRID_MAX = 64
+"""Grids up to this size are scanned with exactly decimated columns; larger
+ones are screened on columns built from the decimated kinematics, and their
+best minima re-evaluated exactly."""
+
+
+class Searcher:
+    """Scans the nonlinear parameter of effects on one IDIM data set, with cached grid columns."""
+
+    def __init__(self, data: IDIMData, fs_hz: float, rows: np.ndarray) -> None:
+        self.data = data
+        self.fs = fs_hz
+        self.keep = rows
+        k = data.kin
+        dec = data.decimate
+        self.kin_dec = Kinematics(qd=dec(k.qd), qdd=dec(k.qdd), q=None if k.q is None else dec(k.q), t=data.t_dec)
+        self._cache: dict[str, tuple[np.ndarray, np.ndarray, bool]] = {}
+
+    def grid(self, effect: Effect) -> tuple[np.ndarray, np.ndarray, bool]:
+        """``(values, X, exact)``: X is ``(n, G, m)`` columns or, for a shift, ``(n, G)`` forces."""
+        if effect.id in self._cache:
+            return self._cache[effect.id]
+        assert effect.scan is not None
+        values = effect.scan.grid(self.data.kin, self.fs)
+        if effect.shift:
+            t = self.data.kin.t
+            assert t is not None
+            Y = np.stack([np.interp(t + v, t, self.data.tau) for v in values], axis=1)
+            out = (values, self.data.decimate(Y)[self.keep], True)
+        elif len(values) <= EXACT_GRID_MAX:
+            full = np.concatenate([effect.matrix(self.data.kin, v, self.fs) for v in values], axis=1)
+            m = full.shape[1] // len(values)
+            out = (values, self.data.decimate(full)[self.keep].reshape(-1, len(values), m), True)
+        else:
+            X = np.stack([effect.matrix(self.kin_dec, v, self.fs)[self.keep] for v in values], axis=1)
+            out = (values, X, False)
+        self._cache[effect.id] = out
+        return out
+
+    def exact(self, effect: Effect, value: Any) -> np.ndarray:
+        """Exactly decimated columns (or shifted force) for one value."""
+        if effect.shift:
+            return shifted_force(self.data, value, remember=False)[self.keep]
+        return effect_columns(self.data, effect, value, remember=False)[self.keep]
+
+    def exact_linear(self, effect: Effect) -> np.ndarray:
+        """Decimated columns of an effect without a nonlinear parameter."""
+        return effect_columns(self.data, effect)[self.keep]
+
+    def rss(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: Any, rows: np.ndarray | slice = slice(None)) -> float:
+        x = self.exact(effect, value)
+        if effect.shift:
+            return lstsq(W0[rows], x[rows])[1]
+        return lstsq(np.hstack([W0, x])[rows], y[rows])[1]
+
+    def scan(self, effect: Effect, W0: np.ndarray, y: np.ndarray, rows: np.ndarray | slice = slice(None), n_best: int = 3) -> float:
+        """Best grid value of ``effect`` added to ``(W0, y)`` on ``rows``."""
+        values, X, exact = self.grid(effect)
+        if effect.shift:
+            r = shifted_rss(W0[rows], X[rows])
+        else:
+            r = batched_rss(W0[rows], y[rows], X[rows])
+        if exact:
+            return float(values[int(np.argmin(r))])
+        # local minima, best first, re-evaluated with exact columns
+        interior = np.r_[True, r[1:] < r[:-1]] & np.r_[r[:-1] < r[1:], True]
+        idx = np.flatnonzero(interior)
+        if idx.size == 0:  # the minimum lies on a plateau (values whose columns coincide on these rows)
+            idx = np.array([int(np.argmin(r))])
+        idx = idx[np.argsort(r[idx])][:n_best]
+        exact_rss = [self.rss(effect, W0, y, float(values[i]), rows) for i in idx]
+        return float(values[idx[int(np.argmin(exact_rss))]])
+
+    def refine(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: float, rows: np.ndarray | None = None) -> tuple[Any, float | None]:
+        """1-D refinement between the neighbouring grid points; ``(value, std)`` from the RSS curvature.
+
+        An effect with a secondary parameter gets it refined next (within its
+        bounds), then the first again; its value is the pair. With ``rows``
+        (a training set) only the value is refined (std ``None``).
+        """
+        assert effect.scan is not None
+        sec = effect.scan.secondary
+        sel = slice(None) if rows is None else rows
+        values = self.grid(effect)[0]
+        i = int(np.argmin(np.abs(values - value)))
+        lo, hi = float(values[max(i - 1, 0)]), float(values[min(i + 1, len(values) - 1)])
+        if lo == hi:
+            return value, None
+        use_log = effect.scan.log and lo > 0
+        other = None if sec is None else sec[4]
+        pack = (lambda v: v) if sec is None else (lambda v: (v, other))  # noqa: E731
+        best = minimise(lambda v: self.rss(effect, W0, y, pack(v), sel), lo, hi, use_log)
+        if sec is not None:
+            other = minimise(lambda z: self.rss(effect, W0, y, (best, z), sel), sec[2], sec[3], True)
+            best = minimise(lambda v: self.rss(effect, W0, y, (v, other), sel), lo, hi, use_log)
+        if rows is not None:
+            return pack(best), None
+        # curvature of the profile RSS at the optimum, in the parameter's own unit
+        h = 1e-3 * abs(best) if best != 0 else 1e-3 * (hi - lo)
+        if effect.shift:
+            h = max(h, 0.05 / self.fs)
+        r0 = self.rss(effect, W0, y, pack(best))
+        rp, rm = self.rss(effect, W0, y, pack(best + h)), self.rss(effect, W0, y, pack(best - h))
+        curv = (rp - 2 * r0 + rm) / h**2
+        n = len(y)
+        k = W0.shape[1] + len(effect.columns) + 1
+        x = self.exact(effect, pack(best))
+        W1 = W0 if effect.shift else np.hstack([W0, x])
+        y1 = x if effect.shift else y
+        theta, _ = lstsq(W1, y1)
+        rho = lag1_autocorrelation(y1 - W1 @ theta)
+        inflation = (1 + max(rho, 0.0)) / (1 - min(max(rho, 0.0), 0.99))
+        std = math.sqrt(2.0 * r0 / max(n - k, 1) * inflation / curv) if curv > 0 else None
+        return pack(best), std
+
+
+EDGE_STEPS = 0.5
+"""A nonlinear estimate within this many grid steps of either end of its grid is on the edge of the search."""
+
+SECONDARY_EDGE = 0.02
+"""A secondary parameter within this share (on a log scale) of either bound is on the edge (e.g. damping 0.4998 of 0.5)."""
+
+
+def at_edge(effect: Effect, grid: np.ndarray, value: Any) -> str | None:
+    """Why ``value`` lies on the edge of ``effect``'s search (the grid's ends, the secondary parameter's bounds), else ``None``.
+
+    The optimum of a search is only an estimate when the search brackets it:
+    on an edge, the data would have gone on beyond the range searched.
+    """
+    assert effect.scan is not None
+    scan = effect.scan
+    first = float(value[0]) if isinstance(value, tuple) else float(value)
+    if len(grid) >= 2:
+        f = np.log if scan.log and grid[0] > 0 else (lambda x: x)  # noqa: E731
+        lo_step, hi_step = f(grid[1]) - f(grid[0]), f(grid[-1]) - f(grid[-2])
+        if f(first) <= f(grid[0]) + EDGE_STEPS * lo_step:
+            return f"{scan.name} = {first:.4g} {scan.unit} at the lower end of the range searched ({grid[0]:.4g} to {grid[-1]:.4g})".replace("  ", " ")
+        if f(first) >= f(grid[-1]) - EDGE_STEPS * hi_step:
+            return f"{scan.name} = {first:.4g} {scan.unit} at the upper end of the range searched ({grid[0]:.4g} to {grid[-1]:.4g})".replace("  ", " ")
+    if scan.secondary is not None and isinstance(value, tuple):
+        name, _, low, high, _ = scan.secondary
+        span = np.log(high) - np.log(low)
+        second = float(value[1])
+        if np.log(second) <= np.log(low) + SECONDARY_EDGE * span or np.log(second) >= np.log(high) - SECONDARY_EDGE * span:
+            return f"{name} = {second:.4g} at a bound of the range searched ({low:g} to {high:g})"
+    return None
+
+
+SEARCH_STEPS: dict[str, int] = {"stribeck": 10, "delay": 4}
+"""The effects whose nonlinear value the inverse model biases on closed-loop data, and the half-width of its closed-loop search.
+
+In steps of the effect's own grid around the inverse model's value (default :data:`DEFAULT_STEPS`); used by
+:mod:`ilic_cli.diagnosis.decide` (per fold) and :mod:`ilic_cli.diagnosis.refit`.
+
+Origin (corpus, inverse model against truth): Stribeck ``vs`` off by a factor up to 2.6
+(0.0211 for 0.008 m/s; the grid steps by a factor 1.126, so 10 steps reach a factor 3.3);
+drive lags 0.3-0.7 ms too long (grid step 0.5 ms). Ripple periods and resonances were within
+about a grid step; a payload's change time up to 4 steps off (11.64 s for 11.18 s), which 3 steps
+bring to 11.32 s. A wider range lets the search wander into the aliases of a periodic ripple."""
+
+DEFAULT_STEPS = 3
+"""Half-width of the search for the effects not in :data:`SEARCH_STEPS` (grid steps)."""
+
+
+def search_range(effect: Effect, grid: np.ndarray, value: float) -> np.ndarray:
+    """The part of ``effect``'s grid the closed loop searches: :data:`SEARCH_STEPS` steps either side of ``value``."""
+    k = SEARCH_STEPS.get(effect.id, DEFAULT_STEPS)
+    i = int(np.argmin(np.abs(grid - value)))
+    return grid[max(i - k, 0) : i + k + 1]
+
+
+def minimise(f: Any, lo: float, hi: float, use_log: bool, rel_tol: float = 1e-4) -> float:
+    """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``), to ``rel_tol`` of the range on that scale."""
+    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import
+
+    fwd = math.log if use_log else (lambda v: v)
+    inv = math.exp if use_log else (lambda u: u)
+    a, b = fwd(lo), fwd(hi)
+    res = minimize_scalar(lambda u: f(inv(u)), bounds=(a, b), method="bounded", options={"xatol": rel_tol * abs(b - a) + 1e-12})
+    return float(inv(res.x))

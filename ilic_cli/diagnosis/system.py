@@ -1,0 +1,132 @@
+"""The IDIM system of the diagnosis: the rigid regressor plus the columns of the effects in the model, and its least-squares fit.
+
+A :class:`Step` is an effect in the model with its nonlinear value fixed; :func:`system` builds the decimated
+``(W, y)`` of ``base + steps`` on the rows the diagnosis uses (:func:`moving_rows`), :func:`fit_system` solves it.
+Every stage (propose, decide, refit) fits through these.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.diagnosis.baseline import reversal_samples
+from ilic_cli.effects import Effect
+from ilic_cli.filtering import kept_indices
+from ilic_cli.idim_ls import IDIMData, valid_rows
+from ilic_cli.lsq import lstsq
+from ilic_cli.regressor import Model
+
+
+@dataclass(frozen=True)
+class Step:
+    """An effect in the model with its nonlinear parameter fixed.
+
+    ``level``: the effect's linear coefficients (its columns' order), held at
+    these values instead of fitted: a closed-loop estimate the inverse model
+    cannot make (:mod:`ilic_cli.diagnosis.dwell`); its columns' force is then
+    taken off the fitted force (:func:`system`). ``level_std``: their standard
+    deviations, when known; ``value_std``: the nonlinear value's, when it was
+    estimated with the level.
+    """
+
+    effect: Effect
+    value: Any = None
+    level: tuple[float, ...] | None = None
+    level_std: tuple[float, ...] | None = None
+    value_std: float | None = None
+
+
+def moving_rows(data: IDIMData) -> np.ndarray:
+    """Decimated rows used by the diagnosis (boolean mask over ``data``'s rows).
+
+    ``data``'s rows are already those every fit uses (:func:`ilic_cli.usable.with_rest`: no standstill, no
+    saturated drive, the one definition ``identify`` uses too). Left out here, for the diagnosis's timing:
+    mirroring the samples the procedure drops at the start, the rows within as many samples of either end of
+    the trimmed record, where the zero-phase filters have their edge transients; and the rows whose decimation
+    span touches a velocity reversal, where the Coulomb switch is timed only through the filtered velocity
+    (:mod:`ilic_cli.diagnosis.baseline`). A run without dwells (the EMPS recordings) loses only those edge and
+    reversal rows.
+    """
+    n = len(data.kin.qd)
+    r = data.settings.decimation
+    kept = kept_indices(n, r)
+    edge = data.settings.trim
+    moving = (kept >= edge) & (kept < n - edge) & valid_rows(~reversal_samples(data.kin.qd), r)
+    return moving if data.rows is None else moving[data.rows]
+
+
+def shifted_force(data: IDIMData, delay_s: float, *, remember: bool = True) -> np.ndarray:
+    """Decimated force ``tau(t + delay)``: the plant's ``delay`` (logged force = applied force ``delay`` earlier)."""
+    t = data.kin.t
+    assert t is not None
+    full = lambda: np.interp(t + delay_s, t, data.tau)  # noqa: E731
+    return data.decimate_once(("shift", delay_s), full) if remember else data.decimate(full())
+
+
+def effect_columns(data: IDIMData, effect: Effect, value: Any = None, *, remember: bool = True) -> np.ndarray:
+    """Decimated columns of ``effect`` at ``value`` on ``data``.
+
+    ``remember``: decimate each (effect, value) once on this data (the steps of
+    the model and the linear effects, asked for at every step and fold); the
+    values tried while refining a nonlinear parameter are not kept.
+    """
+    full = lambda: effect.matrix(data.kin, value, data.fs_hz)  # noqa: E731
+    return data.decimate_once((effect.id, value), full) if remember else data.decimate(full())
+
+
+def extended(base: Model, steps: list[Step] | tuple[Step, ...], fs_hz: float) -> Model:
+    """The regressor of ``base`` plus the columns of ``steps`` (a time shift adds none, nor a step whose level is held)."""
+    columns = [c for s in steps if s.level is None for c in s.effect.regressor_columns(s.value, fs_hz)]
+    return base.extend(*columns, name=base.name + "".join(f"+{s.effect.id}" for s in steps)) if columns else base
+
+
+def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """The decimated system ``(W, y, names)`` of :func:`extended` ``(base, steps)`` on ``data``.
+
+    ``data`` must have been prepared with ``base`` (its ``W`` holds the base
+    columns, decimated once); each step's columns are decimated once on
+    ``data`` (:func:`effect_columns`) and join them in the order of the
+    extended model. ``rows`` (default :func:`moving_rows`) selects the rows.
+    A step whose ``level`` is held adds no column: its force is taken off ``y``.
+    """
+    model = extended(base, steps, data.fs_hz)
+    y = data.y
+    cols = [data.W]
+    for s in steps:
+        if s.effect.shift:
+            y = shifted_force(data, float(s.value or 0.0))
+    for s in steps:
+        if s.level is not None:
+            y = y - effect_columns(data, s.effect, s.value) @ np.asarray(s.level, dtype=np.float64)
+        elif not s.effect.shift:
+            cols.append(effect_columns(data, s.effect, s.value))
+    keep = moving_rows(data) if rows is None else rows
+    W = np.hstack(cols)
+    assert W.shape[1] == len(model.names)
+    return W[keep], y[keep], model.names
+
+
+@dataclass(frozen=True)
+class SystemFit:
+    """The least-squares fit of :func:`system` ``(data, base, steps, rows)``: the system and its estimate."""
+
+    names: tuple[str, ...]
+    theta: np.ndarray
+    W: np.ndarray
+    y: np.ndarray
+
+
+def fit_system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], rows: np.ndarray | None = None, train: np.ndarray | None = None) -> SystemFit:
+    """Fit ``base + steps`` on ``data``'s ``rows`` (default :func:`moving_rows`) by least squares, on ``train`` of them when given.
+
+    The one inverse-model fit of the diagnosis (the IDIM estimate, eq. (8) of the
+    paper, with the effect columns beside the rigid ones); ``W`` and ``y`` are
+    the whole selected system, ``train`` or not.
+    """
+    W, y, names = system(data, base, steps, rows)
+    sel = slice(None) if train is None else train
+    theta, _ = lstsq(W[sel], y[sel])
+    return SystemFit(names, theta, W, y)
