@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -135,8 +136,6 @@ def command(
     log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None
 ) -> None:
     """Print the summary of LOG on stdout."""
-    import json
-
     fmt = detect_format(log_path, input_format)
     try:
         log = load(log_path, input_format, topic, ref_topic, joint, columns)
@@ -178,7 +177,7 @@ def _topics_markdown(topics: list[dict[str, Any]]) -> list[str]:
 
 
 def _json_default(obj: Any) -> Any:
-    import numpy as np
+    import numpy as np  # numpy (some 0.1 s) deferred: `ilic info --help` imports this module
 
     if isinstance(obj, np.generic):
         return obj.item()
