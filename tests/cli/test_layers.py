@@ -105,7 +105,6 @@ MODULE_PENDING: set[str] = {
 FUNCTION_PENDING: set[str] = {
     "ilic_cli/closed_loop_id.py:closed_loop_identify",
     "ilic_cli/commands/identify.py:command",
-    "ilic_cli/commands/simulate.py:command",
     "ilic_cli/diagnosis/core.py:diagnose",
     "ilic_cli/diagnosis/core.py:_segment_refit",
     "ilic_cli/diagnosis/decide.py:replay_decide",
