@@ -41,9 +41,9 @@ def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
     from ilic_cli.quality import assess_log  # deferred: numpy; `ilic info --help` stays instant
     from ilic_cli.timebase import nominal_rate_hz  # deferred: numpy; `ilic info --help` stays instant
 
-    meta = log.meta
-    rate = meta.get("sample_rate_hz")
-    if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not rate > 0:
+    meta = log.meta  # shown as recorded (the typed views normalise; a report quotes the file)
+    rate = log.sensor.sample_rate_hz
+    if rate is None or not rate > 0:
         rate = nominal_rate_hz(log.t)
     channels = [
         {"name": name, "unit": log.units.get(name, ""), "min": float(values.min()), "max": float(values.max())} for name, values in log.channels.items()

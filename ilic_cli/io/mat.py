@@ -236,15 +236,12 @@ def _pulses_array(values: np.ndarray) -> np.ndarray:
     return values.reshape(-1, 1)
 
 
-def _controller_gains(meta: dict[str, Any]) -> dict[str, float]:
-    controller = meta.get("controller")
-    out: dict[str, float] = {}
-    if isinstance(controller, dict) and controller.get("kind", "pd") == "pd":
-        for key in ("kp", "kv"):
-            value = controller.get(key)
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                out[key] = float(value)
-    return out
+def _controller_gains(log: RunLog) -> dict[str, float]:
+    """The PD gains ``kp`` and ``kv`` of the log's controller (a PD loop, or gains without a kind)."""
+    controller = log.controller
+    if controller is None or controller.kind not in ("pd", ""):
+        return {}
+    return {key: value for key, value in (("kp", controller.kp), ("kv", controller.kv)) if value is not None}
 
 
 def write(log: RunLog, path: Path, options: WriteOptions) -> None:
@@ -261,8 +258,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     """
     log.require("t", "q", "tau")
     ch = log.channels
-    gain = log.meta.get("drive_gain")
-    gain = float(gain) if isinstance(gain, (int, float)) and not isinstance(gain, bool) and gain else None
+    gain = log.sensor.drive_gain or None
     mdict: dict[str, np.ndarray] = {"t": ch["t"].reshape(-1, 1), "qm": ch["q"].reshape(-1, 1)}
     if "q_ref" in ch:
         mdict["qg"] = ch["q_ref"].reshape(-1, 1)
@@ -279,7 +275,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         mdict["tau"] = tau.reshape(-1, 1)
     if gain is not None:
         mdict["gtau"] = np.array([[gain]])
-    for key, value in _controller_gains(log.meta).items():
+    for key, value in _controller_gains(log).items():
         mdict[key] = np.array([[value]])
     if "pulses" in ch:
         mdict["pulses_N"] = _pulses_array(ch["pulses"])

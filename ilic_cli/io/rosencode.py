@@ -93,8 +93,7 @@ def metadata_text(log: RunLog, joint: str) -> str:
 
 def writer_joint(log: RunLog, default: str) -> str:
     """Joint name for writing: the log's ``joint`` metadata, else ``default``."""
-    joint = log.meta.get("joint")
-    return joint if isinstance(joint, str) and joint else default
+    return log.sensor.joint or default
 
 
 def encode(log: RunLog, joint: str, kind: str = ROS2) -> tuple[list[TopicSpec], Iterator[tuple[str, int, bytes]]]:
