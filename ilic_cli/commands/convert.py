@@ -56,6 +56,6 @@ def command(
         note(f"ilic: warning: {source}: irregular sampling kept (identify interpolates it onto a uniform grid); use --resample HZ for a uniform grid here")
     options = WriteOptions(storage=storage, joint=joint or "axis")
     write_log(log, target, fmt, options, inputs=(source,))
-    rate = log.meta.get("sample_rate_hz")
-    rate_text = f" at {float(rate):g} Hz" if isinstance(rate, (int, float)) else ""
+    rate = log.sensor.sample_rate_hz
+    rate_text = f" at {rate:g} Hz" if rate is not None else ""
     note(f"ilic: wrote {target} ({fmt}): {len(log)} samples{rate_text}, {log.duration_s:.6g} s, channels {', '.join(log.channels)}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -40,9 +41,9 @@ def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
     from ilic_cli.quality import assess_log  # deferred: numpy; `ilic info --help` stays instant
     from ilic_cli.timebase import nominal_rate_hz  # deferred: numpy; `ilic info --help` stays instant
 
-    meta = log.meta
-    rate = meta.get("sample_rate_hz")
-    if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not rate > 0:
+    meta = log.meta  # shown as recorded (the typed views normalise; a report quotes the file)
+    rate = log.sensor.sample_rate_hz
+    if rate is None or not rate > 0:
         rate = nominal_rate_hz(log.t)
     channels = [
         {"name": name, "unit": log.units.get(name, ""), "min": float(values.min()), "max": float(values.max())} for name, values in log.channels.items()
@@ -135,8 +136,6 @@ def command(
     log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None
 ) -> None:
     """Print the summary of LOG on stdout."""
-    import json
-
     fmt = detect_format(log_path, input_format)
     try:
         log = load(log_path, input_format, topic, ref_topic, joint, columns)
@@ -178,7 +177,7 @@ def _topics_markdown(topics: list[dict[str, Any]]) -> list[str]:
 
 
 def _json_default(obj: Any) -> Any:
-    import numpy as np
+    import numpy as np  # numpy (some 0.1 s) deferred: `ilic info --help` imports this module
 
     if isinstance(obj, np.generic):
         return obj.item()

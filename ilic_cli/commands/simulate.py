@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import click
@@ -159,40 +160,9 @@ def command(
             controller=controller,
             published_setup=published_setup,
         )
-        if model_path is not None:
-            rigid, plant_effects = plant_of_model_file(model_path)
-            ov.params.update(rigid.to_dict())
-            ov.effects.update({eid: e.to_dict() for eid, e in plant_effects.items()})
-        for text in params:
-            k, v = parse_assignment(text, "--param")
-            ov.params[k] = v
-        for text in chi0:
-            k, v = parse_assignment(text, "--chi0")
-            ov.chi0[k] = v
-        for text in effects:
-            eid, values = parse_effect_option(text)
-            ov.effects[eid] = {**ov.effects.get(eid, {}), **values}
-        noise = {k: v for k, v in (("tau_std", noise_tau), ("q_std", noise_q)) if v is not None}
-        if noise:
-            ov.effects["noise"] = {**ov.effects.get("noise", {}), **noise}
-        if resolution is not None:
-            ov.effects["quantization"] = {"resolution": resolution}
-        for key, value in (
-            ("omega", omega),
-            ("xi", xi),
-            ("alpha", alpha),
-            ("window_s", window_s),
-            ("sigma_max_pct", sigma_max),
-            ("model", structure),
-            ("velocity", velocity),
-        ):
-            if value is not None:
-                ov.ctc[key] = value
-        if no_ilic:
-            ov.ctc["ilic"] = False
-        for key, value in (("kp", kp), ("kv", kv), ("gtau", gtau)):
-            if value is not None:
-                ov.pd[key] = value
+        _parameter_overrides(ov, model_path, params, chi0, effects, {"tau_std": noise_tau, "q_std": noise_q}, resolution)
+        ctc = {"omega": omega, "xi": xi, "alpha": alpha, "window_s": window_s, "sigma_max_pct": sigma_max, "model": structure, "velocity": velocity}
+        _controller_overrides(ov, ctc, no_ilic, {"kp": kp, "kv": kv, "gtau": gtau})
         check(scenario, ov)
         if get_scenario(scenario).reference == "log":  # refuse before simulating, not after
             if same_path(log_path or DEFAULT_EMPS_LOG, output):
@@ -202,9 +172,47 @@ def command(
         for w in log.meta.get("ilic_windows", []):
             est = ", ".join(f"{n}={p['value']:.6g}" + ("" if w["essential"][n] else "*") for n, p in w["parameters"].items() if p["value"] is not None)
             note(f"  window {w['k']} [{w['t_start']:.1f}, {w['t_end']:.1f}] s: {est}")
-        reference = (log.meta.get("scenario") or {}).get("log")
+        reference = (log.provenance.scenario or {}).get("log")
         write_log(log, output, out_format, WriteOptions(storage=storage), inputs=(reference,) if reference else ())
         note(f"ilic: wrote {output} ({len(log)} samples, {log.duration_s:.3f} s)")
+
+
+def _parameter_overrides(
+    ov: Overrides,
+    model_path: Path | None,
+    params: tuple[str, ...],
+    chi0: tuple[str, ...],
+    effects: tuple[str, ...],
+    noise: dict[str, float | None],
+    resolution: float | None,
+) -> None:
+    """Put the parameters into ``ov``: the model file's parameters and effects, ``--param``, ``--chi0``, ``--effect``, the noise and resolution options."""
+    if model_path is not None:
+        rigid, plant_effects = plant_of_model_file(model_path)
+        ov.params.update(rigid.to_dict())
+        ov.effects.update({eid: e.to_dict() for eid, e in plant_effects.items()})
+    for text in params:
+        k, v = parse_assignment(text, "--param")
+        ov.params[k] = v
+    for text in chi0:
+        k, v = parse_assignment(text, "--chi0")
+        ov.chi0[k] = v
+    for text in effects:
+        eid, values = parse_effect_option(text)
+        ov.effects[eid] = {**ov.effects.get(eid, {}), **values}
+    given = {k: v for k, v in noise.items() if v is not None}
+    if given:
+        ov.effects["noise"] = {**ov.effects.get("noise", {}), **given}
+    if resolution is not None:
+        ov.effects["quantization"] = {"resolution": resolution}
+
+
+def _controller_overrides(ov: Overrides, ctc: Mapping[str, object], no_ilic: bool, pd: Mapping[str, float | None]) -> None:
+    """Put the controllers' options into ``ov``: the CTC's (those given) and ``--no-ilic``, the PD's gains (those given)."""
+    ov.ctc.update({key: value for key, value in ctc.items() if value is not None})
+    if no_ilic:
+        ov.ctc["ilic"] = False
+    ov.pd.update({key: value for key, value in pd.items() if value is not None})
 
 
 def _progress():

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 from ilic_cli.errors import ChoiceError, LogError
+from ilic_cli.io.atomic import atomic_path
 
 if TYPE_CHECKING:
     from ilic_cli.runlog import RunLog
@@ -179,7 +180,7 @@ def read_log(
     reference for the differential tests and benchmarks); both give the same
     columns bit for bit.
     """
-    from ilic_cli.runlog import validate_samples
+    from ilic_cli.runlog import validate_samples  # the run log imports numpy (some 0.1 s): `ilic info --help` imports this package
 
     p = bag_folder(Path(path), fmt)
     if not p.exists():
@@ -226,6 +227,7 @@ def _return_freed_memory() -> None:
     Readers pack messages into many small NumPy blocks; once they are joined
     and freed, glibc would otherwise keep those pages for the process.
     """
+    # ctypes (some 3 ms) deferred: only a read of 100k samples or more gives memory back
     import ctypes
     import ctypes.util
 
@@ -238,8 +240,6 @@ def _return_freed_memory() -> None:
 
 def write_log(log: RunLog, path: str | Path, fmt: str | None = None, options: WriteOptions | None = None, *, inputs: tuple[str | Path, ...] = ()) -> Path:
     """Write ``log`` to ``path`` atomically (temporary sibling, then rename)."""
-    from ilic_cli.io.atomic import atomic_path
-
     p = Path(path)
     name = detect_format(p, fmt, for_writing=True)
     if p.is_dir() and (name != "rosbag2" or p.is_symlink() or not (p / "metadata.yaml").is_file()):

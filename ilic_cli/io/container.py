@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ilic_cli.errors import LogError
+from ilic_cli.io import current_progress
 from ilic_cli.io.rosencode import encode
 from ilic_cli.io.rosschema import typestore
 
@@ -47,8 +48,6 @@ def feed_sinks(reader: Any, wanted: list[Any], sinks: dict[int, Any], path: Path
 
     Drives the read's progress display (if any) every 65536 messages.
     """
-    from ilic_cli.io import current_progress
-
     total = sum(int(getattr(conn, "msgcount", 0) or 0) for conn in wanted) or 1
     with current_progress(path) as progress:
         for done, (conn, log_ns, data) in enumerate(reader.messages(connections=wanted) if wanted else (), start=1):

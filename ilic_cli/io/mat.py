@@ -37,11 +37,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.errors import LogError
+from ilic_cli.io import matfast
 from ilic_cli.io.rosjson import dump_json, meta_for_writing, parse_json_object, parse_units
+from ilic_cli.runlog import RunLog
+from ilic_cli.timebase import nominal_rate_hz
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
-    from ilic_cli.runlog import RunLog
 
 CHANNEL_TO_VAR = {"t": "t", "q": "qm", "q_ref": "qg", "vir": "vir", "tau": "tau", "pulses": "pulses_N"}
 """Channel name -> variable name (other channels keep their name)."""
@@ -101,7 +103,7 @@ def _is_vector(value: Any) -> bool:
 
 def _check_declared_sizes(path: Path) -> None:
     """Refuse absurd declared variable sizes before anything is decompressed."""
-    import scipy.io
+    import scipy.io  # deferred: 0.13 s of imports (scipy.sparse); only for files matfast does not read
 
     total = 0
     for _name, shape, _cls in scipy.io.whosmat(str(path)):
@@ -115,8 +117,6 @@ def _check_declared_sizes(path: Path) -> None:
 
 def _load(path: Path) -> dict[str, Any]:
     """The file's variables: by :mod:`ilic_cli.io.matfast` when it reads the file, else by ``scipy.io`` (which says what is wrong with it)."""
-    from ilic_cli.io import matfast
-
     try:
         raw = path.read_bytes()
     except (OSError, MemoryError):  # scipy.io's path says what is wrong
@@ -160,9 +160,6 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     RunLog
         With ``tau = gtau * vir`` unless the file has a ``tau`` variable.
     """
-    from ilic_cli.runlog import RunLog
-    from ilic_cli.timebase import nominal_rate_hz
-
     data = {k: v for k, v in _load(path).items() if not k.startswith("__")}
     for required in ("t", "qm"):
         if required not in data:
@@ -239,15 +236,12 @@ def _pulses_array(values: np.ndarray) -> np.ndarray:
     return values.reshape(-1, 1)
 
 
-def _controller_gains(meta: dict[str, Any]) -> dict[str, float]:
-    controller = meta.get("controller")
-    out: dict[str, float] = {}
-    if isinstance(controller, dict) and controller.get("kind", "pd") == "pd":
-        for key in ("kp", "kv"):
-            value = controller.get(key)
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                out[key] = float(value)
-    return out
+def _controller_gains(log: RunLog) -> dict[str, float]:
+    """The PD gains ``kp`` and ``kv`` of the log's controller (a PD loop, or gains without a kind)."""
+    controller = log.controller
+    if controller is None or controller.kind not in ("pd", ""):
+        return {}
+    return {key: value for key, value in (("kp", controller.kp), ("kv", controller.kv)) if value is not None}
 
 
 def write(log: RunLog, path: Path, options: WriteOptions) -> None:
@@ -264,8 +258,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     """
     log.require("t", "q", "tau")
     ch = log.channels
-    gain = log.meta.get("drive_gain")
-    gain = float(gain) if isinstance(gain, (int, float)) and not isinstance(gain, bool) and gain else None
+    gain = log.sensor.drive_gain or None
     mdict: dict[str, np.ndarray] = {"t": ch["t"].reshape(-1, 1), "qm": ch["q"].reshape(-1, 1)}
     if "q_ref" in ch:
         mdict["qg"] = ch["q_ref"].reshape(-1, 1)
@@ -282,7 +275,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         mdict["tau"] = tau.reshape(-1, 1)
     if gain is not None:
         mdict["gtau"] = np.array([[gain]])
-    for key, value in _controller_gains(log.meta).items():
+    for key, value in _controller_gains(log).items():
         mdict[key] = np.array([[value]])
     if "pulses" in ch:
         mdict["pulses_N"] = _pulses_array(ch["pulses"])
@@ -292,8 +285,6 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         mdict[_var_name(name)] = values.reshape(-1, 1)
     mdict[META_VAR] = np.array(dump_json(meta_for_writing(log.meta)))
     mdict[UNITS_VAR] = np.array(dump_json(dict(log.units)))
-
-    from ilic_cli.io import matfast
 
     parts = matfast.dump(mdict, HEADER_TEXT)  # scipy.io's bytes, the variables compressed in threads
     if parts is not None:

@@ -24,6 +24,8 @@ import zlib
 
 import numpy as np
 
+from ilic_cli.parallel import ordered_map
+
 MI_INT8, MI_UINT8, MI_INT16, MI_UINT16, MI_INT32, MI_UINT32 = 1, 2, 3, 4, 5, 6
 MI_SINGLE, MI_DOUBLE, MI_INT64, MI_UINT64 = 7, 9, 12, 13
 MI_MATRIX, MI_COMPRESSED, MI_UTF8 = 14, 15, 16
@@ -202,8 +204,6 @@ def dump(variables: dict[str, np.ndarray], header_text: bytes) -> list[bytes] | 
 
     The variables are compressed in up to :func:`ilic_cli.parallel.threads` threads.
     """
-    from ilic_cli.parallel import ordered_map
-
     all_parts = [_matrix_parts(name, value) for name, value in variables.items()]
     elements = [parts for parts in all_parts if parts is not None]
     if len(elements) < len(all_parts):

@@ -16,11 +16,18 @@ import collections
 import struct
 import zlib
 from collections.abc import Mapping
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import IO, Any
 
+import lz4.frame
 import numpy as np
+import zstandard
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema, Statistics, SummaryOffset
+
+from ilic_cli.io.cdrcols import put
 
 MAGIC = b"\x89MCAP0\r\n"
 MESSAGE_HEAD = 31
@@ -39,12 +46,8 @@ MAX_PENDING = 4
 def compress_chunk(compression: str, data: bytes) -> tuple[bytes, int]:
     """``data`` compressed as ``mcap.writer.Writer`` compresses a chunk (``"zstd"`` level 3, ``"lz4"``, ``""``), and its crc32."""
     if compression == "zstd":
-        import zstandard
-
         compressed = zstandard.compress(data)
     elif compression == "lz4":
-        import lz4.frame
-
         compressed = lz4.frame.compress(data)
     else:
         compressed = data
@@ -68,8 +71,6 @@ def frame_head(rows: np.ndarray, offset: int, length: int, channel_id: int, sequ
     ``length`` is the record length after the opcode and length fields
     (22 + data size); log and publish time are both ``log_ns``.
     """
-    from ilic_cli.io.cdrcols import put
-
     rows[:, offset] = OP_MESSAGE
     put(rows, offset + 1, "<u8", np.full(rows.shape[0], length, dtype=np.uint64))
     put(rows, offset + 9, "<u2", np.full(rows.shape[0], channel_id, dtype=np.uint16))
@@ -94,8 +95,6 @@ class BulkWriter:
     """
 
     def __init__(self, stream: IO[bytes], compression: str, chunk_size: int = 1024 * 1024, data_crc: bool = True) -> None:
-        from mcap.records import Statistics
-
         self.stream = stream
         self.compression = compression
         self.chunk_size = chunk_size
@@ -128,8 +127,6 @@ class BulkWriter:
 
     @staticmethod
     def _record(record: Any) -> bytes:
-        from mcap.data_stream import RecordBuilder
-
         builder = RecordBuilder()
         record.write(builder)
         return bytes(builder.end())
@@ -150,15 +147,11 @@ class BulkWriter:
     # -- records ------------------------------------------------------------
     def start(self, profile: str, library: str) -> None:
         """Write the magic and the header."""
-        from mcap.records import Header
-
         self._write(MAGIC)
         self._write(self._record(Header(profile=profile, library=library)))
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
         """Add a schema (to the current chunk); return its id."""
-        from mcap.records import Schema
-
         schema_id = len(self.schemas) + 1
         schema = Schema(id=schema_id, data=data, encoding=encoding, name=name)
         self.schemas[schema_id] = schema
@@ -169,8 +162,6 @@ class BulkWriter:
 
     def register_channel(self, topic: str, message_encoding: str, schema_id: int, metadata: Mapping[str, str] | None = None) -> int:
         """Add a channel (to the current chunk); return its id."""
-        from mcap.records import Channel
-
         channel_id = len(self.channels) + 1
         channel = Channel(id=channel_id, topic=topic, message_encoding=message_encoding, schema_id=schema_id, metadata=dict(metadata or {}))
         self.channels[channel_id] = channel
@@ -254,8 +245,6 @@ class BulkWriter:
 
     def _finish_chunk(self) -> None:
         """Close the current chunk: hand it to a compressing thread; write the chunks whose compression is done, in order."""
-        from concurrent.futures import ThreadPoolExecutor
-
         if self.num_messages == 0:
             return
         self.stats.chunk_count += 1
@@ -289,8 +278,6 @@ class BulkWriter:
 
     def _write_chunk(self, chunk: _Pending) -> None:
         """Write a chunk record and its message indexes (once its compression is done)."""
-        from mcap.records import Chunk, ChunkIndex
-
         compressed, crc = chunk.job.result()
         record = Chunk(
             compression=self.compression,
@@ -334,8 +321,6 @@ class BulkWriter:
 
     def add_metadata(self, name: str, data: Mapping[str, str]) -> None:
         """Close the current chunk, then write a metadata record (indexed in the summary)."""
-        from mcap.records import Metadata, MetadataIndex
-
         self._finish_chunk()
         self._flush_chunks()
         offset = self.stream.tell()
@@ -346,10 +331,6 @@ class BulkWriter:
 
     def finish(self) -> None:
         """Close the last chunk, write ``DataEnd``, the summary and the footer."""
-        from mcap.data_stream import RecordBuilder
-        from mcap.opcode import Opcode
-        from mcap.records import DataEnd, Footer, SummaryOffset
-
         self._finish_chunk()
         self._flush_chunks()
         self._write(self._record(DataEnd(self.crc if self.data_crc else 0)))

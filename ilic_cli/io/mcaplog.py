@@ -2,8 +2,7 @@
 
 Writing: one schema per message type (encoding ``ros2msg``, the concatenated
 ``.msg`` text that Foxglove and other MCAP viewers decode), channels with
-message encoding ``cdr``, zstd-compressed chunks (lz4 or none when the
-compressor is not importable) with chunk and data-section CRCs, library string
+message encoding ``cdr``, zstd-compressed chunks (``zstandard`` is a dependency of ``mcap``) with chunk and data-section CRCs, library string
 ``ilic <version>``: the same log always gives the same bytes. The topics are
 those of :mod:`ilic_cli.io.rosschema`. ``WriteOptions.fast`` (the default)
 fills whole columns into ``rosbags``-serialised message templates
@@ -27,11 +26,23 @@ channels are decoded too; other encodings are refused.
 from __future__ import annotations
 
 import functools
+import io
+import struct
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import lz4.frame
+import numpy as np
+import zstandard
+from mcap.exceptions import EndOfFile, InvalidMagic, RecordLengthLimitExceeded
+from mcap.reader import SeekingReader
+from mcap.records import Channel, Chunk, Message, Schema
+from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
+
+from ilic_cli import __version__
 from ilic_cli.errors import LogError
-from ilic_cli.io import roscollect, rosdecode, rosencode, rosschema
+from ilic_cli.io import current_progress, mcapscan, roscollect, rosdecode, rosencode, rosschema
+from ilic_cli.io.mcapframe import MESSAGE_HEAD, BulkWriter, frame_head
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -45,20 +56,9 @@ MAX_EXPANSION = 64
 
 
 def _compression() -> Any:
-    from mcap.writer import CompressionType
+    from mcap.writer import CompressionType  # mcap.writer (some 40 ms) deferred: only writing needs it
 
-    try:
-        import zstandard  # noqa: F401
-
-        return CompressionType.ZSTD
-    except ImportError:
-        pass
-    try:
-        import lz4.frame  # noqa: F401
-
-        return CompressionType.LZ4
-    except ImportError:
-        return CompressionType.NONE
+    return CompressionType.ZSTD
 
 
 def write(log: RunLog, path: Path, options: WriteOptions) -> None:
@@ -74,9 +74,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
         ``options.joint`` names the joint unless ``log.meta["joint"]`` does;
         ``options.fast`` picks the bulk writer (the same bytes as the per-message one).
     """
-    from mcap.writer import Writer
-
-    from ilic_cli import __version__
+    from mcap.writer import Writer  # mcap.writer (some 40 ms) deferred: only writing needs it
 
     joint = rosencode.writer_joint(log, options.joint)
     columns = rosencode.encode_columns(log, joint) if options.fast else None
@@ -104,7 +102,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
 
 
 def _compression_name() -> str:
-    from mcap.writer import CompressionType
+    from mcap.writer import CompressionType  # mcap.writer (some 40 ms) deferred: only writing needs it
 
     return {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4"}.get(_compression(), "")
 
@@ -127,8 +125,6 @@ def write_columns(stream: Any, columns: rosencode.Columns, compression: str, *, 
     profile, library : str
         Header fields.
     """
-    from ilic_cli.io.mcapframe import BulkWriter
-
     writer = BulkWriter(stream, compression)
     writer.start(profile=profile, library=library)
     schema_ids: dict[str, int] = {}
@@ -154,10 +150,6 @@ def add_samples(writer: Any, columns: rosencode.Columns, channel_ids: dict[str, 
     Each sample's messages follow each other in topic order; the message
     sequence number is the sample index.
     """
-    import numpy as np
-
-    from ilic_cli.io.mcapframe import MESSAGE_HEAD, frame_head
-
     ns = columns.log_ns
     order = columns.sample_topics()
     slots = []
@@ -179,8 +171,6 @@ def add_samples(writer: Any, columns: rosencode.Columns, channel_ids: dict[str, 
 @functools.lru_cache(maxsize=1)
 def _zstd() -> Any:
     """One zstd decompressor, reused for every chunk."""
-    import zstandard
-
     return zstandard.ZstdDecompressor()
 
 
@@ -191,20 +181,14 @@ def _decompress(chunk: Any, limit: int, path: Path) -> bytes:
     if chunk.compression == "":
         data = bytes(chunk.data)
     elif chunk.compression == "zstd":
-        import zstandard
-
         if zstandard.frame_content_size(chunk.data) == size:
             # the frame declares the (already bounded) size: one call into a buffer of that size
             data = _zstd().decompress(chunk.data, max_output_size=size)
         else:
-            import io
-
             # a streaming read stops at size + 1 bytes whatever the frame header claims
             with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(chunk.data)) as reader:
                 data = reader.read(size + 1)
     elif chunk.compression == "lz4":
-        import lz4.frame
-
         data = lz4.frame.LZ4FrameDecompressor().decompress(chunk.data, max_length=size + 1)
     else:
         raise LogError(path, f"MCAP chunk compression '{chunk.compression}' is not supported")
@@ -235,14 +219,12 @@ def scan(path: Path, collector: roscollect.Collector | None = None, progress: An
     LogError
         For a truncated, corrupt (CRC mismatch) or hostile file.
     """
-    from ilic_cli.io.mcapscan import McapScanError
-
     try:
         if fast:
             _scan_fast(path, collector, progress)
         else:
             _scan(path, collector, progress)
-    except McapScanError as exc:
+    except mcapscan.McapScanError as exc:
         raise LogError(path, f"not a readable MCAP file: {exc}") from None
     except LogError:
         raise
@@ -253,11 +235,6 @@ def scan(path: Path, collector: roscollect.Collector | None = None, progress: An
 
 
 def _describe(exc: BaseException) -> str:
-    import struct
-
-    from mcap.exceptions import EndOfFile, InvalidMagic, RecordLengthLimitExceeded
-    from mcap.stream_reader import CRCValidationError
-
     if isinstance(exc, CRCValidationError):
         return f"CRC check failed in {type(exc.record).__name__} record (file is corrupt)"
     if isinstance(exc, (EndOfFile, struct.error, EOFError)):
@@ -277,8 +254,6 @@ def _topic(channel: Any, schema: Any) -> rosschema.RawTopic:
 
 
 def _scan_fast(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:
-    from ilic_cli.io.mcapscan import scan as walk
-
     limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(path.stat().st_size, 1))
 
     def declare(channel: Any, schema: Any) -> Any:
@@ -292,13 +267,11 @@ def _scan_fast(path: Path, collector: roscollect.Collector | None, progress: Any
         except Exception as exc:  # noqa: BLE001 - zstd/lz4 errors on damaged data
             raise LogError(path, f"not a readable MCAP file: a {chunk.compression} chunk cannot be decompressed (file is corrupt: {_describe(exc)})") from None
 
-    walk(path, declare, decompress, limit, progress, _message_counts(path))
+    mcapscan.scan(path, declare, decompress, limit, progress, _message_counts(path))
 
 
 def _message_counts(path: Path) -> dict[int, int]:
     """Channel id -> message count from the file's summary (via ``mcap``); empty when there is none or it is unreadable."""
-    from mcap.reader import SeekingReader
-
     try:
         with open(path, "rb") as stream:
             summary = SeekingReader(stream, validate_crcs=False).get_summary()
@@ -310,9 +283,6 @@ def _message_counts(path: Path) -> dict[int, int]:
 
 
 def _scan(path: Path, collector: roscollect.Collector | None, progress: Any) -> None:
-    from mcap.records import Channel, Chunk, Message, Schema
-    from mcap.stream_reader import StreamReader, breakup_chunk
-
     file_size = path.stat().st_size
     limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(file_size, 1))
     schemas: dict[int, Any] = {}
@@ -377,8 +347,6 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     -------
     RunLog
     """
-    from ilic_cli.io import current_progress
-
     collector = roscollect.Collector(path)
     with current_progress(path) as progress:
         scan(path, collector, progress, fast=fast)

@@ -21,6 +21,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mcap.data_stream import ReadDataStream
+from mcap.records import Channel, Chunk, Schema
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END, OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0F, 0x02
@@ -80,9 +82,6 @@ def scan(
     McapScanError
         Bad magic, truncation, a CRC mismatch, a malformed chunk.
     """
-    from mcap.data_stream import ReadDataStream
-    from mcap.records import Channel, Chunk, Schema
-
     size = path.stat().st_size
     most = MAX_HINT_EXPANSION * size // MESSAGE_HEAD
     state = _State(declare, {cid: min(int(n), most) for cid, n in (counts or {}).items()})
@@ -169,9 +168,6 @@ class _State:
 
     def walk(self, buf: np.ndarray) -> None:
         """Walk the records of one decompressed chunk."""
-        from mcap.data_stream import ReadDataStream
-        from mcap.records import Channel, Schema
-
         end = len(buf)
         pos = 0
         while pos < end:

@@ -88,7 +88,7 @@ def overview(path: Path, fmt: str) -> list[TopicOverview]:
 
 
 def _mcap(path: Path) -> list[TopicOverview]:
-    from mcap.reader import make_reader
+    from mcap.reader import make_reader  # mcap (some 45 ms) deferred: `ilic info` on a bag, .mat or CSV does not load it
 
     with open(path, "rb") as stream:
         reader = make_reader(stream)
@@ -116,6 +116,7 @@ def _bag1(path: Path) -> list[TopicOverview]:
     (some 5 s of a 600 s, 1 kHz log); the summary reads the same counts,
     time range and first messages from the index without them.
     """
+    # the ROS 1 reader imports rosbags at its top: deferred so that `ilic info` on another format does not load rosbags
     from ilic_cli.io import ros1fast
     from ilic_cli.io.rosbag1 import MAX_CHUNK_BYTES, MAX_EXPANSION
 
@@ -139,24 +140,27 @@ def _bag1(path: Path) -> list[TopicOverview]:
 
 
 def _bag2(path: Path) -> list[TopicOverview]:
-    """A ROS 2 bag's topics: of an sqlite3 bag just read off its pages, from that read's counts (:func:`~ilic_cli.io.rosbag2.table_summary`); else ``rosbags``.
+    """A ROS 2 bag's topics: of an sqlite3 bag just read off its pages, from that read's counts; else ``rosbags``.
+
+    The counts are :func:`~ilic_cli.io.ros2sqlite.table_summary`.
 
     ``rosbags`` counts each topic's messages when it opens an sqlite3 bag (a
     scan of the table: some 0.9 s of a 600 s, 1 kHz bag); the read counted them.
     """
+    # rosbags.rosbag2 (some 0.3 s) and the sqlite3 reader, deferred: `ilic info` on another format does not load them
     from rosbags.rosbag2 import Reader
 
-    from ilic_cli.io import rosbag2
+    from ilic_cli.io import ros2sqlite  # imports rosbags' sqlite3 storage at its top: deferred as rosbags.rosbag2 is
 
     files = sorted(path.glob("*.db3"))
-    summary = rosbag2.table_summary(files[0]) if len(files) == 1 else None
+    summary = ros2sqlite.table_summary(files[0]) if len(files) == 1 else None
     if summary is None:
         return _bag(path)
     reader = Reader(path)
-    with rosbag2._rosbags_sqlite_settings(uncounted=True):  # the topics only: the counts are the read's
+    with ros2sqlite.rosbags_sqlite_settings(uncounted=True):  # the topics only: the counts are the read's
         reader.open()
     try:
-        storage = rosbag2._single_sqlite(reader)
+        storage = ros2sqlite.single_sqlite(reader)
         if storage is None or storage.path.resolve() != files[0].resolve():
             return _bag(path)
         out = []
@@ -171,7 +175,7 @@ def _bag2(path: Path) -> list[TopicOverview]:
 
 
 def _bag(path: Path) -> list[TopicOverview]:
-    from rosbags.highlevel import AnyReader
+    from rosbags.highlevel import AnyReader  # rosbags deferred: only a bag the fast summaries do not take reads through it
 
     with AnyReader([path]) as reader:
         kind = ROS1 if reader.is2 is False else ROS2

@@ -9,7 +9,7 @@ definition (a differently defined message of the same name), and caps chunk
 decompression at ``min(2 GiB, 64 x file size)``.
 
 By default (``fast=True``) both directions go through
-:mod:`ilic_cli.io.ros1fast`: reading decodes runs of same-layout messages as
+:mod:`ilic_cli.io.ros1fast` and :mod:`ilic_cli.io.ros1write`: reading decodes runs of same-layout messages as
 NumPy views, chunk by chunk, and reads any file whose structure it does not
 expect per message as before; writing serialises whole columns and gives the
 bytes of the per-message writer.
@@ -17,11 +17,15 @@ bytes of the per-message writer.
 
 from __future__ import annotations
 
+import bz2
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import lz4.frame
+from rosbags.rosbag1 import Reader, Writer
+
 from ilic_cli.errors import LogError
-from ilic_cli.io import container, roscollect, rosdecode, rosencode, rosschema
+from ilic_cli.io import container, ros1fast, ros1write, roscollect, rosdecode, rosencode, rosschema
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection, WriteOptions
@@ -44,26 +48,19 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     options : WriteOptions
         ``options.joint`` names the joint unless ``log.meta["joint"]`` does;
         ``options.fast`` (default True) serialises whole columns at once
-        (:mod:`ilic_cli.io.ros1fast`), False writes message by message through
+        (:mod:`ilic_cli.io.ros1write`), False writes message by message through
         ``rosbags``. Both give the same bytes.
     """
     joint = rosencode.writer_joint(log, options.joint)
     if getattr(options, "fast", True):
-        from ilic_cli.io import ros1fast
-
-        ros1fast.write(log, joint, path)
+        ros1write.write(log, joint, path)
         return
-    from rosbags.rosbag1 import Writer
-
     path.unlink(missing_ok=True)  # rosbags refuses to overwrite the placeholder
     container.write_bag(Writer(path), log, joint, rosschema.ROS1)
 
 
 def _bounded(decompress: Any, limit: int, path: Path) -> Any:
     """Wrap a chunk decompressor so that it never returns more than ``limit`` bytes."""
-    import bz2
-
-    import lz4.frame
 
     def run(data: bytes) -> bytes:
         if decompress is bz2.decompress:
@@ -117,8 +114,6 @@ def _declare_columns(collector: roscollect.Collector, connections: list[Any]) ->
 
 def _open(path: Path, limit: int) -> Any:
     """A ``rosbags`` reader of ``path`` whose chunks decompress to at most ``limit`` bytes."""
-    from rosbags.rosbag1 import Reader
-
     try:
         reader = Reader(path)
         reader.open()
@@ -151,8 +146,6 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
     """
     limit = min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(path.stat().st_size, 1))
     if fast:
-        from ilic_cli.io import ros1fast
-
         try:
             source = ros1fast.collect(path, limit, _declare_columns)
         except LogError:

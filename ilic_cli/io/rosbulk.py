@@ -18,13 +18,20 @@ writer writes them (per sample: ``/joint_states``, ``/joint_reference``,
 
 from __future__ import annotations
 
+import math
+import sqlite3
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+from rosbags.interfaces import MessageDefinitionFormat
 from rosbags.rosbag2.enums import CompressionMode
 from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
+from ilic_cli import __version__
+from ilic_cli.io import mcaplog
+from ilic_cli.io.mcapframe import BulkWriter
 from ilic_cli.io.rosencode import Columns
 
 SAMPLES_PER_INSERT = 65536
@@ -44,8 +51,6 @@ class BulkSqlite3Storage(Sqlite3Writer):
 
     def __init__(self, path: Path, compression: CompressionMode) -> None:
         """``rosbags``' ``Sqlite3Writer.__init__``, with ``synchronous = OFF`` set before the schema is committed."""
-        import sqlite3
-
         if compression == CompressionMode.STORAGE:
             raise WriterError("SQLITE3 writer does not support storage-side compression.")
         self.path = path / f"{path.name}.db3"
@@ -63,8 +68,6 @@ class BulkSqlite3Storage(Sqlite3Writer):
         same rows, in the same order, as one ``INSERT`` each, so the same
         file, without a Python object per message.
         """
-        import numpy as np
-
         topics = columns.sample_topics()
         if not topics:
             return
@@ -87,8 +90,6 @@ def insert_rows_sql(topic_ids: list[int], sizes: list[int], most: int) -> str:
     expression, sqlite3 3.8.3 or later); a ``CROSS JOIN`` keeps its left
     table in the outer loop, so the rows come in order.
     """
-    import math
-
     side = math.isqrt(max(most, 1) - 1) + 1
     width = sum(sizes)
     starts = [sum(sizes[:j]) for j in range(len(sizes))]
@@ -107,23 +108,17 @@ class BulkMcapStorage:
     """An MCAP storage for ``rosbags``' writer, written in bulk by :class:`~ilic_cli.io.mcapframe.BulkWriter`."""
 
     def __init__(self, path: Path, compression: CompressionMode) -> None:
-        from ilic_cli import __version__
-        from ilic_cli.io.mcapframe import BulkWriter
-        from ilic_cli.io.mcaplog import _compression_name
-
         if compression != CompressionMode.NONE:
             raise WriterError("the bulk MCAP storage compresses its chunks itself; no bag compression")
         self.path = path / f"{path.name}.mcap"
         self.stream = self.path.open("xb")
-        self.writer = BulkWriter(self.stream, _compression_name())
+        self.writer = BulkWriter(self.stream, mcaplog._compression_name())
         self.writer.start(profile="ros2", library=f"ilic {__version__}")
         self.schema_ids: dict[str, int] = {}
         self.channel_ids: dict[int, int] = {}
 
     def add_msgtype(self, connection: Any) -> None:
         """Register the connection's message type as a schema."""
-        from rosbags.interfaces import MessageDefinitionFormat
-
         encoding = "ros2msg" if connection.msgdef.format == MessageDefinitionFormat.MSG else "ros2idl"
         self.schema_ids[connection.msgtype] = self.writer.register_schema(connection.msgtype, encoding, connection.msgdef.data.encode("utf-8"))
 
@@ -143,9 +138,7 @@ class BulkMcapStorage:
 
     def add_samples(self, columns: Columns, ids: dict[str, int]) -> None:
         """Add every per-sample message of ``columns`` (connection ids from ``ids``)."""
-        from ilic_cli.io.mcaplog import add_samples
-
-        add_samples(self.writer, columns, {topic: self.channel_ids[cid] for topic, cid in ids.items()})
+        mcaplog.add_samples(self.writer, columns, {topic: self.channel_ids[cid] for topic, cid in ids.items()})
 
     def close(self, version: int, metadata: str) -> None:
         """Write the bag metadata record, the summary and the footer; close the file."""

@@ -36,6 +36,7 @@ from ilic_cli.io.rosschema import (
     controller_typestore,
     typestore,
 )
+from ilic_cli.io.rostopics import Collected
 
 BLOCK = 8192
 """Messages buffered as Python values before they are packed into NumPy blocks."""
@@ -481,39 +482,3 @@ class Collector:
         data = {name: sink for name, sink in self._sinks.items() if sink is not None}
         self._sinks = {}
         return Collected(self.path, dict(self.topics), data)
-
-
-class Collected:
-    """Topics and their decoded columns (from :meth:`Collector.finish`)."""
-
-    def __init__(self, path: Path, topics: dict[str, RawTopic], sinks: dict[str, _Sink]) -> None:
-        self.path = path
-        self.topics = topics
-        self._sinks = sinks
-        self._series: dict[str, Series] = {}
-
-    def adopt(self, other: Collected) -> None:
-        """Take the decoded topics of ``other`` (a second pass over the same file) that have none here."""
-        for name, sink in other._sinks.items():
-            self._sinks.setdefault(name, sink)
-
-    def series(self, name: str) -> Series:
-        """The columns of topic ``name``; raises the topic's first decoding error."""
-        if name in self._series:
-            return self._series[name]
-        topic = self.topics[name]
-        if topic.kind not in (ROS1, ROS2):
-            raise LogError(self.path, f"topic {topic.name} uses message encoding '{topic.kind}'; only ROS 2 CDR and ROS 1 messages can be read")
-        sink = self._sinks.get(name)
-        if sink is None:
-            raise LogError(self.path, f"topic {topic.name} has unsupported message type {topic.msgtype}")
-        if sink.error is not None:
-            raise LogError(self.path, sink.error)
-        series = self._series[name] = sink.finish()
-        del self._sinks[name]
-        return series
-
-    def release(self, name: str) -> None:
-        """Free the columns of topic ``name``."""
-        self._series.pop(name, None)
-        self._sinks.pop(name, None)

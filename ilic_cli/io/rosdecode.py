@@ -26,7 +26,6 @@ import numpy as np
 
 from ilic_cli.errors import ChoiceError, LogError
 from ilic_cli.io.container import guarded
-from ilic_cli.io.roscollect import Collected
 from ilic_cli.io.rosjson import parse_json_object, parse_units
 from ilic_cli.io.rosschema import (
     CONTROLLER_STATE,
@@ -44,10 +43,12 @@ from ilic_cli.io.rosschema import (
     TRAJECTORY,
     TRAJECTORY_POINT,
 )
+from ilic_cli.io.rostopics import Collected
+from ilic_cli.runlog import RunLog
+from ilic_cli.timebase import nominal_rate_hz
 
 if TYPE_CHECKING:
     from ilic_cli.io import Selection
-    from ilic_cli.runlog import RunLog
 
 MEASURED_FIELDS: dict[str, dict[str, str]] = {
     JOINT_STATE: {"position": "position", "velocity": "velocity", "effort": "effort"},
@@ -110,8 +111,6 @@ def _read_metadata(source: Collected, path: Path) -> dict[str, Any]:
 
 
 def _decode_ilic(source: Collected, selection: Selection, path: Path) -> RunLog:
-    from ilic_cli.runlog import RunLog
-
     payload = _read_metadata(source, path)
     joint = payload.get("joint")
     if not isinstance(joint, str):
@@ -381,9 +380,6 @@ def _effort(source: Collected, selection: Selection, path: Path) -> tuple[str, s
 
 
 def _decode_foreign(source: Collected, selection: Selection, path: Path) -> RunLog:
-    from ilic_cli.runlog import RunLog
-    from ilic_cli.timebase import nominal_rate_hz
-
     topic = _choose_state_topic(source, selection, path)
     states = _joint_state_series(source, topic, selection.joint, path, strict=False)
     joint = states["joint"]

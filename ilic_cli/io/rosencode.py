@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.errors import LogError
+from ilic_cli.io import cdrcols
 from ilic_cli.io.rosjson import dump_json, meta_for_writing
 from ilic_cli.io.rosschema import (
     FORMAT_TAG,
@@ -92,8 +93,7 @@ def metadata_text(log: RunLog, joint: str) -> str:
 
 def writer_joint(log: RunLog, default: str) -> str:
     """Joint name for writing: the log's ``joint`` metadata, else ``default``."""
-    joint = log.meta.get("joint")
-    return joint if isinstance(joint, str) and joint else default
+    return log.sensor.joint or default
 
 
 def encode(log: RunLog, joint: str, kind: str = ROS2) -> tuple[list[TopicSpec], Iterator[tuple[str, int, bytes]]]:
@@ -229,8 +229,6 @@ def encode_columns(log: RunLog, joint: str) -> Columns | None:
     does not fit CDR's int32 seconds; callers then use :func:`encode`, which
     reports the problem.
     """
-    from ilic_cli.io import cdrcols
-
     topics, messages = encode(log, joint, ROS2)
     first = {topic: data for topic, _, data in itertools.islice(messages, len(topics))}
     ns = log_stamps_ns(log)
@@ -274,8 +272,6 @@ def encode_columns(log: RunLog, joint: str) -> Columns | None:
 
 
 def _fill_rows(template: bytes, columns: list[tuple[int, np.ndarray]], times: list[tuple[int, np.ndarray, np.ndarray]], start: int, stop: int) -> np.ndarray:
-    from ilic_cli.io import cdrcols
-
     rows = cdrcols.fill_rows(template, stop - start)
     for offset, sec, nsec in times:
         cdrcols.put(rows, offset, "<i4", sec[start:stop].astype(np.int32))

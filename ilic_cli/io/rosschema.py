@@ -77,7 +77,7 @@ field names, so a message is decoded with the first layout whose size matches it
 
 def _controller_fields(layout: str, kind: str) -> dict[str, Any]:
     """:data:`CONTROLLER_STATE` in ``layout`` as a ``rosbags`` type definition, built field by field (no definition text is parsed)."""
-    from rosbags.interfaces import Nodetype
+    from rosbags.interfaces import Nodetype  # rosbags deferred: `ilic info --help` imports this module
 
     points, multi = CONTROLLER_LAYOUTS[layout]
     names = (Nodetype.SEQUENCE, ((Nodetype.BASE, ("string", 0)), 0))
@@ -93,7 +93,7 @@ def _controller_fields(layout: str, kind: str) -> dict[str, Any]:
 @functools.cache
 def typestore(kind: str) -> Any:
     """Return the ``rosbags`` type store: ROS 2 Humble (``"ros2"``) or ROS 1 Noetic (``"ros1"``, with ROS 1's :data:`CONTROLLER_STATE`)."""
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # rosbags deferred: `ilic info --help` imports this module
 
     if kind == ROS1:
         ts = get_typestore(Stores.ROS1_NOETIC)
@@ -105,7 +105,7 @@ def typestore(kind: str) -> Any:
 @functools.cache
 def controller_typestore(layout: str) -> Any:
     """Return a ROS 2 Humble type store with :data:`CONTROLLER_STATE` in ``layout`` (a key of :data:`CONTROLLER_LAYOUTS`)."""
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # rosbags deferred: `ilic info --help` imports this module
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
     ts.register(_controller_fields(layout, ROS2))

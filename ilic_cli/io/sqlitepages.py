@@ -19,12 +19,14 @@ raises :class:`Unusual`, and the caller reads the table with SQL as before.
 
 from __future__ import annotations
 
+import mmap
 import sqlite3
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 
 COLUMNS = ["id", "topic_id", "timestamp", "data"]
 """The ``messages`` table of ``rosbag2``'s sqlite3 storage (``id INTEGER PRIMARY KEY``: the row id)."""
@@ -99,8 +101,6 @@ class _Cells:
     """The first :data:`WINDOW` bytes of a block of cells as a matrix, read field by field at per-row offsets."""
 
     def __init__(self, u8: np.ndarray, cell: np.ndarray) -> None:
-        from numpy.lib.stride_tricks import as_strided
-
         top = len(u8) - WINDOW
         self.inside = cell <= top
         windows = as_strided(u8, shape=(top + 1, WINDOW), strides=(1, 1), writeable=False)
@@ -213,15 +213,11 @@ class Mapped(np.ndarray):
     mm: Any = None
 
     def release(self) -> None:
-        import mmap
-
         if self.mm is not None and hasattr(mmap, "MADV_DONTNEED"):
             self.mm.madvise(mmap.MADV_DONTNEED)
 
 
 def _mapped(path: Path) -> Mapped:
-    import mmap
-
     with open(path, "rb") as stream:
         if not path.stat().st_size:
             raise Unusual

@@ -21,7 +21,7 @@ import pandas as pd
 import pytest
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import Selection, WriteOptions, container, csvlog, ros1fast, rosbag1, rosschema
+from ilic_cli.io import Selection, WriteOptions, container, csvlog, ros1chunks, ros1fast, rosbag1, rosschema
 from ilic_cli.runlog import RunLog
 from tests.conftest import make_synthetic_log
 
@@ -140,7 +140,7 @@ def test_our_bags_read_the_same_both_ways(tmp_path: Path, writer_fast: bool, mon
 def _count_runs(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
     """Count vectorised runs and records decoded one by one in the fast reader."""
     counts = {"run": 0, "one": 0}
-    run, one = ros1fast._ChunkWalker._run, ros1fast._ChunkWalker._one
+    run, one = ros1chunks._ChunkWalker._run, ros1chunks._ChunkWalker._one
 
     def counting_run(self: Any, *args: Any) -> int:
         counts["run"] += 1
@@ -150,8 +150,8 @@ def _count_runs(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
         counts["one"] += 1
         one(self, *args)
 
-    monkeypatch.setattr(ros1fast._ChunkWalker, "_run", counting_run)
-    monkeypatch.setattr(ros1fast._ChunkWalker, "_one", counting_one)
+    monkeypatch.setattr(ros1chunks._ChunkWalker, "_run", counting_run)
+    monkeypatch.setattr(ros1chunks._ChunkWalker, "_one", counting_one)
     return counts
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ilic_cli.io import WriteOptions, read_log, rosbag2, rosbulk, write_log
+from ilic_cli.io import WriteOptions, read_log, ros2sqlite, rosbulk, write_log
 from ilic_cli.runlog import RunLog
 from tests.conftest import make_synthetic_log
 from tests.io.test_io_differential import assert_log_equals_source, read_both
@@ -29,19 +29,19 @@ def _table(rows: list[tuple[object, ...]], key: str = "INTEGER PRIMARY KEY") -> 
 
 
 ROWS = [(1, 1, -5, b"\x00\x01\x00"), (2, 2, 2**63 - 1, b""), (5, 1, 7, b"\xff\xfe\x00abc"), (9, 3, 8, b"x" * 300)]
-JOINED = rosbag2.SQL_JOINED.format(ids="1, 2")
-ROWS_SQL = rosbag2.SQL_ROWS.format(ids="1, 2")
+JOINED = ros2sqlite.SQL_JOINED.format(ids="1, 2")
+ROWS_SQL = ros2sqlite.SQL_ROWS.format(ids="1, 2")
 ALL = (-(2**63), 2**63 - 1)
 
 
 def test_joined_batch_gives_the_rows_of_the_wanted_topics_in_the_range_in_id_order() -> None:
-    topic_id, log_ns, sizes, buf = rosbag2._joined_batch(_table(ROWS), JOINED, *ALL)  # type: ignore[misc]
+    topic_id, log_ns, sizes, buf = ros2sqlite._joined_batch(_table(ROWS), JOINED, *ALL)  # type: ignore[misc]
     assert topic_id.tolist() == [1, 2, 1]
     assert log_ns.tolist() == [-5, 2**63 - 1, 7]  # int64 extremes survive the decimal text
     assert sizes.tolist() == [3, 0, 6]
     assert buf.tobytes() == b"\x00\x01\x00\xff\xfe\x00abc"  # NULs inside blobs are kept
-    assert rosbag2._joined_batch(_table(ROWS), JOINED, 2, 5)[1].tolist() == [2**63 - 1, 7]  # type: ignore[index]
-    assert len(rosbag2._joined_batch(_table(ROWS), JOINED, 6, 8)[0]) == 0  # type: ignore[index]  # none in the range: an empty batch
+    assert ros2sqlite._joined_batch(_table(ROWS), JOINED, 2, 5)[1].tolist() == [2**63 - 1, 7]  # type: ignore[index]
+    assert len(ros2sqlite._joined_batch(_table(ROWS), JOINED, 6, 8)[0]) == 0  # type: ignore[index]  # none in the range: an empty batch
 
 
 @pytest.mark.parametrize(
@@ -51,15 +51,15 @@ def test_joined_batch_gives_the_rows_of_the_wanted_topics_in_the_range_in_id_ord
 )
 def test_joined_batch_refuses_rows_of_other_types(row: tuple[object, ...]) -> None:
     """Such a batch goes row by row, where the values keep their type (as on the per-message path)."""
-    assert rosbag2._joined_batch(_table([*ROWS, row]), JOINED, *ALL) is None
+    assert ros2sqlite._joined_batch(_table([*ROWS, row]), JOINED, *ALL) is None
 
 
 def test_joined_batch_refuses_ids_that_do_not_increase_or_leave_the_range() -> None:
     """The ids checked are the ones joined: rows visited in another order, or outside the range, are refused, not read."""
     backwards = JOINED.replace("FROM messages", "FROM (SELECT * FROM messages ORDER BY id DESC LIMIT 100)")
-    assert rosbag2._joined_batch(_table(ROWS), backwards, *ALL) is None
+    assert ros2sqlite._joined_batch(_table(ROWS), backwards, *ALL) is None
     wider = JOINED.replace("BETWEEN ?1 AND ?2", "BETWEEN ?1 AND ?2 + 4")
-    assert rosbag2._joined_batch(_table(ROWS), wider, 1, 2) is None
+    assert ros2sqlite._joined_batch(_table(ROWS), wider, 1, 2) is None
 
 
 @pytest.mark.parametrize(
@@ -67,23 +67,23 @@ def test_joined_batch_refuses_ids_that_do_not_increase_or_leave_the_range() -> N
     [("INTEGER PRIMARY KEY", True), ("integer primary key", True), ("INTEGER PRIMARY KEY DESC", False), ("PRIMARY KEY", False), ("INTEGER", False)],
 )
 def test_only_an_id_that_is_the_rowid_is_read_in_ranges(key: str, rowid: bool) -> None:
-    assert rosbag2._id_is_rowid(_table(ROWS, key)) is rowid
+    assert ros2sqlite._id_is_rowid(_table(ROWS, key)) is rowid
     without = sqlite3.connect(":memory:")
     without.execute("CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, data BLOB) WITHOUT ROWID")
-    assert not rosbag2._id_is_rowid(without)
+    assert not ros2sqlite._id_is_rowid(without)
 
 
 @pytest.mark.parametrize("joined", [True, False], ids=["joined", "row-by-row"])
 def test_id_ranges_take_every_id_from_the_smallest_to_the_largest(monkeypatch: pytest.MonkeyPatch, joined: bool) -> None:
-    monkeypatch.setattr(rosbag2, "SQL_BATCH", 2)
+    monkeypatch.setattr(ros2sqlite, "SQL_BATCH", 2)
     db = _table([(-(2**63), 1, 1, b"a"), (-1, 2, 2, b"bb"), (0, 1, 3, b"c"), (7, 2, 4, b"dd"), (2**63 - 1, 1, 5, b"e")])
-    ranges = list(rosbag2._id_ranges(db))
+    ranges = list(ros2sqlite._id_ranges(db))
     assert ranges == [(-(2**63), -(2**63) + 1), (-1, 0), (7, 8), (2**63 - 1, 2**63 - 1)]
-    batches = [rosbag2._range_batch(db, JOINED if joined else None, ROWS_SQL, *r) for r in ranges]
+    batches = [ros2sqlite._range_batch(db, JOINED if joined else None, ROWS_SQL, *r) for r in ranges]
     assert [len(b[0]) for b in batches] == [1, 2, 1, 1]
     assert np.concatenate([b[1] for b in batches]).tolist() == [1, 2, 3, 4, 5]
     assert b"".join(b[3].tobytes() for b in batches) == b"abbcdde"
-    assert list(rosbag2._id_ranges(_table([]))) == []
+    assert list(ros2sqlite._id_ranges(_table([]))) == []
 
 
 @pytest.fixture
@@ -97,9 +97,9 @@ def _spy(monkeypatch: pytest.MonkeyPatch, refuse_every: int = 0) -> list[bool]:
 
     The read off the file's pages (tests/io/test_sqlitepages.py) is turned off: the SQL path is the one spied on.
     """
-    monkeypatch.setattr(rosbag2, "_feed_pages", lambda *args: False)
+    monkeypatch.setattr(ros2sqlite, "_feed_pages", lambda *args: False)
     joined: list[bool] = []
-    original = rosbag2._joined_batch
+    original = ros2sqlite._joined_batch
 
     def spy(db: sqlite3.Connection, joined_sql: str, first: int, last: int):  # type: ignore[no-untyped-def]
         got = original(db, joined_sql, first, last)
@@ -108,13 +108,13 @@ def _spy(monkeypatch: pytest.MonkeyPatch, refuse_every: int = 0) -> list[bool]:
         joined.append(got is not None)
         return got
 
-    monkeypatch.setattr(rosbag2, "_joined_batch", spy)
+    monkeypatch.setattr(ros2sqlite, "_joined_batch", spy)
     return joined
 
 
 def test_small_batches_joined_and_fetched_give_the_per_message_columns(bag: tuple[Path, object], monkeypatch: pytest.MonkeyPatch) -> None:
     path, log = bag
-    monkeypatch.setattr(rosbag2, "SQL_BATCH", 1000)  # 9001 rows: 10 batches, batch edges inside samples
+    monkeypatch.setattr(ros2sqlite, "SQL_BATCH", 1000)  # 9001 rows: 10 batches, batch edges inside samples
     joined = _spy(monkeypatch, refuse_every=3)
     assert_log_equals_source(read_both(path), log)
     assert joined[:10] == [True, True, False, True, True, False, True, True, False, True]
@@ -193,8 +193,8 @@ def test_rosbags_opens_bags_without_automatic_indexes_and_mapped_and_only_then(t
         return int(db.execute("PRAGMA automatic_index").fetchall()[0][0]), int(db.execute("PRAGMA mmap_size").fetchall()[0][0])
 
     hooks = list(apsw.connection_hooks)
-    with pytest.raises(KeyError), rosbag2._rosbags_sqlite_settings():
-        assert settings() == (0, rosbag2.SQL_MMAP)
+    with pytest.raises(KeyError), ros2sqlite.rosbags_sqlite_settings():
+        assert settings() == (0, ros2sqlite.SQL_MMAP)
         raise KeyError("a failed open")
     assert settings() == (1, 0)
     assert apsw.connection_hooks == hooks
@@ -207,7 +207,7 @@ def test_fast_read_opens_the_storage_without_counting(bag: tuple[Path, object], 
 
     path, _ = bag
     reader = Reader(path)
-    with rosbag2._rosbags_sqlite_settings(uncounted=uncounted):
+    with ros2sqlite.rosbags_sqlite_settings(uncounted=uncounted):
         reader.open()
     try:
         (storage,) = reader.storage.storages  # type: ignore[attr-defined]

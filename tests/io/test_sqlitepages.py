@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ilic_cli.io import overview, read_log, rosbag2, sqlitepages, write_log
+from ilic_cli.io import overview, read_log, ros2sqlite, sqlitepages, write_log
 from tests.conftest import make_synthetic_log
 from tests.io.test_io_differential import assert_log_equals_source, read_both
 
@@ -111,13 +111,13 @@ def test_bags_read_off_the_pages_give_rosbags_columns(tmp_path: Path, monkeypatc
     log = make_synthetic_log(samples=4000)
     path = write_log(log, tmp_path / "bag", options=WriteOptions(storage="sqlite3", fast=fast_writer))
     fed: list[bool] = []
-    original = rosbag2._feed_pages
+    original = ros2sqlite._feed_pages
 
     def spy(*args: object) -> bool:
         fed.append(original(*args))  # type: ignore[arg-type]
         return fed[-1]
 
-    monkeypatch.setattr(rosbag2, "_feed_pages", spy)
+    monkeypatch.setattr(ros2sqlite, "_feed_pages", spy)
     assert_log_equals_source(read_both(path), log)
     assert fed == [True]
 
@@ -126,7 +126,7 @@ def test_overview_after_a_read_is_rosbags(tmp_path: Path, monkeypatch: pytest.Mo
     """``ilic info``'s topics of an sqlite3 bag from the read's counts: the overview ``rosbags`` gives, without its count of the table."""
     path = write_log(make_synthetic_log(samples=3000), tmp_path / "bag")
     read_log(path)
-    assert rosbag2.table_summary(next(path.glob("*.db3"))) is not None
+    assert ros2sqlite.table_summary(next(path.glob("*.db3"))) is not None
     fast = overview._bag2(path)
     assert fast == overview._bag(path)
     assert {t.topic: t.count for t in fast}["/joint_states"] == 3000
