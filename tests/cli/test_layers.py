@@ -80,7 +80,6 @@ LAYER_PENDING: set[tuple[str, str]] = {
     ("ilic_cli.output_error", "plant.dynamics"),
     ("ilic_cli.output_error", "plant.replay"),
     ("plant.closed_loop", "ilic_cli.idim_ilic"),
-    ("plant.corpus", "ilic_cli.idim_ls"),
     ("plant.scenarios", "ilic_cli.io"),
 }
 
@@ -101,7 +100,6 @@ MODULE_PENDING: set[str] = {
     "ilic_cli/io/ros1fast.py",
     "ilic_cli/io/rosbag2.py",
     "ilic_cli/io/roscollect.py",
-    "plant/corpus.py",
     "plant/kernel.py",
 }
 
@@ -250,12 +248,6 @@ DEFERRED_PENDING: set[str] = {
     "plant/__init__.py:plant.dynamics",
     "plant/__init__.py:plant.replay",
     "plant/__init__.py:plant.scenarios",
-    "plant/corpus.py:ilic_cli.effects",
-    "plant/corpus.py:ilic_cli.parameters",
-    "plant/corpus.py:ilic_cli.regressor",
-    "plant/corpus.py:plant.controllers",
-    "plant/corpus.py:plant.dynamics",
-    "plant/corpus.py:plant.trajectories",
 }
 
 
