@@ -10,7 +10,7 @@ Prints the issue's rates (:func:`tests.corpus.measure.summary`), their breakdown
 noise model, writer and effect, and every failure with the diagnosis's reason (its JSON ``decisions``), as
 Markdown. ``--check``: exit 1 when a rate of the "Done when" does not hold (:func:`tests.corpus.measure.failures`).
 
-Usage: python benchmarks/corpus_robot.py [--jobs 2] [--cases GLOB] [--json FILE] [--check]
+Usage: python benchmarks/corpus_robot.py [--jobs 2] [--cases GLOB] [--json FILE] [--rows FILE] [--check]
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import json
 import os
 import sys
 import time
+from concurrent.futures import as_completed
 from contextlib import nullcontext as _nullcontext
 from pathlib import Path
 from typing import Any
@@ -77,9 +78,10 @@ def failure_list(rows: list[dict[str, Any]]) -> str:
 
 def report(rows: list[dict[str, Any]], wall_s: float, jobs: int) -> str:
     s = summary(rows)
-    cpu = sum(r["wall_s"]["build"] + r["wall_s"]["measure"] for r in rows)
+    cpu = sum(r["cpu_s"] for r in rows)
     out = [
-        f"{len(rows)} logs ({s['clean']} clean, {s['effect_logs']} with effects); {wall_s:.0f} s wall on {jobs} worker(s), {cpu:.0f} s summed over the logs",
+        f"{len(rows)} logs ({s['clean']} clean, {s['effect_logs']} with effects); {wall_s:.0f} s wall on {jobs} worker(s); "
+        f"{cpu:.0f} s of CPU summed over the logs",
         "",
         f"- clean logs with a finding other than `offset` (or a current loop's lag): {_pct(s['clean_with_false_alarm'], s['clean'])}",
         f"- effect logs named exactly: {_pct(s['named_exactly'], s['effect_logs'])}; effects named {_pct(s['effects_named'], s['effects_total'])}",
@@ -94,15 +96,28 @@ def report(rows: list[dict[str, Any]], wall_s: float, jobs: int) -> str:
 
 
 def _pool(jobs: int) -> Any:
-    """``jobs`` spawned worker processes, one thread each (a log per process), or none for one job."""
+    """``jobs`` spawned worker processes, one thread each (a log per process), or none for one job.
+
+    A process pool that fails loudly: a worker killed from outside breaks the pool (``BrokenProcessPool``) instead of
+    leaving its case waiting forever; ``--rows`` keeps what was done.
+    """
     if jobs <= 1:
         return None
+    from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
     from ilic_cli.parallel import THREADS_ENV
 
     os.environ[THREADS_ENV] = "1"  # the workers inherit it
-    return get_context("spawn").Pool(jobs)
+    return ProcessPoolExecutor(jobs, mp_context=get_context("spawn"))
+
+
+def _kept(path: Path | None) -> dict[str, dict[str, Any]]:
+    """The rows of ``--rows FILE`` (one JSON object a line), by case name."""
+    if path is None or not path.is_file():
+        return {}
+    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    return {r["case"]: r for r in rows}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -111,19 +126,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cases", default="*", help="glob of case names (default all)")
     ap.add_argument("--json", type=Path, default=None, help="also write every row and the summary as JSON")
     ap.add_argument("--check", action="store_true", help="exit 1 when a rate of issue 29's 'Done when' does not hold")
+    ap.add_argument("--rows", type=Path, default=None, help="keep each row in FILE as it is done, and reuse the rows already there")
     args = ap.parse_args(argv)
     chosen = [c for c in cases() if fnmatch.fnmatch(c.name, args.cases)]
     if not chosen:
         print(f"no case matches {args.cases!r}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
+    done = _kept(args.rows)
+    order = sorted((c for c in chosen if c.name not in done), key=lambda c: -c.fs_hz)  # the 8 kHz logs first: the workers end together
     pool = _pool(args.jobs)
-    order = sorted(chosen, key=lambda c: -c.fs_hz)  # the longest logs (8 kHz) first: the workers end together
-    done: dict[str, dict[str, Any]] = {}
     with pool if pool is not None else _nullcontext():
-        for i, row in enumerate(map(run_case, order) if pool is None else pool.imap_unordered(run_case, order, chunksize=1)):
+        results = map(run_case, order) if pool is None else (f.result() for f in as_completed([pool.submit(run_case, c) for c in order]))
+        for row in results:
             done[row["case"]] = row
-            print(f"[{i + 1}/{len(chosen)}] {row['case']}: {'exact' if row['exact'] else 'NOT exact'}", file=sys.stderr, flush=True)
+            if args.rows is not None:
+                with args.rows.open("a", encoding="utf-8") as fh:
+                    fh.write(json.dumps(row, default=str) + "\n")
+            print(f"[{len(done)}/{len(chosen)}] {row['case']}: {'exact' if row['exact'] else 'NOT exact'}", file=sys.stderr, flush=True)
     rows = [done[c.name] for c in chosen]
     wall = time.perf_counter() - t0
     print(report(rows, wall, args.jobs))

@@ -124,7 +124,7 @@ def _reasons(diag: dict[str, Any], eids: Iterable[str]) -> dict[str, str]:
 
 def run_case(case: Case) -> dict[str, Any]:
     """One case end to end: build, write, diagnose (identify), score; a JSON-able row."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     built = build(case)
     t1 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="ilic-corpus-") as tmp:
@@ -155,6 +155,7 @@ def run_case(case: Case) -> dict[str, Any]:
         "diagnose_rows": diag["rows_total"],
         "identify": None,
         "wall_s": {"build": t1 - t0, "measure": t2 - t1},
+        "cpu_s": time.process_time() - c0,
     }
     if ident is not None:
         ls = ident["ls"]
