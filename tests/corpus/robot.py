@@ -352,7 +352,8 @@ def calibrate(case: Case, eid: str, target: float, base: float) -> tuple[float, 
 
     lo, hi = 0.0, SIZE_GUESS[eid]
     c = change(hi)
-    while c < target and hi < 64 * SIZE_GUESS[eid]:
+    cap = 0.8 if eid == "flexibility" else 64 * SIZE_GUESS[eid]  # a load fraction is below 1
+    while c < target and 2.0 * hi <= cap:
         lo, hi = hi, hi * 2.0
         c = change(hi)
     s = hi
