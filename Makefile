@@ -8,7 +8,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast bench bench-large mutation clean
+.PHONY: demo test test-fast bench bench-large corpus mutation clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -42,6 +42,10 @@ bench: $(STAMP)
 
 bench-large: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py --large
+
+# the robot corpus of issue 29 (not part of make test; docs/diagnosis.md): every case measured, exit 1 when a rate of its "Done when" fails
+corpus: $(STAMP)
+	$(TEST_ENV) $(BIN)/python benchmarks/corpus_robot.py --jobs $(TEST_WORKERS) --check
 
 # Mutation testing (issue 14). Tool: mutmut 2.x, for its mutation operators only.
 # mutmut 3 (3.8.1 installable here; not adopted) copies the tree into mutants/,

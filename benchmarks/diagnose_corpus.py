@@ -1,10 +1,10 @@
-"""How ``ilic diagnose`` does on the corpus of simulated logs with known truth (issue #11, plant/corpus.py).
+"""How ``ilic diagnose`` does on the corpus of simulated logs with known truth (issue #11, tests/corpus/__init__.py).
 
 Runs :func:`ilic_cli.diagnosis.core.diagnose` (what ``ilic diagnose`` runs,
-default settings, replay included) on every case of :data:`plant.corpus.CASES`
+default settings, replay included) on every case of :data:`tests.corpus.CASES`
 and prints a Markdown table, one row a case: the truth, the findings, and per
 finding ``right`` / ``false alarm``, plus the effects ``missed``. Scoring
-(:func:`plant.corpus.score`):
+(:func:`tests.corpus.score`):
 
 * ``offset`` is always right (the rigid-offset model's column, not physics);
 * a ``delay`` on a log with a current loop and no concealed lag is right when
@@ -24,8 +24,8 @@ the distribution of the first round's best p-value on clean cases.
 (its seed plus 1000, 2000, ...; named ``case@sSEED``), the effects and their
 sizes as they are: how an estimate scatters over recordings, not over one.
 
-``--design``: calibrate the effect cases anew (:func:`plant.corpus.design`) and
-print them as the literal of ``plant/corpus.py`` (about two minutes).
+``--design``: calibrate the effect cases anew (:func:`tests.corpus.design`) and
+print them as the literal of ``tests/corpus/__init__.py`` (about two minutes).
 
 Usage: python benchmarks/diagnose_corpus.py [--jobs 2] [--cases GLOB] [--json FILE] [--reseed N] [--design]
 """
@@ -45,7 +45,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from plant.corpus import CASES, PARAM_TOLERANCE, build_case, case_of, reseeded, score  # noqa: E402
+from tests.corpus import CASES, PARAM_TOLERANCE, build_case, case_of, reseeded, score  # noqa: E402
 
 
 def run_case(name: str) -> dict[str, Any]:
@@ -205,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--design", action="store_true", help="calibrate the effect cases anew and print them")
     args = ap.parse_args(argv)
     if args.design:
-        from plant.corpus import design, recipes
+        from tests.corpus import design, recipes
 
         with _pool(args.jobs) as pool:
             for c in pool.map(design, recipes(), chunksize=1):

@@ -1,6 +1,6 @@
 """Calibration and power of the replay's Monte-Carlo null (``ilic diagnose --null montecarlo``; issue #11 item 3).
 
-Calibration (``--clean``): on clean corpus logs (:data:`plant.corpus.CLEAN_CASES`,
+Calibration (``--clean``): on clean corpus logs (:data:`tests.corpus.CLEAN_CASES`,
 no physics beyond the rigid plant and its noise) every applicable catalogue
 effect is forced through the replay's decision as the first candidate (its
 nonlinear parameter searched on the log as the selection does,
@@ -52,7 +52,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from plant.corpus import CASES, CLEAN_CASES, EFFECT_CASES, NOISE_MODELS, TRAJECTORY_KINDS, Case  # noqa: E402
+from tests.corpus import CASES, CLEAN_CASES, EFFECT_CASES, NOISE_MODELS, TRAJECTORY_KINDS, Case  # noqa: E402
 
 
 def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str, ...] | None = None, mc_below: float = 1.0) -> list[dict[str, Any]]:
@@ -71,7 +71,7 @@ def forced_trials(name: str, replicates: int, seed: int = 0, effects: tuple[str,
     from ilic_cli.regressor import get_model
     from ilic_cli.runlog import joint_type
     from ilic_cli.simulation.replay import tau_sensor
-    from plant.corpus import build_case, score
+    from tests.corpus import build_case, score
 
     case = CASES[name] if name in CASES else extra_clean_case(name)
     log = prepare_log(build_case(case)).log

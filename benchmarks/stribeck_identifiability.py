@@ -13,7 +13,7 @@ within the realisations' standard error (the ``+-``) of the least is not told
 apart from it by the log.
 
 With ``--recordings N`` it asks the same of the case's own log and of its
-first ``N - 1`` reseeds (``plant.corpus.case_of``: new noise, disturbance and
+first ``N - 1`` reseeds (``tests.corpus.case_of``: new noise, disturbance and
 trajectory): on each, the ``vs`` (a grid of 0.5-2 times the truth) whose
 *mean* replay over the ``--seeds`` realisations is closest to the recording
 in the decimated force, every other parameter the truth (``--ratios``: the
@@ -58,8 +58,8 @@ from ilic_cli.parallel import ordered_map  # noqa: E402
 from ilic_cli.runlog import RunLog  # noqa: E402
 from ilic_cli.simulation.replay import replay  # noqa: E402
 from plant.closed_loop import simulate_segments  # noqa: E402
-from plant.corpus import CASES, Case, build_case, case_of, reseeded  # noqa: E402
 from plant.dynamics import plant_model  # noqa: E402
+from tests.corpus import CASES, Case, build_case, case_of, reseeded  # noqa: E402
 
 METRICS = ("band force", "raw force", "force / 3", "position")
 

@@ -36,7 +36,7 @@ which holds the loop's answer to the recording's own noise; where that fit
 explains the recording to its noise, its estimate replaces the search's, and
 a level it does not find above zero refutes the finding.
 
-Measured on the corpus (``plant/corpus.py``): the Stribeck trapezoid without a
+Measured on the corpus (``tests/corpus/__init__.py``): the Stribeck trapezoid without a
 current loop, held-out replay force error 1.35 % -> 0.914 % (p = 5e-14, 5 of 5
 folds; Fs 2.55 +- 0.12 N, vs 9.9 +- 2.3 mm/s for 2.47 N, 8 mm/s; the open-loop
 segments then 2.473 +- 0.012 N, 7.972 +- 0.040 mm/s); the one with

@@ -23,7 +23,7 @@ recording's (:attr:`SegmentFit.consistent`). A force disturbance in the plant
 moves the axis away from any open-loop model: the residual then stays above
 the noise and the fit is not used.
 
-Measured on the corpus (``plant/corpus.py``, the diagnosis's use of it:
+Measured on the corpus (``tests/corpus/__init__.py``, the diagnosis's use of it:
 :func:`ilic_cli.diagnosis.core.diagnose`): on the Stribeck trapezoid with
 sensor noise only, over its five recordings, ``vs`` 7.972, 7.990, 8.036,
 8.079, 7.988 mm/s for 8 and ``Fs`` 2.460-2.477 N for 2.47 (the closed-loop

@@ -73,15 +73,11 @@ MAX_MODULE_LINES = 500
 MAX_FUNCTION_LINES = 100
 
 # (importer, imported) pairs that point upward, or out of plant/ into an estimator or io
-LAYER_PENDING: set[tuple[str, str]] = {
-    ("plant.corpus", "ilic_cli.idim_ls"),
-}
+LAYER_PENDING: set[tuple[str, str]] = set()
 
 CYCLE_PENDING: set[frozenset[str]] = set()
 
-MODULE_PENDING: set[str] = {
-    "plant/corpus.py",
-}
+MODULE_PENDING: set[str] = set()
 
 FUNCTION_PENDING: set[str] = {
     "ilic_cli/robot/kernel.py:inertial_regressor",
@@ -97,12 +93,6 @@ DEFERRED_PENDING: set[str] = {
     "ilic_cli/idim_ls.py:pandas",
     "ilic_cli/robot/consistency.py:scipy.stats",
     "ilic_cli/runlog.py:pandas",
-    "plant/corpus.py:ilic_cli.effects",
-    "plant/corpus.py:ilic_cli.parameters",
-    "plant/corpus.py:ilic_cli.regressor",
-    "plant/corpus.py:plant.controllers",
-    "plant/corpus.py:plant.dynamics",
-    "plant/corpus.py:plant.trajectories",
 }
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from functools import cache
 
 from ilic_cli.diagnosis.core import Diagnosis, diagnose
-from plant.corpus import build_case, case_of
+from tests.corpus import build_case, case_of
 
 
 @cache

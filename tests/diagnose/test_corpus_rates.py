@@ -1,4 +1,4 @@
-"""The diagnosis on the corpus of plant logs with known truth (issue #11; ``plant/corpus.py``).
+"""The diagnosis on the corpus of plant logs with known truth (issue #11; ``tests/corpus/__init__.py``).
 
 The whole corpus (32 clean, 32 concealed-effect logs) is run by
 ``python benchmarks/diagnose_corpus.py``; its figures are in docs/diagnosis.md. Here,
@@ -16,8 +16,8 @@ import pytest
 
 from ilic_cli.diagnosis.core import diagnose
 from ilic_cli.runlog import RunLog
-from plant.corpus import CASES, CLEAN_CASES, DELAY_SIZE_TOLERANCE, NOISE_MODELS, PARAM_TOLERANCE, build_case, expected_delay_s, score
 from tests.conftest import require_shared
+from tests.corpus import CASES, CLEAN_CASES, DELAY_SIZE_TOLERANCE, NOISE_MODELS, PARAM_TOLERANCE, build_case, expected_delay_s, score
 from tests.diagnose.corpus_cache import diagnosed
 
 CLEAN_SEED_1 = [c.name for c in CLEAN_CASES if c.name.endswith("-s1")]
@@ -53,7 +53,7 @@ def test_a_clean_log_has_no_false_alarm(name: str) -> None:
     The lag is shorter than a sample; the replay judges it like any other effect (realised as the first-order
     current loop) and keeps it on every log with the loop and the paper, trapezoid or EMPS reference, on none
     without. Measured beyond the hold: 0.215-0.252 ms for the loop's 0.227 ms; right within
-    :data:`plant.corpus.DELAY_SIZE_TOLERANCE` (50 %). On the multisine (below 1.2 Hz) the
+    :data:`tests.corpus.DELAY_SIZE_TOLERANCE` (50 %). On the multisine (below 1.2 Hz) the
     lag moves the replay too little to be kept, and it is not asserted there.
     """
     s, findings = _scored(name)
@@ -68,7 +68,7 @@ def test_a_clean_log_has_no_false_alarm(name: str) -> None:
 
 @pytest.mark.parametrize("name", ONE_PER_EFFECT)
 def test_a_concealed_effect_is_named_alone(name: str) -> None:
-    """The concealed effect is named, and nothing else but ``offset`` and a current loop's lag (:func:`plant.corpus.score`)."""
+    """The concealed effect is named, and nothing else but ``offset`` and a current loop's lag (:func:`tests.corpus.score`)."""
     s, findings = _scored(name)
     truth = set(CASES[name].effects)
     assert truth <= {eid for eid, _ in findings} and not s["missed"] and s["false_alarms"] == 0, findings

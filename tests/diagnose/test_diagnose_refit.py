@@ -24,8 +24,8 @@ from ilic_cli.lsq import lstsq
 from ilic_cli.prepare import prepare_log
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
-from plant.corpus import CASES, build_case, score
 from tests.conftest import require_shared
+from tests.corpus import CASES, build_case, score
 from tests.diagnose.corpus_cache import diagnosed
 
 
@@ -124,7 +124,7 @@ def test_when_didim_raises_the_error_the_output_error_itself_is_fitted() -> None
     replays; Fs 3.40 N (3.6 %), vs 8.35 mm/s (4.4 %), stiffness 0.9 %, damping 4.2 %, load fraction 0.6 %, the lag
     0.236 ms (the loop's time constant 0.227 ms).
     """
-    from plant.corpus import case_of
+    from tests.corpus import case_of
 
     require_shared()  # the EMPS reference trajectory is DATA_EMPS.mat's
     name = "stribeck+flexibility-emps-current_loop-s303@s2303"

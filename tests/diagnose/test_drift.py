@@ -1,7 +1,7 @@
 """Friction that changes over time is named ``friction_drift`` with its shape and size; a payload step and clean logs are not (issue 29, item 5).
 
 First the pure functions of :mod:`ilic_cli.diagnosis.drift` on a synthetic regressor (exact truth, many seeds in
-milliseconds), then ``ilic diagnose`` on plant logs (:func:`plant.corpus.simulate_case`) whose friction drifts.
+milliseconds), then ``ilic diagnose`` on plant logs (:func:`tests.corpus.simulate_case`) whose friction drifts.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from ilic_cli.diagnosis import DiagnoseSettings, diagnose
 from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, detect_drift
 from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.diagnosis.select import SelectSettings
-from plant.corpus import CASES, Case, simulate_case
+from tests.corpus import CASES, Case, simulate_case
 
 TOLERANCE = 0.15
 NAMES = ("M", "Fv", "Fc", "offset")
@@ -143,7 +143,7 @@ def test_a_clean_log_has_no_drift(trajectory: str, noise: str, seed: int) -> Non
 )
 def test_drift_is_scale_free_on_revolute_joints(joint: str, drift: dict, shape: str, size: tuple[str, float]) -> None:
     """The same tests on a 0.08 kg·m² and a 0.5 kg·m² joint (N·m·s/rad, N·m): measured -31.4 % (tau 6.43 s) and +0.0100 N·m/s."""
-    from plant.corpus import revolute_log
+    from tests.corpus import revolute_log
 
     settings = DiagnoseSettings(simulate=False, select=SelectSettings(effects=()))
     diag = diagnose(revolute_log(joint, {"friction_drift": drift}, seed=3), settings=settings)

@@ -6,8 +6,8 @@ import pytest
 
 from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.report import to_markdown
-from plant.corpus import CASES, score
 from tests.conftest import require_shared
+from tests.corpus import CASES, score
 from tests.diagnose.corpus_cache import diagnosed
 
 
@@ -95,7 +95,7 @@ def test_stribeck_beside_a_flexibility_that_the_held_out_test_leaves_unconfirmed
     (in one round: 11 % and 14 %). Before, Stribeck friction was missed on this seed.
     """
     from ilic_cli.diagnosis.select import HELDOUT_UNCONFIRMED
-    from plant.corpus import case_of
+    from tests.corpus import case_of
 
     require_shared()  # the EMPS reference trajectory is DATA_EMPS.mat's
     name = "stribeck+flexibility-emps-current_loop-s303@s1303"

@@ -1,6 +1,6 @@
 """Gravity on a revolute joint is named gravity, not a spring, with its first moments (issue 29, item 4).
 
-Logs of :func:`plant.corpus.revolute_log`: a CTC without gravity compensation on a multisine that swings the link
+Logs of :func:`tests.corpus.revolute_log`: a CTC without gravity compensation on a multisine that swings the link
 through about 2.8 rad, a 19-bit encoder, the held command as the torque. Measured (30 s logs, seed 1): the rigid
 fit's relative error 2.56 % clean; with gravity 5.30 % (0.08 kg·m², MX 0.006, MY 0.003 kg·m) and 3.80 %
 (0.5 kg·m², MX 0.03, MY -0.015 kg·m); ``ilic diagnose`` names gravity on both within 0.5 % (spring: not
@@ -17,8 +17,8 @@ import pytest
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
 from ilic_cli.diagnosis.select import SelectSettings
 from ilic_cli.io import write_log
-from plant.corpus import revolute_log
 from tests.clirun import run_cli
+from tests.corpus import revolute_log
 
 TOLERANCE = 0.15
 """The issue's: parameters within 15 %."""
@@ -87,7 +87,7 @@ def test_a_vertical_axis_reports_its_constant_force_as_a_weight() -> None:
     """A 12 kg load hanging on the EMPS-like axis (its metadata says ``vertical``): 117.7 N, read as that weight and that mass."""
     from ilic_cli.diagnosis.report import to_markdown
     from ilic_cli.simulation.scenarios import Overrides, run_scenario
-    from plant.corpus import CTC_CHI0, NOISE_MODELS, PLANT
+    from tests.corpus import CTC_CHI0, NOISE_MODELS, PLANT
 
     g = 9.80665
     ov = Overrides(

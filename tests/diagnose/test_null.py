@@ -46,7 +46,7 @@ from tests.clirun import run_cli
 from tests.conftest import import_or_skip
 
 import_or_skip("plant.closed_loop")
-from plant.corpus import CASES, build_case  # noqa: E402
+from tests.corpus import CASES, build_case  # noqa: E402
 
 LS = LSSettings()
 BASE = get_model("rigid-offset")

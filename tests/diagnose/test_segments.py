@@ -20,9 +20,9 @@ from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.replay import tau_sensor
 from plant.closed_loop import simulate_segments
-from plant.corpus import CASES, build_case
 from plant.dynamics import plant_model
 from plant.replay import measured_state, open_loop
+from tests.corpus import CASES, build_case
 
 NAMES = ("M", "Fv", "Fc", "offset", "Fs", "log_vs")
 SECONDS = 9.0

@@ -10,7 +10,7 @@ from types import ModuleType
 import numpy as np
 import pytest
 
-from plant.corpus import CASES, build_case, case_of, reseeded
+from tests.corpus import CASES, build_case, case_of, reseeded
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "diagnose_corpus.py"
 

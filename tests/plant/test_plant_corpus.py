@@ -140,7 +140,7 @@ def test_simulate_cli_takes_a_trajectory_and_the_new_effects(tmp_path: Path) -> 
 # the corpus
 # ---------------------------------------------------------------------------
 def test_corpus_covers_the_issue() -> None:
-    from plant.corpus import CASES, CLEAN_CASES, EFFECT_CASES, NOISE_MODELS, PAIR_CASES, TRAJECTORY_KINDS
+    from tests.corpus import CASES, CLEAN_CASES, EFFECT_CASES, NOISE_MODELS, PAIR_CASES, TRAJECTORY_KINDS
 
     assert len(CLEAN_CASES) >= 20 and len(CASES) == len(CLEAN_CASES) + len(EFFECT_CASES) + len(PAIR_CASES)
     assert {(c.trajectory, c.noise) for c in CLEAN_CASES} == {(t, n) for t in TRAJECTORY_KINDS for n in NOISE_MODELS}
@@ -156,14 +156,14 @@ def test_corpus_covers_the_issue() -> None:
 
 @pytest.mark.parametrize("name", ["position_ripple-paper-current_loop-s222", "payload_change-multisine-disturbance-s241"])
 def test_corpus_case_size_is_as_stored(name: str) -> None:
-    from plant.corpus import CASES, size_points
+    from tests.corpus import CASES, size_points
 
     case = CASES[name]
     assert size_points(case) == pytest.approx(case.size_pts, abs=0.002)
 
 
 def test_corpus_case_is_deterministic_and_carries_its_truth() -> None:
-    from plant.corpus import CASES, build_case, expected_delay_s
+    from tests.corpus import CASES, build_case, expected_delay_s
 
     case = CASES["delay+spring-multisine-combined-s304"]
     a, b = build_case(case), build_case(case)
@@ -177,7 +177,7 @@ def test_corpus_case_is_deterministic_and_carries_its_truth() -> None:
 
 
 def test_corpus_design_reproduces_a_stored_case() -> None:
-    from plant.corpus import CASES, EFFECT_CASES, PAIR_CASES, design, recipes
+    from tests.corpus import CASES, EFFECT_CASES, PAIR_CASES, design, recipes
 
     recipe = next(r for r in recipes() if r[0] == "single" and r[1][1] == "delay" and r[1][3] == "sensor")  # no search: two simulations
     case = design(recipe)
@@ -186,7 +186,7 @@ def test_corpus_design_reproduces_a_stored_case() -> None:
 
 
 def test_score_judges_findings_against_the_truth() -> None:
-    from plant.corpus import CASES, score
+    from tests.corpus import CASES, score
 
     clean_cl = CASES["clean-paper-current_loop-s1"]
     tau = 1.0 / (2 * math.pi * 700.0)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ilic_cli.effects import make_effects
-from plant.corpus import REVOLUTE_JOINTS, Case, revolute_log, simulate_case
 from plant.dynamics import RigidParameters, force_model
+from tests.corpus import REVOLUTE_JOINTS, Case, revolute_log, simulate_case
 
 
 def _sliding(qd: np.ndarray) -> np.ndarray:
@@ -50,7 +50,7 @@ def test_friction_that_warms_up_is_simulated() -> None:
 
 
 def test_score_compares_a_drift_by_its_shape_parameters() -> None:
-    from plant.corpus import parameter_error, score
+    from tests.corpus import parameter_error, score
 
     warm = Case("warm-up", "paper", "sensor", 5, {"friction_drift": {"dFv": -66.7, "dFc": 0.0, "tau": 6.0, "Fv_rate": 0.0, "Fc_rate": 0.0}})
     found = {"dFv": -71.5, "dFc": 0.0, "tau": 5.96, "Fv_rate": 0.0, "Fc_rate": 0.0}

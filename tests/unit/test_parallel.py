@@ -102,7 +102,7 @@ def test_default_is_the_cores_available(monkeypatch: pytest.MonkeyPatch) -> None
 def test_replays_in_threads_equal_replays_one_after_another(monkeypatch: pytest.MonkeyPatch) -> None:
     """The compiled loop is pure and releases the GIL: the same logs, bit for bit, whatever the threads (Stribeck: its general path)."""
     from ilic_cli.simulation.replay import replay
-    from plant.corpus import CASES, PLANT, simulate_case
+    from tests.corpus import CASES, PLANT, simulate_case
 
     log = simulate_case(CASES["clean-trapezoid-sensor-s1"])
     sensor = {"noise": {"q_std": 5e-7}, "quantization": {"resolution": 2e-7}}
