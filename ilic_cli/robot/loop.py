@@ -17,9 +17,8 @@ frozen over each step and chosen at its start, as the 1-DOF plant does
   the step (``qd_j = qdd_j = 0``), beyond it it breaks away, ``s_j`` in the
   direction of that torque.
 
-A sliding joint whose velocity ends a step with the opposite sign is set to
-rest there (the 1-DOF plant redoes the step up to the crossing; here the
-position keeps the step's motion, an error of order ``qdd T^2`` once per reversal).
+A sliding joint whose velocity ends a step with the opposite sign makes the
+step be redone up to that crossing, as the 1-DOF plant does (:func:`_period`).
 
 Controller at sample ``k`` (command held over ``[t_k, t_k+1)``), on the
 quantised position ``q_m`` and ``qd_hat`` (backward difference of ``q_m``,
@@ -86,14 +85,10 @@ def _accel(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, out, tau_net, ws):  # t
 
 @njit(cache=True, nogil=True)
 def _rk4(kin, g, plant, q, qd, u, dt, locked, sc, ws):  # type: ignore[no-untyped-def]
-    """One RK4 step of the plant under the held command ``u``, friction directions frozen; ``q, qd`` updated in place.
-
-    ``locked`` (n,) and ``sc`` (12, n) are scratch.
-    """
+    """One RK4 step of ``dt`` under the held command ``u``, directions ``sc[0]`` and ``locked`` frozen; ``q, qd`` updated in place."""
     pi, Fv, Fc, off = plant
     n = len(q)
     s, k1, k2, k3, k4, tn, q2, v2, q3, v3, q4, v4 = sc[0], sc[1], sc[2], sc[3], sc[4], sc[5], sc[6], sc[7], sc[8], sc[9], sc[10], sc[11]
-    _directions(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, k1, tn, ws)
     h = 0.5 * dt
     _accel(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, k1, tn, ws)
     for j in range(n):
@@ -108,7 +103,46 @@ def _rk4(kin, g, plant, q, qd, u, dt, locked, sc, ws):  # type: ignore[no-untype
     for j in range(n):
         q[j] += dt / 6.0 * (qd[j] + 2.0 * v2[j] + 2.0 * v3[j] + v4[j])
         qd[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-        if s[j] != 0.0 and qd[j] * s[j] < 0.0:  # crossed zero within the step: at rest
+
+
+@njit(cache=True, nogil=True)
+def _period(kin, g, plant, q, qd, u, dt, locked, sc, ws):  # type: ignore[no-untyped-def]
+    """Advance one control period: RK4 steps between the joints' velocity reversals.
+
+    When a sliding joint's velocity changes sign within the step, the step is
+    redone up to the first crossing (linear interpolation of the velocity), that
+    joint's velocity is set to exactly 0 and the rest of the period starts with
+    a new stick/slip decision.
+    """
+    pi, Fv, Fc, off = plant
+    n = len(q)
+    s, q0, v0 = sc[0], sc[12], sc[13]
+    left = dt
+    for _ in range(2 * n + 2):
+        _directions(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, sc[1], sc[5], ws)
+        for j in range(n):
+            q0[j], v0[j] = q[j], qd[j]
+        _rk4(kin, g, plant, q, qd, u, left, locked, sc, ws)
+        first, theta = -1, 1.0
+        for j in range(n):
+            if s[j] != 0.0 and qd[j] * s[j] < 0.0:
+                if v0[j] == 0.0:  # broke away from rest and came back within the step: at rest again
+                    qd[j] = 0.0
+                    continue
+                f = v0[j] / (v0[j] - qd[j])
+                if f < theta or first < 0:
+                    first, theta = j, f
+        if first < 0:
+            return
+        for j in range(n):
+            q[j], qd[j] = q0[j], v0[j]
+        _rk4(kin, g, plant, q, qd, u, theta * left, locked, sc, ws)
+        qd[first] = 0.0
+        left -= theta * left
+        if left <= 1e-12 * dt:
+            return
+    for j in range(n):  # a reversal left unresolved after as many splits: the joint rests
+        if s[j] != 0.0 and qd[j] * s[j] < 0.0:
             qd[j] = 0.0
 
 
@@ -160,7 +194,7 @@ def run_steps(kin, g, plant, ctrl, hat, step, exact, dt, q_r, qd_r, qdd_r, state
     ws = np.empty(work_size(n))
     q, qd, prev = state[0], state[1], state[2]
     q_m, qd_hat, u, w = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    locked, sc = np.empty(n, dtype=np.bool_), np.empty((12, n))
+    locked, sc = np.empty(n, dtype=np.bool_), np.empty((14, n))
     for k in range(len(q_r)):
         for j in range(n):
             q_m[j] = q[j] if step[j] == 0.0 else np.round(q[j] / step[j]) * step[j]
@@ -169,4 +203,4 @@ def run_steps(kin, g, plant, ctrl, hat, step, exact, dt, q_r, qd_r, qdd_r, state
         _command(kin, g, ctrl, hat, q_m, qd_hat, q_r[k], qd_r[k], qdd_r[k], u, w, ws)
         for j in range(n):
             q_log[k, j], q_true[k, j], qd_true[k, j], tau_log[k, j] = q_m[j], q[j], qd[j], u[j]
-        _rk4(kin, g, plant, q, qd, u, dt, locked, sc, ws)
+        _period(kin, g, plant, q, qd, u, dt, locked, sc, ws)
