@@ -45,7 +45,7 @@ def work_size(n: int) -> int:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _split(ws, n):  # type: ignore[no-untyped-def]
+def _split(ws, n):
     """Views of the workspace: placements, link motions and forces, composite inertias, M, vectors, scratch."""
     o = 0
     Rs = ws[o : o + 9 * n].reshape((n, 3, 3))
@@ -65,7 +65,7 @@ def _split(ws, n):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def placements(prismatic, axes, rotations, translations, q, ws):  # type: ignore[no-untyped-def]
+def placements(prismatic, axes, rotations, translations, q, ws):
     """Compute every link's placement at ``q`` into the workspace (read by :func:`rnea_at` and :func:`crba_at`)."""
     Rs, ps, _, _, _, _, _ = _split(ws, len(q))
     for i in range(len(q)):
@@ -73,7 +73,7 @@ def placements(prismatic, axes, rotations, translations, q, ws):  # type: ignore
 
 
 @njit(cache=True, nogil=True)
-def rnea_at(prismatic, parents, axes, gravity, pi, qd, qdd, tau, ws):  # type: ignore[no-untyped-def]
+def rnea_at(prismatic, parents, axes, gravity, pi, qd, qdd, tau, ws):
     """:func:`rnea` at the placements already in ``ws`` (:func:`placements`)."""
     n = len(qd)
     Rs, ps, links, _, _, _, tmp = _split(ws, n)
@@ -118,7 +118,7 @@ def rnea_at(prismatic, parents, axes, gravity, pi, qd, qdd, tau, ws):  # type: i
 
 
 @njit(cache=True, nogil=True)
-def rnea(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, qdd, tau):  # type: ignore[no-untyped-def]
+def rnea(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, qdd, tau):
     """Fill ``tau`` (n,) with the rigid torques at ``q, qd, qdd`` for standard parameters ``pi`` (``Ia qdd`` included)."""
     ws = np.empty(work_size(len(q)))
     placements(prismatic, axes, rotations, translations, q, ws)
@@ -138,7 +138,7 @@ def _act_force(R: np.ndarray, p: np.ndarray, fl: np.ndarray, fa: np.ndarray, acc
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _body_force(pi, c, v, w, a, al, fl, fa, t1, t2, t3, P, L):  # type: ignore[no-untyped-def]
+def _body_force(pi, c, v, w, a, al, fl, fa, t1, t2, t3, P, L):
     """``f = I a + v x* (I v)`` of the link whose inertial parameters start at ``pi[c]``.
 
     ``P = m v + w x h`` and ``L = I_O w + h x v`` are the momenta;
@@ -166,7 +166,7 @@ def _body_force(pi, c, v, w, a, al, fl, fa, t1, t2, t3, P, L):  # type: ignore[n
 
 
 @njit(cache=True, nogil=True)
-def crba_at(prismatic, parents, axes, pi, M, ws):  # type: ignore[no-untyped-def]
+def crba_at(prismatic, parents, axes, pi, M, ws):
     """Fill ``M`` (n, n) with the joint-space inertia at the placements in ``ws`` (``Ia`` on the diagonal).
 
     Composite inertias ``(m, h, I_O)`` are carried to the parent's frame:
@@ -213,7 +213,7 @@ def crba_at(prismatic, parents, axes, pi, M, ws):  # type: ignore[no-untyped-def
 
 
 @njit(cache=True, nogil=True)
-def crba(prismatic, parents, axes, rotations, translations, pi, q, M):  # type: ignore[no-untyped-def]
+def crba(prismatic, parents, axes, rotations, translations, pi, q, M):
     """Fill ``M`` (n, n) with the joint-space inertia at ``q`` for standard parameters ``pi`` (``Ia`` on the diagonal)."""
     ws = np.empty(work_size(len(q)))
     placements(prismatic, axes, rotations, translations, q, ws)
@@ -278,7 +278,7 @@ def cholesky_solve(M: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True, nogil=True)
-def forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd, ws):  # type: ignore[no-untyped-def]
+def forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd, ws):
     """Fill ``qdd`` with ``M^-1 (tau - h(q, qd))`` using the workspace ``ws``; joints with ``locked`` True are held (``qdd = 0``)."""
     n = len(q)
     placements(prismatic, axes, rotations, translations, q, ws)
@@ -299,7 +299,7 @@ def forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q
 
 
 @njit(cache=True, nogil=True)
-def forward(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd):  # type: ignore[no-untyped-def]
+def forward(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd):
     """Fill ``qdd`` with ``M^-1 (tau - h(q, qd))``; joints with ``locked`` True are held: ``qdd = 0`` there."""
     forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd, np.empty(work_size(len(q))))
 

@@ -45,7 +45,7 @@ CTC, PD = 0, 1
 
 
 @njit(cache=True, nogil=True)
-def _directions(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, qdd, tau_net, ws):  # type: ignore[no-untyped-def]
+def _directions(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, qdd, tau_net, ws):
     """The Coulomb directions ``s`` and the held joints of the next step (Karnopp, see the module's docstring)."""
     pr, par, ax, rot, tr = kin
     n = len(q)
@@ -76,7 +76,7 @@ def _directions(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, qdd, tau_net, ws):
 
 
 @njit(cache=True, nogil=True)
-def _accel(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, out, tau_net, ws):  # type: ignore[no-untyped-def]
+def _accel(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, out, tau_net, ws):
     pr, par, ax, rot, tr = kin
     for j in range(len(q)):
         tau_net[j] = u[j] - Fv[j] * qd[j] - Fc[j] * s[j] - off[j]
@@ -84,7 +84,7 @@ def _accel(kin, g, pi, Fv, Fc, off, q, qd, u, s, locked, out, tau_net, ws):  # t
 
 
 @njit(cache=True, nogil=True)
-def _rk4(kin, g, plant, q, qd, u, dt, locked, sc, ws):  # type: ignore[no-untyped-def]
+def _rk4(kin, g, plant, q, qd, u, dt, locked, sc, ws):
     """One RK4 step of ``dt`` under the held command ``u``, directions ``sc[0]`` and ``locked`` frozen; ``q, qd`` updated in place."""
     pi, Fv, Fc, off = plant
     n = len(q)
@@ -106,7 +106,7 @@ def _rk4(kin, g, plant, q, qd, u, dt, locked, sc, ws):  # type: ignore[no-untype
 
 
 @njit(cache=True, nogil=True)
-def _period(kin, g, plant, q, qd, u, dt, locked, sc, ws):  # type: ignore[no-untyped-def]
+def _period(kin, g, plant, q, qd, u, dt, locked, sc, ws):
     """Advance one control period: RK4 steps between the joints' velocity reversals.
 
     When a sliding joint's velocity changes sign within the step, the step is
@@ -147,7 +147,7 @@ def _period(kin, g, plant, q, qd, u, dt, locked, sc, ws):  # type: ignore[no-unt
 
 
 @njit(cache=True, nogil=True)
-def _command(kin, g, ctrl, hat, q_m, qd_hat, q_r, qd_r, qdd_r, u, w, ws):  # type: ignore[no-untyped-def]
+def _command(kin, g, ctrl, hat, q_m, qd_hat, q_r, qd_r, qdd_r, u, w, ws):
     """The controller's torque ``u`` at one sample (see the module's docstring)."""
     pr, par, ax, rot, tr = kin
     kind, alpha, kp, kv = ctrl
@@ -168,7 +168,7 @@ def _command(kin, g, ctrl, hat, q_m, qd_hat, q_r, qd_r, qdd_r, u, w, ws):  # typ
 
 
 @njit(cache=True, nogil=True)
-def run_steps(kin, g, plant, ctrl, hat, step, exact, dt, q_r, qd_r, qdd_r, state, q_log, q_true, qd_true, tau_log):  # type: ignore[no-untyped-def]
+def run_steps(kin, g, plant, ctrl, hat, step, exact, dt, q_r, qd_r, qdd_r, state, q_log, q_true, qd_true, tau_log):
     """Advance the loop over ``len(q_r)`` control periods from ``state``.
 
     Parameters
