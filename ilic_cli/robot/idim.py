@@ -44,6 +44,8 @@ class RobotSystem:
     names: tuple[str, ...]
     joints: tuple[str, ...]
     settings: LSSettings
+    kept: tuple[np.ndarray, ...] = ()
+    """Per joint, the decimated rows kept by ``min_speed`` (empty: every row)."""
 
 
 @dataclass(frozen=True)
@@ -109,6 +111,7 @@ def prepare(
     *,
     min_speed: float = 0.0,
     torque_held: bool = False,
+    keep: tuple[np.ndarray, ...] = (),
 ) -> RobotSystem:
     """Filter, differentiate, trim and decimate each joint as the 1-DOF chain; stack the joints' base systems.
 
@@ -127,6 +130,10 @@ def prepare(
         periods, so the torque is moved half a period later,
         ``(tau[k-1] + tau[k]) / 2``; without this the 6-joint test log's shoulder
         ``Fv`` comes out 2.8 % (5 sigma) low.
+    keep : tuple of ndarray
+        Per joint, the decimated rows to keep, in place of ``min_speed``'s (another
+        system's :attr:`RobotSystem.kept`: the closed-loop methods pair the rows of
+        the measured and the simulated logs).
     """
     q, tau = np.asarray(q, dtype=np.float64), np.asarray(tau, dtype=np.float64)
     if q.ndim != 2 or q.shape[1] != robot.n or tau.shape != q.shape:
@@ -160,14 +167,19 @@ def prepare(
         part = np.zeros((len(d), base.b + 1))
         part[:, np.flatnonzero(np.append(active[j], True))] = d
         parts.append(part)
-    if min_speed > 0:
-        parts = [p[valid_rows(np.abs(qd[:, j]) > min_speed, settings.decimation)] for j, p in enumerate(parts)]
+    kept: tuple[np.ndarray, ...] = ()
+    if keep:
+        kept = tuple(np.asarray(k, dtype=bool) for k in keep)
+    elif min_speed > 0:
+        kept = tuple(valid_rows(np.abs(qd[:, j]) > min_speed, settings.decimation) for j in range(robot.n))
+    if kept:
+        parts = [p[k] for p, k in zip(parts, kept)]
         if sum(len(p) for p in parts) <= base.b:
             raise ValueError(f"only {sum(len(p) for p in parts)} rows move faster than {min_speed:g}: too few for {base.b} base parameters")
     W = np.concatenate([p[:, :-1] for p in parts])
     y = np.concatenate([p[:, -1] for p in parts])
     joint = np.concatenate([np.full(len(p), j) for j, p in enumerate(parts)])
-    return RobotSystem(W=W, y=y, joint=joint, names=base.names, joints=robot.joints, settings=settings)
+    return RobotSystem(W=W, y=y, joint=joint, names=base.names, joints=robot.joints, settings=settings, kept=kept)
 
 
 def active_columns(robot: RobotModel, base: BaseParameters) -> np.ndarray:

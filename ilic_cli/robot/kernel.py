@@ -22,7 +22,7 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _cross(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+def cross(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """``out = a x b`` (``out`` may not alias ``a`` or ``b``)."""
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
@@ -30,7 +30,7 @@ def _cross(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _act_inv(R: np.ndarray, p: np.ndarray, lin: np.ndarray, ang: np.ndarray, out_lin: np.ndarray, out_ang: np.ndarray) -> None:
+def act_inv(R: np.ndarray, p: np.ndarray, lin: np.ndarray, ang: np.ndarray, out_lin: np.ndarray, out_ang: np.ndarray) -> None:
     """A motion vector of the parent's frame in the child's: ``w' = R' w``, ``v' = R' (v - p x w)``."""
     d0 = lin[0] - (p[1] * ang[2] - p[2] * ang[1])
     d1 = lin[1] - (p[2] * ang[0] - p[0] * ang[2])
@@ -49,6 +49,28 @@ def _inertia_row(u: np.ndarray, x: np.ndarray, out: np.ndarray, c: int) -> None:
     out[c + 3] += u[0] * x[2] + u[2] * x[0]
     out[c + 4] += u[1] * x[2] + u[2] * x[1]
     out[c + 5] += u[2] * x[2]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def placement(prismatic: bool, u: np.ndarray, x: float, Rp: np.ndarray, tp: np.ndarray, R: np.ndarray, p: np.ndarray) -> None:
+    """Placement ``(R, p)`` of a link in its parent's frame at joint position ``x``: the joint placement times the joint's motion."""
+    if prismatic:
+        for r in range(3):
+            p[r] = tp[r] + x * (Rp[r, 0] * u[0] + Rp[r, 1] * u[1] + Rp[r, 2] * u[2])
+            for c in range(3):
+                R[r, c] = Rp[r, c]
+        return
+    # Rodrigues: Rj = I + sin K + (1 - cos) K K, K = [u]x; R = Rp Rj
+    sn, cs = np.sin(x), 1.0 - np.cos(x)
+    for r in range(3):
+        p[r] = tp[r]
+    for c in range(3):
+        e0, e1, e2 = (1.0 if c == 0 else 0.0), (1.0 if c == 1 else 0.0), (1.0 if c == 2 else 0.0)
+        k0, k1, k2 = u[1] * e2 - u[2] * e1, u[2] * e0 - u[0] * e2, u[0] * e1 - u[1] * e0
+        kk0, kk1, kk2 = u[1] * k2 - u[2] * k1, u[2] * k0 - u[0] * k2, u[0] * k1 - u[1] * k0
+        j0, j1, j2 = e0 + sn * k0 + cs * kk0, e1 + sn * k1 + cs * kk1, e2 + sn * k2 + cs * kk2
+        for r in range(3):
+            R[r, c] = Rp[r, 0] * j0 + Rp[r, 1] * j1 + Rp[r, 2] * j2
 
 
 @njit(cache=True, nogil=True)
@@ -84,36 +106,17 @@ def inertial_regressor(
     for k in range(N):
         for i in range(n):
             u = axes[i]
-            x = q[k, i]
-            Rp = rotations[i]
-            if prismatic[i]:
-                for r in range(3):
-                    p[r] = translations[i, r] + x * (Rp[r, 0] * u[0] + Rp[r, 1] * u[1] + Rp[r, 2] * u[2])
-                    for c in range(3):
-                        R[r, c] = Rp[r, c]
-            else:
-                # Rodrigues: Rj = I + sin K + (1 - cos) K K, K = [u]x; R = Rp Rj
-                sn, cs = np.sin(x), 1.0 - np.cos(x)
-                for r in range(3):
-                    p[r] = translations[i, r]
-                for c in range(3):
-                    # column c of Rj
-                    e0, e1, e2 = (1.0 if c == 0 else 0.0), (1.0 if c == 1 else 0.0), (1.0 if c == 2 else 0.0)
-                    k0, k1, k2 = u[1] * e2 - u[2] * e1, u[2] * e0 - u[0] * e2, u[0] * e1 - u[1] * e0
-                    kk0, kk1, kk2 = u[1] * k2 - u[2] * k1, u[2] * k0 - u[0] * k2, u[0] * k1 - u[1] * k0
-                    j0, j1, j2 = e0 + sn * k0 + cs * kk0, e1 + sn * k1 + cs * kk1, e2 + sn * k2 + cs * kk2
-                    for r in range(3):
-                        R[r, c] = Rp[r, 0] * j0 + Rp[r, 1] * j1 + Rp[r, 2] * j2
+            placement(prismatic[i], u, q[k, i], rotations[i], translations[i], R, p)
             par = parents[i]
             if par < 0:
-                _act_inv(R, p, zero, zero, v[i], w[i])
-                _act_inv(R, p, base_a, zero, a[i], al[i])
+                act_inv(R, p, zero, zero, v[i], w[i])
+                act_inv(R, p, base_a, zero, a[i], al[i])
             else:
-                _act_inv(R, p, v[par], w[par], v[i], w[i])
-                _act_inv(R, p, a[par], al[par], a[i], al[i])
+                act_inv(R, p, v[par], w[par], v[i], w[i])
+                act_inv(R, p, a[par], al[par], a[i], al[i])
                 j = par
                 while j >= 0:
-                    _act_inv(R, p, s_lin[par, j], s_ang[par, j], s_lin[i, j], s_ang[i, j])
+                    act_inv(R, p, s_lin[par, j], s_ang[par, j], s_lin[i, j], s_ang[i, j])
                     j = parents[j]
             for r in range(3):
                 s_lin[i, i, r] = u[r] if prismatic[i] else 0.0
@@ -125,17 +128,17 @@ def inertial_regressor(
             for r in range(3):
                 t1[r] = s_lin[i, i, r] * qd[k, i]
                 t2[r] = s_ang[i, i, r] * qd[k, i]
-            _cross(w[i], t1, t3)
+            cross(w[i], t1, t3)
             for r in range(3):
                 a[i, r] += s_lin[i, i, r] * qdd[k, i] + t3[r]
-            _cross(v[i], t2, t3)
+            cross(v[i], t2, t3)
             for r in range(3):
                 a[i, r] += t3[r]
-            _cross(w[i], t2, t3)
+            cross(w[i], t2, t3)
             for r in range(3):
                 al[i, r] += s_ang[i, i, r] * qdd[k, i] + t3[r]
         for i in range(n):
-            _cross(w[i], v[i], t1)
+            cross(w[i], v[i], t1)
             for r in range(3):
                 av[r] = a[i, r] + t1[r]
             c = stride * i
@@ -145,17 +148,17 @@ def inertial_regressor(
                 row = out[j, k]
                 row[c] = cl[0] * av[0] + cl[1] * av[1] + cl[2] * av[2]
                 # g = cl x al + (cl x w) x w - ca x av
-                _cross(cl, w[i], t1)
-                _cross(t1, w[i], t2)
-                _cross(cl, al[i], t3)
+                cross(cl, w[i], t1)
+                cross(t1, w[i], t2)
+                cross(cl, al[i], t3)
                 for r in range(3):
                     row[c + 1 + r] = t3[r] + t2[r]
-                _cross(ca, av, t3)
+                cross(ca, av, t3)
                 for r in range(3):
                     row[c + 1 + r] -= t3[r]
                 for r in range(6):
                     row[c + 4 + r] = 0.0
                 _inertia_row(ca, al[i], row, c + 4)
-                _cross(ca, w[i], t1)
+                cross(ca, w[i], t1)
                 _inertia_row(t1, w[i], row, c + 4)
                 j = parents[j]

@@ -44,6 +44,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "ilic_cli.robot.model",
             "ilic_cli.robot.base",
             "ilic_cli.robot.kernel",
+            "ilic_cli.robot.dynamics",
         ),
     ),
     (
@@ -58,9 +59,24 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "ilic_cli.modelfile",
             "ilic_cli.robot.idim",
             "ilic_cli.robot.consistency",
+            "ilic_cli.robot.ilic",
+            "ilic_cli.robot.closed_loop",
         ),
     ),
-    ("simulation", ("plant", "ilic_cli.simulation", "ilic_cli.identify", "ilic_cli.methods", "ilic_cli.robot.simulate")),
+    (
+        "simulation",
+        (
+            "plant",
+            "ilic_cli.simulation",
+            "ilic_cli.identify",
+            "ilic_cli.methods",
+            "ilic_cli.robot.simulate",
+            "ilic_cli.robot.loop",
+            "ilic_cli.robot.plant",
+            "ilic_cli.robot.scenario",
+            "ilic_cli.robot.record",
+        ),
+    ),
     ("diagnosis", ("ilic_cli.diagnosis",)),
     (
         "reports",
@@ -79,9 +95,7 @@ CYCLE_PENDING: set[frozenset[str]] = set()
 
 MODULE_PENDING: set[str] = set()
 
-FUNCTION_PENDING: set[str] = {
-    "ilic_cli/robot/kernel.py:inertial_regressor",
-}
+FUNCTION_PENDING: set[str] = set()
 
 # in-function imports (file:module) without a comment, on the line or above it in its run of imports, that gives the reason for deferring
 DEFERRED_PENDING: set[str] = {
