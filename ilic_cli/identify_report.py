@@ -9,6 +9,8 @@ import json
 import math
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from ilic_cli import parameters
 from ilic_cli.closed_loop_id import STD_SOURCE
 from ilic_cli.effects import unit_of
@@ -229,8 +231,6 @@ def to_json(doc: Any) -> str:
 
 
 def _default(obj: Any) -> Any:
-    import numpy as np
-
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):

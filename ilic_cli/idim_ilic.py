@@ -112,7 +112,7 @@ class ILICResult:
         }
 
     def to_frame(self) -> Any:
-        import pandas as pd
+        import pandas as pd  # deferred: pandas costs ~0.3 s of import, paid only by a caller of to_frame()
 
         rows = []
         for w in self.windows:

@@ -117,7 +117,7 @@ class IDIMLSResult:
         return {"method": "IDIM-LS", "model": self.model, **self.result.to_dict(), "settings": self.settings.to_dict()}
 
     def to_frame(self) -> Any:
-        import pandas as pd
+        import pandas as pd  # deferred: pandas costs ~0.3 s of import, paid only by a caller of to_frame()
 
         r = self.result
         return pd.DataFrame({"parameter": r.names, "value": r.theta, "std": r.std, "rel_std_pct": r.rel_std_pct})

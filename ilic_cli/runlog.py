@@ -85,6 +85,20 @@ def _number(value: Any) -> float | None:
         return None
 
 
+def _whole(value: Any) -> int | None:
+    """``int(value)`` for a whole number (an int, an integral float, or its decimal text), else None: never a rounded guess."""
+    if value is None or isinstance(value, bool):
+        return None
+    if isinstance(value, int):
+        return value
+    if isinstance(value, float):
+        return int(value) if value.is_integer() else None
+    try:
+        return int(str(value).strip())
+    except ValueError:
+        return None
+
+
 @dataclass(frozen=True)
 class Controller:
     """The loop that ran, as the log records it (``meta["controller"]`` and ``meta["drive_gain"]``).
@@ -165,7 +179,6 @@ class Provenance:
             value = meta.get(key)
             return None if value is None else str(value)
 
-        start = meta.get("start_time_ns")
         return cls(
             source=text("source"),
             scenario=meta.get("scenario"),
@@ -174,7 +187,7 @@ class Provenance:
             replay_of=text("replay_of"),
             model_file=text("model_file"),
             machine=text("machine"),
-            start_time_ns=None if start is None else int(start),
+            start_time_ns=_whole(meta.get("start_time_ns")),
         )
 
 
@@ -284,7 +297,7 @@ class RunLog:
     # -- conversions ------------------------------------------------------
     def to_frame(self) -> pd.DataFrame:
         """Return the samples as a DataFrame indexed by ``t``."""
-        import pandas as pd
+        import pandas as pd  # deferred: pandas costs ~0.3 s of import, paid only by a caller of to_frame()
 
         frame = pd.DataFrame({k: v for k, v in self.channels.items() if k != "t"}, index=pd.Index(self.t, name="t"))
         return frame

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
+import sys
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -127,9 +129,6 @@ class ReadProgress:
 
 def progress_enabled() -> bool:
     """Progress bars only on a terminal and never in CI."""
-    import os
-    import sys
-
     return sys.stderr.isatty() and not os.environ.get("CI")
 
 
@@ -193,7 +192,7 @@ def options_named() -> Iterator[None]:
 def plant_of_model_file(path: Path) -> tuple[Any, dict[str, Any]]:
     """The plant (rigid parameters, effects) a model file describes; its errors name the file."""
     from ilic_cli.modelfile import load_model_file  # deferred: the plant pulls in numba
-    from plant.dynamics import plant_model
+    from plant.dynamics import plant_model  # deferred: the plant pulls in numba
 
     doc = load_model_file(path)
     try:

@@ -151,7 +151,7 @@ def consistent_fit(robot: RobotModel, base: BaseParameters, theta: np.ndarray, c
         The standard set to pull towards (default: the URDF's, with ``Ia = 0``); its links must be consistent.
     """
     from scipy.optimize import least_squares  # deferred: scipy.optimize and scipy.stats cost ~0.5 s of import
-    from scipy.stats import chi2
+    from scipy.stats import chi2  # deferred with scipy.optimize, the same reason
 
     theta = np.asarray(theta, dtype=np.float64)
     std = np.sqrt(np.clip(np.diag(covariance), 1e-300, None))

@@ -98,16 +98,7 @@ MODULE_PENDING: set[str] = set()
 FUNCTION_PENDING: set[str] = set()
 
 # in-function imports (file:module) without a comment, on the line or above it in its run of imports, that gives the reason for deferring
-DEFERRED_PENDING: set[str] = {
-    "ilic_cli/commands/common.py:os",
-    "ilic_cli/commands/common.py:plant.dynamics",
-    "ilic_cli/commands/common.py:sys",
-    "ilic_cli/identify_report.py:numpy",
-    "ilic_cli/idim_ilic.py:pandas",
-    "ilic_cli/idim_ls.py:pandas",
-    "ilic_cli/robot/consistency.py:scipy.stats",
-    "ilic_cli/runlog.py:pandas",
-}
+DEFERRED_PENDING: set[str] = set()
 
 
 def _sources() -> dict[str, Path]:

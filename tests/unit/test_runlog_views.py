@@ -39,3 +39,12 @@ def test_sensor_joint_type_from_the_position_unit_and_vertical_from_the_metadata
 def test_provenance() -> None:
     p = _log(source="/x/a.mcap", true_parameters={"M": 95.0}, start_time_ns=12, machine=7).provenance
     assert (p.source, p.true_parameters, p.start_time_ns, p.machine, p.replay_of) == ("/x/a.mcap", {"M": 95.0}, 12, "7", None)
+
+
+def test_provenance_start_is_a_whole_number_or_none() -> None:
+    """A start the log does not give as a whole number is left out, never rounded nor raised on (a CSV's text, a ROS stamp)."""
+    big = 1_733_000_000_123_456_789  # beyond a float's exact integers: parsed from its text, not through float
+    assert _log(start_time_ns=str(big)).provenance.start_time_ns == big
+    assert _log(start_time_ns=2.0e9).provenance.start_time_ns == 2_000_000_000
+    for bad in ("yesterday", 1.5, True, None, [1]):
+        assert _log(start_time_ns=bad).provenance.start_time_ns is None
