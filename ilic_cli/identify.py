@@ -213,7 +213,7 @@ def _masked_summary(report: IdentifyReport, valid: np.ndarray, saturation_note: 
         total = len(kept_indices(len(valid) - report.ls.settings.trim, report.ls.settings.decimation))
         parts.append(f"IDIM-LS uses {rows} of {total} decimated rows ({100.0 * (total - rows) / total:.3g} % masked)")
     if report.ilic is not None and report.ilic.windows:
-        touched = sum(1 for w in report.ilic.windows if "rows masked" in w.note)
+        touched = sum(1 for w in report.ilic.windows if w.masked_fraction > 0)
         parts.append(f"IDIM-ILIC rows masked in {touched} of {len(report.ilic.windows)} window(s)")
     return "; ".join(parts)
 

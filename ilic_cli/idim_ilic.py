@@ -73,6 +73,8 @@ class WindowEstimate:
     essential: np.ndarray
     tracking_error_ratio: float | None = None
     note: str = ""
+    masked_fraction: float = 0.0
+    """Share of the window's decimated rows left out (saturated drive, rest); 0 when all are used."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -194,7 +196,7 @@ def estimate_windows(
     Wd = np.moveaxis(np.stack(columns, axis=1), 1, -1)  # (K, rows, columns), laid out as before: solve_batch's bits depend on it
     yd = lowpass_decimate(tau, r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
     results = solve_batch(Wd, yd, model.names, sigma="eq8")
-    masked: dict[int, str] = {}
+    masked: dict[int, float] = {}
     if valid is not None and not np.all(valid):
         rows = valid_rows(np.atleast_2d(valid), r)
         for i in np.flatnonzero(~rows.all(axis=1)).tolist():
@@ -204,7 +206,7 @@ def estimate_windows(
             else:  # nothing identifiable is left: a null system (rank 0, infinite std)
                 b = Wd.shape[-1]
                 results[i] = solve_batch(np.zeros((1, b, b)), np.zeros((1, b)), model.names, sigma="eq8")[0]
-            masked[i] = f"{100 * (1 - keep.mean()):.3g} % of the rows masked (saturated drive)"
+            masked[i] = float(1 - keep.mean())
     ratios = tracking_error_ratio(np.atleast_2d(q_ref), np.atleast_2d(q)) if q_ref is not None and q is not None else None
     out = []
     for i, res in enumerate(results):
@@ -216,7 +218,8 @@ def estimate_windows(
         elif not ess.all():
             note = "not essential: " + ", ".join(n for n, e in zip(res.names, ess, strict=True) if not e)
         if i in masked:
-            note = f"{masked[i]}; {note}" if note else masked[i]
+            share = f"{100 * masked[i]:.3g} % of the rows masked (saturated drive)"
+            note = f"{share}; {note}" if note else share
         t0 = float(t[i, 0]) if t is not None else float("nan")
         t1 = float(t[i, -1]) if t is not None else float("nan")
         out.append(
@@ -228,6 +231,7 @@ def estimate_windows(
                 essential=ess,
                 tracking_error_ratio=None if ratios is None else float(ratios[i]),
                 note=note,
+                masked_fraction=masked.get(i, 0.0),
             )
         )
     return out

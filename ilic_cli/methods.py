@@ -19,6 +19,7 @@ from ilic_cli.estimators.inverse import IDIMILIC, IDIMLS
 from ilic_cli.estimators.output import OutputError, OutputErrorFitSettings
 from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
+from ilic_cli.method_names import CHOICES, COMPOSITES, OUTPUT_ERROR, Composite, choices
 from ilic_cli.output_error import METHODS as OUTPUT_ERROR_LABELS
 from ilic_cli.simulation.loop import PLANT_LOOP
 
@@ -123,36 +124,9 @@ METHODS: dict[str, Method] = {
         ),
     )
 }
-"""Every method, in the order reports list them."""
+"""Every method, in the order reports list them (the names and the composites: :mod:`ilic_cli.method_names`)."""
 
-
-@dataclass(frozen=True)
-class Composite:
-    """A ``--method`` value that runs several methods; the model file takes ``model_from``'s estimate."""
-
-    name: str
-    methods: tuple[str, ...]
-    model_from: str
-    description: str
-
-
-COMPOSITES: dict[str, Composite] = {
-    c.name: c
-    for c in (
-        Composite("both", ("ls", "ilic"), "ls", "IDIM-LS and IDIM-ILIC per window"),
-        Composite("all", ("ls", "ilic", "didim", "iv"), "didim", "every inverse-model and closed-loop method (IDIM-ILIC when usable)"),
-    )
-}
-"""Names that run several methods."""
-
-CHOICES: tuple[str, ...] = ("ls", "ilic", "both", "didim", "iv", "all", "oe", "cloe")
-"""Values of ``--method`` and of ``identify(method=...)``: the methods and the composites, in the help's order
-(every name of :data:`METHODS` and :data:`COMPOSITES`, checked by tests/identify/test_methods.py)."""
-
-
-def choices(*, output_error: bool = True) -> tuple[str, ...]:
-    """:data:`CHOICES`, without the output-error methods unless ``output_error`` (``ilic batch`` runs none)."""
-    return tuple(c for c in CHOICES if output_error or not any(METHODS[m].output_error for m in methods_of(c)))
+__all__ = ["CHOICES", "COMPOSITES", "METHODS", "OUTPUT_ERROR", "Composite", "Method", "choices", "effect_methods", "label", "methods_of", "model_method"]
 
 
 def methods_of(choice: str) -> tuple[str, ...]:

@@ -13,7 +13,7 @@ from ilic_cli.errors import IlicError
 from ilic_cli.fleet import execute
 from ilic_cli.fleet.batch import find_logs, group_pattern, run_batch
 from ilic_cli.fleet.table import write_table
-from ilic_cli.methods import choices
+from ilic_cli.method_names import choices
 
 
 def _placement(jobs: int | None, dask_spec: str | None, scheduler: str | None) -> execute.Placement:

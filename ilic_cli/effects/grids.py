@@ -16,12 +16,14 @@ def _vmax(kin: Kinematics) -> float:
 
 
 def stribeck_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    """Stribeck speeds ``vs`` searched: 32 log-spaced from 1 % to 40 % of the log's top speed (99.5th percentile)."""
     # from 1 % (below: standstill, left out of the fit) to 40 % of the top speed
     vmax = _vmax(kin)
     return np.geomspace(0.01 * vmax, 0.4 * vmax, 32)
 
 
 def ripple_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    """Spatial periods of a position ripple searched: from what the IDIM band sees at the median moving speed to half the stroke."""
     # spatial periods from what the IDIM bandwidth (40 Hz after decimation) can
     # see at the median moving speed up to half the stroke, spaced so that the
     # phase over the stroke moves by less than a tenth of a cycle per step
@@ -41,6 +43,7 @@ def ripple_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
 
 
 def change_time_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    """Times of a payload change searched: 200 evenly over the log, 5 % of its length kept clear at each end."""
     t = kin.t if kin.t is not None else np.arange(len(kin.qd)) / fs_hz
     t0, t1 = float(t[0]), float(t[-1])
     margin = 0.05 * (t1 - t0)
@@ -48,12 +51,14 @@ def change_time_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
 
 
 def delay_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    """Drive lags searched: -25 ms to +25 ms in steps of half a sample (refined afterwards)."""
     # +-25 ms in steps of half a sample (refined afterwards)
     step = 0.5 / fs_hz
     return np.arange(-0.025, 0.025 + step / 2, step)
 
 
 def resonance_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
+    """Resonance frequencies searched: 40 log-spaced from 2 Hz to 0.8 of the decimated Nyquist (what the IDIM low-pass keeps)."""
     # what survives the IDIM low-pass: up to 0.8 of the decimated Nyquist (40 Hz at 1 kHz / 10)
     return np.geomspace(2.0, 0.08 * fs_hz / 2 * 1.0, 40)
 

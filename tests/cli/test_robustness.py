@@ -116,7 +116,7 @@ def _good_log(folder: Path) -> Path:
 INTERNAL: dict[str, tuple[Callable[[Path, Path], list[str]], str]] = {
     "info": (lambda log, d: ["info", str(log)], "ilic_cli.quality.assess_log"),  # imported by the command at call time
     "convert": (lambda log, d: ["convert", str(log), str(d / "out.mcap")], "ilic_cli.commands.convert.write_log"),
-    "identify": (lambda log, d: ["identify", str(log)], "ilic_cli.commands.identify.identify"),
+    "identify": (lambda log, d: ["identify", str(log)], "ilic_cli.commands.identify.identify_with"),
     "simulate": (
         lambda log, d: ["simulate", "--scenario", "paper-sim", "--duration", "1", "-o", str(d / "sim.mcap")],
         "ilic_cli.commands.simulate.run_scenario",

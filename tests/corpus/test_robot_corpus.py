@@ -58,29 +58,29 @@ def test_the_rates_fail_where_the_issue_says() -> None:
     assert len(failures({**ok, "identify_within": 4})) == 1 and len(failures({**ok, "parameters_within": 9})) == 1
 
 
-MEASURED_FAILURES = {
-    "lin12/multisine/500Hz/current_loop/friction_drift/s270": "named exactly, but the warm-up's parameters 17 % off (dFv -2.91, tau 2.84 s)",
-    "lin12/s-curve/8000Hz/current_loop/clean/s102": "identify --method ls: Fc +2.06 % (M +0.06 %, Fv -1.45 %), just beyond the issue's 2 %",
+SHORT_OF_THE_DONE_WHEN = {
+    "lin12/multisine/500Hz/current_loop/friction_drift/s270": "parameters",  # named exactly; the warm-up's dFv -2.91, tau 2.84 s: 17 % off
+    "lin12/s-curve/8000Hz/current_loop/clean/s102": "identify",  # no finding; identify --method ls Fc +2.06 % (M +0.06 %, Fv -1.45 %)
 }
-"""Subset logs on which the current code misses the "Done when" (measured; strict: the test fails once they pass, to be moved back)."""
+"""Subset logs on which the current code misses one part of the "Done when" (issue 29 stays open on them), by the part missed.
+Every other part is held on them; the part missed is asserted to be missed still, so a fix fails here until its entry goes."""
 
 
-def _param(case):  # noqa: ANN001, ANN202 - a Case and its pytest parameter
-    reason = MEASURED_FAILURES.get(case.name)
-    return pytest.param(case, id=case.name, marks=() if reason is None else pytest.mark.xfail(reason=reason, strict=True))
-
-
-@pytest.mark.parametrize("case", [_param(c) for c in SUBSET])
+@pytest.mark.parametrize("case", SUBSET, ids=[c.name for c in SUBSET])
 def test_the_subset_meets_the_done_when(case) -> None:  # noqa: ANN001 - a Case
     row = run_case(case)
-    s = summary([row])
-    assert failures(s) == [], (row["findings"], row["false_alarm_reasons"], row["missed_reasons"], row["parameter_error"], row["identify"])
+    short = SHORT_OF_THE_DONE_WHEN.get(case.name)
+    if short is None:
+        assert failures(summary([row])) == [], (row["findings"], row["false_alarm_reasons"], row["missed_reasons"], row["parameter_error"], row["identify"])
     if case.clean:
         assert row["false_alarms"] == 0 and not row["missed"], row["findings"]
         if case.trajectory in DWELL_TRAJECTORIES:
             ident = row["identify"]
-            assert ident is not None and ident["same_rows"] and all(abs(e) <= IDENTIFY_TOLERANCE for e in ident["error"].values()), ident
+            assert ident is not None and ident["same_rows"], ident
+            within = all(abs(e) <= IDENTIFY_TOLERANCE for e in ident["error"].values())
+            assert within is (short != "identify"), ident
     else:
         assert row["exact"] and set(row["parameter_error"]) == set(case.effects), (row["findings"], row["missed_reasons"])
-        assert all(e <= TOLERANCE for e in row["parameter_error"].values()), row["parameter_error"]
+        within = all(e <= TOLERANCE for e in row["parameter_error"].values())
+        assert within is (short != "parameters"), row["parameter_error"]
         assert 0.2 <= row["size_pts"] <= 1.5, row["size_pts"]

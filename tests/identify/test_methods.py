@@ -23,7 +23,7 @@ from ilic_cli.estimators.closed_loop import ClosedLoopFitSettings
 from ilic_cli.identify import IdentifyReport, identify
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import read_log
-from ilic_cli.methods import CHOICES, COMPOSITES, METHODS, choices, methods_of, model_method
+from ilic_cli.methods import CHOICES, COMPOSITES, METHODS, OUTPUT_ERROR, choices, methods_of, model_method
 from ilic_cli.prepare import prepare_log
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import RunLog
@@ -47,6 +47,7 @@ def test_the_registry_names_every_choice_once() -> None:
     option = next(p for p in identify_command.params if p.name == "method")
     assert isinstance(option.type, click.Choice) and tuple(option.type.choices) == CHOICES  # the CLI reads the registry
     assert choices(output_error=False) == ("ls", "ilic", "both", "didim", "iv", "all")
+    assert OUTPUT_ERROR == tuple(m for m, entry in METHODS.items() if entry.output_error)  # the names the help lists agree with the estimators
     for composite in COMPOSITES.values():
         assert set(composite.methods) <= set(METHODS) and composite.model_from in composite.methods
 

@@ -8,6 +8,7 @@ import pytest
 
 from ilic_cli import parameters as P
 from ilic_cli.errors import ParameterError
+from ilic_cli.runlog import joint_type
 
 
 def test_every_parameter_has_prismatic_and_revolute_units() -> None:
@@ -35,8 +36,8 @@ def test_structures_and_their_lookup() -> None:
 
 
 def test_joint_type_from_the_position_unit() -> None:
-    assert P.joint_type("rad") == "revolute" and P.joint_type(" Radians ") == "revolute"
-    assert P.joint_type("m") == "prismatic" and P.joint_type(None) == "prismatic" and P.joint_type("") == "prismatic"
+    assert joint_type("rad") == "revolute" and joint_type(" Radians ") == "revolute"
+    assert joint_type("m") == "prismatic" and joint_type(None) == "prismatic" and joint_type("") == "prismatic"
 
 
 @pytest.mark.parametrize(
@@ -112,7 +113,7 @@ def test_defaults_are_the_papers_simulated_axis_and_records_are_frozen() -> None
     import dataclasses
 
     assert P.DEFAULTS == {"M": 95.0, "Fv": 200.0, "Fc": 20.0, "offset": 0.0}  # paper section VI-E
-    assert P.joint_type("radian") == "revolute"
+    assert joint_type("radian") == "revolute"
     with pytest.raises(dataclasses.FrozenInstanceError):
         P.PARAMETERS["M"].unit = "g"  # type: ignore[misc]
 
