@@ -58,6 +58,9 @@ def failure_list(rows: list[dict[str, Any]]) -> str:
     """Each failing log: what went wrong and the diagnosis's reason."""
     lines = ["| case | size (pts) | failure | reason |", "|---|---|---|---|"]
     for r in rows:
+        if r.get("refused"):
+            lines.append(f"| {r['case']} | {r['size_pts']} | refused | {r['refused']} |")
+            continue
         for f, v in zip(r["findings"], r["verdicts"], strict=True):
             if v == "false alarm":
                 reason = r["false_alarm_reasons"].get(f["effect"], "")
@@ -88,6 +91,7 @@ def report(rows: list[dict[str, Any]], wall_s: float, jobs: int) -> str:
         f"- parameters of the effects named within 15 %: {_pct(s['parameters_within'], s['parameters_compared'])}",
         f"- `identify --method ls` within 2 % of M, Fv, Fc on clean dwell-and-move logs: {_pct(s['identify_within'], s['identify_logs'])}; "
         f"the same rows as `diagnose`: {_pct(s['identify_same_rows'], s['identify_logs'])}",
+        f"- logs refused (`ilic: error:`, exit 2): {s['refused']}",
     ]
     for by in BY:
         out += ["", table(rows, by)]
