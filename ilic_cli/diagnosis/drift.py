@@ -49,6 +49,27 @@ WINDOWS = 10
 MIN_WINDOW_ROWS_PER_COLUMN = 8
 """A window is estimated only with at least this many rows per column of the model."""
 
+MIN_WINDOWS = 5
+"""Fewest windows a trend is fitted on (:func:`fit_trend`)."""
+
+WINDOW_ROWS_MARGIN = 1.5
+"""A window's mean share of the rows is at least this many times what it needs (:func:`windows_for`): rows at rest
+are spread unevenly over the log (a 500 Hz dwell-and-move log's ten windows held 0.75-1.3 of their mean)."""
+
+
+def windows_for(rows: int, columns: int, most: int = WINDOWS) -> int:
+    """How many windows of equal duration the drift is read from: ``most``, fewer when the rows cannot fill them.
+
+    The rows come at the decimated rate (a tenth of the log's), so over the same time a 500 Hz log has half the rows
+    of a 1 kHz one: with ``most`` windows each would hold fewer than :data:`MIN_WINDOW_ROWS_PER_COLUMN` per column
+    and be left out, and the test would never run. The windows are made longer instead (never fewer than
+    :data:`MIN_WINDOWS`): each is given :data:`WINDOW_ROWS_MARGIN` times the rows it needs on average. A log with
+    enough rows (DATA_EMPS.mat's 2480, a 10 s log at 1 kHz and above) keeps ``most``.
+    """
+    fits = int(rows // (WINDOW_ROWS_MARGIN * MIN_WINDOW_ROWS_PER_COLUMN * max(columns, 1)))
+    return max(min(most, fits), min(most, MIN_WINDOWS))
+
+
 ALPHA = 1e-3
 """Level of the test of a trend across the windows (after Bonferroni over coefficients and shapes)."""
 
@@ -240,7 +261,13 @@ class DriftResult:
             "heldout_relative_error_pct": None
             if self.heldout_before_pct is None
             else {"before": self.heldout_before_pct, "after": self.heldout_after_pct, "p_value": self.heldout_p_value},
-            "settings": {"windows": WINDOWS, "alpha": ALPHA, "shape_alpha": SHAPE_ALPHA, "min_change": MIN_CHANGE, "heldout_alpha": HELDOUT_ALPHA},
+            "settings": {
+                "windows": WINDOWS if self.windows is None else len(self.windows.rows),
+                "alpha": ALPHA,
+                "shape_alpha": SHAPE_ALPHA,
+                "min_change": MIN_CHANGE,
+                "heldout_alpha": HELDOUT_ALPHA,
+            },
         }
 
 
@@ -308,7 +335,7 @@ def fit_trend(parameter: str, t: np.ndarray, x: np.ndarray, s: np.ndarray, start
     ``trials``: the Bonferroni factor of the test (coefficients x shapes).
     """
     k = len(t)
-    if k < 5:
+    if k < MIN_WINDOWS:
         return None
     w = 1.0 / np.square(s)
     tt = t - start
@@ -395,11 +422,12 @@ def detect_drift(
     drifting = [n for n in names if n in DRIFTING]
     if not drifting or len(t) == 0:
         return DriftResult(None, reason="the model has no friction coefficient")
+    n_windows = windows_for(len(t), np.shape(W)[1], n_windows)
     win = window_estimates(t, W, y, names, n_windows)
     trials = len(drifting) * len(SHAPES)
     trends = [tr for n in drifting if (tr := fit_trend(n, *win.series(n), win.start, win.end, trials, n_windows)) is not None]
     if not trends:
-        return DriftResult(win, reason=f"fewer than 5 of the {n_windows} windows have enough rows to estimate the friction")
+        return DriftResult(win, reason=f"fewer than {MIN_WINDOWS} of the {n_windows} windows have enough rows to estimate the friction")
     significant = [tr for tr in trends if tr.test.p_adjusted < alpha and _physical(tr)]
     unphysical = [tr for tr in trends if tr.test.p_adjusted < alpha and not _physical(tr)]
     material = sorted((tr for tr in significant if abs(tr.relative_change) >= min_change), key=lambda tr: tr.test.p_value)
