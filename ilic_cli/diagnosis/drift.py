@@ -52,24 +52,6 @@ MIN_WINDOW_ROWS_PER_COLUMN = 8
 MIN_WINDOWS = 5
 """Fewest windows a trend is fitted on (:func:`fit_trend`)."""
 
-WINDOW_ROWS_MARGIN = 1.5
-"""A window's mean share of the rows is at least this many times what it needs (:func:`windows_for`): rows at rest
-are spread unevenly over the log (a 500 Hz dwell-and-move log's ten windows held 0.75-1.3 of their mean)."""
-
-
-def windows_for(rows: int, columns: int, most: int = WINDOWS) -> int:
-    """How many windows of equal duration the drift is read from: ``most``, fewer when the rows cannot fill them.
-
-    The rows come at the decimated rate (a tenth of the log's), so over the same time a 500 Hz log has half the rows
-    of a 1 kHz one: with ``most`` windows each would hold fewer than :data:`MIN_WINDOW_ROWS_PER_COLUMN` per column
-    and be left out, and the test would never run. The windows are made longer instead (never fewer than
-    :data:`MIN_WINDOWS`): each is given :data:`WINDOW_ROWS_MARGIN` times the rows it needs on average. A log with
-    enough rows (DATA_EMPS.mat's 2480, a 10 s log at 1 kHz and above) keeps ``most``.
-    """
-    fits = int(rows // (WINDOW_ROWS_MARGIN * MIN_WINDOW_ROWS_PER_COLUMN * max(columns, 1)))
-    return max(min(most, fits), min(most, MIN_WINDOWS))
-
-
 ALPHA = 1e-3
 """Level of the test of a trend across the windows (after Bonferroni over coefficients and shapes)."""
 
@@ -315,6 +297,23 @@ def window_estimates(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[s
     )
 
 
+def estimable_windows(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], most: int = WINDOWS) -> WindowEstimates:
+    """:func:`window_estimates` on ``most`` windows, or on the most windows below it of which :data:`MIN_WINDOWS` are estimated.
+
+    The rows come at the decimated rate (a tenth of the log's), so over the same time a 500 Hz log has half the rows
+    of a 1 kHz one: a 10 s dwell-and-move log at 500 Hz keeps some 290, and its ten windows of 22-38 rows (fewer than
+    :data:`MIN_WINDOW_ROWS_PER_COLUMN` per column) left the test unrun. Its windows are made longer instead, as few
+    fewer as it takes (never below :data:`MIN_WINDOWS`); a log whose ``most`` windows are estimated keeps them.
+    """
+    need = MIN_WINDOW_ROWS_PER_COLUMN * np.shape(W)[1]
+    win = window_estimates(t, W, y, names, most)
+    for n in range(most - 1, MIN_WINDOWS - 1, -1):
+        if np.count_nonzero(win.rows >= need) >= min(MIN_WINDOWS, most):
+            break
+        win = window_estimates(t, W, y, names, n)
+    return win
+
+
 def _wls(X: np.ndarray, x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
     """Weighted least squares: coefficients and the weighted residual sum of squares."""
     sw = np.sqrt(w)
@@ -422,8 +421,8 @@ def detect_drift(
     drifting = [n for n in names if n in DRIFTING]
     if not drifting or len(t) == 0:
         return DriftResult(None, reason="the model has no friction coefficient")
-    n_windows = windows_for(len(t), np.shape(W)[1], n_windows)
-    win = window_estimates(t, W, y, names, n_windows)
+    win = estimable_windows(t, W, y, names, n_windows)
+    n_windows = len(win.rows)
     trials = len(drifting) * len(SHAPES)
     trends = [tr for n in drifting if (tr := fit_trend(n, *win.series(n), win.start, win.end, trials, n_windows)) is not None]
     if not trends:
