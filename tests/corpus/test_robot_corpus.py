@@ -1,6 +1,6 @@
 """The robot corpus (issue 29 item 8): its design, its rates, and its stratified subset in the suite.
 
-The whole corpus (195 logs) is ``make corpus`` (``benchmarks/corpus_robot.py --check``; docs/diagnosis.md has its
+The whole corpus (189 logs) is ``make corpus`` (``benchmarks/corpus_robot.py --check``; docs/diagnosis.md has its
 table). Here, within the suite's time: one log per rate (250 Hz to 8 kHz) x joint type, clean and with an effect in
 turn (:data:`tests.corpus.robot.CI_SLOTS`), each through the writer the corpus gives it (CSV or a ROS 2 bag read by
 ``ilic`` with the PD loop given by its flags, or the library), held to the issue's "Done when": a clean log has no
