@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import json
+import math
 import os
 import sys
 import time
@@ -37,11 +38,20 @@ def _pct(k: int, n: int) -> str:
     return f"{k}/{n} ({k / n:.0%})" if n else "-"
 
 
+def _order(key: Any) -> tuple[float, str]:
+    """Rates in numeric order (``250 Hz`` before ``1000 Hz``), anything else by name."""
+    head = str(key).split(" ")[0]
+    try:
+        return float(head), ""
+    except ValueError:
+        return math.inf, str(key)
+
+
 def table(rows: list[dict[str, Any]], by: str) -> str:
     """The rates per value of ``by``, one Markdown row each."""
     head = f"| {by} | clean logs with a false alarm | effect logs named exactly | effects named | parameters within 15 % | identify within 2 % | same rows |"
     lines = [head, "|---|---|---|---|---|---|---|"]
-    for key, s in sorted(breakdown(rows, by).items(), key=lambda kv: str(kv[0])):
+    for key, s in sorted(breakdown(rows, by).items(), key=lambda kv: _order(kv[0])):
         lines.append(
             f"| {key} | {_pct(s['clean_with_false_alarm'], s['clean'])} | {_pct(s['named_exactly'], s['effect_logs'])} | "
             f"{_pct(s['effects_named'], s['effects_total'])} | {_pct(s['parameters_within'], s['parameters_compared'])} | "
@@ -58,6 +68,9 @@ def failure_list(rows: list[dict[str, Any]]) -> str:
     """Each failing log: what went wrong and the diagnosis's reason."""
     lines = ["| case | size (pts) | failure | reason |", "|---|---|---|---|"]
     for r in rows:
+        if r.get("refused"):
+            lines.append(f"| {r['case']} | {r['size_pts']} | refused | {r['refused']} |")
+            continue
         for f, v in zip(r["findings"], r["verdicts"], strict=True):
             if v == "false alarm":
                 reason = r["false_alarm_reasons"].get(f["effect"], "")
@@ -88,6 +101,7 @@ def report(rows: list[dict[str, Any]], wall_s: float, jobs: int) -> str:
         f"- parameters of the effects named within 15 %: {_pct(s['parameters_within'], s['parameters_compared'])}",
         f"- `identify --method ls` within 2 % of M, Fv, Fc on clean dwell-and-move logs: {_pct(s['identify_within'], s['identify_logs'])}; "
         f"the same rows as `diagnose`: {_pct(s['identify_same_rows'], s['identify_logs'])}",
+        f"- logs refused (`ilic: error:`, exit 2): {s['refused']}",
     ]
     for by in BY:
         out += ["", table(rows, by)]

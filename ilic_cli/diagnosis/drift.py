@@ -49,6 +49,9 @@ WINDOWS = 10
 MIN_WINDOW_ROWS_PER_COLUMN = 8
 """A window is estimated only with at least this many rows per column of the model."""
 
+MIN_WINDOWS = 5
+"""Fewest windows a trend is fitted on (:func:`fit_trend`)."""
+
 ALPHA = 1e-3
 """Level of the test of a trend across the windows (after Bonferroni over coefficients and shapes)."""
 
@@ -240,7 +243,13 @@ class DriftResult:
             "heldout_relative_error_pct": None
             if self.heldout_before_pct is None
             else {"before": self.heldout_before_pct, "after": self.heldout_after_pct, "p_value": self.heldout_p_value},
-            "settings": {"windows": WINDOWS, "alpha": ALPHA, "shape_alpha": SHAPE_ALPHA, "min_change": MIN_CHANGE, "heldout_alpha": HELDOUT_ALPHA},
+            "settings": {
+                "windows": WINDOWS if self.windows is None else len(self.windows.rows),
+                "alpha": ALPHA,
+                "shape_alpha": SHAPE_ALPHA,
+                "min_change": MIN_CHANGE,
+                "heldout_alpha": HELDOUT_ALPHA,
+            },
         }
 
 
@@ -288,6 +297,23 @@ def window_estimates(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[s
     )
 
 
+def estimable_windows(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], most: int = WINDOWS) -> WindowEstimates:
+    """:func:`window_estimates` on ``most`` windows, or on the most windows below it of which :data:`MIN_WINDOWS` are estimated.
+
+    The rows come at the decimated rate (a tenth of the log's), so over the same time a 500 Hz log has half the rows
+    of a 1 kHz one: a 10 s dwell-and-move log at 500 Hz keeps some 290, and its ten windows of 22-38 rows (fewer than
+    :data:`MIN_WINDOW_ROWS_PER_COLUMN` per column) left the test unrun. Its windows are made longer instead, as few
+    fewer as it takes (never below :data:`MIN_WINDOWS`); a log whose ``most`` windows are estimated keeps them.
+    """
+    need = MIN_WINDOW_ROWS_PER_COLUMN * np.shape(W)[1]
+    win = window_estimates(t, W, y, names, most)
+    for n in range(most - 1, MIN_WINDOWS - 1, -1):
+        if np.count_nonzero(win.rows >= need) >= min(MIN_WINDOWS, most):
+            break
+        win = window_estimates(t, W, y, names, n)
+    return win
+
+
 def _wls(X: np.ndarray, x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
     """Weighted least squares: coefficients and the weighted residual sum of squares."""
     sw = np.sqrt(w)
@@ -308,7 +334,7 @@ def fit_trend(parameter: str, t: np.ndarray, x: np.ndarray, s: np.ndarray, start
     ``trials``: the Bonferroni factor of the test (coefficients x shapes).
     """
     k = len(t)
-    if k < 5:
+    if k < MIN_WINDOWS:
         return None
     w = 1.0 / np.square(s)
     tt = t - start
@@ -395,11 +421,12 @@ def detect_drift(
     drifting = [n for n in names if n in DRIFTING]
     if not drifting or len(t) == 0:
         return DriftResult(None, reason="the model has no friction coefficient")
-    win = window_estimates(t, W, y, names, n_windows)
+    win = estimable_windows(t, W, y, names, n_windows)
+    n_windows = len(win.rows)
     trials = len(drifting) * len(SHAPES)
     trends = [tr for n in drifting if (tr := fit_trend(n, *win.series(n), win.start, win.end, trials, n_windows)) is not None]
     if not trends:
-        return DriftResult(win, reason=f"fewer than 5 of the {n_windows} windows have enough rows to estimate the friction")
+        return DriftResult(win, reason=f"fewer than {MIN_WINDOWS} of the {n_windows} windows have enough rows to estimate the friction")
     significant = [tr for tr in trends if tr.test.p_adjusted < alpha and _physical(tr)]
     unphysical = [tr for tr in trends if tr.test.p_adjusted < alpha and not _physical(tr)]
     material = sorted((tr for tr in significant if abs(tr.relative_change) >= min_change), key=lambda tr: tr.test.p_value)

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.errors import IlicError
 from tests.clirun import run_cli
 from tests.corpus.robot import AXES, DWELL_TRAJECTORIES, TOLERANCE, Built, Case, build, score
 
@@ -83,8 +84,14 @@ def controller_flags(case: Case) -> list[str]:
     return ["--controller", "pd", "--kp", repr(kp), "--kv", repr(kv), "--drive-gain", repr(axis.drive_gain)]
 
 
+class Refused(Exception):
+    """``ilic`` refused the log (exit 2, or an :class:`ilic_cli.errors.IlicError` from the library): the tool said so."""
+
+
 def _cli_json(*args: str) -> dict[str, Any]:
     res = run_cli(*args, "--format", "json")
+    if res.status == 2 and res.stderr.startswith("ilic: error:"):
+        raise Refused(res.stderr.strip())
     if res.status != 0:
         raise RuntimeError(f"ilic {' '.join(args)}: exit {res.status}: {res.stderr.strip()}")
     return json.loads(res.stdout)
@@ -98,8 +105,11 @@ def diagnosed(built: Built, folder: Path) -> tuple[dict[str, Any], dict[str, Any
     case = built.case
     wants_identify = case.clean and case.trajectory in DWELL_TRAJECTORIES
     if case.writer == "library":
-        diag = diagnose(built.log).to_dict()
-        return diag, identify(built.log, method="ls").to_dict() if wants_identify else None
+        try:
+            diag = diagnose(built.log).to_dict()
+            return diag, identify(built.log, method="ls").to_dict() if wants_identify else None
+        except IlicError as exc:
+            raise Refused(f"ilic: error: {exc}") from exc
     stem = case.name.replace("/", "_")
     path = write_csv(built, folder / f"{stem}.csv") if case.writer == "csv" else write_ros2(built, folder / f"{stem}_bag")
     diag = _cli_json("diagnose", str(path), *controller_flags(case))
@@ -127,8 +137,13 @@ def run_case(case: Case) -> dict[str, Any]:
     t0, c0 = time.perf_counter(), time.process_time()
     built = build(case)
     t1 = time.perf_counter()
+    refused = None
     with tempfile.TemporaryDirectory(prefix="ilic-corpus-") as tmp:
-        diag, ident = diagnosed(built, Path(tmp))
+        try:
+            diag, ident = diagnosed(built, Path(tmp))
+        except Refused as exc:  # a refusal is an answer: scored as no finding, every effect missed with the refusal as reason
+            refused, ident = str(exc), None
+            diag = {"findings": [], "decisions": [], "base": {"parameters": {k: {"value": math.nan} for k in ("M", "Fv", "Fc")}}, "rows_total": 0}
     t2 = time.perf_counter()
     findings = [(f["effect"], f.get("plant_effect")) for f in diag["findings"]]
     s = score(built, findings)
@@ -150,13 +165,16 @@ def run_case(case: Case) -> dict[str, Any]:
         "findings": [{"effect": e, "plant": p} for e, p in findings],
         **s,
         "false_alarm_reasons": _reasons(diag, [e for (e, _), v in zip(findings, s["verdicts"], strict=True) if v == "false alarm"]),
-        "missed_reasons": _reasons(diag, s["missed"]),
+        "missed_reasons": {e: refused for e in s["missed"]} if refused else _reasons(diag, s["missed"]),
+        "refused": refused,
         "diagnose_rigid_error": {k: base[k] / axis.truth[k] - 1.0 for k in base},
         "diagnose_rows": diag["rows_total"],
         "identify": None,
         "wall_s": {"build": t1 - t0, "measure": t2 - t1},
         "cpu_s": time.process_time() - c0,
     }
+    if refused and case.clean and case.trajectory in DWELL_TRAJECTORIES:  # identify wanted and not given: not within
+        row["identify"] = {"error": {k: math.nan for k in ("M", "Fv", "Fc")}, "rows": 0, "same_rows": False}
     if ident is not None:
         ls = ident["ls"]
         row["identify"] = {
@@ -188,6 +206,7 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "identify_logs": len(ident),
         "identify_within": sum(all(abs(e) <= IDENTIFY_TOLERANCE for e in r["identify"]["error"].values()) for r in ident),
         "identify_same_rows": sum(r["identify"]["same_rows"] for r in ident),
+        "refused": sum(bool(r.get("refused")) for r in rows),
     }
 
 

@@ -1,6 +1,6 @@
 """The robot corpus (issue 29 item 8): its design, its rates, and its stratified subset in the suite.
 
-The whole corpus (195 logs) is ``make corpus`` (``benchmarks/corpus_robot.py --check``; docs/diagnosis.md has its
+The whole corpus (189 logs) is ``make corpus`` (``benchmarks/corpus_robot.py --check``; docs/diagnosis.md has its
 table). Here, within the suite's time: one log per rate (250 Hz to 8 kHz) x joint type, clean and with an effect in
 turn (:data:`tests.corpus.robot.CI_SLOTS`), each through the writer the corpus gives it (CSV or a ROS 2 bag read by
 ``ilic`` with the PD loop given by its flags, or the library), held to the issue's "Done when": a clean log has no
@@ -18,7 +18,7 @@ import pytest
 
 from ilic_cli.effects import catalogue_ids
 from tests.corpus.measure import IDENTIFY_TOLERANCE, failures, run_case, summary
-from tests.corpus.robot import AXES, DWELL_TRAJECTORIES, EDGE_RATES_HZ, RATES_HZ, TOLERANCE, TRAJECTORIES, build, cases, ci_subset
+from tests.corpus.robot import AXES, BAND_PTS, DWELL_TRAJECTORIES, EDGE_RATES_HZ, RATES_HZ, TOLERANCE, TRAJECTORIES, build, cases, ci_subset
 
 SUBSET = ci_subset()
 
@@ -46,7 +46,7 @@ def test_a_case_is_deterministic_and_sized_in_the_band() -> None:
     case = next(c for c in cases() if c.fs_hz == 250.0 and c.effects == ("spring",))
     a, b = build(case), build(case)
     assert all(np.array_equal(a.log[n], b.log[n]) for n in ("t", "q", "tau", "q_ref")) and a.effects == b.effects
-    assert 0.2 <= a.size_pts <= 1.5, a.size_pts
+    assert BAND_PTS[0] <= a.size_pts <= BAND_PTS[1], a.size_pts
 
 
 def test_the_rates_fail_where_the_issue_says() -> None:
@@ -83,4 +83,4 @@ def test_the_subset_meets_the_done_when(case) -> None:  # noqa: ANN001 - a Case
         assert row["exact"] and set(row["parameter_error"]) == set(case.effects), (row["findings"], row["missed_reasons"])
         within = all(e <= TOLERANCE for e in row["parameter_error"].values())
         assert within is (short != "parameters"), row["parameter_error"]
-        assert 0.2 <= row["size_pts"] <= 1.5, row["size_pts"]
+        assert BAND_PTS[0] <= row["size_pts"] <= BAND_PTS[1], row["size_pts"]

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
-from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, detect_drift
+from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, MIN_WINDOWS, detect_drift
 from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.diagnosis.select import SelectSettings
 from tests.corpus import CASES, Case, simulate_case
@@ -149,3 +149,18 @@ def test_drift_is_scale_free_on_revolute_joints(joint: str, drift: dict, shape: 
     diag = diagnose(revolute_log(joint, {"friction_drift": drift}, seed=3), settings=settings)
     assert diag.drift is not None and diag.drift.found and diag.drift.shape == shape, diag.drift.reason
     assert getattr(diag.drift.findings[0], size[0]) == pytest.approx(size[1], rel=TOLERANCE)
+
+
+def test_a_drift_is_read_from_fewer_longer_windows_when_the_rows_are_few() -> None:
+    """A 10 s log at 500 Hz has 50 decimated rows a second, a third of them at rest: ten 1 s windows hold about 30 rows,
+    fewer than 8 per column, and none would be estimated. The windows are made longer instead and the warm-up is named."""
+    t, W, y = _system(3, fv=lambda t: 200.0 - 200.0 / 3.0 * (1 - np.exp(-t / 6.0)), noise=0.1)
+    moving = np.abs(W[:, 1]) > 0.08  # the rows left once those near rest are out
+    keep = np.flatnonzero(moving)[::7]  # 30 s at 100 rows/s -> about 310 rows, as many as 10 s at 50 rows/s less rest
+    assert 250 < len(keep) < 400
+    res = detect_drift(t[keep], W[keep], y[keep], NAMES)
+    assert res.windows is not None and MIN_WINDOWS <= len(res.windows.rows) < 10, res.reason
+    assert np.count_nonzero(res.windows.rows >= 8 * len(NAMES)) >= MIN_WINDOWS, res.windows.rows
+    assert res.found and res.findings[0].parameter == "Fv", res.reason
+    assert res.findings[0].relative_change == pytest.approx(-1.0 / 3.0, rel=0.2)  # six windows, not ten: a coarser size
+    assert res.to_dict()["settings"]["windows"] == len(res.windows.rows)

@@ -50,6 +50,17 @@ def test_search_finds_an_interior_optimum_between_the_grid_points() -> None:
     assert len(set(calls)) <= len(vs) + len(fs) + len(vs)  # a coordinate search, not the whole grid
 
 
+def test_search_finds_a_peak_above_half_the_coulomb_level() -> None:
+    """A static friction 1.7 times the Coulomb level (Fs = 0.7 Fc): inside the levels searched (up to 2 Fc), not on their edge."""
+    vs = np.geomspace(0.002, 0.08, 8)
+    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    error, calls = _surface(0.011, 14.0)
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0)
+    assert found is not None and found.level is not None
+    assert found.value == pytest.approx(0.011, rel=1e-6) and found.level[0] == pytest.approx(14.0, rel=1e-6)
+    assert calls[0][1] == pytest.approx(20.0 * dwell.START_LEVEL_OF_FC)  # the vs profile first, at the proposal's level
+
+
 @pytest.mark.parametrize(
     ("v0", "f0", "baseline", "why"),
     [
@@ -143,7 +154,7 @@ def test_the_coulomb_level_and_the_grids() -> None:
     vs_grid = np.geomspace(0.001, 0.04, 32)
     vs, fs = dwell.grids(vs_grid, -20.0)
     assert np.array_equal(vs, vs_grid[:: dwell.VS_EVERY]) and len(vs) == 8
-    assert fs.tolist() == pytest.approx([0.625, 1.25, 2.5, 5.0, 10.0])
+    assert fs.tolist() == pytest.approx([0.625, 1.25, 2.5, 5.0, 10.0, 20.0, 40.0])
     first = dwell.proposal(vs_grid, -20.0)
     assert first.effect is STRIBECK and first.value == vs_grid[16] and first.level == (2.5,)
 
