@@ -239,12 +239,48 @@ def _bag(path: Path) -> list[TopicOverview]:
 
     with AnyReader([path]) as reader:
         kind = ROS1 if reader.is2 is False else ROS2
+        firsts = _mcap_storage_firsts(path) if kind == ROS2 else None
         out = []
         for conn in sorted(reader.connections, key=lambda c: (c.topic, c.id)):
             msgtype = normalize_msgtype(conn.msgtype)
             joints = None
             if msgtype in NAMED and conn.msgcount:
-                first = next(iter(reader.messages(connections=[conn])), None)
-                joints = None if first is None else _joints(bytes(first[2]), msgtype, kind)
+                data = None if firsts is None else firsts(conn.topic)
+                if data is None:  # rosbags' walk: a chunk broken into its records
+                    first = next(iter(reader.messages(connections=[conn])), None)
+                    data = None if first is None else bytes(first[2])
+                joints = None if data is None else _joints(data, msgtype, kind)
             out.append(TopicOverview(conn.topic, msgtype, int(conn.msgcount), _rate(int(conn.msgcount), reader.start_time, reader.end_time), joints))
     return out
+
+
+def _mcap_storage_firsts(path: Path) -> Any:
+    """For a ROS 2 bag folder whose only storage file is one ``.mcap``: ``first(topic)`` -> its first message's data (:func:`_first_data`), or None.
+
+    ``rosbags``' MCAP storage yields a topic's messages in the order of
+    ``mcap``'s reader (log time, then chunk, then place in the chunk); it
+    finds the first by breaking a whole chunk into its records (some 0.1 s a
+    topic for a 1 kHz bag). None (``rosbags`` is asked) for another folder,
+    or a topic on more than one channel of the file.
+    """
+    from mcap.reader import make_reader  # mcap deferred, as in _mcap
+
+    files = sorted(path.glob("*.mcap")) if path.is_dir() else []
+    if len(files) != 1 or sorted(path.glob("*.db3")):
+        return None
+    with open(files[0], "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    if summary is None:
+        return None
+    by_topic: dict[str, set[int]] = {}
+    for cid, channel in summary.channels.items():
+        by_topic.setdefault(channel.topic, set()).add(cid)
+
+    def first(topic: str) -> bytes | None:
+        ids = by_topic.get(topic, set())
+        if len(ids) != 1:
+            return None
+        with open(files[0], "rb") as stream:
+            return _first_data(stream, summary, ids, files[0])
+
+    return first

@@ -131,3 +131,44 @@ def test_mcap_overview_without_indexes_is_the_readers_walk(tmp_path: Path, monke
     fast = overview._mcap(path)
     monkeypatch.setattr(overview, "_first_data", lambda *args: None)
     assert overview._mcap(path) == fast
+
+
+def _foreign_ros2_mcap_bag(path: Path) -> None:
+    """A ROS 2 bag of MCAP storage by ``rosbags``' own writer: two JointState topics, the first message in time written late."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    ts = rosschema.typestore("ros2")
+    js = ts.types["sensor_msgs/msg/JointState"]
+    header = ts.types["std_msgs/msg/Header"]
+    stamp = ts.types["builtin_interfaces/msg/Time"]
+    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = [writer.add_connection(topic, "sensor_msgs/msg/JointState", typestore=ts) for topic in ("/left/joint_states", "/right/joint_states")]
+        for i in range(12000):  # several of rosbags' 1 MiB chunks
+            for conn, names in zip(conns, (["l1", "l2"], [f"r{i % 7}"])):
+                ns = 2 * 10**9 if i == 10000 else 3 * 10**9 + i * 10**6  # the first in time in a later chunk
+                msg = js(
+                    header=header(stamp=stamp(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
+                    name=names,
+                    position=np.full(len(names), float(i)),
+                    velocity=np.array([], dtype=np.float64),
+                    effort=np.zeros(len(names)),
+                )
+                writer.write(conn, ns, bytes(ts.serialize_cdr(msg, "sensor_msgs/msg/JointState")))
+
+
+def test_ros2_mcap_bag_first_messages_are_rosbags(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first messages of a ROS 2 bag's MCAP storage from its indexes give ``rosbags``' overview."""
+    path = tmp_path / "bag"
+    _foreign_ros2_mcap_bag(path)
+    firsts = overview._mcap_storage_firsts(path)
+    assert firsts is not None and firsts("/right/joint_states") is not None  # read from the indexes
+    with open(next(path.glob("*.mcap")), "rb") as stream:
+        from mcap.reader import make_reader
+
+        summary = make_reader(stream).get_summary()
+        assert summary is not None and len(summary.chunk_indexes) > 2
+    fast = overview._bag(path)
+    monkeypatch.setattr(overview, "_mcap_storage_firsts", lambda path: None)
+    assert overview._bag(path) == fast
+    right = ("/right/joint_states", 12000, ("r4",))  # message 10000
+    assert [(t.topic, t.count, t.joints) for t in fast] == [("/left/joint_states", 12000, ("l1", "l2")), right]
