@@ -19,11 +19,10 @@ from collections.abc import Callable, Mapping
 from types import ModuleType
 from typing import Any
 
-from numba import njit
-
 from ilic_cli.effects import EFFECTS, EffectParams
 from plant import kernel
 from plant.dynamics import generic_effects
+from plant.jit import njit
 
 
 def kernel_for(effects: Mapping[str, EffectParams]) -> ModuleType:

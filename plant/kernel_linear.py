@@ -14,9 +14,9 @@ so they are compiled once and cached on disk.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from plant.dynamics import P_DM, P_FC_NEG, P_FC_POS, P_FV_NEG, P_FV_POS, P_M, P_TCH
+from plant.jit import njit
 
 
 @njit(cache=True, nogil=True)

@@ -6,11 +6,11 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
-from numba import njit
 
 from ilic_cli.effects import EffectParams
 from ilic_cli.errors import ParameterError
 from plant.dynamics import measurement_lag_s
+from plant.jit import njit
 
 
 def held_signal(u: np.ndarray, T: float, times: np.ndarray, width: float) -> np.ndarray:

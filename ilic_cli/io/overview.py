@@ -11,6 +11,7 @@ unchecked chunk.
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -103,10 +104,69 @@ def _mcap(path: Path) -> list[TopicOverview]:
             count = int(stats.channel_message_counts.get(cid, 0))
             joints = None
             if msgtype in NAMED and count:
-                first = next(iter(reader.iter_messages(topics=[channel.topic])), None)
-                joints = None if first is None else _joints(bytes(first[2].data), msgtype, ROS2)
+                ids = {other for other, c in summary.channels.items() if c.topic == channel.topic}
+                data = _first_data(stream, summary, ids, path)
+                if data is None:  # the indexes do not say: the reader's own walk
+                    first = next(iter(reader.iter_messages(topics=[channel.topic])), None)
+                    data = None if first is None else bytes(first[2].data)
+                joints = None if data is None else _joints(data, msgtype, ROS2)
             out.append(TopicOverview(channel.topic, msgtype, count, _rate(count, stats.message_start_time, stats.message_end_time), joints))
     return out
+
+
+MESSAGE_INDEX_HEAD = struct.Struct("<BQHI")
+"""A message index record's opcode, length, channel id and length of its entries (each a log time and an offset, ``<u8`` both)."""
+
+
+def _first_data(stream: Any, summary: Any, ids: set[int], path: Path) -> bytes | None:
+    """The data of the first message of channels ``ids`` as ``mcap``'s reader yields it (least log time, then chunk, then place in it).
+
+    The reader breaks a whole chunk into one object per record to find it
+    (some 0.2 s a topic for a 1 kHz log); here the chunks are taken in the
+    reader's order from the chunk indexes, the channels' message indexes give
+    the candidates, and the one chunk holding the first is decompressed and
+    read at that offset. None when a record is not as its index says (the
+    caller asks the reader instead).
+    """
+    from mcap.data_stream import ReadDataStream  # mcap deferred, as in _mcap
+    from mcap.records import Chunk  # the same
+
+    # the MCAP reader imports mcap, zstandard and lz4: deferred so that `ilic info` on another format does not load them
+    from ilic_cli.io.mcaplog import MAX_CHUNK_BYTES, MAX_EXPANSION, _decompress
+
+    chunks = sorted((ci for ci in summary.chunk_indexes if ids & set(ci.message_index_offsets)), key=lambda ci: (ci.message_start_time, ci.chunk_start_offset))
+    best: tuple[int, int, int, Any] | None = None  # log time, chunk offset, offset in the chunk, its chunk index
+    for ci in chunks:
+        if best is not None and (ci.message_start_time, ci.chunk_start_offset) > best[:2]:
+            break  # every message of this chunk and the ones after comes later
+        for cid in sorted(ids & set(ci.message_index_offsets)):
+            stream.seek(ci.message_index_offsets[cid])
+            head = stream.read(MESSAGE_INDEX_HEAD.size)
+            if len(head) != MESSAGE_INDEX_HEAD.size:
+                return None
+            opcode, length, channel_id, size = MESSAGE_INDEX_HEAD.unpack(head)
+            if opcode != 0x07 or channel_id != cid or size % 16 or length != 6 + size or size > ci.message_index_length:
+                return None
+            body = stream.read(size)
+            if len(body) != size:
+                return None
+            if not size:
+                continue
+            log_ns, offset = min(struct.iter_unpack("<QQ", body))  # a chunk's entries: a few thousand
+            candidate = (log_ns, ci.chunk_start_offset, offset, ci)
+            if best is None or candidate[:3] < best[:3]:
+                best = candidate
+    if best is None:
+        return None
+    log_ns, chunk_offset, offset, ci = best
+    stream.seek(chunk_offset + 1 + 8)
+    records = _decompress(Chunk.read(ReadDataStream(stream)), min(MAX_CHUNK_BYTES, MAX_EXPANSION * max(path.stat().st_size, 1)), path)
+    if offset + 31 > len(records):
+        return None
+    opcode, length, channel_id, _, log_time = struct.unpack_from("<BQHIQ", records, offset)
+    if opcode != 0x05 or channel_id not in ids or log_time != log_ns or offset + 9 + length > len(records) or length < 22:
+        return None
+    return bytes(records[offset + 31 : offset + 9 + length])
 
 
 def _bag1(path: Path) -> list[TopicOverview]:
@@ -179,12 +239,48 @@ def _bag(path: Path) -> list[TopicOverview]:
 
     with AnyReader([path]) as reader:
         kind = ROS1 if reader.is2 is False else ROS2
+        firsts = _mcap_storage_firsts(path) if kind == ROS2 else None
         out = []
         for conn in sorted(reader.connections, key=lambda c: (c.topic, c.id)):
             msgtype = normalize_msgtype(conn.msgtype)
             joints = None
             if msgtype in NAMED and conn.msgcount:
-                first = next(iter(reader.messages(connections=[conn])), None)
-                joints = None if first is None else _joints(bytes(first[2]), msgtype, kind)
+                data = None if firsts is None else firsts(conn.topic)
+                if data is None:  # rosbags' walk: a chunk broken into its records
+                    first = next(iter(reader.messages(connections=[conn])), None)
+                    data = None if first is None else bytes(first[2])
+                joints = None if data is None else _joints(data, msgtype, kind)
             out.append(TopicOverview(conn.topic, msgtype, int(conn.msgcount), _rate(int(conn.msgcount), reader.start_time, reader.end_time), joints))
     return out
+
+
+def _mcap_storage_firsts(path: Path) -> Any:
+    """For a ROS 2 bag folder whose only storage file is one ``.mcap``: ``first(topic)`` -> its first message's data (:func:`_first_data`), or None.
+
+    ``rosbags``' MCAP storage yields a topic's messages in the order of
+    ``mcap``'s reader (log time, then chunk, then place in the chunk); it
+    finds the first by breaking a whole chunk into its records (some 0.1 s a
+    topic for a 1 kHz bag). None (``rosbags`` is asked) for another folder,
+    or a topic on more than one channel of the file.
+    """
+    from mcap.reader import make_reader  # mcap deferred, as in _mcap
+
+    files = sorted(path.glob("*.mcap")) if path.is_dir() else []
+    if len(files) != 1 or sorted(path.glob("*.db3")):
+        return None
+    with open(files[0], "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    if summary is None:
+        return None
+    by_topic: dict[str, set[int]] = {}
+    for cid, channel in summary.channels.items():
+        by_topic.setdefault(channel.topic, set()).add(cid)
+
+    def first(topic: str) -> bytes | None:
+        ids = by_topic.get(topic, set())
+        if len(ids) != 1:
+            return None
+        with open(files[0], "rb") as stream:
+            return _first_data(stream, summary, ids, files[0])
+
+    return first

@@ -140,15 +140,18 @@ def table_summary(file: Path) -> Any:
 
 
 PAGE_BLOCK = 65536
-"""Messages of a topic copied out of the file's pages at a time (:func:`_feed_pages`)."""
+"""Rows of the table whose messages are copied out of the file's pages at a time, every topic's (:func:`_feed_pages`)."""
 
 
 def _feed_pages(file: Path, db: Any, by_id: dict[int, Any], path: Path, total: int) -> bool:
     """Feed the sinks from the table's rows read off the file's pages (:mod:`ilic_cli.io.sqlitepages`); False when that module does not read the file.
 
-    Each topic's messages, in id order, go to its sink in runs of one size:
-    their blobs are copied out of the mapped file row after row (a window of
-    the run's size at each blob's start), a message fetched by SQL alone.
+    The rows are taken :data:`PAGE_BLOCK` at a time, in id order; each
+    topic's messages among them go to its sink in runs of one size: their
+    blobs are copied out of the mapped file row after row (a window of the
+    run's size at each blob's start), a message fetched by SQL alone. Then the
+    block's pages leave the process's resident memory: every page is touched
+    once here, whatever the topics.
     """
     try:
         rows = sqlitepages.read(file, db, set(by_id))
@@ -157,30 +160,37 @@ def _feed_pages(file: Path, db: Any, by_id: dict[int, Any], path: Path, total: i
     if rows.summary is not None:
         _TABLES.clear()  # the last table read only: a summary of a few topics
         _TABLES[_identity(file)] = rows.summary
-    done = 0
+    windows: dict[int, np.ndarray] = {}
     with current_progress(path) as progress:
-        for tid, sink in by_id.items():
-            mine = np.flatnonzero(rows.topic_id == tid)
-            if not len(mine):
-                continue
-            sizes, starts, log_ns = rows.size[mine], rows.start[mine], rows.log_ns[mine]
-            alone = starts < 0
-            cut = np.flatnonzero((sizes[1:] != sizes[:-1]) | alone[1:] | alone[:-1]) + 1
-            bounds = [0, *cut.tolist(), len(mine)]
-            for a, b in zip(bounds[:-1], bounds[1:]):
-                if alone[a]:
-                    sink.add(int(log_ns[a]), rows.fetched[int(mine[a])])
-                    continue
-                size = int(sizes[a])
-                windows = as_strided(rows.data, shape=(len(rows.data) - size + 1, size), strides=(1, 1), writeable=False)
-                for c in range(a, b, PAGE_BLOCK):
-                    d = min(c + PAGE_BLOCK, b)
-                    sink.add_run(windows[starts[c:d]].reshape(-1), 0, size, d - c, size, log_ns[c:d])
-                    rows.data.release()  # the pages copied from leave the process's resident memory
-            done += len(mine)
+        for c in range(0, len(rows.topic_id), PAGE_BLOCK):
+            d = min(c + PAGE_BLOCK, len(rows.topic_id))
+            for tid, sink in by_id.items():
+                mine = np.flatnonzero(rows.topic_id[c:d] == tid) + c
+                if len(mine):
+                    _feed_rows(sink, rows, mine, windows)
+            starts = rows.start[c:d]
+            placed = starts >= 0
+            if placed.any():
+                rows.data.release(int(starts[placed].min()), int((starts + rows.size[c:d])[placed].max()))
             if progress is not None:
-                progress(done, total)
+                progress(d, total)
     return True
+
+
+def _feed_rows(sink: Any, rows: Any, mine: np.ndarray, windows: dict[int, np.ndarray]) -> None:
+    """Rows ``mine`` (of one topic, in id order) to ``sink``: runs of one size copied out of the file, a row fetched by SQL alone."""
+    sizes, starts, log_ns = rows.size[mine], rows.start[mine], rows.log_ns[mine]
+    alone = starts < 0
+    cut = np.flatnonzero((sizes[1:] != sizes[:-1]) | alone[1:] | alone[:-1]) + 1
+    bounds = [0, *cut.tolist(), len(mine)]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if alone[a]:
+            sink.add(int(log_ns[a]), rows.fetched[int(mine[a])])
+            continue
+        size = int(sizes[a])
+        if size not in windows:
+            windows[size] = as_strided(rows.data, shape=(len(rows.data) - size + 1, size), strides=(1, 1), writeable=False)
+        sink.add_run(windows[size][starts[a:b]].reshape(-1), 0, size, b - a, size, log_ns[a:b])
 
 
 Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]

@@ -212,9 +212,14 @@ class Mapped(np.ndarray):
 
     mm: Any = None
 
-    def release(self) -> None:
-        if self.mm is not None and hasattr(mmap, "MADV_DONTNEED"):
-            self.mm.madvise(mmap.MADV_DONTNEED)
+    def release(self, start: int = 0, stop: int | None = None) -> None:
+        """Let the resident pages of bytes ``start`` to ``stop`` go (the whole file by default; widened to whole pages)."""
+        if self.mm is None or not hasattr(mmap, "MADV_DONTNEED"):
+            return
+        stop = len(self) if stop is None else min(int(stop), len(self))
+        start = max(int(start), 0) // mmap.PAGESIZE * mmap.PAGESIZE
+        if stop > start:
+            self.mm.madvise(mmap.MADV_DONTNEED, start, stop - start)
 
 
 def _mapped(path: Path) -> Mapped:
@@ -261,14 +266,13 @@ def read(path: Path, db: sqlite3.Connection, wanted: set[int]) -> Rows:
         raise Unusual
     cell = (base[:, None] + pointer)[used]  # row-major: page after page, each in its pointers' order
     del heads, pointer, used
-    u8.release()
     page_end = np.repeat(base + usable, counts)
     rowid, topic_id, log_ns, start, size = (np.empty(len(cell), dtype=np.int64) for _ in range(5))
     plain = np.empty(len(cell), dtype=bool)
     for a in range(0, len(cell), BLOCK):
         b = min(a + BLOCK, len(cell))
         rowid[a:b], topic_id[a:b], log_ns[a:b], start[a:b], size[a:b], plain[a:b] = _decode(u8, cell[a:b], page_end[a:b], usable)
-        u8.release()
+        u8.release(int(cell[a:b].min()), int(page_end[a:b].max()))  # the block's pages, touched by the leaf headers' pass and its decoding
     del cell, page_end
     if len(rowid) > 1 and (np.diff(rowid) <= 0).any():
         raise Unusual  # a table's keys increase through its leaves

@@ -104,6 +104,34 @@ def test_a_corrupt_page_is_left_to_sql(tmp_path: Path) -> None:
         _rows_of(path, {1})
 
 
+def _deep_table(path: Path) -> tuple[bytearray, int]:
+    """A table three levels deep (512-byte pages); the file's bytes and the root page's offset."""
+    _table(path, 512, [(i, 1 + i % 3, i, bytes([i % 251]) * 60) for i in range(1, 3000)])
+    with sqlite3.connect(path) as db:
+        (root,) = db.execute("SELECT rootpage FROM sqlite_master WHERE name = 'messages'").fetchone()
+    db.close()
+    raw = bytearray(path.read_bytes())
+    assert raw[(root - 1) * 512] == sqlitepages.INTERIOR
+    return raw, (root - 1) * 512
+
+
+def test_a_deep_tree_gives_its_leaves_in_key_order(tmp_path: Path) -> None:
+    path = tmp_path / "t.db3"
+    _deep_table(path)
+    assert _rows_of(path, {1, 2, 3}) == _sql_rows(path, {1, 2, 3})  # the leaves out of key order would give ids that do not increase
+
+
+@pytest.mark.parametrize("target", ["root", "page 1", "past the end"])
+def test_a_cycle_or_a_page_out_of_the_tree_is_left_to_sql(tmp_path: Path, target: str) -> None:
+    path = tmp_path / "t.db3"
+    raw, root_at = _deep_table(path)
+    page = {"root": root_at // 512 + 1, "page 1": 1, "past the end": len(raw) // 512 + 1}[target]
+    raw[root_at + 8 : root_at + 12] = page.to_bytes(4, "big")  # the root's rightmost child
+    path.write_bytes(bytes(raw))
+    with pytest.raises(sqlitepages.Unusual):
+        _rows_of(path, {1})
+
+
 @pytest.mark.parametrize("fast_writer", [True, False], ids=["bulk-writer", "per-message-writer"])
 def test_bags_read_off_the_pages_give_rosbags_columns(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fast_writer: bool) -> None:
     from ilic_cli.io import WriteOptions
