@@ -23,9 +23,19 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference, decimate_matlab, kept_indices, lowpass_decimate
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference, decimate_matlab, decimation_factor, kept_indices, lowpass_decimate
 from ilic_cli.lsq import LSResult, SigmaConvention, evaluate, solve
 from ilic_cli.regressor import Kinematics, Model
+
+ROWS_BAND_HZ = 40.0
+"""The band the decimated rows keep (Hz), at every rate: the decimation is ``round(0.8·(fs/2)/40 Hz)``
+(:func:`ilic_cli.filtering.decimation_factor`; its anti-alias cut-off ``0.8·(fs/2)/r`` is then 40 Hz). Why 40 Hz: the
+benchmark's own rule, ``round(0.8·500/40) = 10`` at 1 kHz (twice the 20 Hz loop bandwidth), so every published EMPS
+figure is unchanged; a factor fixed at 10 kept 20 Hz at 500 Hz (a 30 Hz resonance out of reach) and 320 Hz at 8 kHz.
+250 Hz: 2 (50 Hz); 500 Hz: 5; 2 kHz: 20; 4 kHz: 40; 8 kHz: 80."""
+
+DECIMATION_RULE = f"rows decimated by round(0.8·(fs/2)/{ROWS_BAND_HZ:g} Hz) (the benchmark's 10 at 1 kHz): they keep {ROWS_BAND_HZ:g} Hz at every rate"
+"""The decimation rule, in words (the reports state it)."""
 
 
 @dataclass(frozen=True)
@@ -39,7 +49,8 @@ class LSSettings:
     order : int
         Butterworth order of the position filter.
     decimation : int
-        Parallel decimation factor (benchmark: round(0.8*500/40) = 10).
+        Parallel decimation factor (benchmark: round(0.8*500/40) = 10); set from the log's rate by ``band_hz``
+        unless that is ``None`` (:meth:`at_rate`).
     trim : int
         Samples dropped at the start (edge effects of the filters).
     matlab : bool
@@ -49,6 +60,12 @@ class LSSettings:
     sigma : {"sample_std", "eq8"}
         Error standard deviation: the benchmark's sample std (default) or
         the paper's eq. (8).
+    band_hz : float or None
+        The band the decimated rows keep (:data:`ROWS_BAND_HZ`): the decimation is
+        ``decimation_factor(fs, band_hz)`` at the log's rate (:meth:`at_rate`, which every fit calls);
+        ``None``: ``decimation`` as given (``identify --decimation N``).
+    at_hz : float or None
+        The rate :meth:`at_rate` set ``decimation`` for (``None``: not yet set).
     """
 
     cutoff_hz: float = 100.0
@@ -57,9 +74,21 @@ class LSSettings:
     trim: int = 49
     matlab: bool = True
     sigma: SigmaConvention = "sample_std"
+    band_hz: float | None = ROWS_BAND_HZ
+    at_hz: float | None = None
+
+    def at_rate(self, fs_hz: float) -> LSSettings:
+        """These settings for a log sampled at ``fs_hz``: the decimation by :data:`ROWS_BAND_HZ`'s rule (the one definition every command's fits use)."""
+        if self.band_hz is None or self.at_hz == fs_hz:
+            return self
+        return replace(self, decimation=decimation_factor(fs_hz, self.band_hz), at_hz=fs_hz)
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        d = asdict(self)
+        del d["at_hz"]
+        if d["band_hz"] is None:
+            del d["band_hz"]
+        return d
 
 
 @dataclass(frozen=True)
@@ -243,6 +272,7 @@ def lsq_rows(
         (or all True) keeps every row.
     """
     dt = 1.0 / fs_hz
+    settings = settings.at_rate(fs_hz)
     if len(q) < min_samples(settings):
         raise ValueError(f"too few samples ({len(q)}) for IDIM-LS with trim {settings.trim} and decimation {settings.decimation}")
     qf = butter_lowpass_zero_phase(np.asarray(q, dtype=np.float64), settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab)
@@ -281,7 +311,7 @@ def _columns(model: Model, kin: Kinematics, *more: np.ndarray) -> Iterator[np.nd
 
 
 def min_samples(settings: LSSettings) -> int:
-    """Fewest samples :func:`lsq_rows` takes (edge trim plus the decimation filter's padding)."""
+    """Fewest samples :func:`lsq_rows` takes (edge trim plus the decimation filter's padding; ``settings`` at the log's rate: :meth:`LSSettings.at_rate`)."""
     return settings.trim + 3 * settings.decimation * 9 + 1
 
 
@@ -301,6 +331,7 @@ def _systems(
     Segments shorter than :func:`min_samples` are left out; none left is an error. ``hold_s``: the regressor is
     evaluated that much later (:func:`held`). ``kept``: the rows fitted among all decimated rows of the parts (``None``: all).
     """
+    settings = settings.at_rate(fs_hz)
     spans = segments or ((0, len(q)),)
     parts = []
     for a, b in spans:
@@ -338,6 +369,7 @@ def idim_ls(
     sample (:func:`held`; the published procedure: 0).
     """
     t, q, tau = (np.asarray(a, dtype=np.float64) for a in (t, q, tau))
+    settings = settings.at_rate(fs_hz)
     W, y, t_dec, kept = _systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s)
     result = solve(W, y, model.names, sigma=settings.sigma)
     return IDIMLSResult(model=model.name, result=result, settings=settings, t=t_dec, y=y, y_hat=W @ result.theta, kept=kept, hold_s=hold_s)

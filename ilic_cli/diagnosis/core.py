@@ -222,6 +222,7 @@ def diagnose(
         Another recording: candidates must not raise the error there.
     """
     settings = settings or DiagnosisSettings()
+    settings = replace(settings, ls=settings.ls.at_rate(log.fs_hz))  # the decimation of the log's rate, in every stage
     settings.null.check(replay_alpha(settings))
     prop = propose(log, settings, model_doc, validate)  # 1. propose
     log, validate = prop.log, prop.validate

@@ -81,6 +81,21 @@ def test_settings_are_the_benchmark_procedure() -> None:
     assert s.to_dict()["decimation"] == 10
 
 
+@pytest.mark.parametrize(("fs", "r"), [(250.0, 2), (500.0, 5), (1000.0, 10), (2000.0, 20), (4000.0, 40), (8000.0, 80)])
+def test_the_decimation_is_the_rate_s_rule(fs: float, r: int) -> None:
+    """The rows keep 40 Hz at every rate: 10 at 1 kHz (the benchmark), 5 at 500 Hz (a factor fixed at 10 kept 20 Hz there).
+
+    IDIM-LS, the rows rule (``usable_rows``) and an explicit factor (``band_hz=None``, ``identify --decimation``) alike."""
+    t, q, qd, qdd = motion(int(10 * fs), fs)
+    data = lsq_rows(t, q, rigid_force(qd, qdd), fs, get_model("rigid-offset"))
+    assert data.settings.decimation == r and np.diff(data.t_dec) == pytest.approx(r / fs)
+    res = idim_ls(t, q, rigid_force(qd, qdd), fs, get_model("rigid-offset"))
+    assert res.settings.decimation == r and len(res.y) == len(data.y)
+    assert res.result.theta[:3] == pytest.approx([95.0, 200.0, 20.0], rel=1.5e-2)  # 250 Hz: the central differences' own 1 %
+    given = lsq_rows(t, q, rigid_force(qd, qdd), fs, get_model("rigid-offset"), LSSettings(decimation=7, band_hz=None))
+    assert given.settings.decimation == 7 and np.diff(given.t_dec) == pytest.approx(7 / fs)
+
+
 def assert_truth(theta: np.ndarray) -> None:
     """The rigid-offset truth of :func:`rigid_force` within 0.2 % (M, Fv, Fc) and 0.05 N (offset)."""
     assert theta[:3] == pytest.approx([95.0, 200.0, 20.0], rel=2e-3)
