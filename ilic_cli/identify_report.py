@@ -14,7 +14,8 @@ import numpy as np
 from ilic_cli import parameters
 from ilic_cli.closed_loop_id import STD_SOURCE
 from ilic_cli.effects import unit_of
-from ilic_cli.idim_ls import DECIMATION_RULE, NOT_WHITE_WIDENING, IDIMLSResult
+from ilic_cli.filtering import DECIMATION_RULE
+from ilic_cli.idim_ls import NOT_WHITE_WIDENING, IDIMLSResult
 
 if TYPE_CHECKING:
     from ilic_cli.identify import IdentifyReport

@@ -23,19 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference, decimate_matlab, decimation_factor, kept_indices, lowpass_decimate
+from ilic_cli.filtering import ROWS_BAND_HZ, butter_lowpass_zero_phase, central_difference, decimate_matlab, kept_indices, lowpass_decimate, rows_decimation
 from ilic_cli.lsq import LSResult, SigmaConvention, evaluate, finite_or_none, pinv, solve
 from ilic_cli.regressor import Kinematics, Model
-
-ROWS_BAND_HZ = 40.0
-"""The band the decimated rows keep (Hz), at every rate: the decimation is ``round(0.8·(fs/2)/40 Hz)``
-(:func:`ilic_cli.filtering.decimation_factor`; its anti-alias cut-off ``0.8·(fs/2)/r`` is then 40 Hz). Why 40 Hz: the
-benchmark's own rule, ``round(0.8·500/40) = 10`` at 1 kHz (twice the 20 Hz loop bandwidth), so every published EMPS
-figure is unchanged; a factor fixed at 10 kept 20 Hz at 500 Hz (a 30 Hz resonance out of reach) and 320 Hz at 8 kHz.
-250 Hz: 2 (50 Hz); 500 Hz: 5; 2 kHz: 20; 4 kHz: 40; 8 kHz: 80."""
-
-DECIMATION_RULE = f"rows decimated by round(0.8·(fs/2)/{ROWS_BAND_HZ:g} Hz) (the benchmark's 10 at 1 kHz): they keep {ROWS_BAND_HZ:g} Hz at every rate"
-"""The decimation rule, in words (the reports state it)."""
 
 
 @dataclass(frozen=True)
@@ -61,8 +51,8 @@ class LSSettings:
         Error standard deviation: the benchmark's sample std (default) or
         the paper's eq. (8).
     band_hz : float or None
-        The band the decimated rows keep (:data:`ROWS_BAND_HZ`): the decimation is
-        ``decimation_factor(fs, band_hz)`` at the log's rate (:meth:`at_rate`, which every fit calls);
+        The widest band the decimated rows keep (:data:`ilic_cli.filtering.ROWS_BAND_HZ`): the decimation is
+        :func:`ilic_cli.filtering.rows_decimation` at the log's rate (:meth:`at_rate`, which every fit calls);
         ``None``: ``decimation`` as given (``identify --decimation N``).
     at_hz : float or None
         The rate :meth:`at_rate` set ``decimation`` for (``None``: not yet set).
@@ -78,10 +68,10 @@ class LSSettings:
     at_hz: float | None = None
 
     def at_rate(self, fs_hz: float) -> LSSettings:
-        """These settings for a log sampled at ``fs_hz``: the decimation by :data:`ROWS_BAND_HZ`'s rule (the one definition every command's fits use)."""
+        """These settings for a log sampled at ``fs_hz``: the decimation by :func:`ilic_cli.filtering.rows_decimation` (every command's fits use it)."""
         if self.band_hz is None or self.at_hz == fs_hz:
             return self
-        return replace(self, decimation=decimation_factor(fs_hz, self.band_hz), at_hz=fs_hz)
+        return replace(self, decimation=rows_decimation(fs_hz, self.band_hz), at_hz=fs_hz)
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
