@@ -77,8 +77,9 @@ def to_markdown(report: IdentifyReport) -> str:
         u = report.usable
         if u is not None and u.at_rest and u.rest is not None:  # the rule for samples at rest, stated where it acted
             held = f"; the regressor evaluated {1e3 * u.hold_s:.4g} ms later (the drive's held command)" if u.hold_s else ""
-            rule = f"decimated by {report.ls.settings.decimation}" + (f": {DECIMATION_RULE}" if report.ls.settings.band_hz is not None else " as given")
-            out += [f"{u.usable} of {u.decimated} rows ({rule}) fitted: {u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){held}.", ""]
+            ls = report.ls.settings
+            rule = f"; rows decimated by {ls.decimation} ({DECIMATION_RULE if ls.band_hz is not None else 'as given'})"
+            out += [f"{u.usable} of {u.decimated} decimated rows fitted: {u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){held}{rule}.", ""]
     out += _closed_loop_markdown(report)
     out += _output_error_markdown(report)
     if report.ilic is not None:
