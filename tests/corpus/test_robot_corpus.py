@@ -60,9 +60,6 @@ def test_the_rates_fail_where_the_issue_says() -> None:
 
 SHORT_OF_THE_DONE_WHEN = {
     "lin12/multisine/500Hz/current_loop/friction_drift/s270": "parameters",  # named exactly; the warm-up's dFv -2.91, tau 2.84 s: 17 % off
-    # no finding; identify --method ls Fc -2.59 % (M +0.20 %, Fv +1.52 %) under a 10 Hz force disturbance: statistical (8 seeds of this
-    # log: Fc sd 2.0 % with the rate's decimation, 2.3 % with 10 at 500 Hz; the robust std says 2.5 %, eq. 9 ~1 %)
-    "rev0.01/s-curve/500Hz/disturbance/clean/s25": "identify",
 }
 """Subset logs on which the current code misses one part of the "Done when" (issue 29 stays open on them), by the part missed.
 Every other part is held on them; the part missed is asserted to be missed still, so a fix fails here until its entry goes."""
