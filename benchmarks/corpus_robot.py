@@ -99,6 +99,8 @@ def report(rows: list[dict[str, Any]], wall_s: float, jobs: int) -> str:
         f"- clean logs with a finding other than `offset` (or a current loop's lag): {_pct(s['clean_with_false_alarm'], s['clean'])}",
         f"- effect logs named exactly: {_pct(s['named_exactly'], s['effect_logs'])}; effects named {_pct(s['effects_named'], s['effects_total'])}",
         f"- parameters of the effects named within 15 %: {_pct(s['parameters_within'], s['parameters_compared'])}",
+        f"- concealed effects stated as indistinct from another (`a or b`: the data cannot tell them apart; not named exactly): "
+        f"{s['effects_stated_indistinct']}",
         f"- `identify --method ls` within 2 % of M, Fv, Fc on clean dwell-and-move logs: {_pct(s['identify_within'], s['identify_logs'])}; "
         f"the same rows as `diagnose`: {_pct(s['identify_same_rows'], s['identify_logs'])}",
         f"- logs refused (`ilic: error:`, exit 2): {s['refused']}",

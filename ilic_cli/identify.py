@@ -303,7 +303,9 @@ def identify(
 
 def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[RunLog] | None = None, loop: LoopSimulator = PLANT_LOOP) -> IdentifyReport:
     """:func:`identify` with its settings in one object (:class:`IdentifySettings`)."""
-    prepared = with_rest(prepare_log(log), settings.ls)  # the samples every method fits (no saturated drive, no standstill)
+    prepared = prepare_log(log)
+    settings = replace(settings, ls=settings.ls.at_rate(prepared.fs_hz))  # the decimation of the log's rate, for every method
+    prepared = with_rest(prepared, settings.ls)  # the samples every method fits (no saturated drive, no standstill)
     log = prepared.log  # an irregularly sampled log is on a uniform grid now
     spec = settings.model
     model = spec.regressor(prepared.fs_hz)

@@ -14,6 +14,8 @@ import numpy as np
 from ilic_cli import parameters
 from ilic_cli.closed_loop_id import STD_SOURCE
 from ilic_cli.effects import unit_of
+from ilic_cli.filtering import DECIMATION_RULE
+from ilic_cli.idim_ls import NOT_WHITE_WIDENING, IDIMLSResult
 
 if TYPE_CHECKING:
     from ilic_cli.identify import IdentifyReport
@@ -71,10 +73,13 @@ def to_markdown(report: IdentifyReport) -> str:
             f"error std {fmt(r.sigma_rho)}.",
             "",
         ]
+        out += _robust_lines(report.ls)
         u = report.usable
         if u is not None and u.at_rest and u.rest is not None:  # the rule for samples at rest, stated where it acted
             held = f"; the regressor evaluated {1e3 * u.hold_s:.4g} ms later (the drive's held command)" if u.hold_s else ""
-            out += [f"{u.usable} of {u.decimated} decimated rows fitted: {u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){held}.", ""]
+            ls = report.ls.settings
+            rule = f"; rows decimated by {ls.decimation} ({DECIMATION_RULE if ls.band_hz is not None else 'as given'})"
+            out += [f"{u.usable} of {u.decimated} decimated rows fitted: {u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){held}{rule}.", ""]
     out += _closed_loop_markdown(report)
     out += _output_error_markdown(report)
     if report.ilic is not None:
@@ -241,3 +246,16 @@ def _default(obj: Any) -> Any:
 def to_csv(report: IdentifyReport) -> str:
     """Tidy CSV: one row per method, window and parameter."""
     return str(report.to_frame().to_csv(index=False, float_format="%.10g"))
+
+
+def _robust_lines(ls: IDIMLSResult) -> list[str]:
+    """The autocorrelation-robust standard deviations beside eq. 9's (:data:`ilic_cli.idim_ls.ROBUST_RULE`), when they differ by half."""
+    rob, r = ls.robust, ls.result
+    if rob is None or rob.widening(r.std) <= NOT_WHITE_WIDENING:
+        return []
+    stds = ", ".join(f"{n} {fmt(v)}" for n, v in zip(r.names, rob.std, strict=True))
+    return [
+        f"The residual is not white (lag-1 autocorrelation {rob.lag1:.2f}): autocorrelation-robust std (Newey-West, {rob.lags} lags) {stds}, "
+        f"up to {rob.widening(r.std):.2g}x eq. 9's above (the published convention, which assumes a white residual).",
+        "",
+    ]

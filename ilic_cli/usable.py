@@ -45,6 +45,7 @@ def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(
     part shorter than :func:`min_samples` is left as it is (IDIM-LS leaves it out).
     """
     q = np.asarray(q, dtype=np.float64)
+    settings = settings.at_rate(fs_hz)
     mask = np.zeros(len(q), dtype=bool)
     dwells, threshold = 0, 0.0
     shortest = max(int(np.ceil(REST_MIN_S * fs_hz - 1e-9)), 1)
@@ -74,7 +75,7 @@ def with_rest(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> Pre
 
 
 def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[int, int], ...] | None = None) -> tuple[int, int]:
-    """``(decimated rows, rows whose span touches a True sample of mask)`` over the parts IDIM-LS fits (:func:`_systems`)."""
+    """``(decimated rows, rows whose span touches a True sample of mask)`` over the parts IDIM-LS fits (:func:`_systems`; ``settings`` at the log's rate)."""
     spans = segments or ((0, len(mask)),)
     total = touched = 0
     for a, b in spans:
@@ -154,6 +155,7 @@ def identification_hold_s(prepared: PreparedLog) -> float:
 def usable_rows(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> UsableRows:
     """The :class:`UsableRows` of ``prepared`` (after :func:`with_rest`) under ``settings``."""
     n = len(prepared.log)
+    settings = settings.at_rate(prepared.fs_hz)
     segs = prepared.segments or ((0, n),)
     none = np.zeros(n, dtype=bool)
     total, at_rest = rows_left_out(none if prepared.rest is None else prepared.rest.mask, settings, segs)

@@ -132,7 +132,12 @@ from ilic_cli.runlog import RunLog
 )
 @click.option("--cutoff", type=click.FloatRange(min=0, min_open=True), default=100.0, show_default=True, help="IDIM-LS position low-pass cut-off (Hz).")
 @click.option("--order", type=click.IntRange(min=1, max=12), default=4, show_default=True, help="IDIM-LS Butterworth order.")
-@click.option("--decimation", type=click.IntRange(min=1), default=10, show_default=True, help="IDIM-LS parallel decimation factor.")
+@click.option(
+    "--decimation",
+    type=click.IntRange(min=1),
+    default=None,
+    help="IDIM-LS parallel decimation factor [default: from the log's rate, round(0.8·fs/2/40 Hz): 10 at 1 kHz, the rows keep 40 Hz at every rate].",
+)
 @click.option("--trim", type=click.IntRange(min=0), default=49, show_default=True, help="IDIM-LS samples dropped at the start.")
 @click.option(
     "--filtering",
@@ -195,7 +200,8 @@ def command(log: Path, **options: Any) -> None:
     oe_settings = _oe_settings(o)
     others = [inputs.load(p, named_format=False) for p in validate]
     run, *others = TransmissionOptions.of(o).apply([run, *others])
-    ls_settings = LSSettings(cutoff_hz=o["cutoff"], order=o["order"], decimation=o["decimation"], trim=o["trim"], matlab=(o["filtering"] == "matlab"))
+    by_rate = {} if o["decimation"] is None else {"decimation": o["decimation"], "band_hz": None}  # given: as given; else the rate's rule
+    ls_settings = LSSettings(cutoff_hz=o["cutoff"], order=o["order"], trim=o["trim"], matlab=(o["filtering"] == "matlab"), **by_rate)
     ilic_settings = ILICSettings(
         window_s=o["window_s"], cutoff_hz=o["ilic_cutoff"], decimation=o["ilic_decimation"], sigma_max_pct=o["sigma_max"], ref_lag=o["ref_lag"]
     )

@@ -82,7 +82,7 @@ def compare_simulation(
         qd=dec(data.kin.qd)[rows],
         qdd=dec(data.kin.qdd)[rows],
         W=data.W[rows],
-        fs_hz=log.fs_hz / ls.decimation,
+        fs_hz=log.fs_hz / ls.at_rate(log.fs_hz).decimation,
         alpha=alpha,
         q_unit="rad" if joint_type(log.units.get("q")) == "revolute" else "m",
     )

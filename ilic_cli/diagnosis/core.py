@@ -96,6 +96,7 @@ class Finding:
             "located": [r.to_dict() for r in self.located],
             "evidence": ev,
             "note": self.note,
+            **({"indistinct_from": self.evidence.indistinct_from} if self.evidence.indistinct_from is not None else {}),
         }
 
 
@@ -222,6 +223,7 @@ def diagnose(
         Another recording: candidates must not raise the error there.
     """
     settings = settings or DiagnosisSettings()
+    settings = replace(settings, ls=settings.ls.at_rate(log.fs_hz))  # the decimation of the log's rate, in every stage
     settings.null.check(replay_alpha(settings))
     prop = propose(log, settings, model_doc, validate)  # 1. propose
     log, validate = prop.log, prop.validate
@@ -270,8 +272,18 @@ def _findings(prop: Proposal, decision: Decision, final: FinalFit, refit: Refit 
             std = refit.value_std.get(st.effect.id) if st_final.value != st.value else st.value_std if st.level is not None else ev.value_std
             params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold)
             method = refit.method
-        findings.append(Finding(st.effect, params, plant, [], ev, "; ".join(n for n in [note, *notes] if n), method, inverse))
+        findings.append(Finding(st.effect, params, plant, [], ev, "; ".join(n for n in [note, *notes, _indistinct(st.effect, ev)] if n), method, inverse))
     return findings
+
+
+def _indistinct(effect: Effect, ev: Evaluation) -> str:
+    """The stated ambiguity of a finding the data cannot tell from another effect (:attr:`Evaluation.indistinct_from`), or ``""``."""
+    if ev.indistinct_from is None:
+        return ""
+    return (
+        f"{effect.id} or {ev.indistinct_from}: the data cannot tell them apart over the range the log visits (neither's columns add "
+        f"significantly to the model with the other's); a log over a wider range decides"
+    )
 
 
 def _proposer(effect: Effect) -> str:

@@ -77,7 +77,7 @@ def noisy_output_error(log: RunLog, ls: LSSettings, rigid: dict[str, float], eff
         sim = replay(log, rigid, {**sensor, **effects}, seed=REPLAY_SEED)
     except ParameterError:
         return float("inf")
-    r = max(ls.decimation, 1)
+    r = max(ls.at_rate(log.fs_hz).decimation, 1)
     edge = slice(ls.trim // r, len(log) // r - ls.trim // r)
     tau = decimate_matlab(np.asarray(log["tau"]), r)[edge]
     return relative_error_pct(tau, tau + band_force_error(log, sim, r)[edge])

@@ -112,6 +112,9 @@ class Evaluation:
     reason: str = ""
     outcome: Selection = Selection.PENDING
     """The inverse model's decision, typed (``reason`` says it in words, and later stages may add to it)."""
+    indistinct_from: str | None = None
+    """An effect the data cannot tell from this one (:func:`parsimonious_first`): neither's columns add significantly to the
+    model with the other's, over the range the log visits; ``None``: none. A typed ambiguity, stated with the finding."""
 
     def decided(self, outcome: Selection, detail: str | None = None, **figures: Any) -> Evaluation:
         """This evaluation decided: ``outcome``, its sentence (:meth:`~ilic_cli.diagnosis.verdicts.Selection.sentence`) as the reason."""
@@ -133,6 +136,7 @@ class Evaluation:
             else {"before": self.validation_before_pct, "after": self.validation_after_pct},
             "accepted": self.accepted,
             "reason": self.reason,
+            **({"indistinct_from": self.indistinct_from} if self.indistinct_from is not None else {}),
         }
 
 
@@ -173,6 +177,10 @@ def parsimonious_first(evals: list[Candidate], W: np.ndarray, y: np.ndarray, alp
     always fits at least as well. When its columns, added to the model with the simpler effect, do
     not pass the nested F-test at ``alpha``, the data cannot tell them apart, and the simpler effect
     is proposed first (parsimony); where the swing shows the curvature the larger one stays first.
+    When, besides, the simpler effect's columns added to the model with the larger one do not pass it
+    either, neither explains anything the other does not: the simpler one is proposed with the larger
+    one as :attr:`Evaluation.indistinct_from`, a stated ambiguity rather than a name the data do not
+    decide (a spring's column beyond gravity's passes where the swing shows that the force is straight).
     """
     ok = [i for i, (ev, eff, _, _) in enumerate(evals) if not ev.outcome.never_a_finding and ev.test.p_adjusted < alpha]
     if not ok:
@@ -186,7 +194,10 @@ def parsimonious_first(evals: list[Candidate], W: np.ndarray, y: np.ndarray, alp
         if eff.nonlinear or eff.shift or len(eff.columns) >= len(top.columns):
             continue
         if nested_f_test(W_s, y, np.hstack([W_s, extra]), y, extra.shape[1]).p_value >= alpha:
-            return [evals[i], *evals[:i], *evals[i + 1 :]]
+            own = W_s[:, W.shape[1] :]
+            indistinct = nested_f_test(W_top, y, np.hstack([W_top, own]), y, own.shape[1]).p_value >= alpha
+            simpler = (replace(ev, indistinct_from=top_ev.effect) if indistinct else ev, eff, W_s, y_s)
+            return [simpler, *evals[:i], *evals[i + 1 :]]
     return evals
 
 

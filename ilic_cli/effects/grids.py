@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ilic_cli.filtering import bilinear_lfilter
+from ilic_cli.filtering import bilinear_lfilter, rows_band_hz
 from ilic_cli.regressor import Kinematics
 
 
@@ -58,9 +58,9 @@ def delay_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
 
 
 def resonance_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
-    """Resonance frequencies searched: 40 log-spaced from 2 Hz to 0.8 of the decimated Nyquist (what the IDIM low-pass keeps)."""
-    # what survives the IDIM low-pass: up to 0.8 of the decimated Nyquist (40 Hz at 1 kHz / 10)
-    return np.geomspace(2.0, 0.08 * fs_hz / 2 * 1.0, 40)
+    """Resonance frequencies searched: 40 log-spaced from 2 Hz to the band the decimated rows keep (:func:`ilic_cli.filtering.rows_band_hz`)."""
+    # what survives the IDIM low-pass: 0.8 of the decimated Nyquist (40 Hz at 1 kHz / 10, and from 1 kHz up)
+    return np.geomspace(2.0, rows_band_hz(fs_hz), 40)
 
 
 FLEX_DAMPING = 0.05

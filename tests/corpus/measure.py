@@ -132,6 +132,16 @@ def _reasons(diag: dict[str, Any], eids: Iterable[str]) -> dict[str, str]:
     return out
 
 
+def _indistinct_reasons(findings: list[tuple[str, Any, str | None]], effects: list[str]) -> dict[str, str]:
+    """The concealed effects a finding stated as indistinct from another (``a or b``), with that statement as their reason."""
+    out = {}
+    for eid, _, other in findings:
+        for e in effects:
+            if other is not None and e in (eid, other):
+                out[e] = f"stated: {eid} or {other}, the data cannot tell them apart"
+    return out
+
+
 def run_case(case: Case) -> dict[str, Any]:
     """One case end to end: build, write, diagnose (identify), score; a JSON-able row."""
     t0, c0 = time.perf_counter(), time.process_time()
@@ -145,7 +155,7 @@ def run_case(case: Case) -> dict[str, Any]:
             refused, ident = str(exc), None
             diag = {"findings": [], "decisions": [], "base": {"parameters": {k: {"value": math.nan} for k in ("M", "Fv", "Fc")}}, "rows_total": 0}
     t2 = time.perf_counter()
-    findings = [(f["effect"], f.get("plant_effect")) for f in diag["findings"]]
+    findings = [(f["effect"], f.get("plant_effect"), f.get("indistinct_from")) for f in diag["findings"]]
     s = score(built, findings)
     axis = AXES[case.axis]
     base = {k: diag["base"]["parameters"][k]["value"] for k in ("M", "Fv", "Fc")}
@@ -162,10 +172,10 @@ def run_case(case: Case) -> dict[str, Any]:
         "truth": built.effects,
         "size_pts": built.size_pts,
         "base_error_pct": built.base_error_pct,
-        "findings": [{"effect": e, "plant": p} for e, p in findings],
+        "findings": [{"effect": e, "plant": p, **({"indistinct_from": o} if o else {})} for e, p, o in findings],
         **s,
-        "false_alarm_reasons": _reasons(diag, [e for (e, _), v in zip(findings, s["verdicts"], strict=True) if v == "false alarm"]),
-        "missed_reasons": {e: refused for e in s["missed"]} if refused else _reasons(diag, s["missed"]),
+        "false_alarm_reasons": _reasons(diag, [e for (e, _, _), v in zip(findings, s["verdicts"], strict=True) if v == "false alarm"]),
+        "missed_reasons": {e: refused for e in s["missed"]} if refused else {**_reasons(diag, s["missed"]), **_indistinct_reasons(findings, s["indistinct"])},
         "refused": refused,
         "diagnose_rigid_error": {k: base[k] / axis.truth[k] - 1.0 for k in base},
         "diagnose_rows": diag["rows_total"],
@@ -201,6 +211,7 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "named_exactly": sum(r["exact"] for r in eff),
         "effects_named": sum(len(r["truth"]) - len(r["missed"]) for r in eff),
         "effects_total": sum(len(r["truth"]) for r in eff),
+        "effects_stated_indistinct": sum(len(r.get("indistinct", [])) for r in eff),
         "parameters_compared": len(errs),
         "parameters_within": sum(math.isfinite(e) and e <= TOLERANCE for e in errs),
         "identify_logs": len(ident),

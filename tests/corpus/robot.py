@@ -436,14 +436,23 @@ def _compared(eid: str, p: dict[str, float]) -> dict[str, float]:
     return dict(p)
 
 
-def score(built: Built, findings: list[tuple[str, dict[str, float] | None]]) -> dict[str, Any]:
+def score(built: Built, findings: list[tuple[str, dict[str, float] | None]] | list[tuple[str, dict[str, float] | None, str | None]]) -> dict[str, Any]:
     """Judge a diagnosis of ``built``'s log: ``offset`` is right, a concealed effect named is right, a current-loop-sized
-    ``delay`` on a log with that loop is right, anything else is a false alarm; parameter errors of the effects named."""
+    ``delay`` on a log with that loop is right, anything else is a false alarm; parameter errors of the effects named.
+
+    A finding may carry a third element, the effect the diagnosis says it cannot tell it from (``indistinct_from``): when
+    either is concealed the verdict is ``indistinct`` (a stated ambiguity: no false alarm, and the concealed one is not
+    named exactly: it counts as missed), else a false alarm."""
     case = built.case
     verdicts, errors = [], {}
-    for eid, plant in findings:
+    ambiguous: set[str] = set()
+    for eid, plant, *rest in findings:
+        other = rest[0] if rest else None
         if eid == "offset":
             verdicts.append("right")
+        elif other is not None and (eid in built.effects or other in built.effects):
+            verdicts.append("indistinct")
+            ambiguous |= {eid, other}
         elif eid in built.effects:
             verdicts.append("right")
             truth = _compared(eid, built.effects[eid])
@@ -456,10 +465,17 @@ def score(built: Built, findings: list[tuple[str, dict[str, float] | None]]) -> 
             verdicts.append("right" if abs(lag - tau) <= DELAY_SIZE_TOLERANCE * tau else "false alarm")
         else:
             verdicts.append("false alarm")
-    named = {eid for eid, _ in findings}
+    named = {f[0] for f, v in zip(findings, verdicts, strict=True) if v == "right"}
     missed = sorted(set(built.effects) - named)
     false = verdicts.count("false alarm")
-    return {"verdicts": verdicts, "missed": missed, "parameter_error": errors, "false_alarms": false, "exact": not missed and false == 0}
+    return {
+        "verdicts": verdicts,
+        "missed": missed,
+        "parameter_error": errors,
+        "false_alarms": false,
+        "exact": not missed and false == 0,
+        "indistinct": sorted(ambiguous & set(built.effects)),
+    }
 
 
 def rigid_errors(found: dict[str, float], axis: Axis) -> dict[str, float]:

@@ -60,7 +60,6 @@ def test_the_rates_fail_where_the_issue_says() -> None:
 
 SHORT_OF_THE_DONE_WHEN = {
     "lin12/multisine/500Hz/current_loop/friction_drift/s270": "parameters",  # named exactly; the warm-up's dFv -2.91, tau 2.84 s: 17 % off
-    "lin12/s-curve/8000Hz/current_loop/clean/s102": "identify",  # no finding; identify --method ls Fc +2.06 % (M +0.06 %, Fv -1.45 %)
 }
 """Subset logs on which the current code misses one part of the "Done when" (issue 29 stays open on them), by the part missed.
 Every other part is held on them; the part missed is asserted to be missed still, so a fix fails here until its entry goes."""

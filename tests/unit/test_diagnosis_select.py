@@ -505,3 +505,27 @@ def test_a_spring_is_proposed_before_gravity_when_the_swing_cannot_tell_them_apa
             evals.append((Evaluation(eid, None, None, test, rel), EFFECTS[eid], W1, y))
         # gravity first, as the sort by relative error put it on the spring's revolute log (its two columns fit the noise too)
         assert parsimonious_first(evals, W, y, 0.001)[0][0].effect == first, swing
+
+
+def test_gravity_and_a_spring_the_data_cannot_tell_apart_are_a_stated_ambiguity() -> None:
+    """A gravity log over a swing of 0.3 rad whose noise hides the curvature: neither effect's columns add significantly to the model
+    with the other's, so the spring proposed first says it cannot be told from gravity (``indistinct_from``), never a bare "spring";
+    a spring over 0.9 rad with little noise is a spring (gravity's curve cannot follow its straight line), and gravity over 2.8 rad is
+    gravity, both without an ambiguity."""
+    rng = np.random.default_rng(3)
+    logs = ((0.3, "gravity", 0.02, "spring", "gravity"), (0.9, "spring", 1e-3, "spring", None), (2.8, "gravity", 1e-3, "gravity", None))
+    for swing, truth, noise, first, other in logs:
+        q = np.linspace(0.0, swing, 3000)
+        W = np.c_[np.ones_like(q), rng.standard_normal(q.size)]
+        force = 0.3 * q if truth == "spring" else 9.81 * (0.02 * np.cos(q + 0.7) - 0.01 * np.sin(q + 0.7))
+        y = W @ np.array([0.1, 1.0]) + force + noise * rng.standard_normal(q.size)
+        evals = []
+        for eid, cols in (("gravity", np.c_[9.81 * np.cos(q), -9.81 * np.sin(q)]), ("spring", np.c_[q])):
+            W1 = np.hstack([W, cols])
+            test = nested_f_test(W, y, W1, y, cols.shape[1])
+            rel = float(np.linalg.norm(y - W1 @ np.linalg.lstsq(W1, y, rcond=None)[0]) / np.linalg.norm(y))
+            evals.append((Evaluation(eid, None, None, test, rel), EFFECTS[eid], W1, y))
+        evals.sort(key=lambda e: e[0].relative_error_pct)
+        ev = parsimonious_first(evals, W, y, 0.001)[0][0]
+        assert (ev.effect, ev.indistinct_from) == (first, other), swing
+        assert ("indistinct_from" in ev.to_dict()) is (other is not None)

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from ilic_cli.effects.grids import resonance_grid
 from ilic_cli.idim_ls import IDIMData, IDIMLSResult, LSSettings, cross_validate, idim_ls, lsq_rows, usable_mask, valid_rows
 from ilic_cli.regressor import get_model
 from tests.unit.synth import FS, asymmetric_force, motion, rigid_force
@@ -79,6 +80,21 @@ def test_settings_are_the_benchmark_procedure() -> None:
     s = LSSettings()
     assert (s.cutoff_hz, s.order, s.decimation, s.trim, s.matlab, s.sigma) == (100.0, 4, 10, 49, True, "sample_std")
     assert s.to_dict()["decimation"] == 10
+
+
+@pytest.mark.parametrize(("fs", "r"), [(250.0, 10), (500.0, 10), (1000.0, 10), (2000.0, 20), (4000.0, 40), (8000.0, 80)])
+def test_the_decimation_is_the_rate_s_rule(fs: float, r: int) -> None:
+    """The rows keep 40 Hz from 1 kHz up (a factor fixed at 10 kept 80 Hz at 2 kHz, 320 Hz at 8 kHz) and 0.04·fs below: 10 at
+    and below 1 kHz (the benchmark). IDIM-LS, and an explicit factor (``band_hz=None``, ``identify --decimation``) as given."""
+    assert resonance_grid(None, fs)[-1] == pytest.approx(0.8 * fs / 2 / r)  # type: ignore[arg-type]  # the resonance search ends at the rows' band
+    t, q, qd, qdd = motion(int(10 * fs), fs)
+    data = lsq_rows(t, q, rigid_force(qd, qdd), fs, get_model("rigid-offset"))
+    assert data.settings.decimation == r and np.diff(data.t_dec) == pytest.approx(r / fs)
+    res = idim_ls(t, q, rigid_force(qd, qdd), fs, get_model("rigid-offset"))
+    assert res.settings.decimation == r and len(res.y) == len(data.y)
+    assert res.result.theta[:3] == pytest.approx([95.0, 200.0, 20.0], rel=1.5e-2)  # 250 Hz: the central differences' own 1 %
+    given = lsq_rows(t, q, rigid_force(qd, qdd), fs, get_model("rigid-offset"), LSSettings(decimation=7, band_hz=None))
+    assert given.settings.decimation == 7 and np.diff(given.t_dec) == pytest.approx(7 / fs)
 
 
 def assert_truth(theta: np.ndarray) -> None:
@@ -245,3 +261,33 @@ def test_cross_validation_applies_fixed_parameters(log: tuple[np.ndarray, ...]) 
     valid[5000:5100] = False
     # trimmed samples 4951..5050 are invalid: the rows 4950, 4960, ..., 5050 (11) touch them
     assert cross_validate(own.theta, t, q, tau, FS, model, valid=valid).rows == own.rows - 11
+
+
+def _noisy_fits(correlated: bool, seeds: int = 24) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Fc of ``seeds`` noisy copies of one log, with eq. 9's and the robust standard deviations (a 2 N force noise, white or smoothed over ~50 ms)."""
+    t, q, qd, qdd = motion(10_000)
+    tau0 = rigid_force(qd, qdd)
+    est, eq9, rob = [], [], []
+    for seed in range(seeds):
+        w = np.random.default_rng(seed).normal(0.0, 1.0, len(t))
+        noise = np.convolve(w, np.ones(50) / np.sqrt(50), mode="same") if correlated else w
+        res = idim_ls(t, q, tau0 + 2.0 * noise, FS, get_model("rigid-offset"))
+        assert res.robust is not None
+        est.append(res.result.theta[2])
+        eq9.append(res.result.std[2])
+        rob.append(res.robust.std[2])
+    return np.array(est), np.array(eq9), np.array(rob)
+
+
+def test_the_robust_std_is_the_spread_of_a_correlated_residual() -> None:
+    """Eq. 9 assumes a white residual: with a force noise correlated over ~5 rows it understates the seeds' spread of Fc; the
+    Newey-West std beside it follows the spread, and on a white residual the two agree. Eq. 9's own figures are untouched."""
+    est, eq9, rob = _noisy_fits(correlated=True)
+    spread = est.std(ddof=1)
+    assert eq9.mean() < 0.6 * spread and 0.7 * spread < rob.mean() < 1.4 * spread, (spread, eq9.mean(), rob.mean())
+    est_w, eq9_w, rob_w = _noisy_fits(correlated=False, seeds=4)
+    assert rob_w == pytest.approx(eq9_w, rel=0.25)
+    t, q, qd, qdd = motion(10_000)
+    res = idim_ls(t, q, rigid_force(qd, qdd) + 2.0 * np.random.default_rng(0).normal(0.0, 1.0, len(t)), FS, get_model("rigid-offset"))
+    d = res.to_dict()["robust_std"]
+    assert set(d["std"]) == {"M", "Fv", "Fc", "offset"} and d["residual_white"] and d["lags"] == int(4 * (len(res.y) / 100) ** (2 / 9))
