@@ -44,6 +44,8 @@ NOISE = (0.6, 0.6, 0.4, 0.15, 0.15, 0.1)
 RUNS = 3
 IDENTIFY_LIMIT_S = 5.0
 """Issue 30: identification of a 6-joint, 10-minute, 1 kHz log in at most 5 s."""
+SIM_LIMIT_X = 100.0
+"""Issue 30: the 6-joint CTC with online ILIC at least 100x real time, MCAP writing included (none is written here: no n-joint writer yet)."""
 SIM_WINDOWS = 5
 SIM_WINDOW_S = 10.0
 
@@ -126,6 +128,49 @@ def identify_baseline(log: Path) -> dict:
     return {"rank": rank, "theta0": float(theta[0])}
 
 
+def simulate(_: Path) -> dict:
+    """The ``robot-sim`` scenario on ur5like: the compiled CTC loop, an IDIM-ILIC update after each 10 s window."""
+    from ilic_cli.robot.model import load_urdf
+    from ilic_cli.robot.scenario import RobotSimSettings, robot_sim
+
+    result = robot_sim(load_urdf(URDF), RobotSimSettings(windows=SIM_WINDOWS, window_s=SIM_WINDOW_S))
+    errors = np.abs(result.relative_errors_pct()[-1])
+    return {"windows": len(result.windows), "median_error_pct": float(np.median(errors[np.isfinite(errors)]))}
+
+
+def simulate_baseline(_: Path) -> dict:
+    """Straightforward: the same CTC law by pinocchio's ``rnea``, the arm by ``aba`` and viscous friction, RK4 in Python, no ILIC."""
+    import pinocchio as pin
+
+    from ilic_cli.robot.model import load_urdf, pinocchio_model
+    from ilic_cli.robot.scenario import initial_model, true_parameters
+    from ilic_cli.robot.simulate import exciting_trajectory
+
+    robot = load_urdf(URDF)
+    pi = true_parameters(robot)
+    plant, ctrl = pinocchio_model(robot, pi), pinocchio_model(robot, initial_model(robot, 0.2))
+    pdata, cdata = plant.createData(), ctrl.createData()
+    fv = robot.drive(pi, "Fv")
+    dt, n = 1.0 / FS, int(SIM_WINDOWS * SIM_WINDOW_S * FS)
+    ref = exciting_trajectory(np.zeros(robot.n), np.full(robot.n, 1.5), 1, f0_hz=1.0 / SIM_WINDOW_S)
+    q_r, qd_r, qdd_r = ref.at(np.arange(n) * dt)
+    w = 2 * np.pi * 20.0
+    q, qd = q_r[0].copy(), qd_r[0].copy()
+    log = np.empty((n, 2, robot.n))
+    for k in range(n):
+        u = pin.rnea(ctrl, cdata, q, qd, w * w * (q_r[k] - q) + np.sqrt(2) * w * (qd_r[k] - qd) + qdd_r[k])
+        f = lambda x, v: pin.aba(plant, pdata, x, v, u - fv * v)  # noqa: E731
+        a1 = f(q, qd)
+        a2 = f(q + 0.5 * dt * qd, qd + 0.5 * dt * a1)
+        a3 = f(q + 0.5 * dt * (qd + 0.5 * dt * a1), qd + 0.5 * dt * a2)
+        a4 = f(q + dt * (qd + 0.5 * dt * a2), qd + dt * a3)
+        v2, v3, v4 = qd + 0.5 * dt * a1, qd + 0.5 * dt * a2, qd + dt * a3
+        log[k] = q, u
+        q = q + dt / 6 * (qd + 2 * v2 + 2 * v3 + v4)
+        qd = qd + dt / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
+    return {"samples": n, "max_error": float(np.abs(log[:, 0] - q_r).max())}
+
+
 def _time(args: list[str]) -> tuple[float, float]:
     """Wall and CPU seconds (user + system) of one whole child process."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -164,9 +209,14 @@ def main() -> None:
     _report(f"identify, 6 joints, {DURATION_S:g} s at {FS:g} Hz", wall, cpu)
     verdict = "within" if np.median(wall[:, 0]) <= IDENTIFY_LIMIT_S else "OVER"
     print(f"    limit {IDENTIFY_LIMIT_S:g} s: {verdict}")
+    wall, cpu = paired(me + ["simulate", str(log)], me + ["simulate-baseline", str(log)])
+    seconds = SIM_WINDOWS * SIM_WINDOW_S
+    _report(f"robot-sim, 6 joints, CTC + IDIM-ILIC, {seconds:g} s at {FS:g} Hz (no MCAP written)", wall, cpu, seconds)
+    verdict = "within" if seconds / np.median(wall[:, 0]) >= SIM_LIMIT_X else "UNDER"
+    print(f"    limit {SIM_LIMIT_X:g}x real time: {verdict}")
 
 
-COMMANDS = {"identify": identify, "identify-baseline": identify_baseline}
+COMMANDS = {"identify": identify, "identify-baseline": identify_baseline, "simulate": simulate, "simulate-baseline": simulate_baseline}
 
 if __name__ == "__main__":
     main()
