@@ -28,6 +28,7 @@ import numpy as np
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
 from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve
+from ilic_cli.parallel import ordered_map
 from ilic_cli.robot.base import BaseParameters
 from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel
 
@@ -194,7 +195,10 @@ def base_columns(
     prismatic = np.array([k == "prismatic" for k in robot.kinds])
     parents = np.array(robot.parents, dtype=np.int64)
     q, qd, qdd = (np.ascontiguousarray(a) for a in (q, qd, qdd))
-    fill(prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, destination, len(PER_JOINT), columns)
+    arguments = (prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, destination, len(PER_JOINT), columns)
+    # two halves of the samples in two threads (the kernel holds no GIL; each sample's columns are its own: the same bits)
+    cut = [0, len(q) // 2, len(q)]
+    ordered_map(lambda k: fill(*arguments, cut[k], cut[k + 1]), [0, 1])
     columns[rows[1:] - 1] = tau.T
     return columns, rows
 

@@ -178,19 +178,22 @@ def base_columns(
     destination: np.ndarray,
     stride: int,
     out: np.ndarray,
+    lo: int,
+    hi: int,
 ) -> None:
-    """Fill ``out[destination[j, c], k]`` with standard column ``c`` of joint ``j``'s row at sample ``k`` (``destination < 0``: not kept).
+    """Fill ``out[destination[j, c], k]`` with standard column ``c`` of joint ``j``'s row at sample ``k``, ``lo <= k < hi`` (``destination < 0``: not kept).
 
     The same values as :func:`inertial_regressor` for the inertial columns and
     ``qdd, qd, sign(qd), 1`` for a joint's own ``Ia, Fv, Fc, offset`` (at
     ``stride * j + 10 ...``), computed a chunk of samples at a time in a scratch
     array that stays in cache: the full (n, N, stride n) regressor is never held.
+    Disjoint ranges of samples may be filled in threads (no GIL held).
     """
-    N, n = q.shape
+    n = q.shape[1]
     chunk = 128
     scratch = np.zeros((n, chunk, stride * n))
-    for a in range(0, N, chunk):
-        b = min(N, a + chunk)
+    for a in range(lo, hi, chunk):
+        b = min(hi, a + chunk)
         inertial_regressor(prismatic, parents, axes, rotations, translations, gravity, q[a:b], qd[a:b], qdd[a:b], scratch, stride)
         for j in range(n):
             c = stride * j + 10
