@@ -212,7 +212,7 @@ def plain_pages(shape: tuple[int, ...]) -> np.ndarray:
     0.5-3.5 s against 0.55-0.65 s with ordinary pages.
     """
     size = max(8, 8 * math.prod(shape))
-    buffer = mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+    buffer = mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(mmap, "MAP_POPULATE", 0))
     return np.frombuffer(buffer, dtype=np.float64, count=math.prod(shape)).reshape(shape)
 
 
