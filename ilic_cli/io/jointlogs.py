@@ -45,6 +45,14 @@ def kind_of(path: Path) -> str:
     raise LogError(path, "not an n-joint log: expected a .csv, an .mcap file or a ROS 2 bag folder")
 
 
+def is_wide_csv(path: Path) -> bool:
+    """True for a CSV written as an n-joint log (its :data:`MARK` first line)."""
+    if path.suffix.lower() != ".csv" or not path.is_file():
+        return False
+    with path.open("rb") as f:
+        return f.readline().startswith(MARK.encode())
+
+
 def read(path: Path, joints: Sequence[str] | None = None, kinds: Mapping[str, str] | None = None) -> JointLog:
     """Read an n-joint log, keeping ``joints`` (by name, in that order; default: all). ``kinds``: joint types where the file gives none."""
     if not path.exists():
@@ -206,7 +214,8 @@ def _messages(path: Path) -> tuple[list[tuple[str, str]], Any]:
     def mcap() -> Any:
         with path.open("rb") as f:
             for schema, channel, message in make_reader(f).iter_messages(log_time_order=True):
-                yield channel.topic, schema.name, message.log_time, ts.deserialize_cdr(message.data, schema.name)
+                if schema is not None:  # a channel without a schema holds no ROS message
+                    yield channel.topic, schema.name, message.log_time, ts.deserialize_cdr(message.data, schema.name)
 
     return topics, mcap()
 
