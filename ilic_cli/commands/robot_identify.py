@@ -122,10 +122,16 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
     if "ls" in methods:
         doc["methods"]["IDIM-WLS"] = _ls(log, other, robot, base, ls, min_speed, held, validate)
     if "ilic" in methods:
-        doc["methods"]["IDIM-ILIC"] = _ilic(log, robot, base, _ilic_settings(o, defaults, log), other, ls, held, validate)
+        doc["methods"]["IDIM-ILIC"] = _ilic(log, robot, base, _ilic_settings(o, defaults, log), other, (ls, min_speed, held), validate)
     truth = log.provenance.true_parameters
     if truth:
-        doc["true_base_parameters"] = dict(zip(base.names, base.values(robot.parameters(truth)).tolist()))
+        beta = base.values(robot.parameters(truth))
+        doc["true_base_parameters"] = dict(zip(base.names, beta.tolist()))
+        if other is not None:  # the yardstick of --validate: the true parameters' error on the same rows
+            from ilic_cli.robot.idim import prepare, validation_error_pct  # deferred: numba only for an arm
+
+            system = prepare(other.q.T, other.tau.T, other.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
+            doc["true_validation_relative_error_pct"] = finite_or_none(validation_error_pct(beta, system))
     if o["out_format"] == "json":
         click.echo(json.dumps(doc, indent=2))
     else:
@@ -152,9 +158,19 @@ def _ls(
 
 
 def _ilic(
-    log: JointLog, robot: Any, base: Any, settings: ILICSettings, other: JointLog | None, ls: LSSettings, held: bool, validate: tuple[Path, ...]
+    log: JointLog,
+    robot: Any,
+    base: Any,
+    settings: ILICSettings,
+    other: JointLog | None,
+    validation: tuple[LSSettings, float, bool],
+    validate: tuple[Path, ...],
 ) -> dict[str, Any]:
-    """IDIM-ILIC per window of the log's reference (offline: the windows' estimates; the controller's start is the URDF's)."""
+    """IDIM-ILIC per window of the log's reference (offline: the windows' estimates; the controller's start is the URDF's).
+
+    ``validation``: the IDIM-LS settings, ``min_speed`` and ``torque_held`` of the
+    validation log's system (the same rows as IDIM-WLS's validation).
+    """
     from ilic_cli.robot.ilic import ilic_step  # deferred: numba only for an arm
 
     if not log.has_reference:
@@ -185,6 +201,7 @@ def _ilic(
     if other is not None:
         from ilic_cli.robot.idim import prepare, validation_error_pct  # deferred: numba only for an arm
 
-        system = prepare(other.q.T, other.tau.T, other.fs_hz, robot, base, ls, torque_held=held)
+        ls, min_speed, held = validation
+        system = prepare(other.q.T, other.tau.T, other.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
         out["validation"] = {"log": str(validate[0]), "relative_error_pct": finite_or_none(validation_error_pct(last.theta, system))}
     return out

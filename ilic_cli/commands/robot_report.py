@@ -37,7 +37,9 @@ def identify_markdown(doc: Mapping[str, Any]) -> str:
         if m.get("relative_error_pct") is not None:
             lines += ["", f"Relative error: {m['relative_error_pct']:.4g} %"]
         if "validation" in m:
-            lines += ["", f"Validation on {m['validation']['log']}: relative error {_num(m['validation']['relative_error_pct'], 4)} %"]
+            truth_error = doc.get("true_validation_relative_error_pct")
+            yardstick = "" if truth_error is None else f" (the true parameters: {_num(truth_error, 4)} %)"
+            lines += ["", f"Validation on {m['validation']['log']}: relative error {_num(m['validation']['relative_error_pct'], 4)} %{yardstick}"]
         if "windows" in m:
             lines += ["", f"{len(m['windows'])} windows of {m['window_s']:g} s; the table holds the last window's estimate."]
     return "\n".join(lines) + "\n"
