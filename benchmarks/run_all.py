@@ -4,6 +4,10 @@ Each script runs in its own interpreter: one benchmark's heap (the 1-hour
 arrays of ``bench_identify.py``) must not slow the next (it cost the sqlite3
 read about 20 % when they shared a process).
 
+``bench_robot.py`` prints issue 30's two limits beside its figures: the
+6-joint 10-minute identification (<= 5 s) and the CTC with online ILIC
+(>= 100x real time).
+
 ``bench_large.py`` (a 1-hour MCAP log: minutes to generate and read) runs only
 with ``--large`` (``make bench-large``).
 

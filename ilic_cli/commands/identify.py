@@ -22,6 +22,7 @@ from ilic_cli.commands.common import (
     parse_effect_option,
     structure_or_model_file,
 )
+from ilic_cli.commands.robot_identify import identify_options
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.estimators.base import ModelSpec, regressor_effects
 from ilic_cli.identify import IdentifyReport, IdentifySettings, identify_with
@@ -165,6 +166,7 @@ from ilic_cli.runlog import RunLog
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report files (report.md/.csv/.json, model.json) and plots.")
 @click.option("--plots", "plot_format", type=click.Choice(["png", "svg", "none"]), default="png", show_default=True, help="Plot format under --out.")
 @input_options
+@identify_options
 def command(log: Path, **options: Any) -> None:
     """Identify the axis's parameters from LOG by IDIM-LS, IDIM-ILIC, DIDIM or IDIM-IV.
 

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ilic_cli.commands.common import input_options, load
+from ilic_cli.commands.robot import info_options
 from ilic_cli.errors import ChoiceError
 from ilic_cli.io import bag_folder, detect_format
 from ilic_cli.io.overview import overview
@@ -132,6 +133,7 @@ def render_markdown(summary: dict[str, Any]) -> str:
 @click.argument("log_path", metavar="LOG", type=click.Path(path_type=Path))
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="Markdown text or JSON (JSON only on stdout).")
 @input_options
+@info_options
 def command(
     log_path: Path, out_format: str, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None
 ) -> None:

@@ -18,12 +18,13 @@ from ilic_cli.commands.common import (
     progress_enabled,
     structure_or_model_file,
 )
+from ilic_cli.commands.robot_sim import simulate_options
 from ilic_cli.errors import SimulationError
 from ilic_cli.io import WriteOptions, write_log
 from ilic_cli.io.atomic import same_path
 from ilic_cli.simulation.scenarios import DEFAULT_EMPS_LOG, Overrides, check, get_scenario, run_scenario
 
-SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
+SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark", "robot-sim")
 
 
 @click.command("simulate")
@@ -98,6 +99,7 @@ SCENARIO_NAMES = ("paper-sim", "paper-payload", "emps-benchmark")
     default=None,
     help="Recorded log replayed by emps-benchmark [default: ../shared/emps/DATA_EMPS.mat from the repository root].",
 )
+@simulate_options
 def command(
     scenario: str,
     duration: float | None,

@@ -18,6 +18,8 @@ at most ``8 n N b`` bytes.
 
 from __future__ import annotations
 
+import math
+import mmap
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,11 +28,9 @@ import numpy as np
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
 from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve
+from ilic_cli.parallel import ordered_map
 from ilic_cli.robot.base import BaseParameters
-from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel, regressor
-
-BLOCK = 16384
-"""Samples per block of the full-rate regressor (only its base columns are kept)."""
+from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel
 
 
 @dataclass(frozen=True)
@@ -148,24 +148,15 @@ def prepare(
     qdd = central_difference(qd, dt)
     s = slice(settings.trim, None)
     qf, qd, qdd, tau = qf[s], qd[s], qdd[s], tau[s]
-    Nt = len(qf)
     active = active_columns(robot, base)
-    # per joint: its nonzero base columns then its torque, at the full rate (the zero columns are never decimated)
-    full = [np.empty((Nt, int(active[j].sum()) + 1)) for j in range(robot.n)]
-    buffer = None
-    for a in range(0, Nt, BLOCK):
-        b = slice(a, a + BLOCK)
-        Y = regressor(robot, qf[b], qd[b], qdd[b], joint_major=False, out=buffer)
-        buffer = Y if buffer is None else buffer
-        for j in range(robot.n):
-            full[j][b, :-1] = Y[j][:, base.kept[active[j]]]
+    columns, rows = base_columns(robot, base, active, qf, qd, qdd, tau)
+    # every joint's columns through the one parallel decimation (the same filter for every column, each filtered on its own)
+    d = _decimate(columns.T, settings, fs_hz)
+    del columns
     parts = []
     for j in range(robot.n):
-        columns = full.pop(0)  # each joint's full-rate columns are let go once decimated
-        columns[:, -1] = tau[:, j]
-        d = _decimate(columns, settings, fs_hz)
         part = np.zeros((len(d), base.b + 1))
-        part[:, np.flatnonzero(np.append(active[j], True))] = d
+        part[:, np.flatnonzero(np.append(active[j], True))] = d[:, rows[j] : rows[j + 1]]
         parts.append(part)
     kept: tuple[np.ndarray, ...] = ()
     if keep:
@@ -180,6 +171,52 @@ def prepare(
     y = np.concatenate([p[:, -1] for p in parts])
     joint = np.concatenate([np.full(len(p), j) for j, p in enumerate(parts)])
     return RobotSystem(W=W, y=y, joint=joint, names=base.names, joints=robot.joints, settings=settings, kept=kept)
+
+
+def base_columns(
+    robot: RobotModel, base: BaseParameters, active: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each joint's nonzero base columns then its torque, at the full rate: ``(columns (C, N), rows (n + 1,))``.
+
+    Joint ``j``'s columns are ``columns[rows[j] : rows[j + 1]]``: its ``active``
+    base columns in the order of ``base.kept``, then ``tau[:, j]``. They are
+    those of :func:`ilic_cli.robot.model.regressor` (compiled, written straight
+    into place: the full regressor of every standard column is never held).
+    """
+    from ilic_cli.robot.kernel import base_columns as fill  # deferred: numba's import and the cached machine code cost ~0.5 s
+
+    n, p = robot.n, len(PER_JOINT) * robot.n
+    counts = active.sum(axis=1) + 1
+    rows = np.concatenate([[0], np.cumsum(counts)])
+    destination = np.full((n, p), -1, dtype=np.int64)
+    for j in range(n):
+        destination[j, base.kept[active[j]]] = rows[j] + np.arange(counts[j] - 1)
+    columns = plain_pages((int(rows[-1]), len(q)))
+    prismatic = np.array([k == "prismatic" for k in robot.kinds])
+    parents = np.array(robot.parents, dtype=np.int64)
+    q, qd, qdd = (np.ascontiguousarray(a) for a in (q, qd, qdd))
+    arguments = (prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, destination, len(PER_JOINT), columns)
+    # two halves of the samples in two threads (the kernel holds no GIL; each sample's columns are its own: the same bits)
+    cut = [0, len(q) // 2, len(q)]
+    ordered_map(lambda k: fill(*arguments, cut[k], cut[k + 1]), [0, 1])
+    columns[rows[1:] - 1] = tau.T
+    return columns, rows
+
+
+def plain_pages(shape: tuple[int, ...]) -> np.ndarray:
+    """An uninitialised float64 array in anonymous memory of ordinary pages, populated when mapped (freed with the array).
+
+    NumPy asks for transparent huge pages on large arrays; where the kernel
+    must compact memory to find them (``defrag=madvise``), the first touch of
+    the 835 MB of full-rate columns of a 10-minute 6-joint log measured
+    0.5-3.5 s, against 0.5-0.7 s with ordinary pages touched one by one and
+    0.4-0.5 s populated by the mapping (``MAP_POPULATE``, where there is one).
+    """
+    if not hasattr(mmap, "MAP_PRIVATE"):  # Windows: no anonymous private mappings by flags
+        return np.empty(shape)
+    size = max(8, 8 * math.prod(shape))
+    buffer = mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(mmap, "MAP_POPULATE", 0))
+    return np.frombuffer(buffer, dtype=np.float64, count=math.prod(shape)).reshape(shape)
 
 
 def active_columns(robot: RobotModel, base: BaseParameters) -> np.ndarray:

@@ -28,8 +28,8 @@ from ilic_cli.filtering import lowpass_decimate
 from ilic_cli.idim_ilic import ILICSettings, essential_mask
 from ilic_cli.lsq import LSResult, finite_or_none, solve
 from ilic_cli.robot.base import BaseParameters
-from ilic_cli.robot.idim import active_columns
-from ilic_cli.robot.model import RobotModel, regressor
+from ilic_cli.robot.idim import active_columns, base_columns
+from ilic_cli.robot.model import RobotModel
 
 
 @dataclass(frozen=True)
@@ -59,22 +59,19 @@ def window_system(
     robot: RobotModel, base: BaseParameters, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, tau: np.ndarray, fs_hz: float, settings: ILICSettings
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(W, y)`` of one window: the reference's base regressor and the torque (N, n), filtered, decimated, stacked joint-major."""
-    Ys = regressor(robot, q_ref, qd_ref, qdd_ref, joint_major=False)  # (n, N, 14 n)
+    active = active_columns(robot, base)
+    # only the columns a joint's rows can touch (about half on ur5like), with the torques, time contiguous, filtered in one call
+    columns, rows = base_columns(robot, base, active, q_ref, qd_ref, qdd_ref, np.asarray(tau, dtype=np.float64))
     coulomb = period_sign(np.asarray(qd_ref, dtype=np.float64))
     for j in range(robot.n):
-        Ys[j, :, robot.index("Fc", j)] = coulomb[:, j]
-    Y = base.columns(Ys)  # (n, N, b)
-    active = active_columns(robot, base)
-    r = settings.factor(fs_hz)
-    # only the columns a joint's rows can touch are filtered (about half on ur5like), with the torques, in one call
-    rows = np.vstack([Y[j][:, active[j]].T for j in range(robot.n)] + [np.asarray(tau, dtype=np.float64).T])  # (columns, N): time contiguous
-    filtered = lowpass_decimate(rows, r, settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
+        at = np.flatnonzero(base.kept[active[j]] == robot.index("Fc", j))
+        if at.size:
+            columns[rows[j] + at[0]] = coulomb[:, j]
+    filtered = lowpass_decimate(columns, settings.factor(fs_hz), settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
     W = np.zeros((robot.n, filtered.shape[1], base.b))
-    at = 0
     for j in range(robot.n):
-        W[j][:, active[j]] = filtered[at : at + int(active[j].sum())].T
-        at += int(active[j].sum())
-    y = filtered[at:]
+        W[j][:, active[j]] = filtered[rows[j] : rows[j + 1] - 1].T
+    y = filtered[rows[1:] - 1]
     return W.reshape(-1, base.b), y.reshape(-1)
 
 

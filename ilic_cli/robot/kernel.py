@@ -162,3 +162,49 @@ def inertial_regressor(
                 cross(ca, w[i], t1)
                 _inertia_row(t1, w[i], row, c + 4)
                 j = parents[j]
+
+
+@njit(cache=True, nogil=True)
+def base_columns(
+    prismatic: np.ndarray,
+    parents: np.ndarray,
+    axes: np.ndarray,
+    rotations: np.ndarray,
+    translations: np.ndarray,
+    gravity: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    destination: np.ndarray,
+    stride: int,
+    out: np.ndarray,
+    lo: int,
+    hi: int,
+) -> None:
+    """Fill ``out[destination[j, c], k]`` with standard column ``c`` of joint ``j``'s row at sample ``k``, ``lo <= k < hi`` (``destination < 0``: not kept).
+
+    The same values as :func:`inertial_regressor` for the inertial columns and
+    ``qdd, qd, sign(qd), 1`` for a joint's own ``Ia, Fv, Fc, offset`` (at
+    ``stride * j + 10 ...``), computed a chunk of samples at a time in a scratch
+    array that stays in cache: the full (n, N, stride n) regressor is never held.
+    Disjoint ranges of samples may be filled in threads (no GIL held).
+    """
+    n = q.shape[1]
+    chunk = 128
+    scratch = np.zeros((n, chunk, stride * n))
+    for a in range(lo, hi, chunk):
+        b = min(hi, a + chunk)
+        inertial_regressor(prismatic, parents, axes, rotations, translations, gravity, q[a:b], qd[a:b], qdd[a:b], scratch, stride)
+        for j in range(n):
+            c = stride * j + 10
+            for k in range(b - a):
+                scratch[j, k, c] = qdd[a + k, j]
+                scratch[j, k, c + 1] = qd[a + k, j]
+                scratch[j, k, c + 2] = np.sign(qd[a + k, j])
+                scratch[j, k, c + 3] = 1.0
+        for j in range(n):
+            for c in range(stride * n):
+                d = destination[j, c]
+                if d >= 0:
+                    for k in range(b - a):
+                        out[d, a + k] = scratch[j, k, c]

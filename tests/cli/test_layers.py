@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("ilic_cli", "plant")
 
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("types", ("ilic_cli", "ilic_cli.errors", "ilic_cli.method_names", "ilic_cli.runlog", "ilic_cli.timebase", "ilic_cli.parallel")),
+    ("types", ("ilic_cli", "ilic_cli.errors", "ilic_cli.method_names", "ilic_cli.runlog", "ilic_cli.jointlog", "ilic_cli.timebase", "ilic_cli.parallel")),
     ("io", ("ilic_cli.io",)),
     ("preparation", ("ilic_cli.quality", "ilic_cli.prepare")),
     (

@@ -16,10 +16,11 @@ from tests.conftest import import_or_skip
 
 import_or_skip("pinocchio")
 
-from ilic_cli.idim_ls import LSSettings  # noqa: E402
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference  # noqa: E402
+from ilic_cli.idim_ls import LSSettings, _decimate  # noqa: E402
 from ilic_cli.robot import model as rm  # noqa: E402
 from ilic_cli.robot.base import base_parameters  # noqa: E402
-from ilic_cli.robot.idim import idim_ls, prepare, solve_system, validation_error_pct  # noqa: E402
+from ilic_cli.robot.idim import active_columns, idim_ls, prepare, solve_system, validation_error_pct  # noqa: E402
 from ilic_cli.robot.simulate import SimSettings, exciting_trajectory, simulate  # noqa: E402
 
 FIXTURES = Path(__file__).parents[2] / "fixtures"
@@ -113,3 +114,35 @@ def test_arm2_without_noise_is_identified_almost_exactly() -> None:
         assert fit.value(name) == pytest.approx(beta[fit.names.index(name)], rel=0.005), name
     with pytest.raises(ValueError, match="too few samples"):
         idim_ls(log.q[:200], log.tau[:200], 1000.0, robot, base, SETTINGS)
+
+
+def test_prepared_system_is_the_regressor_decimated_joint_by_joint() -> None:
+    """``prepare``'s compiled base columns, decimated in one call, equal the straightforward chain to the last bit.
+
+    The straightforward chain (the code before the compiled columns): the whole
+    standard regressor, each joint's base columns picked from it, each joint's
+    columns and torque decimated on their own, then stacked.
+    """
+    robot = rm.load_urdf(FIXTURES / "ur5like.urdf")
+    base = base_parameters(robot)
+    rng = np.random.default_rng(5)
+    t = np.arange(3000) / 1000.0
+    q = exciting_trajectory(Q0, SPEED, seed=3).at(t)[0] + rng.normal(0.0, 1e-5, (len(t), robot.n))
+    tau = rng.normal(0.0, 5.0, q.shape)
+    system = prepare(q, tau, 1000.0, robot, base, SETTINGS)
+    qf = butter_lowpass_zero_phase(q, SETTINGS.cutoff_hz, 1000.0, SETTINGS.order, matlab=SETTINGS.matlab, axis=0)
+    qd = central_difference(qf, 1e-3)
+    qdd = central_difference(qd, 1e-3)
+    s = slice(SETTINGS.trim, None)
+    Y = rm.regressor(robot, qf[s], qd[s], qdd[s], joint_major=False)
+    active = active_columns(robot, base)
+    assert 0.3 < active.mean() < 0.7  # the zero columns are left out: not every column is active, nor none
+    W, y = [], []
+    for j in range(robot.n):
+        d = _decimate(np.column_stack([Y[j][:, base.kept[active[j]]], tau[s, j]]), SETTINGS, 1000.0)
+        part = np.zeros((len(d), base.b))
+        part[:, active[j]] = d[:, :-1]
+        W.append(part)
+        y.append(d[:, -1])
+    assert np.array_equal(system.W, np.concatenate(W)) and np.array_equal(system.y, np.concatenate(y))
+    assert np.array_equal(system.joint, np.repeat(np.arange(robot.n), len(y[0])))

@@ -1,0 +1,117 @@
+"""Arms of n joints on the command line: ``--urdf`` and ``--joints`` of ``ilic identify`` and ``ilic info`` (issue 30).
+
+The 1-joint commands hand over to this module when ``--urdf`` (or ``--joints``,
+or a wide CSV) is given: :func:`identify_options` and :func:`info_options`
+wrap their command. The log is an :class:`ilic_cli.jointlog.JointLog` read by
+joint name (:mod:`ilic_cli.io.jointlogs`); the numerics are :mod:`ilic_cli.robot`'s.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from collections.abc import Callable, Mapping
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeVar, cast
+
+import click
+
+from ilic_cli.errors import IlicError, LogError
+
+if TYPE_CHECKING:
+    from ilic_cli.jointlog import JointLog
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+JOINTS_HELP = "n-joint log: the joints to read, by name; with --urdf, the log's names of the URDF's joints in its order [default: the URDF's names]."
+
+
+def joints_option(text: str | None) -> list[str] | None:
+    """The names of ``--joints a,b,c`` (None when not given)."""
+    if text is None:
+        return None
+    names = [j.strip() for j in text.split(",") if j.strip()]
+    if not names:
+        raise IlicError("--joints", "give joint names separated by commas (a,b,c)")
+    return names
+
+
+def urdf_option(func: F) -> F:
+    """Add ``--urdf`` and ``--joints`` (the latter reaches the command as ``robot_joints``)."""
+    func = click.option("--joints", "robot_joints", default=None, metavar="A,B,...", help=JOINTS_HELP)(func)
+    return click.option(
+        "--urdf", "urdf", type=click.Path(path_type=Path), default=None, help="An arm of n joints: its URDF (the log is read by joint name; docs/robots.md)."
+    )(func)
+
+
+def load_robot(urdf: Path) -> Any:
+    """The URDF's model (pinocchio; a missing file or package is one line)."""
+    from ilic_cli.robot.model import load_urdf  # deferred: the robot layer (numba, pinocchio) only for an arm
+
+    if not urdf.exists():
+        raise IlicError(urdf, "no such URDF file")
+    return load_urdf(urdf)
+
+
+def read_log(path: Path, robot: Any, joints: list[str] | None) -> JointLog:
+    """The log's joints, their types checked against the URDF's.
+
+    ``joints``: without a URDF, the joints to read; with one, the log's names of
+    the URDF's moving joints in the URDF's order (default: the URDF's own names).
+    """
+    from ilic_cli.io import jointlogs  # deferred: numpy and the readers only for an n-joint log (`ilic info --help` imports this module)
+
+    if robot is None:
+        return jointlogs.read(path, joints)
+    if joints is not None and len(joints) != robot.n:
+        raise IlicError("--joints", f"{len(joints)} names for the {robot.n} joints {robot.path} moves ({', '.join(robot.joints)})")
+    names = joints or list(robot.joints)
+    log = jointlogs.read(path, names, dict(zip(names, robot.kinds)))
+    log = replace(log, joints=tuple(robot.joints))
+    wrong = [f"{j} ({k}, the URDF: {u})" for j, k, u in zip(names, log.kinds, robot.kinds) if k != u]
+    if wrong:
+        raise LogError(path, f"joint types differ from the URDF's: {', '.join(wrong)}")
+    return log
+
+
+def info_options(func: F) -> F:
+    """Add ``--urdf`` and ``--joints`` to ``ilic info``; with either, or for a wide CSV, the joints are listed."""
+
+    @functools.wraps(func)
+    def wrapper(log_path: Path, **options: Any) -> Any:
+        urdf, joints = options.pop("urdf"), options.pop("robot_joints")
+        from ilic_cli.io.jointlogs import is_wide_csv  # deferred: numpy and the readers only when a log is read (`ilic info --help`)
+
+        if urdf is None and joints is None and not is_wide_csv(log_path):
+            return func(log_path, **options)
+        robot = load_robot(urdf) if urdf is not None else None
+        log = read_log(log_path, robot, joints_option(joints))
+        summary = log.to_dict() | {"file": str(log_path)}
+        if robot is not None:
+            summary["urdf"] = {"path": robot.path, "sha256": robot.sha256}
+        if options["out_format"] == "json":
+            click.echo(json.dumps(summary, indent=2, default=str))
+        else:
+            click.echo(info_markdown(summary), nl=False)
+        return None
+
+    return urdf_option(cast(F, wrapper))
+
+
+def info_markdown(summary: Mapping[str, Any]) -> str:
+    """The joints of an n-joint log as a Markdown table."""
+    lines = [
+        f"# {summary['file']}",
+        "",
+        f"- {summary['samples']} samples, {summary['duration_s']:.6g} s at {summary['sample_rate_hz']:.6g} Hz",
+        f"- reference: {'yes' if summary['reference'] else 'no'}",
+    ]
+    if "urdf" in summary:
+        lines.append(f"- URDF: {summary['urdf']['path']} (sha256 {summary['urdf']['sha256'][:12]})")
+    lines += ["", "| joint | type | q min | q max | effort min | effort max |", "| --- | --- | --- | --- | --- | --- |"]
+    for j in summary["joints"]:
+        qu, tu = j["position_unit"], j["effort_unit"]
+        lines.append(f"| {j['name']} | {j['type']} | {j['q_min']:.6g} {qu} | {j['q_max']:.6g} {qu} | {j['tau_min']:.6g} {tu} | {j['tau_max']:.6g} {tu} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,56 @@
+"""Markdown of the n-joint commands: the identification's tables and robot-sim's per-window convergence (paper Table I pattern)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+
+def _num(value: Any, digits: int = 6) -> str:
+    return "" if value is None else f"{value:.{digits}g}"
+
+
+def _combines(combination: Mapping[str, float]) -> str:
+    terms = list(combination.items())
+    if not terms:
+        return ""
+    text = terms[0][0]
+    for name, c in terms[1:]:
+        text += f" {'-' if c < 0 else '+'} {abs(c):.4g} {name}"
+    return text
+
+
+def identify_markdown(doc: Mapping[str, Any]) -> str:
+    """The identification of an arm: one table per method (base parameter, what it combines, value, std, %σ)."""
+    joints = ", ".join(f"{j['name']} ({j['type']})" for j in doc["joints"])
+    lines = [f"# {doc['log']}", "", f"- URDF: {doc['urdf']} (sha256 {doc['sha256'][:12]}); joints: {joints}"]
+    lines.append(f"- {doc['samples']} samples at {doc['sample_rate_hz']:.6g} Hz; {len(doc['base_parameters'])} base parameters")
+    combines = {b["name"]: _combines(b["combines"]) for b in doc["base_parameters"]}
+    truth = doc.get("true_base_parameters")
+    for name, m in doc["methods"].items():
+        lines += ["", f"## {name}", ""]
+        head = "| base parameter | combines | value | std | %σ |" + (" true |" if truth else "")
+        lines += [head, "| --- " * (head.count("|") - 1) + "|"]
+        for p, v in m["parameters"].items():
+            row = f"| {p} | {combines.get(p, '')} | {_num(v['value'])} | {_num(v['std'], 3)} | {_num(v['rel_std_pct'], 3)} |"
+            lines.append(row + (f" {_num(truth[p])} |" if truth else ""))
+        if m.get("relative_error_pct") is not None:
+            lines += ["", f"Relative error: {m['relative_error_pct']:.4g} %"]
+        if "validation" in m:
+            truth_error = doc.get("true_validation_relative_error_pct")
+            yardstick = "" if truth_error is None else f" (the true parameters: {_num(truth_error, 4)} %)"
+            lines += ["", f"Validation on {m['validation']['log']}: relative error {_num(m['validation']['relative_error_pct'], 4)} %{yardstick}"]
+        if "windows" in m:
+            lines += ["", f"{len(m['windows'])} windows of {m['window_s']:g} s; the table holds the last window's estimate."]
+    return "\n".join(lines) + "\n"
+
+
+def convergence_markdown(names: Sequence[str], truth: Sequence[float], estimates: Sequence[Sequence[float]], errors: Sequence[Sequence[float]]) -> str:
+    """Per base parameter, the estimate of each window k and its relative error (%) against the truth of that window."""
+    k = len(estimates)
+    head = "| base parameter | true | " + " | ".join(f"k={i + 1}" for i in range(k)) + " | error k=last (%) |"
+    lines = [head, "| --- " * (k + 3) + "|"]
+    for i, name in enumerate(names):
+        values = " | ".join(_num(e[i], 5) for e in estimates)
+        lines.append(f"| {name} | {_num(truth[i], 5)} | {values} | {_num(errors[-1][i], 3)} |")
+    return "\n".join(lines) + "\n"

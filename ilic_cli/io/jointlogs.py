@@ -1,0 +1,273 @@
+"""n-joint logs (:class:`ilic_cli.jointlog.JointLog`) in a wide CSV, a ROS 2 bag folder (sqlite3 or MCAP storage) or an MCAP file.
+
+- **Wide CSV**: columns ``t``, then per joint ``q_<joint>``, ``tau_<joint>`` and,
+  with a reference, ``q_ref_<joint>``, ``qd_ref_<joint>``, ``qdd_ref_<joint>``.
+  A first line ``# ilic-joints {json}`` holds the joint types and the metadata
+  (without it every joint is read as ``revolute`` unless the caller says).
+  Floats are written by ``repr`` (the shortest exact text): the round trip is lossless.
+- **ROS 2**: ``sensor_msgs/msg/JointState`` on ``/joint_states`` (or the only
+  JointState topic): ``position`` and ``effort`` per name (``velocity`` is
+  written as 0 and not read); the reference as a ``trajectory_msgs/msg/JointTrajectory``
+  of one point on ``/joint_reference``; the metadata as JSON in a
+  ``std_msgs/msg/String`` on ``/ilic/metadata``. Written with rosbags' own writer.
+
+Joints are selected by name: a bag may hold more joints than the URDF moves.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.errors import LogError
+from ilic_cli.jointlog import REFERENCES, JointLog
+
+MARK = "# ilic-joints "
+STATES, REFERENCE, METADATA = "/joint_states", "/joint_reference", "/ilic/metadata"
+JOINT_STATE, TRAJECTORY, STRING = "sensor_msgs/msg/JointState", "trajectory_msgs/msg/JointTrajectory", "std_msgs/msg/String"
+PREFIXES = ("qdd_ref_", "qd_ref_", "q_ref_", "tau_", "q_")
+"""Wide CSV column prefixes, longest first (``q_ref_a`` is not the position of joint ``ref_a``)."""
+
+
+def kind_of(path: Path) -> str:
+    """``csv``, ``mcap`` (a file) or ``rosbag2`` (a folder)."""
+    if path.is_dir():
+        return "rosbag2"
+    if path.suffix.lower() == ".mcap":
+        return "mcap"
+    if path.suffix.lower() == ".csv":
+        return "csv"
+    raise LogError(path, "not an n-joint log: expected a .csv, an .mcap file or a ROS 2 bag folder")
+
+
+def is_wide_csv(path: Path) -> bool:
+    """True for a CSV written as an n-joint log (its :data:`MARK` first line)."""
+    if path.suffix.lower() != ".csv" or not path.is_file():
+        return False
+    with path.open("rb") as f:
+        return f.readline().startswith(MARK.encode())
+
+
+def read(path: Path, joints: Sequence[str] | None = None, kinds: Mapping[str, str] | None = None) -> JointLog:
+    """Read an n-joint log, keeping ``joints`` (by name, in that order; default: all). ``kinds``: joint types where the file gives none."""
+    if not path.exists():
+        raise LogError(path, "no such file or folder")
+    kind = kind_of(path)
+    log = read_csv(path, kinds) if kind == "csv" else read_ros(path, kinds, joints)
+    return log if joints is None else log.select(joints, path)
+
+
+def write(log: JointLog, path: Path) -> None:
+    """Write ``log`` to ``path`` (``.csv``, ``.mcap``, else a ROS 2 bag folder with sqlite3 storage)."""
+    if path.exists():
+        raise LogError(path, "exists already: choose another output")
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        write_csv(log, path)
+    elif suffix == ".mcap":
+        with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
+            bag = Path(tmp) / path.stem
+            write_bag(log, bag, "mcap")
+            (bag / f"{path.stem}.mcap").replace(path)
+    else:
+        write_bag(log, path, "sqlite3")
+
+
+def _header(log: JointLog) -> str:
+    return MARK + json.dumps({"joints": [list(p) for p in zip(log.joints, log.kinds)], "meta": dict(log.meta)}, sort_keys=True, default=str)
+
+
+def write_csv(log: JointLog, path: Path) -> None:
+    """The wide CSV (floats by ``repr``: exact)."""
+    names = ["t"] + [f"{p}_{j}" for p in ("q", "tau") for j in log.joints]
+    blocks = [log.t[None, :], log.q, log.tau]
+    if log.has_reference:
+        names += [f"{r}_{j}" for r in REFERENCES for j in log.joints]
+        blocks += [getattr(log, r) for r in REFERENCES]
+    table = np.concatenate(blocks).T
+    lines = [_header(log), ",".join(names)] + [",".join(map(repr, row)) for row in table.tolist()]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def read_csv(path: Path, kinds: Mapping[str, str] | None = None) -> JointLog:
+    """A wide CSV (see the module's docstring)."""
+    import pandas as pd  # deferred: pandas costs ~0.3 s of import; its C parser with round_trip reads repr floats exactly
+
+    try:
+        with path.open(encoding="utf-8") as f:
+            first = f.readline()
+        header = json.loads(first[len(MARK) :]) if first.startswith(MARK) else {}
+        frame = pd.read_csv(path, comment="#", **_exact(pd))
+    except (OSError, ValueError, UnicodeDecodeError) as exc:
+        raise LogError(path, f"cannot read the CSV: {exc}") from None
+    columns = [str(c).strip() for c in frame.columns]
+    if "t" not in columns:
+        raise LogError(path, "no column 't' (a wide CSV has t, q_<joint>, tau_<joint>, ...)")
+    declared = dict(header.get("joints") or [])  # [[name, type], ...] in the log's order
+    joints = list(declared) or [c[2:] for c in columns if c.startswith("q_") and not c.startswith("q_ref_")]
+    found: dict[str, dict[str, np.ndarray]] = {}
+    for c in columns:
+        for p in PREFIXES:
+            if c.startswith(p) and c[len(p) :] in joints:
+                found.setdefault(p[:-1], {})[c[len(p) :]] = frame[c].to_numpy(dtype=np.float64)
+                break
+    if not joints:
+        raise LogError(path, "no q_<joint> column")
+    for what in ("q", "tau"):
+        lacking = [j for j in joints if j not in found.get(what, {})]
+        if lacking:
+            raise LogError(path, f"no {what}_<joint> column for {', '.join(lacking)}" + (" (a log without effort)" if what == "tau" else ""))
+    refs = {r: np.array([found[r][j] for j in joints]) if all(j in found.get(r, {}) for j in joints) else None for r in REFERENCES}
+    given = dict(kinds or {})
+    types = tuple(str(declared.get(j) or given.get(j) or "revolute") for j in joints)
+    return _log(path, frame["t"].to_numpy(dtype=np.float64), joints, types, found, refs, header.get("meta") or {})
+
+
+def _exact(pd: Any) -> dict[str, str]:
+    """pandas' exact float parsing: the default from pandas 3, ``float_precision="round_trip"`` before."""
+    return {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+
+
+def _log(path: Path, t: np.ndarray, joints: Sequence[str], types: tuple[str, ...], found: Any, refs: Any, meta: Mapping[str, Any]) -> JointLog:
+    try:
+        return JointLog(
+            t=t,
+            joints=tuple(joints),
+            kinds=types,
+            q=np.array([found["q"][j] for j in joints]),
+            tau=np.array([found["tau"][j] for j in joints]),
+            meta=dict(meta) | {"source": str(path)},
+            **refs,
+        )
+    except LogError as exc:
+        raise LogError(path, exc.problem) from None
+
+
+def write_bag(log: JointLog, path: Path, storage: str) -> None:
+    """A ROS 2 bag folder (``storage``: ``sqlite3`` or ``mcap``) written message by message with rosbags' writer."""
+    from rosbags.rosbag2 import StoragePlugin, Writer  # deferred: rosbags' writer is needed only to write a bag
+    from rosbags.typesys import Stores, get_typestore  # deferred: with the writer
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    JointState, Header, Time = ts.types[JOINT_STATE], ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
+    Trajectory, Point, Duration = ts.types[TRAJECTORY], ts.types["trajectory_msgs/msg/JointTrajectoryPoint"], ts.types["builtin_interfaces/msg/Duration"]
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    stamps = np.round(log.t * 1e9).astype(np.int64)
+    names = list(log.joints)
+    zeros = np.zeros(log.n)
+    meta = {"joints": [list(p) for p in zip(log.joints, log.kinds)], "meta": dict(log.meta)}
+    with Writer(path, version=9, storage_plugin=plugin) as writer:
+        states = writer.add_connection(STATES, JOINT_STATE, typestore=ts)
+        refs = writer.add_connection(REFERENCE, TRAJECTORY, typestore=ts) if log.has_reference else None
+        info = writer.add_connection(METADATA, STRING, typestore=ts)
+        first = int(stamps[0])
+        writer.write(info, first, ts.serialize_cdr(ts.types[STRING](data=json.dumps(meta, sort_keys=True, default=str)), STRING))
+        for k, ns in enumerate(stamps.tolist()):
+            header = Header(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id="")
+            msg = JointState(header=header, name=names, position=log.q[:, k].copy(), velocity=zeros, effort=log.tau[:, k].copy())
+            writer.write(states, ns, ts.serialize_cdr(msg, JOINT_STATE))
+            if refs is not None:
+                assert log.q_ref is not None and log.qd_ref is not None and log.qdd_ref is not None
+                point = Point(
+                    positions=log.q_ref[:, k].copy(),
+                    velocities=log.qd_ref[:, k].copy(),
+                    accelerations=log.qdd_ref[:, k].copy(),
+                    effort=np.zeros(0),
+                    time_from_start=Duration(sec=0, nanosec=0),
+                )
+                writer.write(refs, ns, ts.serialize_cdr(Trajectory(header=header, joint_names=names, points=[point]), TRAJECTORY))
+
+
+def _messages(path: Path) -> tuple[list[tuple[str, str]], Any]:
+    """The topics ``(name, msgtype)`` and an iterator of ``(topic, msgtype, log time ns, message)`` of a bag folder or an MCAP file."""
+    from rosbags.typesys import Stores, get_typestore  # deferred: rosbags' type store, only to read ROS logs
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    if path.is_dir():
+        from rosbags.highlevel import AnyReader  # deferred: with the type store
+
+        reader = AnyReader([path], default_typestore=ts)
+        reader.open()
+        topics = [(c.topic, c.msgtype) for c in reader.connections]
+
+        def bag() -> Any:
+            try:
+                for c, ns, raw in reader.messages():
+                    yield c.topic, c.msgtype, ns, reader.deserialize(raw, c.msgtype)
+            finally:
+                reader.close()
+
+        return topics, bag()
+    from mcap.reader import make_reader  # deferred: an MCAP file only
+
+    with path.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    if summary is None:
+        raise LogError(path, "an MCAP file without a summary")
+    topics = [(ch.topic, summary.schemas[ch.schema_id].name) for ch in summary.channels.values()]
+
+    def mcap() -> Any:
+        with path.open("rb") as f:
+            for schema, channel, message in make_reader(f).iter_messages(log_time_order=True):
+                if schema is not None:  # a channel without a schema holds no ROS message
+                    yield channel.topic, schema.name, message.log_time, ts.deserialize_cdr(message.data, schema.name)
+
+    return topics, mcap()
+
+
+def read_ros(path: Path, kinds: Mapping[str, str] | None = None, joints: Sequence[str] | None = None) -> JointLog:
+    """A JointState log (see the module's docstring); ``joints``: the names wanted (checked on the first message)."""
+    try:
+        topics, messages = _messages(path)
+    except LogError:
+        raise
+    except Exception as exc:  # rosbags and mcap raise their own error types for a damaged file
+        raise LogError(path, f"cannot read the ROS log: {str(exc).strip() or type(exc).__name__}") from None
+    state_topics = [t for t, m in topics if m == JOINT_STATE]
+    if not state_topics:
+        raise LogError(path, "no sensor_msgs/msg/JointState topic")
+    topic = STATES if STATES in state_topics else state_topics[0]
+    if len(state_topics) > 1 and topic != STATES:
+        raise LogError(path, f"several JointState topics ({', '.join(state_topics)}) and none is {STATES}")
+    t: list[int] = []
+    q: list[np.ndarray] = []
+    tau: list[np.ndarray] = []
+    ref: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    names: list[str] = []
+    meta: dict[str, Any] = {}
+    order: np.ndarray | None = None
+    for tp, _, ns, msg in messages:
+        if tp == METADATA:
+            meta = json.loads(msg.data)
+        elif tp == topic:
+            if order is None:
+                names = list(joints) if joints is not None else list(msg.name)
+                missing = [j for j in names if j not in msg.name]
+                if missing:
+                    raise LogError(path, f"no joint {', '.join(missing)} in {topic} (it has {', '.join(msg.name)})")
+                order = np.array([list(msg.name).index(j) for j in names])
+            if len(msg.effort) < len(msg.name):
+                raise LogError(path, f"{topic} has no effort for its joints (a log without effort)")
+            t.append(ns if msg.header.stamp is None else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+            q.append(msg.position[order])
+            tau.append(msg.effort[order])
+        elif tp == REFERENCE and msg.points:
+            p = msg.points[0]
+            idx = [list(msg.joint_names).index(j) for j in names] if names and set(names) <= set(msg.joint_names) else None
+            if idx is not None:
+                ref.append((p.positions[idx], p.velocities[idx], p.accelerations[idx]))
+    if order is None:
+        raise LogError(path, f"{topic} holds no message")
+    refs: dict[str, np.ndarray | None] = dict.fromkeys(REFERENCES)
+    if len(ref) == len(t):
+        refs = {r: np.array([x[i] for x in ref]).T for i, r in enumerate(REFERENCES)}
+    declared = dict(meta.get("joints") or [])
+    given = dict(kinds or {})
+    types = tuple(str(declared.get(j) or given.get(j) or "revolute") for j in names)
+    found = {"q": dict(zip(names, np.array(q).T)), "tau": dict(zip(names, np.array(tau).T))}
+    return _log(path, np.array(t, dtype=np.float64) * 1e-9, names, types, found, refs, meta.get("meta") or {})
