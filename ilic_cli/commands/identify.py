@@ -137,7 +137,10 @@ from ilic_cli.runlog import RunLog
     "--decimation",
     type=click.IntRange(min=1),
     default=None,
-    help="IDIM-LS parallel decimation factor [default: from the log's rate, round(0.8·(fs/2)/min(40 Hz, 0.04·fs)): 10 at and below 1 kHz, 20 at 2 kHz, 80 at 8 kHz].",
+    help=(
+        "IDIM-LS parallel decimation factor [default: from the log's rate, round(0.8·(fs/2)/min(40 Hz, 0.04·fs)): "
+        "10 at and below 1 kHz, 20 at 2 kHz, 80 at 8 kHz]."
+    ),
 )
 @click.option("--trim", type=click.IntRange(min=0), default=49, show_default=True, help="IDIM-LS samples dropped at the start.")
 @click.option(
