@@ -132,13 +132,13 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
         "methods": {},
     }
     if "ls" in methods:
-        doc["methods"]["IDIM-WLS"] = _ls(log, robot, base, ls, min_speed, held)
+        doc["methods"]["IDIM-WLS"] = _ls(log, robot, base, ls, min_speed, held, float(o["sigma_max"]))
     if "ilic" in methods:
         doc["methods"]["IDIM-ILIC"] = _ilic(log, robot, base, _ilic_settings(o, defaults, log))
     for m in ("iv", "didim"):
         if m in methods:
             assert controller is not None
-            entry = _closed(m, log, robot, base, (ls, min_speed, held), controller, closed_loop_settings(o))
+            entry = _closed(m, log, robot, base, (ls, min_speed, held), controller, closed_loop_settings(o), float(o["sigma_max"]))
             doc["methods"][entry["method"]] = entry
     for entry in doc["methods"].values():
         entry["friction"] = _friction(entry["parameters"], robot.joints)
@@ -182,14 +182,24 @@ class _Validation:
         return {"validation": {"log": str(self.where), "relative_error_pct": finite_or_none(validation_error_pct(theta, self.system))}}
 
 
-def _ls(log: JointLog, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool) -> dict[str, Any]:
-    from ilic_cli.robot.idim import idim_ls  # deferred: numba only for an arm
+def _ls(log: JointLog, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, sigma_max: float) -> dict[str, Any]:
+    """IDIM-WLS, with its essential parameters and the fit of those alone (:func:`ilic_cli.robot.idim.essential_fit`)."""
+    from ilic_cli.robot.idim import essential_fit, prepare, solve_system  # deferred: numba only for an arm
 
     try:
-        fit = idim_ls(log.q.T, log.tau.T, log.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
+        system = prepare(log.q.T, log.tau.T, log.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
+        fit = solve_system(system)
+        mask, reduced = essential_fit(system, fit, sigma_max)
     except ValueError as exc:
         raise IlicError(log.meta.get("source", "LOG"), str(exc)) from None
-    return fit.to_dict()
+    out = fit.to_dict() | _essential(base.names, mask, sigma_max)
+    out["essential_fit"] = {"relative_error_pct": finite_or_none(reduced.relative_error_pct), "all_relative_error_pct": finite_or_none(fit.relative_error_pct)}
+    return out
+
+
+def _essential(names: tuple[str, ...], mask: np.ndarray, sigma_max: float) -> dict[str, Any]:
+    """The report's essential parameters: ``%sigma <= sigma_max`` (:func:`ilic_cli.idim_ilic.essential_mask`)."""
+    return {"sigma_max_pct": sigma_max, "essential": [n for n, e in zip(names, mask, strict=True) if e]}
 
 
 def _ilic(log: JointLog, robot: Any, base: Any, settings: ILICSettings) -> dict[str, Any]:
@@ -219,11 +229,18 @@ def _ilic(log: JointLog, robot: Any, base: Any, settings: ILICSettings) -> dict[
         "window_s": settings.window_s,
         "parameters": _parameters(last.names, last.theta, last.std, last.rel_std_pct),
         "windows": [w.to_dict() for w in windows],
-    }
+    } | _essential(base.names, windows[-1].essential, settings.sigma_max_pct)
 
 
 def _closed(
-    method: str, log: JointLog, robot: Any, base: Any, prep: tuple[LSSettings, float, bool], controller: Mapping[str, Any], settings: Mapping[str, Any]
+    method: str,
+    log: JointLog,
+    robot: Any,
+    base: Any,
+    prep: tuple[LSSettings, float, bool],
+    controller: Mapping[str, Any],
+    settings: Mapping[str, Any],
+    sigma_max: float,
 ) -> dict[str, Any]:
     """IDIM-IV or DIDIM of the base parameters on replays of the log's loop (:func:`ilic_cli.robot.closed_loop.closed_loop_identify`)."""
     from ilic_cli.robot.closed_loop import closed_loop_identify  # deferred: numba only for an arm
@@ -242,4 +259,6 @@ def _closed(
         ) from None
     except ValueError as exc:
         raise IlicError(where, f"{method}: {exc}") from None
-    return res.to_dict()
+    from ilic_cli.idim_ilic import essential_mask  # deferred: with the estimate
+
+    return res.to_dict() | _essential(base.names, essential_mask(res.result, sigma_max), sigma_max)

@@ -122,4 +122,6 @@ def simulate(urdf: Path, o: dict[str, Any]) -> None:
     base = result.base
     errors = result.relative_errors_pct()
     click.echo(f"# {SCENARIO}: {Path(robot.path).name}, {settings.windows} windows of {settings.window_s:g} s -> {output}\n")
-    click.echo(convergence_markdown(base.names, result.truth[-1].tolist(), [w.result.theta.tolist() for w in result.windows], errors.tolist()), nl=False)
+    estimates, essential = [w.result.theta.tolist() for w in result.windows], [w.essential.tolist() for w in result.windows]
+    table = convergence_markdown(base.names, result.truth[-1].tolist(), estimates, errors.tolist(), essential, settings.ilic.sigma_max_pct)
+    click.echo(table, nl=False)

@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import math
 import mmap
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.idim_ilic import essential_mask
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
 from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve
 from ilic_cli.parallel import ordered_map
@@ -293,3 +294,16 @@ def idim_ls(
 def validation_error_pct(theta: np.ndarray, system: RobotSystem) -> float:
     """Relative error (%) of base parameters ``theta`` on another log's system (cross validation)."""
     return relative_error_pct(system.y, system.W @ np.asarray(theta, dtype=np.float64))
+
+
+def essential_fit(system: RobotSystem, fit: Fit, sigma_max_pct: float) -> tuple[np.ndarray, Fit]:
+    """The essential base parameters of ``fit`` and the fit of ``system`` with only them (the others removed, i.e. 0).
+
+    Essential: ``%sigma <= sigma_max_pct`` (:func:`ilic_cli.idim_ilic.essential_mask`, the parameters IDIM-ILIC
+    updates). The reduced fit's relative error against ``fit``'s says whether removing the others degrades the fit.
+    """
+    mask = essential_mask(fit.result, sigma_max_pct)
+    if not mask.any():
+        raise ValueError(f"no base parameter has %sigma <= {sigma_max_pct:g}: none is essential")
+    names = tuple(n for n, e in zip(system.names, mask, strict=True) if e)
+    return mask, solve_system(replace(system, W=system.W[:, mask], names=names), weighted=fit.method == "IDIM-WLS")

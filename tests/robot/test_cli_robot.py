@@ -59,7 +59,11 @@ def test_simulate_prints_the_convergence_table_and_identify_recovers_the_paramet
             assert abs(ls["friction"][name]["value"] - truth[name]) < 0.03 * abs(truth[name]), name
         assert f"offset_{joint}" in ls["friction"]
     assert 0 < ls["validation"]["relative_error_pct"] < 1.2 * doc["true_validation_relative_error_pct"]  # issue 30: within 1.2x the truth's
+    # the essential parameters (%sigma <= 15): the offsets are not; the fit without them is as good
+    assert {p for p, v in ls["parameters"].items() if v["rel_std_pct"] <= 15.0} == set(ls["essential"]) and "offset_shoulder" not in ls["essential"]
+    assert len(ls["essential"]) < 13 and ls["essential_fit"]["relative_error_pct"] < 1.01 * ls["essential_fit"]["all_relative_error_pct"]
     ilic = doc["methods"]["IDIM-ILIC"]
+    assert ilic["essential"] == [n for n, e in ilic["windows"][-1]["essential"].items() if e]
     assert len(ilic["windows"]) == 3 and ilic["window_s"] == 10.0
     for name in ("Ia_shoulderR", "Fv_shoulder", "Fc_shoulder", "mx_elbow", "Fc_elbow"):
         assert abs(ilic["parameters"][name]["value"] - truth[name]) < 0.003 * abs(truth[name]), name
@@ -75,7 +79,10 @@ def test_markdown_and_info(capsys: pytest.CaptureFixture[str], sims: tuple[Path,
     capsys.readouterr()
     code, out, err = run(capsys, "identify", str(first), "--urdf", ARM2, "--method", "ls")
     assert code == 0, err
-    assert "## IDIM-WLS" in out and "| mx_shoulderR | mx_shoulder + 0.5 m_elbow |" in out and "IDIM-ILIC" not in out
+    assert "## IDIM-WLS" in out and "| mx_shoulderR | mx_shoulder + 0.5 m_elbow |" in out and "## IDIM-ILIC" not in out
+    rows = {r.split(" | ")[0][2:]: r.split(" | ") for r in out.splitlines() if r.startswith("| ")}
+    assert rows["mx_shoulderR"][5] == "yes" and rows["offset_shoulder"][5] == ""  # the offset's %sigma is above 15: not essential
+    assert "Essential (%σ ≤ 15 %, the ones IDIM-ILIC updates): 11 of 13. Fit with only them: relative error" in out
     code, out, err = run(capsys, "info", str(first))
     assert code == 0, err
     assert "| shoulder | revolute |" in out and "| elbow | revolute |" in out and "30000 samples" in out
@@ -89,7 +96,9 @@ def test_ur5like_to_mcap_and_identify(tmp_path: Path, capsys: pytest.CaptureFixt
     out_path = tmp_path / "ur5.mcap"
     code, out, err = run(capsys, "simulate", "--urdf", UR5, "--scenario", "robot-sim", "--duration", "10", "-o", str(out_path))
     assert code == 0, err
-    assert out_path.is_file() and "| Fv_shoulder_pan_joint |" in out and "k=1" in out
+    assert out_path.is_file() and "| Fv_shoulder_pan_joint |" in out and "k=1" in out and "† not essential in that window (%σ > 15 %)" in out
+    rows = [r for r in out.splitlines() if r.startswith("| offset_wrist_3_joint |")]
+    assert len(rows) == 1 and rows[0].count("†") >= 1, rows  # the smallest offset is not essential: the controller keeps it
     code, out, err = run(capsys, "identify", str(out_path), "--urdf", UR5, "--method", "ls", "--format", "json")
     assert code == 0, err
     doc = json.loads(out)
