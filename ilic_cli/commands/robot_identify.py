@@ -35,8 +35,11 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 FRICTION = ("Fv", "Fc", "offset")
 
-ROBOT_LS: dict[str, Any] = {"cutoff": 50.0, "decimation": 20, "trim": 100}
-"""IDIM-LS settings of an arm when the options are left at their 1-DOF defaults (docs/robots.md: the cut-off above the decimation's)."""
+ROBOT_LS: dict[str, Any] = {"cutoff": 50.0, "trim": 100}
+"""IDIM-LS settings of an arm when the options are left at their 1-DOF defaults (docs/robots.md: the cut-off above the decimation's band).
+
+The decimation is the 1-DOF chain's rule by the log's rate (:func:`ilic_cli.filtering.rows_decimation`) with an arm's band
+(:data:`ilic_cli.robot.idim.ROBOT_BAND_HZ`: 20 at 1 kHz), or ``--decimation N`` as given."""
 
 RUNNABLE = ("ls", "ilic", "iv", "didim")
 """The methods that run on n joints (a composite ``--method`` runs its :data:`ilic_cli.method_names.COMPOSITES` entry's)."""
@@ -73,8 +76,12 @@ def _defaults(options: Mapping[str, Any]) -> set[str]:
 
 def _ls_settings(o: Mapping[str, Any], defaults: set[str], fs_hz: float) -> LSSettings:
     """The IDIM-LS options, with :data:`ROBOT_LS` for those left at their 1-DOF defaults."""
-    value = {k: (ROBOT_LS[k] if k in defaults and k in ROBOT_LS else o[k]) for k in ("cutoff", "decimation", "trim", "order")}
-    return LSSettings(cutoff_hz=value["cutoff"], order=value["order"], decimation=value["decimation"], trim=value["trim"], matlab=o["filtering"] == "matlab")
+    value = {k: (ROBOT_LS[k] if k in defaults and k in ROBOT_LS else o[k]) for k in ("cutoff", "trim", "order")}
+    from ilic_cli.robot.idim import ROBOT_BAND_HZ  # deferred: numba only for an arm
+
+    by_rate = {"band_hz": ROBOT_BAND_HZ} if o["decimation"] is None else {"decimation": o["decimation"], "band_hz": None}  # given: as given; else the rule
+    settings = LSSettings(cutoff_hz=value["cutoff"], order=value["order"], trim=value["trim"], matlab=o["filtering"] == "matlab", **by_rate)
+    return settings.at_rate(fs_hz)
 
 
 def _ilic_settings(o: Mapping[str, Any], defaults: set[str], log: JointLog) -> ILICSettings:

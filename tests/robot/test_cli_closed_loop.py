@@ -24,7 +24,7 @@ from ilic_cli.idim_ls import LSSettings  # noqa: E402
 from ilic_cli.io import jointlogs  # noqa: E402
 from ilic_cli.jointlog import JointLog  # noqa: E402
 from ilic_cli.robot.base import base_parameters  # noqa: E402
-from ilic_cli.robot.idim import idim_ls  # noqa: E402
+from ilic_cli.robot.idim import ROBOT_BAND_HZ, idim_ls  # noqa: E402
 from ilic_cli.robot.model import load_urdf  # noqa: E402
 from ilic_cli.robot.plant import LoopRun, LoopSettings, simulate_loop  # noqa: E402
 from ilic_cli.robot.replay import SampledReference, controller_meta, replay_loop  # noqa: E402
@@ -66,7 +66,7 @@ def test_identify_iv_and_didim_beat_idim_ls_under_large_position_noise(tmp_path:
     # the parameters this loop determines: %sigma < 1 on the same log without the position noise (22 of 58)
     clean = simulate_loop(robot, pi, traj, 10.0, model, LoopSettings(controller="pd", torque_noise=TORQUE_NOISE, seed=3))
     base = base_parameters(robot)
-    fit = idim_ls(clean.q, clean.tau, 1000.0, robot, base, LSSettings(cutoff_hz=50.0, decimation=20, trim=100), min_speed=0.2, torque_held=True)
+    fit = idim_ls(clean.q, clean.tau, 1000.0, robot, base, LSSettings(cutoff_hz=50.0, trim=100, band_hz=ROBOT_BAND_HZ), min_speed=0.2, torque_held=True)
     well = [n for n, r in zip(base.names, fit.rel_std_pct) if r < 1.0]
     assert len(well) >= 15
 
