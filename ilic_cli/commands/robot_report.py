@@ -45,6 +45,9 @@ def identify_markdown(doc: Mapping[str, Any]) -> str:
             truth_error = doc.get("true_validation_relative_error_pct")
             yardstick = "" if truth_error is None else f" (the true parameters: {_num(truth_error, 4)} %)"
             lines += ["", f"Validation on {m['validation']['log']}: relative error {_num(m['validation']['relative_error_pct'], 4)} %{yardstick}"]
+        if "stop_reason" in m:
+            state = "converged" if m["converged"] else "not converged"
+            lines += ["", f"{len(m['iterations']) - 1} iterations from the IDIM-WLS start, {state}: {m['stop_reason']}."]
         if "windows" in m:
             lines += ["", f"{len(m['windows'])} windows of {m['window_s']:g} s; the table holds the last window's estimate."]
     return "\n".join(lines) + "\n"
