@@ -8,7 +8,8 @@ standard parameters each combines, and per method its parameters (value, std,
 IDIM-IV and DIDIM (:mod:`ilic_cli.robot.closed_loop`) iterate on replays of
 the log's reference through the log's controller (``meta["controller"]``,
 :mod:`ilic_cli.robot.replay`; ``--controller pd|ctc`` for a log that records
-none, the controller's model then being the URDF's).
+none, the controller's model then being the URDF's). ``--out DIR`` writes the
+report, the model file and a torque plot per joint (:mod:`ilic_cli.commands.robot_files`).
 """
 
 from __future__ import annotations
