@@ -78,13 +78,13 @@ def identify(log: Path) -> dict:
     """The library's n-joint IDIM-WLS of the log (the test's settings); its estimate as a dict."""
     from ilic_cli.idim_ls import LSSettings
     from ilic_cli.robot.base import base_parameters
-    from ilic_cli.robot.idim import idim_ls
+    from ilic_cli.robot.idim import ROBOT_BAND_HZ, idim_ls
     from ilic_cli.robot.model import load_urdf
 
     d = np.load(log)
     robot = load_urdf(URDF)
     base = base_parameters(robot)
-    fit = idim_ls(d["q"], d["tau"], float(d["fs"]), robot, base, LSSettings(cutoff_hz=50.0, decimation=20, trim=100), min_speed=0.2, torque_held=True)
+    fit = idim_ls(d["q"], d["tau"], float(d["fs"]), robot, base, LSSettings(cutoff_hz=50.0, trim=100, band_hz=ROBOT_BAND_HZ), min_speed=0.2, torque_held=True)
     return dict(zip(fit.names, fit.theta.tolist()))
 
 

@@ -9,6 +9,20 @@ Format written by ``ilic identify --out DIR`` (``DIR/model.json``) and
 
 Also accepted: the JSON printed by ``ilic identify --format json`` (the IDIM-LS
 parameters are used) and a flat ``{"M": 95, "Fv": 200, ...}``.
+
+An arm's model file (``ilic identify LOG --urdf ARM.urdf --out DIR``) is the
+same document with ``"model": "robot"``, the base parameters as its
+``parameters``, and a ``robot`` section: the URDF's path and sha256, the joints,
+each base parameter's regrouping of standard parameters, and the friction
+(:func:`robot_model_document`; read back by :func:`robot_parameters`, which
+refuses a model made for another URDF)::
+
+    {"ilic_model": 1, "model": "robot", "method": "DIDIM",
+     "parameters": {"mx_shoulderR": 2.87, ..., "Fv_elbow": 1.25},
+     "robot": {"urdf": "fixtures/arm2.urdf", "sha256": "6f1c...", "joints": ["shoulder", "elbow"],
+               "base_parameters": [{"name": "mx_shoulderR", "combines": {"mx_shoulder": 1.0, "m_elbow": 0.5}}, ...],
+               "friction": {"Fv_shoulder": 2.0, "Fc_shoulder": 3.0, "offset_shoulder": 0.2, ...}},
+     "effects": {}, "source": "arm2.csv"}
 """
 
 from __future__ import annotations
@@ -20,6 +34,8 @@ from typing import Any
 from ilic_cli.errors import IlicError
 
 MODEL_FILE_VERSION = 1
+ROBOT_MODEL = "robot"
+"""The ``model`` of an arm's model file."""
 
 
 def parse_model(doc: Any, where: str | None = None) -> dict[str, Any]:
@@ -46,7 +62,11 @@ def parse_model(doc: Any, where: str | None = None) -> dict[str, Any]:
     effects = doc.get("effects", {}) or {}
     if not isinstance(effects, dict):
         raise IlicError(where, "'effects' must be an object of effect id -> parameters")
-    return {"model": section.get("model", doc.get("model")), "parameters": params, "effects": effects}
+    robot = doc.get("robot")
+    if robot is not None and not isinstance(robot, dict):
+        raise IlicError(where, "'robot' must be an object (urdf, sha256, joints, base_parameters, friction)")
+    parsed = {"model": section.get("model", doc.get("model")), "parameters": params, "effects": effects}
+    return parsed | ({"robot": robot} if robot is not None else {})
 
 
 def load_model_file(path: str | Path) -> dict[str, Any]:
@@ -88,3 +108,35 @@ def model_document(
     if std is not None:
         doc["std"] = std
     return doc
+
+
+def robot_model_document(
+    parameters: dict[str, float],
+    *,
+    method: str,
+    urdf: str,
+    sha256: str,
+    joints: list[str],
+    base_parameters: list[dict[str, Any]],
+    friction: dict[str, float | None],
+    source: str | None = None,
+    std: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """An arm's model file: :func:`model_document` of the base parameters with the ``robot`` section (see the module)."""
+    doc = model_document(ROBOT_MODEL, parameters, method=method, source=source, std=std)
+    doc["robot"] = {"urdf": urdf, "sha256": sha256, "joints": joints, "base_parameters": base_parameters, "friction": friction}
+    return doc
+
+
+def robot_parameters(model: dict[str, Any], sha256: str, names: tuple[str, ...], where: str | Path) -> list[float]:
+    """The base parameters (in ``names``' order) of a parsed arm's model file, if it was made for the URDF of hash ``sha256``."""
+    robot = model.get("robot")
+    if not robot:
+        raise IlicError(where, "not an arm's model file (no 'robot' section; the identification of an arm writes one)")
+    if robot.get("sha256") != sha256:
+        made = f"{robot.get('urdf')} (sha256 {str(robot.get('sha256'))[:12]})"
+        raise IlicError(where, f"made for the URDF {made}, not this one (sha256 {sha256[:12]}): identify again with this URDF")
+    missing = [n for n in names if n not in model["parameters"]]
+    if missing:
+        raise IlicError(where, f"no value for the base parameters {', '.join(missing)}")
+    return [model["parameters"][n] for n in names]

@@ -151,3 +151,43 @@ def mark_edges(ax, t: np.ndarray, edges: int) -> None:
     if edges > 0 and len(t) > 2 * edges:
         ax.axvspan(t[0], t[edges], color="0.85", zorder=0, label="edges (not scaled)")
         ax.axvspan(t[-edges - 1], t[-1], color="0.85", zorder=0)
+
+
+def plot_joint_torques(
+    t: np.ndarray,
+    joints: list[str],
+    units: list[str],
+    measured: list[np.ndarray],
+    model: list[np.ndarray],
+    title: str,
+    outdir: Path,
+    image_format: str = "png",
+) -> list[Path]:
+    """One figure per joint of an arm, ``torque_<joint>``: measured vs model torque, and the residual, against time.
+
+    ``measured`` and ``model`` are each joint's decimated rows (times ``t``), in
+    the joint's effort unit (``units``: N·m for a revolute joint, N for a prismatic one).
+    """
+    plt = _pyplot()
+    written: list[Path] = []
+    for joint, unit, y, y_hat in zip(joints, units, measured, model, strict=True):
+        tj = t[: len(y)]
+        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 5), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+        ax1.plot(tj, y, lw=0.7, color="C0", label="measured (filtered, decimated)")
+        ax1.plot(tj, y_hat, lw=1.0, ls="--", color="C1", label="model W·θ̂")
+        ax1.set_ylabel(f"torque ({unit})")
+        ax1.legend(fontsize=8, loc="upper right")
+        residual = y - y_hat
+        ax2.plot(tj, residual, lw=0.7, color="C3", label="residual (measured − model)")
+        edges = edge_rows(len(residual))
+        scale_y(ax2, residual[edges : len(residual) - edges])
+        mark_edges(ax2, tj, edges)
+        ax2.set_ylabel(f"residual ({unit})")
+        ax2.set_xlabel("t (s)")
+        ax2.legend(fontsize=8, loc="upper right")
+        for ax in (ax1, ax2):
+            ax.grid(alpha=0.3)
+        rel = 100.0 * float(np.linalg.norm(residual) / np.linalg.norm(y)) if np.linalg.norm(y) > 0 else float("nan")
+        fig.suptitle(f"{joint}: measured vs model torque (relative error {rel:.3g} %)\n{title}", fontsize=10)
+        written.append(_save(fig, outdir / f"torque_{joint}.{image_format}"))
+    return written

@@ -7,7 +7,7 @@ import math
 import os
 import sys
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -18,6 +18,7 @@ from ilic_cli.io import Selection, read_log
 from ilic_cli.parameters import PARAMETERS, PD_TIMINGS
 
 if TYPE_CHECKING:
+    from ilic_cli.closed_loop_id import ClosedLoopSettings
     from ilic_cli.runlog import RunLog
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -372,3 +373,16 @@ def structure_or_model_file(model: str | None, structure: str | None) -> tuple[s
         note(f"ilic: warning: --model {model} is deprecated for a structure; use --structure {model} (--model now names a model file)")
         return model, None
     return structure, Path(model)
+
+
+def closed_loop_settings(o: Mapping[str, Any]) -> dict[str, ClosedLoopSettings]:
+    """DIDIM's and IDIM-IV's iteration, of one joint or n: each method's default (:data:`ilic_cli.closed_loop_id.DEFAULT_SETTINGS`), the options' limits."""
+    from ilic_cli.closed_loop_id import DEFAULT_SETTINGS  # deferred: numpy and the estimators only when a method runs (`ilic --help` stays instant)
+
+    max_iterations, tolerance = o["max_iterations"], o["tolerance"]
+    return {
+        m: replace(
+            s, max_iterations=s.max_iterations if max_iterations is None else max_iterations, tolerance_pct=s.tolerance_pct if tolerance is None else tolerance
+        )
+        for m, s in DEFAULT_SETTINGS.items()
+    }

@@ -3,18 +3,18 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import click
 
 from ilic_cli import identify_report as render
-from ilic_cli.closed_loop_id import DEFAULT_SETTINGS, ClosedLoopSettings
 from ilic_cli.commands.common import (
     STRUCTURES,
     ControllerOptions,
     InputOptions,
+    closed_loop_settings,
     controller_options,
     input_options,
     note,
@@ -211,7 +211,7 @@ def command(log: Path, **options: Any) -> None:
         window_s=o["window_s"], cutoff_hz=o["ilic_cutoff"], decimation=o["ilic_decimation"], sigma_max_pct=o["sigma_max"], ref_lag=o["ref_lag"]
     )
     with options_named():
-        settings = IdentifySettings(method, spec, ls_settings, ilic_settings, _closed_loop_settings(o), controller.pd_timing, oe_settings())
+        settings = IdentifySettings(method, spec, ls_settings, ilic_settings, closed_loop_settings(o), controller.pd_timing, oe_settings())
         result = identify_with(run, settings, validate=others)
     for w in result.warnings:
         note(f"ilic: warning: {w}")
@@ -253,17 +253,6 @@ def _oe_settings(o: Mapping[str, Any]) -> Callable[[], OESettings]:
     return lambda: OESettings(
         segment_s=oe_segment, fit_state=oe_state == "fitted", max_iterations=OESettings.max_iterations if max_iterations is None else max_iterations
     )
-
-
-def _closed_loop_settings(o: Mapping[str, Any]) -> dict[str, ClosedLoopSettings]:
-    """DIDIM's and IDIM-IV's iteration: each method's default (:data:`ilic_cli.closed_loop_id.DEFAULT_SETTINGS`) with the options' limits."""
-    max_iterations, tolerance = o["max_iterations"], o["tolerance"]
-    return {
-        m: replace(
-            s, max_iterations=s.max_iterations if max_iterations is None else max_iterations, tolerance_pct=s.tolerance_pct if tolerance is None else tolerance
-        )
-        for m, s in DEFAULT_SETTINGS.items()
-    }
 
 
 def _write_outputs(result: IdentifyReport, run: RunLog, out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:

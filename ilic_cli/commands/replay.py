@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from ilic_cli.commands.common import LOG_FORMATS, controller_options, input_options, load, note, plant_of_model_file, with_controller
+from ilic_cli.commands.robot_replay import replay_options
 from ilic_cli.errors import IlicError
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import write_log
@@ -38,6 +39,7 @@ from plant.replay import simulate_open_loop, simulate_replay
 )
 @controller_options
 @input_options
+@replay_options
 def command(
     log: Path,
     model_file: Path,
@@ -64,9 +66,14 @@ def command(
     logged gains and controller parameters. The plant uses the model file's
     parameters (M, Fv, Fc, offset or Fv_pos/Fc_pos/Fv_neg/Fc_neg) and effects.
 
+    With --urdf ARM.urdf, LOG is an arm's and the model file an arm's
+    (ilic identify LOG --urdf ARM.urdf --out DIR writes DIR/model.json; it
+    must have been made for that URDF): docs/robots.md.
+
     \b
-    Example:
+    Examples:
       ilic replay DATA_EMPS.mat --model report/model.json -o replay.mcap
+      ilic replay arm2.csv --urdf fixtures/arm2.urdf --model out/model.json -o replayed.csv
     """
 
     if substeps < 1:

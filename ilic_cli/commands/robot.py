@@ -76,6 +76,22 @@ def read_log(path: Path, robot: Any, joints: list[str] | None) -> JointLog:
     return log
 
 
+def recorded_controller(log: JointLog, o: Mapping[str, Any], purpose: str) -> dict[str, Any]:
+    """The loop to replay (``purpose``: who replays it): the log's recorded controller, or ``--controller`` for a log that records none."""
+    where = log.meta.get("source", "LOG")
+    given = o.get("controller")
+    if any(o.get(k) is not None for k in ("kp", "kv", "drive_gain")):
+        raise IlicError("--kp", "--kp, --kv and --drive-gain are a 1-joint PD's; an arm's PD gains follow from its model (docs/robots.md)")
+    recorded = log.meta.get("controller")
+    if recorded and given is not None:
+        raise IlicError("--controller", f"{where} records its controller; the option applies only to a log that records none")
+    if not log.has_reference:
+        raise IlicError(where, f"{purpose} the log's reference (q_ref, qd_ref, qdd_ref): the log has none")
+    if not recorded and given is None:
+        raise IlicError(where, "the log records no controller: give the loop that ran with --controller pd or --controller ctc (its model: the URDF's)")
+    return dict(recorded) if isinstance(recorded, Mapping) else {"kind": given or str(recorded)}
+
+
 def info_options(func: F) -> F:
     """Add ``--urdf`` and ``--joints`` to ``ilic info``; with either, or for a wide CSV, the joints are listed."""
 

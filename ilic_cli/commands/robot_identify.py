@@ -1,9 +1,15 @@
-"""``ilic identify LOG --urdf ARM.urdf``: the base parameters of an arm by n-joint IDIM-LS (weighted) and IDIM-ILIC per window.
+"""``ilic identify LOG --urdf ARM.urdf``: the base parameters of an arm by n-joint IDIM-LS (weighted), IDIM-ILIC per window, IDIM-IV and DIDIM.
 
 JSON (``--format json``): the URDF and its hash, the base parameters with the
 standard parameters each combines, and per method its parameters (value, std,
 %σ), the friction and offsets named ``Fv_<joint>``, ``Fc_<joint>``,
 ``offset_<joint>``, and with ``--validate`` ``validation.relative_error_pct``.
+
+IDIM-IV and DIDIM (:mod:`ilic_cli.robot.closed_loop`) iterate on replays of
+the log's reference through the log's controller (``meta["controller"]``,
+:mod:`ilic_cli.robot.replay`; ``--controller pd|ctc`` for a log that records
+none, the controller's model then being the URDF's). ``--out DIR`` writes the
+report, the model file and a torque plot per joint (:mod:`ilic_cli.commands.robot_files`).
 """
 
 from __future__ import annotations
@@ -17,22 +23,27 @@ from typing import Any, TypeVar, cast
 import click
 import numpy as np
 
-from ilic_cli.commands.robot import joints_option, load_robot, read_log, urdf_option
+from ilic_cli.commands.common import closed_loop_settings
+from ilic_cli.commands.robot import joints_option, load_robot, read_log, recorded_controller, urdf_option
 from ilic_cli.errors import IlicError
 from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.jointlog import JointLog
 from ilic_cli.lsq import finite_or_none
+from ilic_cli.method_names import COMPOSITES
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 FRICTION = ("Fv", "Fc", "offset")
 
-ROBOT_LS: dict[str, Any] = {"cutoff": 50.0, "decimation": 20, "trim": 100}
-"""IDIM-LS settings of an arm when the options are left at their 1-DOF defaults (docs/robots.md: the cut-off above the decimation's)."""
+ROBOT_LS: dict[str, Any] = {"cutoff": 50.0, "trim": 100}
+"""IDIM-LS settings of an arm when the options are left at their 1-DOF defaults (docs/robots.md: the cut-off above the decimation's band).
 
-RUNNABLE = {"ls": ("ls",), "ilic": ("ilic",), "both": ("ls", "ilic"), "all": ("ls", "ilic")}
-"""The ``--method`` choices that run on n joints, and what they run."""
+The decimation is the 1-DOF chain's rule by the log's rate (:func:`ilic_cli.filtering.rows_decimation`) with an arm's band
+(:data:`ilic_cli.robot.idim.ROBOT_BAND_HZ`: 20 at 1 kHz), or ``--decimation N`` as given."""
+
+RUNNABLE = ("ls", "ilic", "iv", "didim")
+"""The methods that run on n joints (a composite ``--method`` runs its :data:`ilic_cli.method_names.COMPOSITES` entry's)."""
 
 
 def identify_options(func: F) -> F:
@@ -64,10 +75,14 @@ def _defaults(options: Mapping[str, Any]) -> set[str]:
     return {name for name in options if ctx.get_parameter_source(name) in (click.core.ParameterSource.DEFAULT, None)}
 
 
-def _ls_settings(o: Mapping[str, Any], defaults: set[str]) -> LSSettings:
+def _ls_settings(o: Mapping[str, Any], defaults: set[str], fs_hz: float) -> LSSettings:
     """The IDIM-LS options, with :data:`ROBOT_LS` for those left at their 1-DOF defaults."""
-    value = {k: (ROBOT_LS[k] if k in defaults and k in ROBOT_LS else o[k]) for k in ("cutoff", "decimation", "trim", "order")}
-    return LSSettings(cutoff_hz=value["cutoff"], order=value["order"], decimation=value["decimation"], trim=value["trim"], matlab=o["filtering"] == "matlab")
+    value = {k: (ROBOT_LS[k] if k in defaults and k in ROBOT_LS else o[k]) for k in ("cutoff", "trim", "order")}
+    from ilic_cli.robot.idim import ROBOT_BAND_HZ  # deferred: numba only for an arm
+
+    by_rate = {"band_hz": ROBOT_BAND_HZ} if o["decimation"] is None else {"decimation": o["decimation"], "band_hz": None}  # given: as given; else the rule
+    settings = LSSettings(cutoff_hz=value["cutoff"], order=value["order"], trim=value["trim"], matlab=o["filtering"] == "matlab", **by_rate)
+    return settings.at_rate(fs_hz)
 
 
 def _ilic_settings(o: Mapping[str, Any], defaults: set[str], log: JointLog) -> ILICSettings:
@@ -78,12 +93,10 @@ def _ilic_settings(o: Mapping[str, Any], defaults: set[str], log: JointLog) -> I
 
 
 def _methods(method: str) -> tuple[str, ...]:
-    if method not in RUNNABLE:
-        raise IlicError(
-            "--method",
-            f"{method} does not run on n joints from the command line (it needs the controller's model to simulate the loop): choose ls, ilic, both or all",
-        )
-    return RUNNABLE[method]
+    methods = COMPOSITES[method].methods if method in COMPOSITES else (method,)
+    if not set(methods) <= set(RUNNABLE):
+        raise IlicError("--method", f"{method} does not run on n joints from the command line: choose ls, ilic, both, iv, didim or all")
+    return methods
 
 
 def _parameters(names: tuple[str, ...], theta: np.ndarray, std: np.ndarray, rel: np.ndarray) -> dict[str, dict[str, float | None]]:
@@ -95,19 +108,26 @@ def _friction(parameters: Mapping[str, Any], joints: tuple[str, ...]) -> dict[st
 
 
 def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: float, o: Mapping[str, Any], defaults: set[str]) -> None:
-    """Run the n-joint identification the options ask for and print its report."""
+    """Run the n-joint identification the options ask for and print its report (and write it under ``--out``)."""
     methods = _methods(str(o["method"]))
     validate: tuple[Path, ...] = o["validate"]
     if len(validate) > 1:
         raise IlicError("--validate", "one validation log for an arm of n joints")
+    out_dir: Path | None = o.get("out_dir")
+    if out_dir is not None:
+        from ilic_cli.commands.robot_files import refuse_out  # deferred: the report files only with --out
+
+        refuse_out(out_dir, (log_path, urdf, *validate), o.get("plot_format", "png"))
     robot = load_robot(urdf)
     log = read_log(log_path, robot, joints)
     other = read_log(validate[0], robot, joints) if validate else None
+    controller = recorded_controller(log, o, "IDIM-IV and DIDIM replay") if {"iv", "didim"} & set(methods) else None
     from ilic_cli.robot.base import base_parameters  # deferred: scipy.linalg and numba only for an arm
 
     base = base_parameters(robot)
-    ls = _ls_settings(o, defaults)
+    ls = _ls_settings(o, defaults, log.fs_hz)
     held = bool(log.meta.get("torque_held", False))
+    check = _Validation(robot, base, ls, min_speed, held, other, validate)
     doc: dict[str, Any] = {
         "log": str(log_path),
         "urdf": robot.path,
@@ -120,18 +140,27 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
         "methods": {},
     }
     if "ls" in methods:
-        doc["methods"]["IDIM-WLS"] = _ls(log, other, robot, base, ls, min_speed, held, validate)
+        doc["methods"]["IDIM-WLS"] = _ls(log, robot, base, ls, min_speed, held, float(o["sigma_max"]))
     if "ilic" in methods:
-        doc["methods"]["IDIM-ILIC"] = _ilic(log, robot, base, _ilic_settings(o, defaults, log), other, (ls, min_speed, held), validate)
+        doc["methods"]["IDIM-ILIC"] = _ilic(log, robot, base, _ilic_settings(o, defaults, log))
+    for m in ("iv", "didim"):
+        if m in methods:
+            assert controller is not None
+            entry = _closed(m, log, robot, base, (ls, min_speed, held), controller, closed_loop_settings(o), float(o["sigma_max"]))
+            doc["methods"][entry["method"]] = entry
+    for entry in doc["methods"].values():
+        entry["friction"] = _friction(entry["parameters"], robot.joints)
+        entry |= check(np.array([np.nan if p["value"] is None else p["value"] for p in entry["parameters"].values()], dtype=np.float64))
     truth = log.provenance.true_parameters
     if truth:
         beta = base.values(robot.parameters(truth))
         doc["true_base_parameters"] = dict(zip(base.names, beta.tolist()))
         if other is not None:  # the yardstick of --validate: the true parameters' error on the same rows
-            from ilic_cli.robot.idim import prepare, validation_error_pct  # deferred: numba only for an arm
+            doc["true_validation_relative_error_pct"] = check(beta)["validation"]["relative_error_pct"]
+    if out_dir is not None:
+        from ilic_cli.commands.robot_files import write_identify  # deferred: the report files only with --out
 
-            system = prepare(other.q.T, other.tau.T, other.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
-            doc["true_validation_relative_error_pct"] = finite_or_none(validation_error_pct(beta, system))
+        write_identify(doc, log, robot, base, out_dir, (ls, str(o["method"]), o.get("plot_format", "png")), (log_path, urdf, *validate))
     if o["out_format"] == "json":
         click.echo(json.dumps(doc, indent=2))
     else:
@@ -140,37 +169,49 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
         click.echo(identify_markdown(doc), nl=False)
 
 
-def _ls(
-    log: JointLog, other: JointLog | None, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, validate: tuple[Path, ...]
-) -> dict[str, Any]:
-    from ilic_cli.robot.idim import idim_ls, prepare, validation_error_pct  # deferred: numba only for an arm
+class _Validation:
+    """``--validate``'s relative error of base parameters on the other log (IDIM-WLS's rows: its settings, ``min_speed`` and ``torque_held``)."""
+
+    def __init__(self, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, other: JointLog | None, validate: tuple[Path, ...]):
+        self.system, self.where = None, validate[0] if validate else None
+        if other is not None:
+            from ilic_cli.robot.idim import prepare  # deferred: numba only for an arm
+
+            try:
+                self.system = prepare(other.q.T, other.tau.T, other.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
+            except ValueError as exc:
+                raise IlicError(self.where, str(exc)) from None
+
+    def __call__(self, theta: np.ndarray) -> dict[str, Any]:
+        if self.system is None:
+            return {}
+        from ilic_cli.robot.idim import validation_error_pct  # deferred: numba only for an arm
+
+        return {"validation": {"log": str(self.where), "relative_error_pct": finite_or_none(validation_error_pct(theta, self.system))}}
+
+
+def _ls(log: JointLog, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, sigma_max: float) -> dict[str, Any]:
+    """IDIM-WLS, with its essential parameters and the fit of those alone (:func:`ilic_cli.robot.idim.essential_fit`)."""
+    from ilic_cli.robot.idim import essential_fit, prepare, solve_system  # deferred: numba only for an arm
 
     try:
-        fit = idim_ls(log.q.T, log.tau.T, log.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
-        system = prepare(other.q.T, other.tau.T, other.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held) if other is not None else None
+        system = prepare(log.q.T, log.tau.T, log.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
+        fit = solve_system(system)
+        mask, reduced = essential_fit(system, fit, sigma_max)
     except ValueError as exc:
         raise IlicError(log.meta.get("source", "LOG"), str(exc)) from None
-    out = fit.to_dict()
-    out["friction"] = _friction(out["parameters"], robot.joints)
-    if system is not None:
-        out["validation"] = {"log": str(validate[0]), "relative_error_pct": finite_or_none(validation_error_pct(fit.theta, system))}
+    out = fit.to_dict() | _essential(base.names, mask, sigma_max)
+    out["essential_fit"] = {"relative_error_pct": finite_or_none(reduced.relative_error_pct), "all_relative_error_pct": finite_or_none(fit.relative_error_pct)}
     return out
 
 
-def _ilic(
-    log: JointLog,
-    robot: Any,
-    base: Any,
-    settings: ILICSettings,
-    other: JointLog | None,
-    validation: tuple[LSSettings, float, bool],
-    validate: tuple[Path, ...],
-) -> dict[str, Any]:
-    """IDIM-ILIC per window of the log's reference (offline: the windows' estimates; the controller's start is the URDF's).
+def _essential(names: tuple[str, ...], mask: np.ndarray, sigma_max: float) -> dict[str, Any]:
+    """The report's essential parameters: ``%sigma <= sigma_max`` (:func:`ilic_cli.idim_ilic.essential_mask`)."""
+    return {"sigma_max_pct": sigma_max, "essential": [n for n, e in zip(names, mask, strict=True) if e]}
 
-    ``validation``: the IDIM-LS settings, ``min_speed`` and ``torque_held`` of the
-    validation log's system (the same rows as IDIM-WLS's validation).
-    """
+
+def _ilic(log: JointLog, robot: Any, base: Any, settings: ILICSettings) -> dict[str, Any]:
+    """IDIM-ILIC per window of the log's reference (offline: the windows' estimates; the controller's start is the URDF's)."""
     from ilic_cli.robot.ilic import ilic_step  # deferred: numba only for an arm
 
     if not log.has_reference:
@@ -191,17 +232,41 @@ def _ilic(
     except ValueError as exc:
         raise IlicError(log.meta.get("source", "LOG"), str(exc)) from None
     last = windows[-1].result
-    out: dict[str, Any] = {
+    return {
         "method": "IDIM-ILIC",
         "window_s": settings.window_s,
         "parameters": _parameters(last.names, last.theta, last.std, last.rel_std_pct),
         "windows": [w.to_dict() for w in windows],
-    }
-    out["friction"] = _friction(out["parameters"], robot.joints)
-    if other is not None:
-        from ilic_cli.robot.idim import prepare, validation_error_pct  # deferred: numba only for an arm
+    } | _essential(base.names, windows[-1].essential, settings.sigma_max_pct)
 
-        ls, min_speed, held = validation
-        system = prepare(other.q.T, other.tau.T, other.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
-        out["validation"] = {"log": str(validate[0]), "relative_error_pct": finite_or_none(validation_error_pct(last.theta, system))}
-    return out
+
+def _closed(
+    method: str,
+    log: JointLog,
+    robot: Any,
+    base: Any,
+    prep: tuple[LSSettings, float, bool],
+    controller: Mapping[str, Any],
+    settings: Mapping[str, Any],
+    sigma_max: float,
+) -> dict[str, Any]:
+    """IDIM-IV or DIDIM of the base parameters on replays of the log's loop (:func:`ilic_cli.robot.closed_loop.closed_loop_identify`)."""
+    from ilic_cli.robot.closed_loop import closed_loop_identify  # deferred: numba only for an arm
+    from ilic_cli.robot.replay import SampledReference, base_simulator  # deferred: with the loop
+
+    assert log.q_ref is not None and log.qd_ref is not None and log.qdd_ref is not None
+    where = log.meta.get("source", "LOG")
+    reference = SampledReference(log.q_ref.T.copy(), log.qd_ref.T.copy(), log.qdd_ref.T.copy())
+    ls, min_speed, held = prep
+    try:
+        simulate = base_simulator(robot, base.kept, reference, log.fs_hz, controller, robot.standard)
+        res = closed_loop_identify(method, log.q.T, log.tau.T, log.fs_hz, robot, base, simulate, ls, settings[method], min_speed=min_speed, torque_held=held)
+    except FloatingPointError:
+        raise IlicError(
+            where, f"{method}: the loop's replay diverged with an estimate (its inertia matrix is not positive definite); try --method ls"
+        ) from None
+    except ValueError as exc:
+        raise IlicError(where, f"{method}: {exc}") from None
+    from ilic_cli.idim_ilic import essential_mask  # deferred: with the estimate
+
+    return res.to_dict() | _essential(base.names, essential_mask(res.result, sigma_max), sigma_max)

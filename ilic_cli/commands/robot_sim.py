@@ -70,6 +70,16 @@ def _settings(robot: Any, o: dict[str, Any]) -> Any:
     return RobotSimSettings(windows=windows, window_s=window, loop=loop, ilic=ilic)
 
 
+def _model_truth(model_file: Path, robot: Any) -> np.ndarray:
+    """The arm's standard parameters from an arm's model file made for this URDF (``--model``)."""
+    from ilic_cli.commands.robot_replay import model_beta  # deferred: with the model file
+    from ilic_cli.robot.base import base_parameters  # deferred: numba only for an arm
+    from ilic_cli.robot.dynamics import kept_vector  # deferred: numba only for an arm
+
+    base = base_parameters(robot)
+    return kept_vector(base.kept, model_beta(model_file, robot, base), 14 * robot.n)
+
+
 def simulate(urdf: Path, o: dict[str, Any]) -> None:
     """Run robot-sim on the URDF's arm, write its log and print the convergence table."""
     ctx = click.get_current_context()
@@ -82,16 +92,17 @@ def simulate(urdf: Path, o: dict[str, Any]) -> None:
         raise IlicError(output, "an n-joint log is a .csv, an .mcap file or a ROS 2 bag folder (no extension)")
     robot = load_robot(urdf)
     settings = _settings(robot, o)
+    from ilic_cli.robot.replay import controller_meta  # deferred: numba only for an arm
     from ilic_cli.robot.scenario import robot_sim, true_parameters  # deferred: numba only for an arm
 
-    result = robot_sim(robot, settings)
+    pi = true_parameters(robot) if o.get("model") is None else _model_truth(Path(o["model"]), robot)
+    result = robot_sim(robot, settings, truth=pi)
     run = result.run
-    pi = true_parameters(robot)
     meta = {
         "scenario": {"name": SCENARIO, "windows": settings.windows, "window_s": settings.window_s, "seed": settings.seed},
         "window_s": settings.window_s,
         "torque_held": True,
-        "controller": {"kind": "ctc", "omega_hz": settings.loop.omega_hz, "xi": settings.loop.xi, "velocity": settings.loop.velocity},
+        "controller": controller_meta(settings.loop, run.models, settings.window_s),  # the loop that ran, for DIDIM, IDIM-IV and replay
         "true_parameters": dict(zip(robot.names, pi.tolist())),
         "urdf": robot.path,
         "urdf_sha256": robot.sha256,
@@ -111,4 +122,6 @@ def simulate(urdf: Path, o: dict[str, Any]) -> None:
     base = result.base
     errors = result.relative_errors_pct()
     click.echo(f"# {SCENARIO}: {Path(robot.path).name}, {settings.windows} windows of {settings.window_s:g} s -> {output}\n")
-    click.echo(convergence_markdown(base.names, result.truth[-1].tolist(), [w.result.theta.tolist() for w in result.windows], errors.tolist()), nl=False)
+    estimates, essential = [w.result.theta.tolist() for w in result.windows], [w.essential.tolist() for w in result.windows]
+    table = convergence_markdown(base.names, result.truth[-1].tolist(), estimates, errors.tolist(), essential, settings.ilic.sigma_max_pct)
+    click.echo(table, nl=False)

@@ -16,15 +16,23 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
 from ilic_cli.robot.dynamics import arrays, crba
 from ilic_cli.robot.loop import CTC, PD, run_steps
 from ilic_cli.robot.model import RobotModel
-from ilic_cli.robot.simulate import Trajectory
 
 CONTROLLERS = {"ctc": CTC, "pd": PD}
+
+
+class Reference(Protocol):
+    """What the loop tracks: ``q, qd, qdd`` (N, n) at the loop's times (a :class:`ilic_cli.robot.simulate.Trajectory`, or a log's samples)."""
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+
 VELOCITIES = ("backward", "exact")
 
 
@@ -136,7 +144,7 @@ def _drive(robot: RobotModel, pi: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
 def simulate_loop(
     robot: RobotModel,
     pi: np.ndarray,
-    reference: Trajectory,
+    reference: Reference,
     duration_s: float,
     model: np.ndarray,
     settings: LoopSettings = LoopSettings(),

@@ -117,10 +117,14 @@ def with_payload(robot: RobotModel, pi: np.ndarray, mass_kg: float, offset_m: fl
     return pi
 
 
-def robot_sim(robot: RobotModel, settings: RobotSimSettings = RobotSimSettings(), *, sink: Any = None) -> RobotSimResult:
-    """Run the scenario; ``sink(run, start, stop)`` receives the log window by window (:func:`ilic_cli.robot.record`)."""
+def robot_sim(robot: RobotModel, settings: RobotSimSettings = RobotSimSettings(), *, sink: Any = None, truth: np.ndarray | None = None) -> RobotSimResult:
+    """Run the scenario; ``sink(run, start, stop)`` receives the log window by window (:func:`ilic_cli.robot.record`).
+
+    ``truth``: the arm's standard parameters (default :func:`true_parameters`; an identified model's
+    :func:`ilic_cli.robot.dynamics.kept_vector`).
+    """
     base = base_parameters(robot)
-    pi = true_parameters(robot)
+    pi = true_parameters(robot) if truth is None else np.asarray(truth, dtype=np.float64)
     q0 = np.asarray(settings.q0 or np.zeros(robot.n), dtype=np.float64)
     speed = np.asarray(settings.speed or np.full(robot.n, 1.5), dtype=np.float64)
     trajectory = exciting_trajectory(q0, speed, settings.seed, f0_hz=1.0 / settings.window_s)
@@ -142,8 +146,8 @@ def robot_sim(robot: RobotModel, settings: RobotSimSettings = RobotSimSettings()
     model = kept_vector(base.kept, beta[0], len(pi))
     duration = settings.windows * settings.window_s
     run = simulate_loop(robot, pi, trajectory, duration, model, settings.loop, window_s=settings.window_s, update=update, changes=changes, sink=sink)
-    truth = []
+    truths = []
     for w in windows:
         now = pi if not changes or w.t_end < changes[0][0] else changes[0][1]
-        truth.append(base.values(now))
-    return RobotSimResult(base, run, windows, truth)
+        truths.append(base.values(now))
+    return RobotSimResult(base, run, windows, truths)

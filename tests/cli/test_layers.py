@@ -75,6 +75,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "ilic_cli.robot.plant",
             "ilic_cli.robot.scenario",
             "ilic_cli.robot.record",
+            "ilic_cli.robot.replay",
         ),
     ),
     ("diagnosis", ("ilic_cli.diagnosis",)),

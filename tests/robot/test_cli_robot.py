@@ -42,7 +42,9 @@ def sims(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, str]:
 def test_simulate_prints_the_convergence_table_and_identify_recovers_the_parameters(capsys: pytest.CaptureFixture[str], sims: tuple[Path, Path, str]) -> None:
     first, second, _ = sims
     capsys.readouterr()
-    code, out, err = run(capsys, "identify", str(first), "--urdf", ARM2, "--method", "all", "--validate", str(second), "--format", "json")
+    code, out, err = run(
+        capsys, "identify", str(first), "--urdf", ARM2, "--method", "all", "--validate", str(second), "--max-iterations", "3", "--format", "json"
+    )
     assert code == 0, err
     doc = json.loads(out)
     truth = doc["true_base_parameters"]
@@ -57,11 +59,19 @@ def test_simulate_prints_the_convergence_table_and_identify_recovers_the_paramet
             assert abs(ls["friction"][name]["value"] - truth[name]) < 0.03 * abs(truth[name]), name
         assert f"offset_{joint}" in ls["friction"]
     assert 0 < ls["validation"]["relative_error_pct"] < 1.2 * doc["true_validation_relative_error_pct"]  # issue 30: within 1.2x the truth's
+    # the essential parameters (%sigma <= 15): the offsets are not; the fit without them is as good
+    assert {p for p, v in ls["parameters"].items() if v["rel_std_pct"] <= 15.0} == set(ls["essential"]) and "offset_shoulder" not in ls["essential"]
+    assert len(ls["essential"]) < 13 and ls["essential_fit"]["relative_error_pct"] < 1.01 * ls["essential_fit"]["all_relative_error_pct"]
     ilic = doc["methods"]["IDIM-ILIC"]
+    assert ilic["essential"] == [n for n, e in ilic["windows"][-1]["essential"].items() if e]
     assert len(ilic["windows"]) == 3 and ilic["window_s"] == 10.0
     for name in ("Ia_shoulderR", "Fv_shoulder", "Fc_shoulder", "mx_elbow", "Fc_elbow"):
         assert abs(ilic["parameters"][name]["value"] - truth[name]) < 0.003 * abs(truth[name]), name
     assert ilic["validation"]["relative_error_pct"] < 5.0
+    for method in ("IDIM-IV", "DIDIM"):  # the log's CTC and its windows' models replayed
+        m = doc["methods"][method]
+        assert m["validation"]["relative_error_pct"] < 1.2 * doc["true_validation_relative_error_pct"] and 2 <= len(m["iterations"]) <= 4, method
+        assert abs(m["friction"]["Fv_shoulder"]["value"] - truth["Fv_shoulder"]) < 0.03 * truth["Fv_shoulder"], method
 
 
 def test_markdown_and_info(capsys: pytest.CaptureFixture[str], sims: tuple[Path, Path, str]) -> None:
@@ -69,7 +79,10 @@ def test_markdown_and_info(capsys: pytest.CaptureFixture[str], sims: tuple[Path,
     capsys.readouterr()
     code, out, err = run(capsys, "identify", str(first), "--urdf", ARM2, "--method", "ls")
     assert code == 0, err
-    assert "## IDIM-WLS" in out and "| mx_shoulderR | mx_shoulder + 0.5 m_elbow |" in out and "IDIM-ILIC" not in out
+    assert "## IDIM-WLS" in out and "| mx_shoulderR | mx_shoulder + 0.5 m_elbow |" in out and "## IDIM-ILIC" not in out
+    rows = {r.split(" | ")[0][2:]: r.split(" | ") for r in out.splitlines() if r.startswith("| ")}
+    assert rows["mx_shoulderR"][5] == "yes" and rows["offset_shoulder"][5] == ""  # the offset's %sigma is above 15: not essential
+    assert "Essential (%σ ≤ 15 %, the ones IDIM-ILIC updates): 11 of 13. Fit with only them: relative error" in out
     code, out, err = run(capsys, "info", str(first))
     assert code == 0, err
     assert "| shoulder | revolute |" in out and "| elbow | revolute |" in out and "30000 samples" in out
@@ -83,7 +96,9 @@ def test_ur5like_to_mcap_and_identify(tmp_path: Path, capsys: pytest.CaptureFixt
     out_path = tmp_path / "ur5.mcap"
     code, out, err = run(capsys, "simulate", "--urdf", UR5, "--scenario", "robot-sim", "--duration", "10", "-o", str(out_path))
     assert code == 0, err
-    assert out_path.is_file() and "| Fv_shoulder_pan_joint |" in out and "k=1" in out
+    assert out_path.is_file() and "| Fv_shoulder_pan_joint |" in out and "k=1" in out and "† not essential in that window (%σ > 15 %)" in out
+    rows = [r for r in out.splitlines() if r.startswith("| offset_wrist_3_joint |")]
+    assert len(rows) == 1 and rows[0].count("†") >= 1, rows  # the smallest offset is not essential: the controller keeps it
     code, out, err = run(capsys, "identify", str(out_path), "--urdf", UR5, "--method", "ls", "--format", "json")
     assert code == 0, err
     doc = json.loads(out)
@@ -104,7 +119,7 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert "none.urdf: no such URDF file" in _error(capsys, "identify", str(first), "--urdf", str(tmp_path / "none.urdf"))
     assert "1 names for the 2 joints" in _error(capsys, "identify", str(first), "--urdf", ARM2, "--joints", "shoulder")
     assert "no joint wrist in the log (it has shoulder, elbow)" in _error(capsys, "identify", str(first), "--urdf", ARM2, "--joints", "shoulder,wrist")
-    assert "--method: didim does not run on n joints" in _error(capsys, "identify", str(first), "--urdf", ARM2, "--method", "didim")
+    assert "--method: oe does not run on n joints" in _error(capsys, "identify", str(first), "--urdf", ARM2, "--method", "oe")
     lacking = tmp_path / "lacking.csv"
     lacking.write_text("t,q_shoulder,q_elbow\n" + "".join(f"{k / 1000!r},0.1,0.2\n" for k in range(300)))
     assert "no tau_<joint> column for shoulder, elbow (a log without effort)" in _error(capsys, "identify", str(lacking), "--urdf", ARM2)
@@ -116,3 +131,48 @@ def test_bad_input_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert "exists already" in _error(capsys, "simulate", "--urdf", ARM2, "--scenario", "robot-sim", "-o", str(first))
     monkeypatch.setitem(sys.modules, "pinocchio", None)  # the robot extra not installed
     assert "pinocchio is not installed: pip install 'ilic[robot]'" in _error(capsys, "info", str(first), "--urdf", ARM2)
+
+
+def test_model_file_round_trip_through_replay_and_simulate(tmp_path: Path, capsys: pytest.CaptureFixture[str], sims: tuple[Path, Path, str]) -> None:
+    """identify --out writes model.json (URDF path and sha256, base parameters, friction) and a torque plot per joint; replay and simulate read it back."""
+    from ilic_cli.io import jointlogs
+    from ilic_cli.robot.base import base_parameters
+    from ilic_cli.robot.model import load_urdf
+
+    first, _, _ = sims
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "identify", str(first), "--urdf", ARM2, "--method", "ls", "--out", str(out))
+    assert code == 0, err
+    model = json.loads((out / "model.json").read_text())
+    robot = load_urdf(ARM2)
+    base = base_parameters(robot)
+    assert model["model"] == "robot" and model["method"] == "IDIM-WLS" and model["robot"]["sha256"] == robot.sha256
+    assert list(model["parameters"]) == list(base.names) and model["robot"]["base_parameters"][0]["combines"] == pytest.approx(
+        {"mx_shoulder": 1.0, "m_elbow": 0.5}
+    )
+    assert model["robot"]["friction"]["Fv_elbow"] == model["parameters"]["Fv_elbow"]
+    assert all((out / f"torque_{j}.png").stat().st_size > 10_000 for j in robot.joints) and (out / "report.md").is_file()
+    # simulate: the arm's plant is the model's (its base parameters exactly)
+    sim = tmp_path / "from_model.csv"
+    code, _, err = run(capsys, "simulate", "--urdf", ARM2, "--scenario", "robot-sim", "--duration", "10", "--model", str(out / "model.json"), "-o", str(sim))
+    assert code == 0, err
+    truth = jointlogs.read(sim, list(robot.joints)).provenance.true_parameters
+    assert base.values(robot.parameters(truth)) == pytest.approx(list(model["parameters"].values()), rel=1e-12, abs=1e-12)
+    # replay: the log's loop with the model's plant gives its torque within 2 % per joint (noise-free log; measured 0.90 and 1.19 %)
+    replayed = tmp_path / "replayed.csv"
+    code, _, err = run(capsys, "replay", str(first), "--urdf", ARM2, "--model", str(out / "model.json"), "-o", str(replayed))
+    assert code == 0, err
+    errors = [float(e) for e in err.split("torque error against the recording: ")[1].replace("%", "").replace(",", "").split()[1::2]]
+    assert len(errors) == 2 and max(errors) < 2.0, err
+    log, again = jointlogs.read(first, list(robot.joints)), jointlogs.read(replayed, list(robot.joints))
+    assert again.tau.shape == log.tau.shape and np.array_equal(again.q_ref, log.q_ref)
+    # a model made for another URDF (the same arm, one comment more: another sha256) is refused
+    other = tmp_path / "arm2_edited.urdf"
+    other.write_text(Path(ARM2).read_text() + "<!-- edited -->\n")
+    for args in (
+        ["replay", str(first), "--urdf", str(other), "-o", str(tmp_path / "x.csv")],
+        ["simulate", "--urdf", str(other), "--scenario", "robot-sim", "-o", str(tmp_path / "y.csv")],
+    ):
+        assert "model.json: made for the URDF" in _error(capsys, *args, "--model", str(out / "model.json"))
+    assert not (tmp_path / "x.csv").exists() and not (tmp_path / "y.csv").exists()
+    assert "not an arm's model file" in _error(capsys, "replay", str(first), "--urdf", ARM2, "--model", str(out / "report.json"), "-o", str(tmp_path / "z.csv"))

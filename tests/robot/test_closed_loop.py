@@ -23,7 +23,7 @@ from ilic_cli.idim_ls import LSSettings  # noqa: E402
 from ilic_cli.robot.base import base_parameters  # noqa: E402
 from ilic_cli.robot.closed_loop import closed_loop_identify  # noqa: E402
 from ilic_cli.robot.dynamics import kept_vector  # noqa: E402
-from ilic_cli.robot.idim import idim_ls  # noqa: E402
+from ilic_cli.robot.idim import ROBOT_BAND_HZ, idim_ls  # noqa: E402
 from ilic_cli.robot.model import load_urdf  # noqa: E402
 from ilic_cli.robot.plant import LoopSettings, simulate_loop  # noqa: E402
 from ilic_cli.robot.scenario import initial_model, true_parameters  # noqa: E402
@@ -32,7 +32,7 @@ from ilic_cli.robot.simulate import exciting_trajectory  # noqa: E402
 FIXTURES = Path(__file__).parents[2] / "fixtures"
 DURATION = 10.0
 TORQUE_NOISE = (0.3, 0.3, 0.2, 0.05, 0.05, 0.05)
-LS = LSSettings(cutoff_hz=50.0, decimation=20, trim=100)
+LS = LSSettings(cutoff_hz=50.0, trim=100, band_hz=ROBOT_BAND_HZ)
 
 
 def test_iv_and_didim_beat_idim_ls_under_large_position_noise() -> None:

@@ -13,7 +13,7 @@ import_or_skip("pinocchio")
 from ilic_cli.robot import model as rm  # noqa: E402
 from ilic_cli.robot.base import base_parameters  # noqa: E402
 from ilic_cli.robot.consistency import consistent_fit, inertial_of, link_consistent, pseudo_inertia  # noqa: E402
-from ilic_cli.robot.idim import prepare, solve_system, validation_error_pct  # noqa: E402
+from ilic_cli.robot.idim import ROBOT_BAND_HZ, prepare, solve_system, validation_error_pct  # noqa: E402
 from ilic_cli.robot.simulate import SimSettings, exciting_trajectory, simulate  # noqa: E402
 
 FIXTURES = Path(__file__).parents[2] / "fixtures"
@@ -41,7 +41,7 @@ def test_consistent_fit_on_the_2_joint_arm() -> None:
     log = simulate(robot, pi, exciting_trajectory(np.array([0.3, 0.8]), np.array([2.0, 2.5]), seed=4), 8.0, SimSettings(torque_noise=(0.05, 0.03), seed=3))
     from ilic_cli.idim_ls import LSSettings
 
-    system = prepare(log.q, log.tau, 1000.0, robot, base, LSSettings(cutoff_hz=50.0, decimation=20, trim=100), min_speed=0.2)
+    system = prepare(log.q, log.tau, 1000.0, robot, base, LSSettings(cutoff_hz=50.0, trim=100, band_hz=ROBOT_BAND_HZ), min_speed=0.2)
     fit = solve_system(system)
     truth = consistent_fit(robot, base, base.values(pi), fit.covariance)
     assert truth.admits and truth.within_noise and link_consistent(truth.standard, robot).all()

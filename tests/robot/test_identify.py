@@ -16,18 +16,18 @@ from tests.conftest import import_or_skip
 
 import_or_skip("pinocchio")
 
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference  # noqa: E402
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference, rows_decimation  # noqa: E402
 from ilic_cli.idim_ls import LSSettings, _decimate  # noqa: E402
 from ilic_cli.robot import model as rm  # noqa: E402
 from ilic_cli.robot.base import base_parameters  # noqa: E402
-from ilic_cli.robot.idim import active_columns, idim_ls, prepare, solve_system, validation_error_pct  # noqa: E402
+from ilic_cli.robot.idim import ROBOT_BAND_HZ, active_columns, idim_ls, prepare, solve_system, validation_error_pct  # noqa: E402
 from ilic_cli.robot.simulate import SimSettings, exciting_trajectory, simulate  # noqa: E402
 
 FIXTURES = Path(__file__).parents[2] / "fixtures"
 Q0 = np.array([0.0, -1.2, 1.2, -1.5, -1.5, 0.0])
 SPEED = np.array([1.5, 2.0, 2.0, 2.0, 2.0, 2.5])  # rad/s, the bound of each joint's reference velocity (the UR5's limit: 3.15)
 NOISE = (0.6, 0.6, 0.4, 0.15, 0.15, 0.1)  # N·m, std of the logged torque's noise
-SETTINGS = LSSettings(cutoff_hz=50.0, decimation=20, trim=100)  # position filter above the 20 Hz of the decimation, as the 1-DOF chain (100 over 40 Hz)
+SETTINGS = LSSettings(cutoff_hz=50.0, trim=100, band_hz=ROBOT_BAND_HZ)  # position filter above the 20 Hz of the decimation, as the 1-DOF chain (100 over 40 Hz)
 MIN_SPEED = 0.2  # rad/s: rows near rest (sticking) left out
 
 
@@ -139,10 +139,29 @@ def test_prepared_system_is_the_regressor_decimated_joint_by_joint() -> None:
     assert 0.3 < active.mean() < 0.7  # the zero columns are left out: not every column is active, nor none
     W, y = [], []
     for j in range(robot.n):
-        d = _decimate(np.column_stack([Y[j][:, base.kept[active[j]]], tau[s, j]]), SETTINGS, 1000.0)
+        d = _decimate(np.column_stack([Y[j][:, base.kept[active[j]]], tau[s, j]]), SETTINGS.at_rate(1000.0), 1000.0)
         part = np.zeros((len(d), base.b))
         part[:, active[j]] = d[:, :-1]
         W.append(part)
         y.append(d[:, -1])
     assert np.array_equal(system.W, np.concatenate(W)) and np.array_equal(system.y, np.concatenate(y))
     assert np.array_equal(system.joint, np.repeat(np.arange(robot.n), len(y[0])))
+    assert system.settings.decimation == 20
+
+
+def test_decimation_follows_the_log_rate_by_the_one_rule() -> None:
+    """``prepare`` decimates by :func:`ilic_cli.filtering.rows_decimation` at the log's rate (20 at 1 kHz, 40 at 2 kHz), unless given."""
+    robot = rm.load_urdf(FIXTURES / "arm2.urdf")
+    base = base_parameters(robot)
+    traj = exciting_trajectory(np.zeros(2), np.array([1.5, 2.0]), seed=2)
+    rows = {}
+    for fs in (1000.0, 2000.0):
+        t = np.arange(int(3.0 * fs)) / fs
+        q = traj.at(t)[0]
+        tau = np.random.default_rng(1).normal(0.0, 1.0, q.shape)
+        system = prepare(q, tau, fs, robot, base, SETTINGS)
+        assert system.settings.decimation == rows_decimation(fs, ROBOT_BAND_HZ) == {1000.0: 20, 2000.0: 40}[fs]
+        rows[fs] = len(system.y)
+        given = prepare(q, tau, fs, robot, base, LSSettings(cutoff_hz=50.0, trim=100, decimation=10, band_hz=None))
+        assert given.settings.decimation == 10
+    assert abs(rows[2000.0] - rows[1000.0]) <= 0.05 * rows[1000.0]  # the same 3 s in about as many rows (the same band) at either rate
