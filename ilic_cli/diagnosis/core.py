@@ -341,7 +341,10 @@ def _assembled(
     for f in findings:
         f.located = sorted([r for r in located if r.kind in f.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
     # friction that changes over time, from per-window estimates
-    drift_found = detect_drift(td, W1, y1, final.names, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change)
+    origin = float(prop.log.t[0])  # the plant's drift starts with the log, not with its first row in motion
+    drift_found = detect_drift(
+        td, W1, y1, final.names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change
+    )
     if drift_found.found:
         findings.append(Finding(EFFECTS["friction_drift"], drift_found.estimates(), drift_found.plant_effect(), [], drift_evaluation(drift_found)))
         doc = with_drift(doc, drift_found)

@@ -79,9 +79,10 @@ class DiagnosisSettings:
     """Refit: most rounds of the coordinate search of the kept effects' values. Why 5: on the corpus's Stribeck + flexibility log four
     rounds bring the lag, the resonance and the level to 0.4-4 % (one round left them 9-16 % off; :data:`ilic_cli.diagnosis.refit_search.MAX_ROUNDS`)."""
     drift_windows: int = DRIFT_WINDOWS
-    """Report: windows of equal duration the friction drift is read from (a 30 s log: 3 s each; :data:`ilic_cli.diagnosis.drift.WINDOWS`)."""
+    """Report: windows of equal duration the per-window estimates beside a friction drift are shown on (a 30 s log: 3 s each;
+    :data:`ilic_cli.diagnosis.drift_windows.WINDOWS`); the drift is tested on all the rows."""
     drift_alpha: float = DRIFT_ALPHA
-    """Report: level of the test of a friction trend across the windows, after Bonferroni (:data:`ilic_cli.diagnosis.drift.ALPHA`)."""
+    """Report: level of the test of a friction trend on the rows, after Bonferroni (:data:`ilic_cli.diagnosis.drift.ALPHA`)."""
     drift_min_change: float = DRIFT_MIN_CHANGE
     """Report: smallest change of a friction coefficient over the log, relative to its start, that is a finding
     (:data:`ilic_cli.diagnosis.drift.MIN_CHANGE`)."""

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
-from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, MIN_WINDOWS, detect_drift
+from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, detect_drift
+from ilic_cli.diagnosis.drift_windows import MIN_WINDOWS
 from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.diagnosis.select import SelectSettings
 from tests.corpus import CASES, Case, simulate_case
@@ -164,3 +165,58 @@ def test_a_drift_is_read_from_fewer_longer_windows_when_the_rows_are_few() -> No
     assert res.found and res.findings[0].parameter == "Fv", res.reason
     assert res.findings[0].relative_change == pytest.approx(-1.0 / 3.0, rel=0.2)  # six windows, not ten: a coarser size
     assert res.to_dict()["settings"]["windows"] == len(res.windows.rows)
+
+
+def _moves(seed: int, fc=lambda t: 20.0 + 0 * t, fv=lambda t: 200.0 + 0 * t, noise: float = 2.0):
+    """Rows of a 10 s point-to-point log at 100 rows/s: a 0.6 s move each second, in alternate directions, the dwells
+    between them left out (the rows at rest, as the diagnosis's): a 1 s window holds one move in one direction."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(1000) / 100.0
+    phase = t % 1.0
+    direction = np.where(np.floor(t) % 2 == 0, 1.0, -1.0)
+    qd = direction * 0.2 * np.where(phase < 0.6, np.sin(np.pi * phase / 0.6) ** 2, 0.0)
+    qdd = np.gradient(qd, t)
+    e = np.zeros(len(t))
+    w = rng.normal(0.0, noise, len(t))
+    for i in range(1, len(t)):
+        e[i] = 0.6 * e[i - 1] + w[i]
+    y = 95.0 * qdd + fv(t) * qd + fc(t) * np.sign(qd) + e
+    moving = np.abs(qd) > 0.01
+    return t[moving], np.c_[qdd, qd, np.sign(qd), np.ones(len(t))][moving], y[moving]
+
+
+@pytest.mark.parametrize("seed", range(40, 45))
+def test_a_wear_is_named_on_all_the_rows_when_each_window_moves_one_way(seed: int) -> None:
+    """Coulomb friction +40 % over a 10 s log of moves. A 1 s window moves one way only: it cannot tell ``Fv`` from ``Fc``,
+    and a test across the windows' estimates found no trend (p = 1 on the corpus's s271). On all the rows it is named,
+    in ``Fc`` alone (the forward selection: ``Fv``'s trend column adds nothing beyond it), with its rate."""
+    t, W, y = _moves(seed, fc=lambda t: 20.0 + 0.8 * t, noise=3.0)
+    res = detect_drift(t, W, y, NAMES, origin=0.0)
+    assert res.found and res.shape == "linear", res.reason
+    assert [tr.parameter for tr in res.findings] == ["Fc"]
+    assert res.findings[0].rate == pytest.approx(0.8, rel=TOLERANCE) and res.findings[0].rows == len(t)
+
+
+@pytest.mark.parametrize("seed", [43, 44, 45])
+def test_a_warm_up_is_sized_from_the_logs_first_sample(seed: int) -> None:
+    """The plant's drift starts with the log; the first rows in motion come later (here about 1 s: a dwell, a fade-in).
+    Its change is the whole warm-up's from the log's start (``origin``), not what is left of it at the first row
+    (``60 exp(-0.5) = 36``: 40 % short)."""
+    t, W, y = _moves(seed, fv=lambda t: 200.0 - 60.0 * (1 - np.exp(-t / 2.0)), noise=0.2)
+    late = t >= 0.7
+    res = detect_drift(t[late], W[late], y[late], NAMES, origin=0.0)
+    assert res.found and res.shape == "exponential", res.reason
+    plant = res.plant_effect()
+    assert plant is not None and plant["dFv"] == pytest.approx(-60.0, rel=0.1) and plant["tau"] == pytest.approx(2.0, rel=0.1)
+    assert res.findings[0].start == pytest.approx(200.0, rel=0.03)
+    from_first_row = detect_drift(t[late], W[late], y[late], NAMES).plant_effect()
+    first = t[late][0]  # about 1 s
+    assert from_first_row is not None and from_first_row["dFv"] == pytest.approx(-60.0 * np.exp(-first / 2.0), rel=0.1)
+
+
+@pytest.mark.parametrize("seed", range(50, 70))
+def test_stationary_friction_on_moves_has_no_drift(seed: int) -> None:
+    """The test on all the rows keeps its level on the moves' rows: no drift on twenty seeds of stationary friction."""
+    t, W, y = _moves(seed, noise=5.0)
+    res = detect_drift(t, W, y, NAMES, origin=0.0)
+    assert not res.found, res.sentence()
