@@ -256,7 +256,10 @@ FRICTION_DRIFT = Effect(
         PlantParam("Fc_rate", "N/s", 0.0, "linear change of Coulomb friction per second (wear)"),
     ),
     form="Fv(t) = Fv + dFv (1 - exp(-t/tau)) + Fv_rate t, Fc(t) likewise (Coulomb level kept >= 0), t the log's time",
-    signature="the friction estimated on successive time windows follows a trend (exponential or linear) across the windows",
+    signature=(
+        "the friction coefficient's column times a trend in time (exponential or linear) adds significantly to the model on every row; "
+        "the per-window estimates show it"
+    ),
     signature_kinds=("drift", "time"),
     sentence=_drift_sentence,
 )
