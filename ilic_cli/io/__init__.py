@@ -196,11 +196,11 @@ def read_log(
         log = _module(name).read(p, selection or Selection(), fast=fast)
     finally:
         _PROGRESS.reset(token)
-    if len(log) >= 100_000:
-        _return_freed_memory()
     log.meta.setdefault("source", str(p))
     if validate:
         validate_samples(log, str(p))
+    if len(log) >= 100_000:
+        _return_freed_memory()  # after the checks too: their temporaries' pages go back with the reader's
     return log
 
 
