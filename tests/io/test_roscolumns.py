@@ -80,3 +80,23 @@ def test_a_clock_is_held_as_three_numbers() -> None:
     column = _fed([np.arange(0, 10**9, 10**6, dtype=np.int64) for _ in range(1)] + [np.arange(10**9, 2 * 10**9, 10**6, dtype=np.int64)], reserve=2000)
     assert column.affine == (0, 10**6, 2000)
     assert not column.blocks.done and not column.blocks.recent and column.blocks.filled == 0
+
+
+def test_the_ros2_type_store_is_humbles() -> None:
+    """:func:`ilic_cli.io.rosschema.typestore` registers a few of Humble's types in an empty store: the same definitions, texts, hashes and bytes."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from ilic_cli.io import rosschema
+
+    ours, humble = rosschema.typestore(rosschema.ROS2), get_typestore(Stores.ROS2_HUMBLE)
+    assert set(ours.fielddefs) == set(rosschema.ros2_types())
+    for name in ours.fielddefs:
+        assert ours.fielddefs[name] == humble.fielddefs[name], name
+        assert ours.generate_msgdef(name, ros_version=2) == humble.generate_msgdef(name, ros_version=2), name
+        assert ours.hash_rihs01(name) == humble.hash_rihs01(name), name
+    Time, Header = humble.types["builtin_interfaces/msg/Time"], humble.types["std_msgs/msg/Header"]
+    state = humble.types[rosschema.JOINT_STATE](Header(Time(3, 4), "f"), ["a", "b"], np.array([1.5, -2.0]), np.array([]), np.array([0.25, 1e300]))
+    raw = bytes(humble.serialize_cdr(state, rosschema.JOINT_STATE))
+    back = ours.deserialize_cdr(raw, rosschema.JOINT_STATE)
+    assert bytes(ours.serialize_cdr(back, rosschema.JOINT_STATE)) == raw
+    assert back.name == ["a", "b"] and back.position.tolist() == [1.5, -2.0] and back.effort.tolist() == [0.25, 1e300]
