@@ -161,10 +161,12 @@ def matching_rows(buf: np.ndarray, base: int, stride: int, count: int, lay: Layo
     return int(bad[0]) if len(bad) else count
 
 
-def column(buf: np.ndarray, offset: int, stride: int, count: int, dtype: str, width: int = 1) -> np.ndarray:
-    """A copy of ``count`` values (``width`` per message) of ``dtype`` at ``offset + i * stride``."""
+def column(buf: np.ndarray, offset: int, stride: int, count: int, dtype: str, width: int = 1, *, copy: bool = True) -> np.ndarray:
+    """A copy of ``count`` values (``width`` per message) of ``dtype`` at ``offset + i * stride``; ``copy=False``: a (count, width) view of ``buf``."""
     item = np.dtype(dtype).itemsize
     view = np.ndarray((count, width), dtype=dtype, buffer=buf, offset=offset, strides=(stride, item))
+    if not copy:
+        return view
     return view.copy() if width > 1 else view[:, 0].copy()
 
 

@@ -43,6 +43,16 @@ class Blocks:
                 self.buffer = None
             self.filled = 0
 
+    def put(self, values: np.ndarray) -> bool:
+        """Copy ``values`` (any shape, flattened row by row) into the reserved array when they fit in it; False (nothing done) when not."""
+        buffer = self.buffer
+        end = self.filled + values.size
+        if buffer is None or end > len(buffer) or values.dtype != buffer.dtype:
+            return False
+        buffer[self.filled : end].reshape(values.shape)[...] = values
+        self.filled = end
+        return True
+
     def add(self, values: np.ndarray) -> None:
         buffer = self.buffer
         if buffer is not None:
@@ -175,14 +185,19 @@ class Arrays:
         self.items.append(values)
         self.counts.items.append(len(values))
 
-    def block(self, values: np.ndarray) -> None:
-        """Append one (messages, width) float64 block after the items so far."""
+    def block(self, values: np.ndarray, *, owned: bool = True) -> None:
+        """Append one (messages, width) float64 block after the items so far.
+
+        ``owned=False``: ``values`` is a view of another buffer (a run's
+        messages), copied here: once, into the reserved array when it fits.
+        """
         self.flush()
         if self.expected and values.ndim == 2 and values.shape[1]:
             # the first block tells the width: reserve for the expected messages
             self.blocks.reserve(self.expected * values.shape[1], np.float64)
             self.expected = 0
-        self.blocks.add(values.reshape(-1))
+        if not self.blocks.put(values):
+            self.blocks.add(values.reshape(-1) if owned else np.array(values).reshape(-1))
         self.counts.block(np.full(values.shape[0], values.shape[1] if values.ndim == 2 else 1, dtype=np.int32))
 
     def flush(self) -> None:
