@@ -188,9 +188,13 @@ def _feed_rows(sink: Any, rows: Any, mine: np.ndarray, windows: dict[int, np.nda
             sink.add(int(log_ns[a]), rows.fetched[int(mine[a])])
             continue
         size = int(sizes[a])
-        if size not in windows:
-            windows[size] = as_strided(rows.data, shape=(len(rows.data) - size + 1, size), strides=(1, 1), writeable=False)
-        sink.add_run(windows[size][starts[a:b]].reshape(-1), 0, size, b - a, size, log_ns[a:b])
+        # each blob in a row padded to whole 8-byte words (the bytes after it in the file), so that the
+        # rows start aligned and compare a word at a time (cdrcols.matching_rows); unpadded at the file's end
+        padded = -(-size // 8) * 8
+        width = padded if int(starts[a:b].max()) + padded <= len(rows.data) else size
+        if width not in windows:
+            windows[width] = as_strided(rows.data, shape=(len(rows.data) - width + 1, width), strides=(1, 1), writeable=False)
+        sink.add_run(windows[width][starts[a:b]].reshape(-1), 0, width, b - a, size, log_ns[a:b])
 
 
 Batch = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]

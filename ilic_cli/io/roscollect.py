@@ -204,8 +204,10 @@ class _Sink:
     def _columns(self, buf: np.ndarray, start: int, stride: int, n: int, lay: cdrcols.Layout) -> None:
         for name, column in self._arrays.items():
             offset, count = lay.arrays[name]
-            values = cdrcols.column(buf, start + offset, stride, n, "<f8", count) if count else np.empty((n, 0))
-            column.block(values.reshape(n, count))
+            if count:  # views of the run, copied once: into the column's reserved array, else into a block of their own
+                column.block(cdrcols.column(buf, start + offset, stride, n, "<f8", count, copy=False), owned=False)
+            else:
+                column.block(np.empty((n, 0)))
 
     def _take(self, msg: Any) -> None:
         for name, column in self._arrays.items():

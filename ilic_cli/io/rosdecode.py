@@ -133,18 +133,19 @@ def _decode_ilic(source: Collected, selection: Selection, path: Path) -> RunLog:
     for channel, fieldname in STATE_FIELDS.items():
         if states[fieldname] is not None:
             channels[channel] = states[fieldname]
-    n = len(states["log_ns"])
+    n = len(states.pop("log_ns"))  # the log times: only their count (let go as each topic is taken, not held to the end)
     if ref_name in source.topics:
         ref = _reference_series(source, ref_name, 0, path)
         source.release(ref_name)
-        if len(ref["log_ns"]) != n:
-            raise LogError(path, f"{ref_name} has {len(ref['log_ns'])} messages but {TOPIC_STATES} has {n}")
+        ref_n = len(ref.pop("log_ns"))
+        if ref_n != n:
+            raise LogError(path, f"{ref_name} has {ref_n} messages but {TOPIC_STATES} has {n}")
         for channel, fieldname in REFERENCE_FIELDS.items():
             if ref[fieldname] is not None:
                 channels[channel] = ref[fieldname]
     elif selection.ref_topic:
         raise LogError(path, f"no topic {selection.ref_topic} (topics: {', '.join(sorted(source.topics))})")
-    stamp_ns = states["stamp_ns"]
+    stamp_ns = states["stamp_ns"] if TOPIC_EXTRAS not in source.topics else None
     del states
     if TOPIC_EXTRAS in source.topics:
         extras = _extras_series(source, path)
@@ -154,6 +155,7 @@ def _decode_ilic(source: Collected, selection: Selection, path: Path) -> RunLog:
         t = extras.pop(TIME_NAME)
         channels.update(extras)
     else:
+        assert stamp_ns is not None  # kept when there is no extras topic
         t = stamp_ns.astype(np.float64) / 1e9
     del stamp_ns
     source.release(TOPIC_STATES)
@@ -182,9 +184,12 @@ def _extras_series(source: Collected, path: Path) -> dict[str, np.ndarray]:
         raise LogError(path, f"message {changed} on {TOPIC_EXTRAS} changes the channel names")
     if wrong is not None:
         raise LogError(path, f"message {wrong} on {TOPIC_EXTRAS} has {int(counts[wrong])} values for {len(names)} names")
+    rows = len(series)
+    source.release(TOPIC_EXTRAS)  # its log times and stamps go before the channels are copied out
+    del series
     if len(names) == 1:
         return {names[0]: flat}
-    matrix = flat.reshape(len(series), len(names))
+    matrix = flat.reshape(rows, len(names))
     return {name: matrix[:, j].copy() for j, name in enumerate(names)}
 
 
