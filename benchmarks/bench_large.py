@@ -115,8 +115,8 @@ def main(argv: list[str] | None = None) -> None:
         flag = "ok" if rss <= LIMIT_MB and wall <= LIMIT_S else f"OVER {LIMIT_S:.0f} s / {LIMIT_MB:.0f} MB"
         ratio = f"  {rss / columns_mib:.2f}x the columns" if columns_mib else ""  # ru_maxrss is in KiB: rss is MiB
         print(
-            f"ilic {name:<38} status {status}  wall {wall:7.1f} s  cpu {cpu:7.1f} s  peak RSS {rss:7.0f} MB  [{flag}]  {samples / wall / 1e3:.0f} k samples/s{ratio}"
-            + (f"  ({last})" if status else ""),
+            f"ilic {name:<38} status {status}  wall {wall:7.1f} s  cpu {cpu:7.1f} s  peak RSS {rss:7.0f} MB  [{flag}]  "
+            f"{samples / wall / 1e3:.0f} k samples/s{ratio}" + (f"  ({last})" if status else ""),
             flush=True,
         )
     if columns_mib:

@@ -234,22 +234,8 @@ def _return_freed_memory() -> None:
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
         libc.malloc_trim(0)
-        libc.mallopt(M_ARENA_MAX, 1)
     except (OSError, AttributeError):  # not glibc: nothing to do
         pass
-
-
-M_ARENA_MAX = -8
-"""glibc's ``mallopt`` parameter for the most heaps (arenas) its threads allocate from.
-
-Set to one after a large read (:func:`_return_freed_memory`): the threads
-that then work on the columns (filters' blocks, replays) allocate from the
-main heap, where one thread's freed blocks serve another's. With a heap per
-thread, each keeps the blocks of arrays of the log's length that it freed:
-the peak of ``ilic identify --method both`` on a 1-hour log was 531-585 MB
-(433 MB with one heap). Takes effect when no thread has needed a heap of its
-own yet (glibc fixes the number at the first).
-"""
 
 
 def write_log(log: RunLog, path: str | Path, fmt: str | None = None, options: WriteOptions | None = None, *, inputs: tuple[str | Path, ...] = ()) -> Path:

@@ -92,7 +92,8 @@ def _controller_fields(layout: str, kind: str) -> dict[str, Any]:
 # -- type stores -------------------------------------------------------------
 @functools.cache
 def typestore(kind: str) -> Any:
-    """Return the ``rosbags`` type store: ROS 2 Humble's types that ilic writes and reads (``"ros2"``) or ROS 1 Noetic (``"ros1"``, with ROS 1's :data:`CONTROLLER_STATE`).
+    """Return the ``rosbags`` type store: ROS 2 Humble's types that ilic writes and reads (``"ros2"``)
+    or ROS 1 Noetic (``"ros1"``, with ROS 1's :data:`CONTROLLER_STATE`).
 
     The ROS 2 store holds :func:`ros2_types` only, registered in an empty
     store: the same definitions as Humble's (tested), without importing the
@@ -110,7 +111,8 @@ def typestore(kind: str) -> Any:
 
 
 def ros2_types() -> dict[str, Any]:
-    """The definitions (``rosbags``' field trees) of the ROS 2 types of :func:`typestore`: JointState, JointTrajectory, JointTrajectoryPoint, String and the types in them."""
+    """The definitions (``rosbags``' field trees) of the ROS 2 types of :func:`typestore`:
+    JointState, JointTrajectory, JointTrajectoryPoint, String and the types in them."""
     from rosbags.interfaces import Nodetype  # rosbags deferred: `ilic info --help` imports this module
 
     f64s = (Nodetype.SEQUENCE, ((Nodetype.BASE, ("float64", 0)), 0))
@@ -125,7 +127,13 @@ def ros2_types() -> dict[str, Any]:
         JOINT_STATE: ([], [header, ("name", strings), ("position", f64s), ("velocity", f64s), ("effort", f64s)]),
         TRAJECTORY_POINT: (
             [],
-            [("positions", f64s), ("velocities", f64s), ("accelerations", f64s), ("effort", f64s), ("time_from_start", (Nodetype.NAME, "builtin_interfaces/msg/Duration"))],
+            [
+                ("positions", f64s),
+                ("velocities", f64s),
+                ("accelerations", f64s),
+                ("effort", f64s),
+                ("time_from_start", (Nodetype.NAME, "builtin_interfaces/msg/Duration")),
+            ],
         ),
         TRAJECTORY: ([], [header, ("joint_names", strings), ("points", (Nodetype.SEQUENCE, ((Nodetype.NAME, TRAJECTORY_POINT), 0)))]),
     }

@@ -17,7 +17,12 @@ def _messages() -> list[tuple[str, bytes]]:
     out = []
     for names in (["axis"], ["t_s", "Fc_hat", "Fv_hat", "M_hat", "qd_plant", "qdd_plant"], ["a", "bb", "ccc"]):
         n = len(names)
-        out.append((JOINT_STATE, bytes(ts.serialize_cdr(state(Header(Time(1, 2), "frame"[: n + 1]), names, np.ones(n), np.ones(n) * (n > 1), np.ones(n)), JOINT_STATE))))
+        out.append(
+            (
+                JOINT_STATE,
+                bytes(ts.serialize_cdr(state(Header(Time(1, 2), "frame"[: n + 1]), names, np.ones(n), np.ones(n) * (n > 1), np.ones(n)), JOINT_STATE)),
+            )
+        )
     out.append((TRAJECTORY_POINT, bytes(ts.serialize_cdr(point(np.ones(1), np.ones(1), np.ones(1), np.empty(0), Duration(3, 4)), TRAJECTORY_POINT))))
     out.append((STRING, bytes(ts.serialize_cdr(ts.types[STRING]("hello"), STRING))))
     return out
