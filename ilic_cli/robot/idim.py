@@ -18,6 +18,7 @@ at most ``8 n N b`` bytes.
 
 from __future__ import annotations
 
+import functools
 import math
 import mmap
 from dataclasses import dataclass, replace
@@ -25,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.filter_design import cheby1_ba
+from ilic_cli.filtering import _polished_roots, butter_lowpass_zero_phase, central_difference, kept_indices
 from ilic_cli.idim_ilic import essential_mask
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
 from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve
@@ -159,9 +161,9 @@ def prepare(
     s = slice(settings.trim, None)
     qf, qd, qdd, tau = qf[s], qd[s], qdd[s], tau[s]
     active = active_columns(robot, base)
-    columns, rows = base_columns(robot, base, active, qf, qd, qdd, tau)
+    columns, rows = base_columns(robot, base, active, qf, qd, qdd, tau, by_sample=True)
     # every joint's columns through the one parallel decimation (the same filter for every column, each filtered on its own)
-    d = _decimate(columns.T, settings, fs_hz)
+    d = decimate_columns(columns, settings.decimation) if settings.matlab else _decimate(columns, settings, fs_hz)
     del columns
     parts = []
     for j in range(robot.n):
@@ -184,9 +186,19 @@ def prepare(
 
 
 def base_columns(
-    robot: RobotModel, base: BaseParameters, active: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray
+    robot: RobotModel,
+    base: BaseParameters,
+    active: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    tau: np.ndarray,
+    *,
+    by_sample: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each joint's nonzero base columns then its torque, at the full rate: ``(columns (C, N), rows (n + 1,))``.
+
+    ``by_sample``: the columns as (N, C), each sample's contiguous (what :func:`decimate_columns` filters).
 
     Joint ``j``'s columns are ``columns[rows[j] : rows[j + 1]]``: its ``active``
     base columns in the order of ``base.kept``, then ``tau[:, j]``. They are
@@ -201,7 +213,7 @@ def base_columns(
     destination = np.full((n, p), -1, dtype=np.int64)
     for j in range(n):
         destination[j, base.kept[active[j]]] = rows[j] + np.arange(counts[j] - 1)
-    columns = plain_pages((int(rows[-1]), len(q)))
+    columns = plain_pages((len(q), int(rows[-1]))).T if by_sample else plain_pages((int(rows[-1]), len(q)))
     prismatic = np.array([k == "prismatic" for k in robot.kinds])
     parents = np.array(robot.parents, dtype=np.int64)
     q, qd, qdd = (np.ascontiguousarray(a) for a in (q, qd, qdd))
@@ -210,7 +222,46 @@ def base_columns(
     cut = [0, len(q) // 2, len(q)]
     ordered_map(lambda k: fill(*arguments, cut[k], cut[k + 1]), [0, 1])
     columns[rows[1:] - 1] = tau.T
-    return columns, rows
+    return (columns.T, rows) if by_sample else (columns, rows)
+
+
+@functools.lru_cache(maxsize=8)
+def chebyshev_sections(r: int) -> tuple[np.ndarray, float, float]:
+    """MATLAB ``decimate``'s Chebyshev filter for factor ``r`` as :func:`ilic_cli.robot.kernel.filtfilt_kept` runs it: ``(a (4, 2), k, gain)``.
+
+    The transfer function ``b/a`` of :func:`ilic_cli.filtering.decimate_matlab` (``b = k (1 + z^-1)^8``), its
+    poles those :func:`ilic_cli.filtering.filtfilt_matlab` runs (the roots of ``a``, polished), one section per
+    conjugate pair or pair of real poles; ``gain`` its DC gain.
+    """
+    b, a = cheby1_ba(8, 0.05, 0.8 / r)
+    b, a = b / a[0], a / a[0]
+    poles = _polished_roots(a)
+    real = np.sort(poles[poles.imag == 0].real)  # where the roots of a are too ill-conditioned to stay complex (r = 80 and up)
+    pairs = [[-2.0 * float(p.real), float(p.real**2 + p.imag**2)] for p in poles[poles.imag > 0]]
+    pairs += [[-float(real[i] + real[i + 1]), float(real[i] * real[i + 1])] for i in range(0, len(real), 2)]
+    return np.array(pairs), float(b[0]), math.fsum(b) / math.fsum(a)
+
+
+def decimate_columns(columns: np.ndarray, r: int) -> np.ndarray:
+    """MATLAB ``decimate(columns, r)`` of each column of ``columns`` (N, C), compiled, in two threads; ``columns`` is overwritten.
+
+    :func:`ilic_cli.filtering.decimate_matlab`'s filter, padding and kept samples; its rounding differs (1e-13 relative
+    on the regressor's columns: ``tests/robot/test_identify.py``).
+    """
+    from ilic_cli.robot.kernel import filtfilt_kept  # deferred: numba's import and the cached machine code
+
+    if r == 1:
+        return columns
+    n, c = columns.shape
+    keep = kept_indices(n, r)
+    sections, k, gain = chebyshev_sections(r)
+    pad = 3 * 8
+    if n <= pad:
+        raise ValueError(f"The length of the input vector x must be greater than padlen, which is {pad}.")
+    out = np.empty((len(keep), c))
+    cut = [0, c // 2, c]
+    ordered_map(lambda i: filtfilt_kept(columns, sections, k, gain, pad, int(keep[0]), r, out, cut[i], cut[i + 1]), [0, 1])
+    return out
 
 
 def plain_pages(shape: tuple[int, ...]) -> np.ndarray:
