@@ -251,11 +251,12 @@ def filtfilt_kept(x: np.ndarray, a: np.ndarray, k: float, gain: float, pad: int,
             u[c] = head[i, c] - x0[c]
         _poles(a, w1, w2, u)
     for i in range(n):
+        row = x[i, lo:hi]  # a contiguous view: the loops over it are vectorised (no gathers)
         for c in range(m):
-            u[c] = x[i, lo + c] - x0[c]
+            u[c] = row[c] - x0[c]
         _poles(a, w1, w2, u)
         for c in range(m):
-            x[i, lo + c] = k * u[c] + gain * x0[c]
+            row[c] = k * u[c] + gain * x0[c]
     for i in range(pad):
         for c in range(m):
             u[c] = tail[i, c] - x0[c]
@@ -272,10 +273,12 @@ def filtfilt_kept(x: np.ndarray, a: np.ndarray, k: float, gain: float, pad: int,
         _poles(a, w1, w2, u)
     j = (n - 1 - first) // r
     for i in range(n - 1, first - 1, -1):
+        row = x[i, lo:hi]
         for c in range(m):
-            u[c] = x[i, lo + c] - x0[c]
+            u[c] = row[c] - x0[c]
         _poles(a, w1, w2, u)
         if i == first + r * j:
+            kept = out[j, lo:hi]
             for c in range(m):
-                out[j, lo + c] = k * u[c] + gain * x0[c]
+                kept[c] = k * u[c] + gain * x0[c]
             j -= 1

@@ -63,3 +63,34 @@ def test_chebyshev_sections_are_the_transfer_function() -> None:
             assert gain == pytest.approx(10 ** (-0.05 / 20), rel=1e-5)
     with pytest.raises(ValueError, match="greater than padlen"):
         decimate_columns(np.zeros((24, 2)), 10)
+
+
+def _filtfilt_kept_numpy(x: np.ndarray, r: int) -> np.ndarray:
+    """:func:`ilic_cli.robot.kernel.filtfilt_kept`'s arithmetic in the same order, one sample at a time in NumPy."""
+    from ilic_cli.filtering import kept_indices  # the end-aligned samples decimate_matlab keeps
+
+    sections, k, gain = chebyshev_sections(r)
+    n, pad = len(x), 24
+    keep = kept_indices(n, r)
+
+    def run(signal: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        w1, w2, y = np.zeros((4, x.shape[1])), np.zeros((4, x.shape[1])), np.empty_like(signal)
+        for i, value in enumerate(signal):
+            u = value - x0
+            for s, (a1, a2) in enumerate(sections):
+                w = u - a1 * w1[s] - a2 * w2[s]
+                u = w + 2.0 * w1[s] + w2[s]
+                w2[s], w1[s] = w1[s], w
+            y[i] = k * u + gain * x0
+        return y
+
+    ext = np.concatenate([2.0 * x[:1] - x[pad:0:-1], x, 2.0 * x[-1:] - x[-2 : -pad - 2 : -1]])
+    forward = run(ext, ext[0].copy())
+    backward = run(forward[::-1], forward[-1].copy())[::-1]
+    return backward[pad : pad + n][keep]
+
+
+def test_decimate_columns_bits_are_its_recursion_in_numpy() -> None:
+    """The compiled loops (vectorised across a sample's columns, two threads) give the plain recursion's bits."""
+    x = np.cumsum(np.random.default_rng(7).standard_normal((1500, 11)), axis=0)
+    assert np.array_equal(decimate_columns(x.copy(), 20), _filtfilt_kept_numpy(x, 20))
