@@ -161,9 +161,12 @@ def prepare(
     s = slice(settings.trim, None)
     qf, qd, qdd, tau = qf[s], qd[s], qdd[s], tau[s]
     active = active_columns(robot, base)
-    columns, rows = base_columns(robot, base, active, qf, qd, qdd, tau, by_sample=True)
+    columns, rows = base_columns(robot, base, active, qf, qd, qdd, tau, parts=2)
     # every joint's columns through the one parallel decimation (the same filter for every column, each filtered on its own)
-    d = decimate_columns(columns, settings.decimation) if settings.matlab else _decimate(columns, settings, fs_hz)
+    if settings.matlab:
+        d = decimate_columns(columns, settings.decimation)
+    else:
+        d = _decimate(np.concatenate(list(columns), axis=1), settings, fs_hz)
     del columns
     parts = []
     for j in range(robot.n):
@@ -194,16 +197,17 @@ def base_columns(
     qdd: np.ndarray,
     tau: np.ndarray,
     *,
-    by_sample: bool = False,
+    parts: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each joint's nonzero base columns then its torque, at the full rate: ``(columns (C, N), rows (n + 1,))``.
-
-    ``by_sample``: the columns as (N, C), each sample's contiguous (what :func:`decimate_columns` filters).
 
     Joint ``j``'s columns are ``columns[rows[j] : rows[j + 1]]``: its ``active``
     base columns in the order of ``base.kept``, then ``tau[:, j]``. They are
     those of :func:`ilic_cli.robot.model.regressor` (compiled, written straight
     into place: the full regressor of every standard column is never held).
+
+    ``parts > 0``: the columns by sample in that many parts, ``(parts, N, w)``, column ``d`` at ``[d // w, :, d % w]``
+    (``w = ceil(C / parts)``, the last part's spare columns zero): what :func:`decimate_columns` filters, a part per thread.
     """
     from ilic_cli.robot.kernel import base_columns as fill  # deferred: numba's import and the cached machine code cost ~0.5 s
 
@@ -213,16 +217,20 @@ def base_columns(
     destination = np.full((n, p), -1, dtype=np.int64)
     for j in range(n):
         destination[j, base.kept[active[j]]] = rows[j] + np.arange(counts[j] - 1)
-    columns = plain_pages((len(q), int(rows[-1]))).T if by_sample else plain_pages((int(rows[-1]), len(q)))
+    width = -(-int(rows[-1]) // parts) if parts else int(rows[-1])
+    columns = plain_pages((parts, len(q), width)) if parts else plain_pages((int(rows[-1]), len(q)))
+    out = columns.transpose(0, 2, 1) if parts else columns[None]  # (parts, width, N)
+    out[-1, int(rows[-1]) - width * (len(out) - 1) :] = 0.0  # the spare columns of the last part (none: an empty slice)
     prismatic = np.array([k == "prismatic" for k in robot.kinds])
     parents = np.array(robot.parents, dtype=np.int64)
     q, qd, qdd = (np.ascontiguousarray(a) for a in (q, qd, qdd))
-    arguments = (prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, destination, len(PER_JOINT), columns)
+    arguments = (prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, destination, len(PER_JOINT), out, width)
     # two halves of the samples in two threads (the kernel holds no GIL; each sample's columns are its own: the same bits)
     cut = [0, len(q) // 2, len(q)]
     ordered_map(lambda k: fill(*arguments, cut[k], cut[k + 1]), [0, 1])
-    columns[rows[1:] - 1] = tau.T
-    return (columns.T, rows) if by_sample else (columns, rows)
+    for j, d in enumerate(rows[1:] - 1):
+        out[d // width, d % width] = tau[:, j]
+    return columns, rows
 
 
 @functools.lru_cache(maxsize=8)
@@ -243,24 +251,26 @@ def chebyshev_sections(r: int) -> tuple[np.ndarray, float, float]:
 
 
 def decimate_columns(columns: np.ndarray, r: int) -> np.ndarray:
-    """MATLAB ``decimate(columns, r)`` of each column of ``columns`` (N, C), compiled, in two threads; ``columns`` is overwritten.
+    """MATLAB ``decimate(x, r)`` of each column of ``columns``, compiled; ``columns`` is overwritten.
 
-    :func:`ilic_cli.filtering.decimate_matlab`'s filter, padding and kept samples; its rounding differs (1e-13 relative
-    on the regressor's columns: ``tests/robot/test_identify.py``).
+    ``columns``: (N, C), or (parts, N, w) as :func:`base_columns` lays them out, a part per thread (each thread's
+    memory contiguous), the result then (kept samples, parts w). :func:`ilic_cli.filtering.decimate_matlab`'s
+    filter, padding and kept samples; its rounding differs (1e-13 relative on the regressor's columns:
+    ``tests/robot/test_identify.py``).
     """
     from ilic_cli.robot.kernel import filtfilt_kept  # deferred: numba's import and the cached machine code
 
     if r == 1:
         return columns
-    n, c = columns.shape
+    split = columns if columns.ndim == 3 else columns[None]
+    parts, n, c = split.shape
     keep = kept_indices(n, r)
     sections, k, gain = chebyshev_sections(r)
     pad = 3 * 8
     if n <= pad:
         raise ValueError(f"The length of the input vector x must be greater than padlen, which is {pad}.")
-    out = np.empty((len(keep), c))
-    cut = [0, c // 2, c]
-    ordered_map(lambda i: filtfilt_kept(columns, sections, k, gain, pad, int(keep[0]), r, out, cut[i], cut[i + 1]), [0, 1])
+    out = np.empty((len(keep), parts * c))
+    ordered_map(lambda i: filtfilt_kept(split[i], sections, k, gain, pad, int(keep[0]), r, out[:, i * c : (i + 1) * c], 0, c), range(parts))
     return out
 
 

@@ -178,10 +178,14 @@ def base_columns(
     destination: np.ndarray,
     stride: int,
     out: np.ndarray,
+    width: int,
     lo: int,
     hi: int,
 ) -> None:
-    """Fill ``out[destination[j, c], k]`` with standard column ``c`` of joint ``j``'s row at sample ``k``, ``lo <= k < hi`` (``destination < 0``: not kept).
+    """Fill ``out[d // width, d % width, k]``, ``d = destination[j, c]``, with standard column ``c`` of joint ``j``'s row at sample ``k``.
+
+    For ``lo <= k < hi``; ``destination < 0``: not kept. ``out`` (parts, width, N): the columns in parts of
+    ``width`` (one part: ``out[None]`` of a (C, N) array).
 
     The same values as :func:`inertial_regressor` for the inertial columns and
     ``qdd, qd, sign(qd), 1`` for a joint's own ``Ia, Fv, Fc, offset`` (at
@@ -206,8 +210,9 @@ def base_columns(
             for c in range(stride * n):
                 d = destination[j, c]
                 if d >= 0:
+                    part = out[d // width, d % width]
                     for k in range(b - a):
-                        out[d, a + k] = scratch[j, k, c]
+                        part[a + k] = scratch[j, k, c]
 
 
 @njit(cache=True, nogil=True, inline="always")
