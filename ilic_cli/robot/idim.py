@@ -4,8 +4,9 @@ Each joint's measured position is filtered, differentiated and trimmed exactly
 as the 1-DOF chain does (:mod:`ilic_cli.idim_ls` with its :class:`LSSettings`):
 zero-phase Butterworth low-pass, central differences, edge trim. The base
 regressor of every joint's rows and that joint's torque are decimated in
-parallel by the same decimation (``idim_ls._decimate``), then the joints'
-systems are stacked (joint-major rows).
+parallel by the same decimation (MATLAB ``decimate``: :func:`decimate_columns`,
+compiled, within 1e-11 of ``idim_ls._decimate``; ``_decimate`` itself when
+``matlab`` is off), then the joints' systems are stacked (joint-major rows).
 
 Weighted LS (Gautier 1997): a first unweighted fit gives each joint's error
 standard deviation ``sigma_j`` (sample std of its rows' residual); every row of
