@@ -4,13 +4,14 @@ Each joint's measured position is filtered, differentiated and trimmed exactly
 as the 1-DOF chain does (:mod:`ilic_cli.idim_ls` with its :class:`LSSettings`):
 zero-phase Butterworth low-pass, central differences, edge trim. The base
 regressor of every joint's rows and that joint's torque are decimated in
-parallel by the same decimation (``idim_ls._decimate``), then the joints'
-systems are stacked (joint-major rows).
+parallel by the same decimation (MATLAB ``decimate``: :func:`decimate_columns`,
+compiled, within 1e-11 of ``idim_ls._decimate``; ``_decimate`` itself when
+``matlab`` is off), then the joints' systems are stacked (joint-major rows).
 
 Weighted LS (Gautier 1997): a first unweighted fit gives each joint's error
 standard deviation ``sigma_j`` (sample std of its rows' residual); every row of
 joint ``j`` is divided by ``sigma_j`` and the weighted system is solved by
-:func:`ilic_cli.lsq.solve`, whose eq. (9) standard deviations are then those of
+:func:`solve_tall` (:func:`ilic_cli.lsq.solve` by a QR), whose eq. (9) standard deviations are then those of
 the weighted estimate. Only the base columns a joint's rows can touch
 (:func:`active_columns`) are decimated; memory: those columns at the full rate,
 at most ``8 n N b`` bytes.
@@ -18,6 +19,7 @@ at most ``8 n N b`` bytes.
 
 from __future__ import annotations
 
+import functools
 import math
 import mmap
 from dataclasses import dataclass, replace
@@ -25,10 +27,11 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.filter_design import cheby1_ba
+from ilic_cli.filtering import _polished_roots, butter_lowpass_zero_phase, central_difference, kept_indices
 from ilic_cli.idim_ilic import essential_mask
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
-from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve
+from ilic_cli.lsq import LSResult, SigmaConvention, finite_or_none, pinv, rank_tolerance, relative_error_pct, relative_std_pct, solve
 from ilic_cli.parallel import ordered_map
 from ilic_cli.robot.base import BaseParameters
 from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel
@@ -159,9 +162,12 @@ def prepare(
     s = slice(settings.trim, None)
     qf, qd, qdd, tau = qf[s], qd[s], qdd[s], tau[s]
     active = active_columns(robot, base)
-    columns, rows = base_columns(robot, base, active, qf, qd, qdd, tau)
+    columns, rows = base_columns(robot, base, active, qf, qd, qdd, tau, parts=2)
     # every joint's columns through the one parallel decimation (the same filter for every column, each filtered on its own)
-    d = _decimate(columns.T, settings, fs_hz)
+    if settings.matlab:
+        d = decimate_columns(columns, settings.decimation)
+    else:
+        d = _decimate(np.concatenate(list(columns), axis=1), settings, fs_hz)
     del columns
     parts = []
     for j in range(robot.n):
@@ -184,7 +190,15 @@ def prepare(
 
 
 def base_columns(
-    robot: RobotModel, base: BaseParameters, active: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray
+    robot: RobotModel,
+    base: BaseParameters,
+    active: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    tau: np.ndarray,
+    *,
+    parts: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each joint's nonzero base columns then its torque, at the full rate: ``(columns (C, N), rows (n + 1,))``.
 
@@ -192,6 +206,9 @@ def base_columns(
     base columns in the order of ``base.kept``, then ``tau[:, j]``. They are
     those of :func:`ilic_cli.robot.model.regressor` (compiled, written straight
     into place: the full regressor of every standard column is never held).
+
+    ``parts > 0``: the columns by sample in that many parts, ``(parts, N, w)``, column ``d`` at ``[d // w, :, d % w]``
+    (``w = ceil(C / parts)``, the last part's spare columns zero): what :func:`decimate_columns` filters, a part per thread.
     """
     from ilic_cli.robot.kernel import base_columns as fill  # deferred: numba's import and the cached machine code cost ~0.5 s
 
@@ -201,16 +218,61 @@ def base_columns(
     destination = np.full((n, p), -1, dtype=np.int64)
     for j in range(n):
         destination[j, base.kept[active[j]]] = rows[j] + np.arange(counts[j] - 1)
-    columns = plain_pages((int(rows[-1]), len(q)))
+    width = -(-int(rows[-1]) // parts) if parts else int(rows[-1])
+    columns = plain_pages((parts, len(q), width)) if parts else plain_pages((int(rows[-1]), len(q)))
+    out = columns.transpose(0, 2, 1) if parts else columns[None]  # (parts, width, N)
+    out[-1, int(rows[-1]) - width * (len(out) - 1) :] = 0.0  # the spare columns of the last part (none: an empty slice)
     prismatic = np.array([k == "prismatic" for k in robot.kinds])
     parents = np.array(robot.parents, dtype=np.int64)
     q, qd, qdd = (np.ascontiguousarray(a) for a in (q, qd, qdd))
-    arguments = (prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, destination, len(PER_JOINT), columns)
+    arguments = (prismatic, parents, robot.axes, robot.rotations, robot.translations, robot.gravity, q, qd, qdd, destination, len(PER_JOINT), out, width)
     # two halves of the samples in two threads (the kernel holds no GIL; each sample's columns are its own: the same bits)
     cut = [0, len(q) // 2, len(q)]
     ordered_map(lambda k: fill(*arguments, cut[k], cut[k + 1]), [0, 1])
-    columns[rows[1:] - 1] = tau.T
+    for j, d in enumerate(rows[1:] - 1):
+        out[d // width, d % width] = tau[:, j]
     return columns, rows
+
+
+@functools.lru_cache(maxsize=8)
+def chebyshev_sections(r: int) -> tuple[np.ndarray, float, float]:
+    """MATLAB ``decimate``'s Chebyshev filter for factor ``r`` as :func:`ilic_cli.robot.kernel.filtfilt_kept` runs it: ``(a (4, 2), k, gain)``.
+
+    The transfer function ``b/a`` of :func:`ilic_cli.filtering.decimate_matlab` (``b = k (1 + z^-1)^8``), its
+    poles those :func:`ilic_cli.filtering.filtfilt_matlab` runs (the roots of ``a``, polished), one section per
+    conjugate pair or pair of real poles; ``gain`` its DC gain.
+    """
+    b, a = cheby1_ba(8, 0.05, 0.8 / r)
+    b, a = b / a[0], a / a[0]
+    poles = _polished_roots(a)
+    real = np.sort(poles[poles.imag == 0].real)  # where the roots of a are too ill-conditioned to stay complex (r = 80 and up)
+    pairs = [[-2.0 * float(p.real), float(p.real**2 + p.imag**2)] for p in poles[poles.imag > 0]]
+    pairs += [[-float(real[i] + real[i + 1]), float(real[i] * real[i + 1])] for i in range(0, len(real), 2)]
+    return np.array(pairs), float(b[0]), math.fsum(b) / math.fsum(a)
+
+
+def decimate_columns(columns: np.ndarray, r: int) -> np.ndarray:
+    """MATLAB ``decimate(x, r)`` of each column of ``columns``, compiled; ``columns`` is overwritten.
+
+    ``columns``: (N, C), or (parts, N, w) as :func:`base_columns` lays them out, a part per thread (each thread's
+    memory contiguous), the result then (kept samples, parts w). :func:`ilic_cli.filtering.decimate_matlab`'s
+    filter, padding and kept samples; its rounding differs (1e-13 relative on the regressor's columns:
+    ``tests/robot/test_identify.py``).
+    """
+    from ilic_cli.robot.kernel import filtfilt_kept  # deferred: numba's import and the cached machine code
+
+    if r == 1:
+        return columns
+    split = columns if columns.ndim == 3 else columns[None]
+    parts, n, c = split.shape
+    keep = kept_indices(n, r)
+    sections, k, gain = chebyshev_sections(r)
+    pad = 3 * 8
+    if n <= pad:
+        raise ValueError(f"The length of the input vector x must be greater than padlen, which is {pad}.")
+    out = np.empty((len(keep), parts * c))
+    ordered_map(lambda i: filtfilt_kept(split[i], sections, k, gain, pad, int(keep[0]), r, out[:, i * c : (i + 1) * c], 0, c), range(parts))
+    return out
 
 
 def plain_pages(shape: tuple[int, ...]) -> np.ndarray:
@@ -253,11 +315,47 @@ def _joint_std(system: RobotSystem, e: np.ndarray) -> np.ndarray:
     return np.array([np.std(e[system.joint == j], ddof=1) for j in range(len(system.joints))])
 
 
+def solve_tall(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:
+    """:func:`ilic_cli.lsq.solve` of a tall system through the R of a Householder QR of ``[W y]``: the SVD of ``R`` (b x b) only.
+
+    ``W = Q R`` has ``R``'s singular values and right vectors, and ``Q' y`` is the QR's last column, so the estimate,
+    rank, condition number and eq. (9) standard deviations are those of the SVD of ``W`` (rounding apart), without
+    forming its (rows x b) left vectors; ``sigma`` from the residual ``y - W theta`` as :func:`ilic_cli.lsq.solve`.
+    A rank-deficient ``W`` goes to :func:`ilic_cli.lsq.solve` (its null directions' infinite deviations).
+    """
+    rows, b = W.shape
+    if rows <= 2 * b:
+        return solve(W, y, names, sigma=sigma)
+    R: np.ndarray = np.linalg.qr(np.column_stack([W, y]), mode="r")  # type: ignore[assignment]
+    U, s, Vt = np.linalg.svd(R[:b, :b])
+    if not s[-1] > rank_tolerance(s[0], rows, b):
+        return solve(W, y, names, sigma=sigma)
+    theta = Vt.T @ ((U.T @ R[:b, b]) / s)
+    e = y - W @ theta
+    err = float(np.linalg.norm(e))
+    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else err / np.sqrt(rows - b)
+    cov = sig**2 * (Vt.T / s**2) @ Vt
+    std = sig * np.sqrt(((Vt / s[:, None]) ** 2).sum(axis=0))
+    return LSResult(
+        names=tuple(names),
+        theta=theta,
+        std=std,
+        rel_std_pct=relative_std_pct(theta, std),
+        sigma_rho=sig,
+        error_norm=err,
+        relative_error_pct=relative_error_pct(y, W @ theta),
+        condition_number=float(s[0] / s[-1]),
+        rows=rows,
+        rank=b,
+        cov=cov,
+    )
+
+
 def solve_system(system: RobotSystem, *, weighted: bool = True) -> Fit:
     """The (weighted) least-squares estimate of a stacked system (see the module's docstring)."""
     W, y = system.W, system.y
     if weighted:
-        first = solve(W, y, system.names, sigma=system.settings.sigma)
+        first = solve_tall(W, y, system.names, sigma=system.settings.sigma)
         sig = _joint_std(system, y - W @ first.theta)
         if not np.all(sig > 0):
             raise ValueError(f"a joint's error has zero spread ({dict(zip(system.joints, sig))}): rows cannot be weighted")
@@ -265,8 +363,8 @@ def solve_system(system: RobotSystem, *, weighted: bool = True) -> Fit:
         sig = np.ones(len(system.joints))
     w = 1.0 / sig[system.joint]
     Ww, yw = W * w[:, None], y * w
-    result = solve(Ww, yw, system.names, sigma=system.settings.sigma)
-    cov = result.sigma_rho**2 * pinv(Ww.T @ Ww)
+    result = solve_tall(Ww, yw, system.names, sigma=system.settings.sigma)
+    cov = result.cov if result.cov is not None and result.full_rank else result.sigma_rho**2 * pinv(Ww.T @ Ww)
     e = y - W @ result.theta
     return Fit(
         method="IDIM-WLS" if weighted else "IDIM-LS",

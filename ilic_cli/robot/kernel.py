@@ -178,10 +178,14 @@ def base_columns(
     destination: np.ndarray,
     stride: int,
     out: np.ndarray,
+    width: int,
     lo: int,
     hi: int,
 ) -> None:
-    """Fill ``out[destination[j, c], k]`` with standard column ``c`` of joint ``j``'s row at sample ``k``, ``lo <= k < hi`` (``destination < 0``: not kept).
+    """Fill ``out[d // width, d % width, k]``, ``d = destination[j, c]``, with standard column ``c`` of joint ``j``'s row at sample ``k``.
+
+    For ``lo <= k < hi``; ``destination < 0``: not kept. ``out`` (parts, width, N): the columns in parts of
+    ``width`` (one part: ``out[None]`` of a (C, N) array).
 
     The same values as :func:`inertial_regressor` for the inertial columns and
     ``qdd, qd, sign(qd), 1`` for a joint's own ``Ia, Fv, Fc, offset`` (at
@@ -206,5 +210,80 @@ def base_columns(
             for c in range(stride * n):
                 d = destination[j, c]
                 if d >= 0:
+                    part = out[d // width, d % width]
                     for k in range(b - a):
-                        out[d, a + k] = scratch[j, k, c]
+                        part[a + k] = scratch[j, k, c]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _poles(a: np.ndarray, w1: np.ndarray, w2: np.ndarray, u: np.ndarray) -> None:
+    """One sample ``u`` (a value per column, replaced by the output) through sections ``(1 + z^-1)^2 / (1 + a1 z^-1 + a2 z^-2)`` in series.
+
+    Direct form II: ``w = u - a1 w1 - a2 w2``, output ``w + 2 w1 + w2``; each loop runs across the columns.
+    """
+    for s in range(a.shape[0]):
+        a1, a2, p, q = a[s, 0], a[s, 1], w1[s], w2[s]  # rows as 1-D views: the loop over columns is vectorised
+        for c in range(u.shape[0]):
+            w = u[c] - a1 * p[c] - a2 * q[c]
+            u[c] = w + 2.0 * p[c] + q[c]
+            q[c] = p[c]
+            p[c] = w
+
+
+@njit(cache=True, nogil=True)
+def filtfilt_kept(x: np.ndarray, a: np.ndarray, k: float, gain: float, pad: int, first: int, r: int, out: np.ndarray, lo: int, hi: int) -> None:
+    """Columns ``lo <= c < hi`` of ``x`` (N, C) filtered forward then backward; ``out[j, c]`` the output at sample ``first + r j``.
+
+    The filter: ``k`` times the sections of :func:`_poles` (``a``: (S, 2)), whose
+    DC gain is ``gain``. As :func:`ilic_cli.filtering.filtfilt_matlab`: each
+    column odd-extended by ``pad`` samples at both ends, each pass from the
+    steady state of its first sample (``gain x0`` plus the zero-state response
+    to ``x - x0``). The forward pass is written over ``x``; the backward pass
+    runs its recursion over every sample but forms only the kept outputs.
+    Disjoint ranges of columns may be filtered in threads (no GIL held).
+    """
+    n, m, S = x.shape[0], hi - lo, a.shape[0]
+    w1, w2 = np.zeros((S, m)), np.zeros((S, m))
+    u, x0 = np.empty(m), np.empty(m)
+    head, tail = np.empty((pad, m)), np.empty((pad, m))
+    for c in range(m):
+        for i in range(pad):
+            head[i, c] = 2.0 * x[0, lo + c] - x[pad - i, lo + c]
+            tail[i, c] = 2.0 * x[n - 1, lo + c] - x[n - 2 - i, lo + c]
+        x0[c] = head[0, c]
+    for i in range(pad):
+        for c in range(m):
+            u[c] = head[i, c] - x0[c]
+        _poles(a, w1, w2, u)
+    for i in range(n):
+        row = x[i, lo:hi]  # a contiguous view: the loops over it are vectorised (no gathers)
+        for c in range(m):
+            u[c] = row[c] - x0[c]
+        _poles(a, w1, w2, u)
+        for c in range(m):
+            row[c] = k * u[c] + gain * x0[c]
+    for i in range(pad):
+        for c in range(m):
+            u[c] = tail[i, c] - x0[c]
+        _poles(a, w1, w2, u)
+        for c in range(m):
+            tail[i, c] = k * u[c] + gain * x0[c]
+    # backward, from the steady state of the last forward output
+    w1[:] = 0.0
+    w2[:] = 0.0
+    x0[:] = tail[pad - 1]
+    for i in range(pad - 1, -1, -1):
+        for c in range(m):
+            u[c] = tail[i, c] - x0[c]
+        _poles(a, w1, w2, u)
+    j = (n - 1 - first) // r
+    for i in range(n - 1, first - 1, -1):
+        row = x[i, lo:hi]
+        for c in range(m):
+            u[c] = row[c] - x0[c]
+        _poles(a, w1, w2, u)
+        if i == first + r * j:
+            kept = out[j, lo:hi]
+            for c in range(m):
+                kept[c] = k * u[c] + gain * x0[c]
+            j -= 1
