@@ -223,6 +223,42 @@ def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, 
     )
 
 
+def solve_tall(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:
+    """:func:`solve` of a tall system through the R of a Householder QR of ``[W y]``: the SVD of ``R`` (b x b) only.
+
+    ``W = Q R`` has ``R``'s singular values and right vectors, and ``Q' y`` is the QR's last column, so the estimate,
+    rank, condition number and eq. (9) standard deviations are those of the SVD of ``W`` (rounding apart), without
+    forming its (rows x b) left vectors; ``sigma`` from the residual ``y - W theta`` as :func:`solve`.
+    A rank-deficient ``W`` goes to :func:`solve` (its null directions' infinite deviations).
+    """
+    rows, b = W.shape
+    if rows <= 2 * b:
+        return solve(W, y, names, sigma=sigma)
+    R: np.ndarray = np.linalg.qr(np.column_stack([W, y]), mode="r")  # type: ignore[assignment]
+    U, s, Vt = np.linalg.svd(R[:b, :b])
+    if not s[-1] > rank_tolerance(s[0], rows, b):
+        return solve(W, y, names, sigma=sigma)
+    theta = Vt.T @ ((U.T @ R[:b, b]) / s)
+    e = y - W @ theta
+    err = float(np.linalg.norm(e))
+    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else err / np.sqrt(rows - b)
+    cov = sig**2 * (Vt.T / s**2) @ Vt
+    std = sig * np.sqrt(((Vt / s[:, None]) ** 2).sum(axis=0))
+    return LSResult(
+        names=tuple(names),
+        theta=theta,
+        std=std,
+        rel_std_pct=relative_std_pct(theta, std),
+        sigma_rho=sig,
+        error_norm=err,
+        relative_error_pct=relative_error_pct(y, W @ theta),
+        condition_number=float(s[0] / s[-1]),
+        rows=rows,
+        rank=b,
+        cov=cov,
+    )
+
+
 def solve_iv(Z: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:
     """Instrumental-variable estimate ``theta = (Z' W)^-1 Z' y`` with its covariance.
 

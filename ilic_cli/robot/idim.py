@@ -11,7 +11,7 @@ compiled, within 1e-11 of ``idim_ls._decimate``; ``_decimate`` itself when
 Weighted LS (Gautier 1997): a first unweighted fit gives each joint's error
 standard deviation ``sigma_j`` (sample std of its rows' residual); every row of
 joint ``j`` is divided by ``sigma_j`` and the weighted system is solved by
-:func:`solve_tall` (:func:`ilic_cli.lsq.solve` by a QR), whose eq. (9) standard deviations are then those of
+:func:`ilic_cli.lsq.solve_tall` (:func:`ilic_cli.lsq.solve` by a QR), whose eq. (9) standard deviations are then those of
 the weighted estimate. Only the base columns a joint's rows can touch
 (:func:`active_columns`) are decimated; memory: those columns at the full rate,
 at most ``8 n N b`` bytes.
@@ -31,7 +31,7 @@ from ilic_cli.filter_design import cheby1_ba
 from ilic_cli.filtering import _polished_roots, butter_lowpass_zero_phase, central_difference, kept_indices
 from ilic_cli.idim_ilic import essential_mask
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
-from ilic_cli.lsq import LSResult, SigmaConvention, finite_or_none, pinv, rank_tolerance, relative_error_pct, relative_std_pct, solve
+from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve_tall
 from ilic_cli.parallel import ordered_map
 from ilic_cli.robot.base import BaseParameters
 from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel
@@ -313,42 +313,6 @@ def active_columns(robot: RobotModel, base: BaseParameters) -> np.ndarray:
 
 def _joint_std(system: RobotSystem, e: np.ndarray) -> np.ndarray:
     return np.array([np.std(e[system.joint == j], ddof=1) for j in range(len(system.joints))])
-
-
-def solve_tall(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:
-    """:func:`ilic_cli.lsq.solve` of a tall system through the R of a Householder QR of ``[W y]``: the SVD of ``R`` (b x b) only.
-
-    ``W = Q R`` has ``R``'s singular values and right vectors, and ``Q' y`` is the QR's last column, so the estimate,
-    rank, condition number and eq. (9) standard deviations are those of the SVD of ``W`` (rounding apart), without
-    forming its (rows x b) left vectors; ``sigma`` from the residual ``y - W theta`` as :func:`ilic_cli.lsq.solve`.
-    A rank-deficient ``W`` goes to :func:`ilic_cli.lsq.solve` (its null directions' infinite deviations).
-    """
-    rows, b = W.shape
-    if rows <= 2 * b:
-        return solve(W, y, names, sigma=sigma)
-    R: np.ndarray = np.linalg.qr(np.column_stack([W, y]), mode="r")  # type: ignore[assignment]
-    U, s, Vt = np.linalg.svd(R[:b, :b])
-    if not s[-1] > rank_tolerance(s[0], rows, b):
-        return solve(W, y, names, sigma=sigma)
-    theta = Vt.T @ ((U.T @ R[:b, b]) / s)
-    e = y - W @ theta
-    err = float(np.linalg.norm(e))
-    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else err / np.sqrt(rows - b)
-    cov = sig**2 * (Vt.T / s**2) @ Vt
-    std = sig * np.sqrt(((Vt / s[:, None]) ** 2).sum(axis=0))
-    return LSResult(
-        names=tuple(names),
-        theta=theta,
-        std=std,
-        rel_std_pct=relative_std_pct(theta, std),
-        sigma_rho=sig,
-        error_norm=err,
-        relative_error_pct=relative_error_pct(y, W @ theta),
-        condition_number=float(s[0] / s[-1]),
-        rows=rows,
-        rank=b,
-        cov=cov,
-    )
 
 
 def solve_system(system: RobotSystem, *, weighted: bool = True) -> Fit:

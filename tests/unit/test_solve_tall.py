@@ -1,16 +1,11 @@
-"""``idim.solve_tall`` (a QR of ``[W y]``, then the SVD of ``R``) against ``lsq.solve`` (the SVD of ``W``)."""
+"""``lsq.solve_tall`` (a QR of ``[W y]``, then the SVD of ``R``) against ``lsq.solve`` (the SVD of ``W``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from tests.conftest import import_or_skip
-
-import_or_skip("pinocchio")
-
-from ilic_cli.lsq import solve  # noqa: E402
-from ilic_cli.robot.idim import solve_tall  # noqa: E402
+from ilic_cli.lsq import solve, solve_tall
 
 
 @pytest.mark.parametrize("sigma", ["sample_std", "eq8"])
