@@ -28,8 +28,8 @@ def ripple_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
     The longest is one cycle over the range the log visits: a period the range shows whole, its sine and cosine
     distinct from the offset and a spring's line. A longer period shows less than a cycle, a bend that gravity or a
     spring makes too; an estimate there is on the grid's edge and said, not guessed. (The grid ended at half the
-    stroke: the robot corpus's chirps visit 1.1 to 1.5 periods of their ripple, L = 0.65 to 0.94 of the stroke, and
-    were all "at the edge", though the ripple at its true period took 50 to 93 % of the residual's RSS.)
+    stroke: the robot corpus's chirps visit 1.06 to 1.47 periods of their ripple, L = 0.68 to 0.94 of the stroke, and
+    were all "at the edge", though the ripple at its true period lowered the rigid fit's RSS by 17 to 93 %.)
     """
     # spatial periods from what the IDIM bandwidth (40 Hz after decimation) can
     # see at the median moving speed up to the stroke, spaced so that the
