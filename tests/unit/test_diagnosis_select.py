@@ -489,6 +489,24 @@ def test_concealed_position_ripple_has_its_period() -> None:
     assert res.accepted[0].test.df1 == 2  # sine and cosine
 
 
+@pytest.mark.parametrize(("periods", "named"), [(0.75, True), (1.6, False)])
+def test_a_ripple_period_is_searched_up_to_the_stroke_and_said_beyond(periods: float, named: bool) -> None:
+    """A ripple of 0.75 of the stroke (1.3 cycles over the range visited) is named with its period (the grid ended at half the
+    stroke: "at the edge"); one of 1.6 strokes, less than a cycle, is said at the grid's upper end, not guessed."""
+    t, q, qd, qdd = motion(20_000)
+    period = periods * float(np.ptp(q))
+    rng = np.random.default_rng(14)
+    tau = rigid_force(qd, qdd) + 1.5 * np.sin(2 * np.pi * q / period + 0.4) + rng.normal(0.0, 2.0, len(t))
+    data = lsq_rows(t, q, tau, FS, BASE)
+    res = forward_select(data, BASE, FS, SelectSettings(effects=("position_ripple",), max_effects=1))
+    if named:
+        assert [e.effect for e in res.accepted] == ["position_ripple"]
+        assert res.accepted[0].value == pytest.approx(period, rel=0.02)
+    else:
+        assert not res.accepted and res.tried[0][0].reason.startswith("at the edge of its search range: L = ")
+        assert "upper end" in res.tried[0][0].reason
+
+
 def test_a_spring_is_proposed_before_gravity_when_the_swing_cannot_tell_them_apart() -> None:
     """Over a swing of 0.9 rad of a spring's log gravity's two columns add nothing significant to the spring's one: parsimony puts the spring first;
     over 2.8 rad the curvature shows and gravity stays first (planting ``p_value < alpha`` in ``parsimonious_first`` fails it)."""
