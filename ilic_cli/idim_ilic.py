@@ -143,10 +143,19 @@ def update_parameters(chi: np.ndarray, estimate: WindowEstimate) -> np.ndarray:
 
 def tracking_error_ratio(q_ref: np.ndarray, q: np.ndarray) -> np.ndarray:
     """``||e_q|| / ||q - mean(q)||`` along the last axis (paper Table II, last line)."""
-    e = np.linalg.norm(q_ref - q, axis=-1)
-    spread = np.linalg.norm(q - q.mean(axis=-1, keepdims=True), axis=-1)
+    q = np.asarray(q)
+    e = _norm(np.subtract(q_ref, q))
+    spread = _norm(q - q.mean(axis=-1, keepdims=True))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(spread > 0, e / spread, np.inf)
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(x, axis=-1)`` bit for bit, of a temporary ``x`` squared in place (one array of the log's length, not three)."""
+    if not np.issubdtype(x.dtype, np.floating):
+        return np.asarray(np.linalg.norm(x, axis=-1))
+    np.multiply(x, x, out=x)
+    return np.sqrt(np.add.reduce(x, axis=-1))
 
 
 def estimate_windows(

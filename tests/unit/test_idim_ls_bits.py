@@ -12,6 +12,7 @@ import pytest
 
 from ilic_cli.estimators.columns import derivative
 from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.idim_ilic import tracking_error_ratio
 from ilic_cli.idim_ls import LSSettings, _decimate, _systems, held, lsq_rows, valid_rows
 from ilic_cli.regressor import GRAVITY_COLUMNS, Column, Kinematics, Model, get_model
 from tests.unit.synth import FS, motion, rigid_force
@@ -113,3 +114,17 @@ def test_derivative_is_central_difference(n: int) -> None:
     for dt in (1e-3, 1.0 / 3.0, 0.25):
         d = derivative(x, dt)
         assert np.array_equal(d, central_difference(x, dt)) and d.dtype == np.float64
+
+
+def test_tracking_error_ratio_is_numpy_s_norms() -> None:
+    """IDIM-ILIC's tracking error ratio squares its temporaries in place: the bits of ``np.linalg.norm(..., axis=-1)``."""
+    rng = np.random.default_rng(33)
+    for shape in ((5001,), (7, 620), (1, 3)):
+        q = rng.normal(size=shape).cumsum(axis=-1)
+        q_ref = q + 1e-3 * rng.normal(size=shape)
+        e = np.linalg.norm(q_ref - q, axis=-1)
+        spread = np.linalg.norm(q - q.mean(axis=-1, keepdims=True), axis=-1)
+        assert np.array_equal(tracking_error_ratio(q_ref, q), np.where(spread > 0, e / spread, np.inf))
+    ints = np.arange(12).reshape(3, 4)
+    spread = np.linalg.norm(ints - ints.mean(axis=-1, keepdims=True), axis=-1)
+    assert np.array_equal(tracking_error_ratio(ints + 1, ints), np.linalg.norm(np.ones((3, 4)), axis=-1) / spread)
