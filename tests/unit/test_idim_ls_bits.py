@@ -10,10 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ilic_cli import idim_ilic
 from ilic_cli.estimators.columns import derivative
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference, lowpass_decimate
 from ilic_cli.idim_ilic import tracking_error_ratio
-from ilic_cli.idim_ls import LSSettings, _decimate, _systems, held, lsq_rows, valid_rows
+from ilic_cli.idim_ls import LSSettings, _columns, _decimate, _systems, held, lsq_rows, valid_rows
 from ilic_cli.regressor import GRAVITY_COLUMNS, Column, Kinematics, Model, get_model
 from tests.unit.synth import FS, motion, rigid_force
 
@@ -128,3 +129,19 @@ def test_tracking_error_ratio_is_numpy_s_norms() -> None:
     ints = np.arange(12).reshape(3, 4)
     spread = np.linalg.norm(ints - ints.mean(axis=-1, keepdims=True), axis=-1)
     assert np.array_equal(tracking_error_ratio(ints + 1, ints), np.linalg.norm(np.ones((3, 4)), axis=-1) / spread)
+
+
+@pytest.mark.parametrize("chunk", [None, 5 * 620])
+def test_ilic_columns_by_groups_of_windows_are_all_windows_at_once(monkeypatch: pytest.MonkeyPatch, chunk: int | None) -> None:
+    """IDIM-ILIC builds the rigid columns a group of windows at a time (the filter's blocks of rows, or smaller): the same bits."""
+    if chunk is not None:
+        monkeypatch.setattr(idim_ilic, "CHUNK_ELEMENTS", chunk)
+    K, n = (400, 6200) if chunk is None else (23, 620)  # 2.48M samples: two of the filter's blocks, as on a 1-hour log
+    t, q, qd, qdd = motion(K * n)
+    kin = Kinematics(qd=qd.reshape(K, n), qdd=qdd.reshape(K, n), q=q.reshape(K, n), t=t.reshape(K, n))
+    settings = idim_ilic.ILICSettings()
+    r = settings.factor(FS)
+    for model in (get_model("rigid-offset"), get_model("asymmetric")):
+        every = [lowpass_decimate(np.asarray(c, dtype=np.float64), r, settings.cutoff_hz, FS, settings.filter_order, axis=1) for c in _columns(model, kin)]
+        grouped = idim_ilic._decimated_columns(model, kin, r, FS, settings)
+        assert len(grouped) == len(every) and all(np.array_equal(a, b) for a, b in zip(grouped, every, strict=True))
