@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.filtering import ROWS_BAND_HZ, butter_lowpass_zero_phase, central_difference, decimate_matlab, kept_indices, lowpass_decimate, rows_decimation
+from ilic_cli.estimators.columns import Derived, derivative
+from ilic_cli.filtering import ROWS_BAND_HZ, butter_lowpass_zero_phase, decimate_matlab, kept_indices, lowpass_decimate, rows_decimation
 from ilic_cli.lsq import LSResult, SigmaConvention, evaluate, finite_or_none, pinv, solve
 from ilic_cli.regressor import Kinematics, Model
 
@@ -241,14 +242,13 @@ def valid_rows(valid: np.ndarray, r: int) -> np.ndarray:
     """
     valid = np.asarray(valid, dtype=bool)
     n = valid.shape[-1]
-    bad = (~valid).astype(np.int64)
-    # count of invalid samples in [i - (r - 1), i + (r - 1)] by a running sum
-    width = r - 1
-    csum = np.concatenate([np.zeros(valid.shape[:-1] + (1,), dtype=np.int64), np.cumsum(bad, axis=-1)], axis=-1)
+    # count of invalid samples in [i - (r - 1), i + (r - 1)] by a running sum (4 bytes a sample up to 2^31 samples)
+    csum = np.cumsum(~valid, axis=-1, dtype=np.int32 if n < 2**31 else np.int64)
     idx = kept_indices(n, r)
-    hi = np.minimum(idx + width + 1, n)
-    lo = np.maximum(idx - width, 0)
-    return (np.take(csum, hi, axis=-1) - np.take(csum, lo, axis=-1)) == 0
+    hi = np.minimum(idx + r, n)
+    lo = np.maximum(idx - (r - 1), 0)
+    before = np.where(lo > 0, np.take(csum, np.maximum(lo - 1, 0), axis=-1), 0)  # invalid samples before lo
+    return (np.take(csum, hi - 1, axis=-1) - before) == 0
 
 
 def held(data: IDIMData, model: Model, shift_s: float) -> IDIMData:
@@ -326,35 +326,62 @@ def lsq_rows(
         touches an invalid sample are dropped (:func:`valid_rows`). ``None``
         (or all True) keeps every row.
     """
-    dt = 1.0 / fs_hz
     settings = settings.at_rate(fs_hz)
+    qf, W, y, rows = _system(t, q, tau, fs_hz, model, settings, valid, extra=extra)
+    dt = 1.0 / fs_hz
+    qd = derivative(qf, dt)
+    qdd = derivative(qd, dt)
+    s = slice(settings.trim, None)
+    kin = Kinematics(qd=qd[s], qdd=qdd[s], q=qf[s], t=np.asarray(t, dtype=np.float64)[s], extra=_trimmed(extra, s))
+    return IDIMData(kin=kin, tau=np.asarray(tau, dtype=np.float64)[s], W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
+
+
+def _trimmed(extra: dict[str, np.ndarray] | None, s: slice) -> dict[str, np.ndarray]:
+    return {k: np.asarray(v, dtype=np.float64)[s] for k, v in (extra or {}).items()}
+
+
+def _system(
+    t: np.ndarray,
+    q: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    model: Model,
+    settings: LSSettings,
+    valid: np.ndarray | None,
+    shift_s: float = 0.0,
+    extra: dict[str, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """``(qf, W, y, rows)`` of :func:`lsq_rows` (``settings`` at the log's rate; ``qf`` the filtered position, untrimmed).
+
+    Each column is built, decimated and let go in turn from kinematics differentiated for it alone
+    (:class:`ilic_cli.estimators.columns.Derived`): beside the log, the filtered position and at most two more full-rate arrays live at once.
+    ``shift_s``: the columns evaluated that much later (:func:`held`'s, bit for bit).
+    """
     if len(q) < min_samples(settings):
         raise ValueError(f"too few samples ({len(q)}) for IDIM-LS with trim {settings.trim} and decimation {settings.decimation}")
-    qf = butter_lowpass_zero_phase(np.asarray(q, dtype=np.float64), settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab)
-    qd = central_difference(qf, dt)
-    qdd = central_difference(qd, dt)
     s = slice(settings.trim, None)
-    kin = Kinematics(
-        qd=qd[s],
-        qdd=qdd[s],
-        q=qf[s],
-        t=np.asarray(t, dtype=np.float64)[s],
-        extra={k: np.asarray(v, dtype=np.float64)[s] for k, v in (extra or {}).items()},
-    )
-    y_full = np.asarray(tau, dtype=np.float64)[s]
-    # parallel decimation of every column and the force, one column at a time: the full-rate matrix is never held
-    Wy = np.column_stack([_decimate(np.asarray(c, dtype=np.float64), settings, fs_hz) for c in _columns(model, kin, y_full)])
     rows = None
     valid = usable_mask(valid, np.shape(q))
     if valid is not None:
         rows = valid_rows(valid[s], settings.decimation)
-        Wy = Wy[rows]
-        if len(Wy) <= Wy.shape[1]:
+        left = int(np.count_nonzero(rows))
+        if left <= len(model.columns) + 1:
             raise ValueError(
-                f"only {len(Wy)} decimated rows are left once the invalid (saturated) samples are masked; too few for {Wy.shape[1] - 1} parameters"
+                f"only {left} decimated rows are left once the invalid (saturated) samples are masked; too few for {len(model.columns)} parameters"
             )
-    W, y = np.ascontiguousarray(Wy[:, :-1]), np.ascontiguousarray(Wy[:, -1])
-    return IDIMData(kin=kin, tau=y_full, W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
+    y = _decimate(np.asarray(tau, dtype=np.float64)[s], settings, fs_hz)
+    qf = butter_lowpass_zero_phase(np.asarray(q, dtype=np.float64), settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab)
+    tt = np.asarray(t, dtype=np.float64)[s]
+    extra_s = _trimmed(extra, s)
+    columns = []
+    for c in model.columns:  # the parallel decimation, one column at a time: the full-rate matrix is never held
+        col = np.broadcast_to(c.build(Derived(qf, 1.0 / fs_hz, settings.trim, tt, shift_s, extra_s)), tt.shape)
+        columns.append(_decimate(np.asarray(col, dtype=np.float64), settings, fs_hz))
+        del col
+    Wy = np.column_stack([*columns, y])
+    if rows is not None:
+        Wy = Wy[rows]
+    return qf, np.ascontiguousarray(Wy[:, :-1]), np.ascontiguousarray(Wy[:, -1]), rows
 
 
 def _columns(model: Model, kin: Kinematics, *more: np.ndarray) -> Iterator[np.ndarray]:
@@ -392,9 +419,9 @@ def _systems(
     for a, b in spans:
         if b - a < min_samples(settings) and len(spans) > 1:
             continue
-        data = held(lsq_rows(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, valid=None if valid is None else valid[a:b]), model, hold_s)
-        kept = np.ones(len(kept_indices(b - a - settings.trim, settings.decimation)), dtype=bool) if data.rows is None else data.rows
-        parts.append((data.W, data.y, data.t_dec, kept))
+        _, W, y, rows = _system(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, None if valid is None else valid[a:b], hold_s)
+        td = t[a:b][settings.trim :][kept_indices(b - a - settings.trim, settings.decimation)]
+        parts.append((W, y, td if rows is None else td[rows], np.ones(len(td), dtype=bool) if rows is None else rows))
     if not parts:
         raise ValueError(f"no contiguous part of the log has the {min_samples(settings)} samples IDIM-LS needs")
     W, y, td, kept = (np.concatenate(x) for x in zip(*parts, strict=True))

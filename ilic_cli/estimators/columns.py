@@ -1,0 +1,56 @@
+"""Regressor columns at the full rate built one at a time (issue 33: IDIM-LS on a 1-hour log in twice its columns).
+
+:func:`ilic_cli.idim_ls.lsq_rows` decimates each column as soon as it is built; :class:`Derived` gives each column the
+kinematics it reads, differentiated from the filtered position when first read and let go with the column, so the
+velocity, the acceleration and the column never all live at once beside the log. :func:`derivative` is
+:func:`ilic_cli.filtering.central_difference` without its temporaries, bit for bit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ilic_cli.regressor import Kinematics
+
+
+def derivative(x: np.ndarray, dt_s: float) -> np.ndarray:
+    """:func:`ilic_cli.filtering.central_difference` of a 1-D ``x`` (the same bits) with no temporary beside the result."""
+    out = np.empty(np.shape(x), dtype=np.float64)
+    np.subtract(x[2:], x[:-2], out=out[1:-1])
+    np.divide(out[1:-1], 2.0 * dt_s, out=out[1:-1])
+    out[0] = (x[1] - x[0]) / dt_s
+    out[-1] = (x[-1] - x[-2]) / dt_s
+    return out
+
+
+class Derived(Kinematics):
+    """The kinematics one column is built from: ``q``, ``qd``, ``qdd`` trimmed from the filtered position ``qf`` when
+    the column first reads them (``shift_s``: interpolated that much later, as :func:`ilic_cli.idim_ls.held`), let go with the column."""
+
+    def __init__(self, qf: np.ndarray, dt_s: float, trim: int, t: np.ndarray, shift_s: float, extra: dict[str, np.ndarray]) -> None:
+        later = shift_s != 0.0
+        fields = {"t": t, "sign_qd": None, "extra": {k: np.interp(t + shift_s, t, v) for k, v in extra.items()} if later else extra}
+        for name, value in {**fields, "_source": (qf, dt_s, trim, t, shift_s), "_memo": {}}.items():
+            object.__setattr__(self, name, value)
+
+    def _signal(self, order: int) -> np.ndarray:
+        memo: dict[int, np.ndarray] = self.__dict__["_memo"]
+        if order not in memo:
+            x, dt_s, trim, t, shift_s = self.__dict__["_source"]
+            for _ in range(order):
+                x = derivative(x, dt_s)
+            x = x[trim:]
+            memo[order] = x if shift_s == 0.0 else np.interp(t + shift_s, t, x)
+        return memo[order]
+
+    @property
+    def q(self) -> np.ndarray:
+        return self._signal(0)
+
+    @property
+    def qd(self) -> np.ndarray:
+        return self._signal(1)
+
+    @property
+    def qdd(self) -> np.ndarray:
+        return self._signal(2)
