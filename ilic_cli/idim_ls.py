@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.estimators.columns import Derived, derivative
-from ilic_cli.filtering import ROWS_BAND_HZ, butter_lowpass_zero_phase, decimate_matlab, kept_indices, lowpass_decimate, rows_decimation
+from ilic_cli.estimators.columns import Derived
+from ilic_cli.filtering import ROWS_BAND_HZ, butter_lowpass_zero_phase, central_difference, decimate_matlab, kept_indices, lowpass_decimate, rows_decimation
 from ilic_cli.lsq import LSResult, SigmaConvention, evaluate, finite_or_none, pinv, solve
 from ilic_cli.regressor import Kinematics, Model
 
@@ -329,8 +329,8 @@ def lsq_rows(
     settings = settings.at_rate(fs_hz)
     qf, W, y, rows = _system(t, q, tau, fs_hz, model, settings, valid, extra=extra)
     dt = 1.0 / fs_hz
-    qd = derivative(qf, dt)
-    qdd = derivative(qd, dt)
+    qd = central_difference(qf, dt)
+    qdd = central_difference(qd, dt)
     s = slice(settings.trim, None)
     kin = Kinematics(qd=qd[s], qdd=qdd[s], q=qf[s], t=np.asarray(t, dtype=np.float64)[s], extra=_trimmed(extra, s))
     return IDIMData(kin=kin, tau=np.asarray(tau, dtype=np.float64)[s], W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)

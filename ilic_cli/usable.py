@@ -14,8 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.estimators.columns import derivative
-from ilic_cli.filtering import butter_lowpass_zero_phase
+from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
 from ilic_cli.idim_ls import LSSettings, min_samples, valid_rows
 from ilic_cli.prepare import PreparedLog, RestSamples
 
@@ -54,7 +53,7 @@ def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(
     for a, b in segments or ((0, len(q)),):
         if b - a < min_samples(settings):
             continue
-        speed = derivative(butter_lowpass_zero_phase(q[a:b], settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab), 1.0 / fs_hz)
+        speed = central_difference(butter_lowpass_zero_phase(q[a:b], settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab), 1.0 / fs_hz)
         np.abs(speed, out=speed)  # in place: the filtered position is let go, one array of the part's length lives on
         below = STANDSTILL_FRACTION * float(np.percentile(speed[settings.trim :], 99.5))
         threshold = max(threshold, below)

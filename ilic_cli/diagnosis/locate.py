@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.stats import chi2_sf, effective_size, f_sf, lag1_autocorrelation, normal_sf
-from ilic_cli.filtering import local_maxima, welch_psd
 from ilic_cli.lsq import lstsq
+from ilic_cli.spectra import local_maxima, welch_psd
 
 
 @dataclass(frozen=True)

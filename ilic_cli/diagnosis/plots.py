@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ilic_cli.diagnosis.core import Diagnosis
-from ilic_cli.filtering import welch_psd
 from ilic_cli.io.atomic import atomic_path
 from ilic_cli.plotting import edge_rows, mark_edges, scale_y
+from ilic_cli.spectra import welch_psd
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -2,25 +2,15 @@
 
 :func:`ilic_cli.idim_ls.lsq_rows` decimates each column as soon as it is built; :class:`Derived` gives each column the
 kinematics it reads, differentiated from the filtered position when first read and let go with the column, so the
-velocity, the acceleration and the column never all live at once beside the log. :func:`derivative` is
-:func:`ilic_cli.filtering.central_difference` without its temporaries, bit for bit.
+velocity, the acceleration and the column never all live at once beside the log.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ilic_cli.filtering import central_difference
 from ilic_cli.regressor import Kinematics
-
-
-def derivative(x: np.ndarray, dt_s: float) -> np.ndarray:
-    """:func:`ilic_cli.filtering.central_difference` of a 1-D ``x`` (the same bits) with no temporary beside the result."""
-    out = np.empty(np.shape(x), dtype=np.float64)
-    np.subtract(x[2:], x[:-2], out=out[1:-1])
-    np.divide(out[1:-1], 2.0 * dt_s, out=out[1:-1])
-    out[0] = (x[1] - x[0]) / dt_s
-    out[-1] = (x[-1] - x[-2]) / dt_s
-    return out
 
 
 class Derived(Kinematics):
@@ -38,7 +28,7 @@ class Derived(Kinematics):
         if order not in memo:
             x, dt_s, trim, t, shift_s = self.__dict__["_source"]
             for _ in range(order):
-                x = derivative(x, dt_s)
+                x = central_difference(x, dt_s)
             x = x[trim:]
             memo[order] = x if shift_s == 0.0 else np.interp(t + shift_s, t, x)
         return memo[order]

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from ilic_cli import filtering
+from ilic_cli import filtering, spectra
 from ilic_cli.filtering import (
     butter_lowpass_zero_phase,
     central_difference,
@@ -237,7 +237,7 @@ def test_cutoff_error_names_the_nyquist_frequency() -> None:
 @pytest.mark.parametrize(("n", "nperseg"), [(64, 64), (777, 777), (1000, 255), (2456, 2048), (5000, 256)])
 def test_welch_is_scipys(n: int, nperseg: int) -> None:
     x = np.cumsum(np.random.default_rng(n).standard_normal(n)) + np.random.default_rng(n + 1).standard_normal(n)
-    f, P = filtering.welch_psd(x - x.mean(), 200.0, nperseg)
+    f, P = spectra.welch_psd(x - x.mean(), 200.0, nperseg)
     want_f, want_P = signal.welch(x - x.mean(), fs=200.0, nperseg=nperseg)
     np.testing.assert_array_equal(f, want_f)
     assert np.max(np.abs(P - want_P)) <= 1e-13 * np.max(want_P)
@@ -247,4 +247,4 @@ def test_local_maxima_are_find_peaks() -> None:
     rng = np.random.default_rng(7)
     for _ in range(500):  # small integers: many flat tops and ties at the ends
         x = rng.integers(0, 4, size=int(rng.integers(0, 30))).astype(float)
-        np.testing.assert_array_equal(filtering.local_maxima(x), signal.find_peaks(x)[0])
+        np.testing.assert_array_equal(spectra.local_maxima(x), signal.find_peaks(x)[0])
