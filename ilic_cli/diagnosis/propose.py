@@ -14,11 +14,12 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.baseline import held, hold_s
+from ilic_cli.diagnosis.drift import detect_drift, drift_columns
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.strategies import strategy_of
-from ilic_cli.diagnosis.system import Step, moving_rows
+from ilic_cli.diagnosis.system import Step, moving_rows, system
 from ilic_cli.effects import EFFECTS
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
@@ -120,10 +121,28 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
     sel = replace(settings.select, effects=tuple(e for e in settings.select.effects if e not in EFFECTS or joint in EFFECTS[e].joints))
     if known:
         sel = replace(sel, effects=tuple(e for e in sel.effects if e not in {s.effect.id for s in known}))
-    selection = forward_select(data, base, fs, sel, validation=vdata, known=known)
     rows = moving_rows(data)
+    given = drift_given(data, base, known, rows, float(log.t[0]), settings)
+    selection = forward_select(data, base, fs, sel, validation=vdata, known=known, given=given)
     hold = hold_s(tau_sensor(log), fs)
     return Proposal(prepared, log, data, base, known, selection, sel, rows, hold, joint, validate, vprepared, vdata, warnings)
+
+
+def drift_given(data: IDIMData, base: Model, known: list[Step], rows: np.ndarray, origin: float, settings: DiagnosisSettings) -> np.ndarray:
+    """The trend columns of a friction drift found on the rigid model (``base + known``), for the catalogue's selection to
+    fit and test every candidate with (:func:`~ilic_cli.diagnosis.select.forward_select`'s ``given``); no column without one.
+
+    A second pass of each given the other: the drift is sought first on the rigid model, the catalogue's effects
+    then with its columns in the model, and the drift sought again on the model of the effects kept (the finding,
+    :func:`ilic_cli.diagnosis.drift.detect_drift` in :mod:`ilic_cli.diagnosis.core`). A drift tested after the
+    catalogue only (before) left its trend in the residual of every candidate's held-out blocks over time: gravity
+    beside a warm-up of ``Fv`` passed its F-test but not its held-out test (corpus s731, s732), and the drift then
+    took gravity's share: named linear, and in ``Fc``, for an exponential of ``Fv``.
+    """
+    W, y, names = system(data, base, known, rows)
+    t = data.t_dec[rows]
+    found = detect_drift(t, W, y, names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change)
+    return drift_columns(t, W, names, found.findings, origin)
 
 
 def closed_loop_proposal(

@@ -209,6 +209,7 @@ def forward_select(
     *,
     validation: IDIMData | None = None,
     known: list[Step] | None = None,
+    given: np.ndarray | None = None,
 ) -> SelectionResult:
     """Add catalogue effects to ``base`` one at a time while they are significant and predict better.
 
@@ -227,12 +228,19 @@ def forward_select(
         error of the fitted model there.
     known : list of Step, optional
         Effects already in the model (from a model file): kept, not tried.
+    given : ndarray, optional
+        Columns on the selection's rows already in the model that are no catalogue effect's (a friction drift's trend
+        columns, :func:`ilic_cli.diagnosis.propose.drift_given`): every candidate is fitted and tested, and held out,
+        with them. A drift left out of the model moves the residual over time, so the blocked folds over time see
+        it in every candidate's held-out error (corpus s731, s732: gravity's F-test passed, its held-out test did not).
     """
     rows = moving_rows(data)
     searcher = Searcher(data, fs_hz, rows)
     out = SelectionResult(rows=rows)
     known = list(known or [])
     W, y, names = system(data, base, known, rows)
+    if given is not None and given.shape[1]:
+        W = np.c_[W, given]
     folds = blocked_folds(len(y), settings.folds, settings.guard)
     while len(out.steps) < settings.max_effects:
         in_model = {s.effect.id for s in [*known, *out.steps]}
