@@ -135,9 +135,9 @@ def drift_given(data: IDIMData, base: Model, known: list[Step], rows: np.ndarray
     A second pass of each given the other: the drift is sought first on the rigid model, the catalogue's effects
     then with its columns in the model, and the drift sought again on the model of the effects kept (the finding,
     :func:`ilic_cli.diagnosis.drift.detect_drift` in :mod:`ilic_cli.diagnosis.core`). A drift tested after the
-    catalogue only (before) left its trend in the residual of every candidate's held-out blocks over time: gravity
-    beside a warm-up of ``Fv`` passed its F-test but not its held-out test (corpus s731, s732), and the drift then
-    took gravity's share: named linear, and in ``Fc``, for an exponential of ``Fv``.
+    catalogue only (before) left its trend in the residual of every candidate's held-out blocks over time: beside a
+    warm-up, gravity and a spring looked alike (corpus s730: now gravity alone, MX within 2.4 %), or gravity passed its
+    F-test but not its held-out test (s731: now proposed; the replay, whose plant has no drift, still rejects it).
     """
     W, y, names = system(data, base, known, rows)
     t = data.t_dec[rows]
