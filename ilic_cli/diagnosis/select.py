@@ -335,22 +335,17 @@ def _heldout_judged(
     return ev.decided(outcome, heldout_before_pct=before, heldout_after_pct=after, heldout_p_value=p_cv, validation_before_pct=vb, validation_after_pct=va)
 
 
-PLACED_ON_THE_WHOLE_LOG = ("payload_change",)
-"""Effects whose searched value is a time of the log (a payload's change time): the held-out check keeps the whole log's value
-and refits the rest on each fold's training blocks. A fold whose held-out block holds the change cannot place it from its
-training blocks: every time in the gap fits them alike, and the search takes whatever the noise favours, outside the block
-(corpus s402, the change at 4.0 s: the fold's search took 6.53 s, by 1 % of its training RSS; that block's held-out error
-doubled and hid the other four's fall from 2.6 % to 0.8 %, p = 0.50)."""
-
-
 def _heldout_candidate(
     searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, folds: list[tuple[np.ndarray, np.ndarray]], value: Any = None
 ) -> np.ndarray:
     """Held-out errors of the model with ``eff``, its nonlinear parameter searched on each training set (``value``, the whole
-    log's, for an effect of :data:`PLACED_ON_THE_WHOLE_LOG`)."""
+    log's, for a time of the log: :attr:`ilic_cli.effects.Scan.of_the_whole_log`). A fold whose held-out block holds a
+    payload's change cannot place it from its training blocks: every time in the gap fits them alike (corpus s402, the change
+    at 4.0 s: the fold's search took 6.53 s, by 1 % of its training RSS; that block's held-out error doubled and hid the
+    other four's fall from 2.6 % to 0.8 %, p = 0.50)."""
     out = np.full(len(y), np.nan)
     for train, test in folds:
-        if eff.nonlinear and eff.id in PLACED_ON_THE_WHOLE_LOG and value is not None:
+        if eff.scan is not None and eff.scan.of_the_whole_log and value is not None:
             x = searcher.exact(eff, value)
         elif eff.nonlinear:
             v = searcher.scan(eff, W, y, rows=train)

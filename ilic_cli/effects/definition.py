@@ -67,6 +67,11 @@ class Scan:
         A second nonlinear parameter ``(name, unit, low, high, default)``,
         refined by a 1-D search once the first is found (the value is then
         the pair ``(first, second)``).
+    of_the_whole_log : bool
+        The value is a time of the log (a payload's change time): the
+        diagnosis's held-out check keeps the whole log's value and refits the
+        rest on each fold's training blocks, since a fold whose held-out
+        block holds that time cannot place it from its training blocks.
     """
 
     name: str
@@ -74,6 +79,7 @@ class Scan:
     grid: Callable[[Kinematics, float], np.ndarray]
     log: bool = True
     secondary: tuple[str, str, float, float, float] | None = None
+    of_the_whole_log: bool = False
 
 
 @dataclass(frozen=True)

@@ -211,7 +211,7 @@ PAYLOAD_CHANGE = Effect(
     signature_kinds=("drift", "time"),
     columns=(col("dM", "mass added at the change time", "kg"),),
     build=lambda kin, tc, fs_hz: np.c_[kin.qdd * (kin.t >= tc)],
-    scan=Scan("t_change", "s", change_time_grid, log=False),
+    scan=Scan("t_change", "s", change_time_grid, log=False, of_the_whole_log=True),
     sentence=lambda p: f"{p['dM'].value:+.3g} kg from t = {p['t_change'].value:.3g} s",
 )
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ilic_cli.diagnosis.select import PLACED_ON_THE_WHOLE_LOG, Searcher, SelectSettings, _heldout_candidate, forward_select, moving_rows, system
+from ilic_cli.diagnosis.select import Searcher, SelectSettings, _heldout_candidate, forward_select, moving_rows, system
 from ilic_cli.diagnosis.stats import blocked_folds, heldout_errors
 from ilic_cli.effects import EFFECTS
 from ilic_cli.idim_ls import lsq_rows
@@ -71,4 +71,4 @@ def test_the_change_is_judged_held_out_at_the_whole_logs_time(seed: int) -> None
     after = _heldout_candidate(Searcher(data, FS, moving_rows(data)), EFFECTS["payload_change"], W0, y0, folds, ev.value)
     for _, test in folds:  # every block, the one holding the change too
         assert np.mean(after[test] ** 2) < np.mean(before[test] ** 2)
-    assert "payload_change" in PLACED_ON_THE_WHOLE_LOG
+    assert EFFECTS["payload_change"].scan is not None and EFFECTS["payload_change"].scan.of_the_whole_log
