@@ -20,12 +20,20 @@ import numpy as np
 
 from ilic_cli.errors import LogError
 from ilic_cli.runlog import Controller, Provenance
+from ilic_cli.timebase import gap_starts, nominal_rate_hz, sampling_kind
 
 JOINT_TYPES = ("revolute", "prismatic")
 UNITS = {"revolute": ("rad", "N·m"), "prismatic": ("m", "N")}
 """REP 103 units of a joint type: (position, effort)."""
 
 REFERENCES = ("q_ref", "qd_ref", "qdd_ref")
+
+
+CONTIGUOUS_RULE = (
+    "an arm's log is identified and replayed as one run at a fixed rate (stamp jitter of a fixed-rate loop is kept; a step "
+    "above 1.5 periods is a gap): cut it at its gaps and give each part"
+)
+"""The rule :meth:`JointLog.contiguous` states when it refuses a log."""
 
 
 @dataclass(frozen=True)
@@ -72,6 +80,22 @@ class JointLog:
     @property
     def n(self) -> int:
         return len(self.joints)
+
+    def contiguous(self, where: Any = None) -> JointLog:
+        """This log, if it is one run at a fixed rate (:data:`CONTIGUOUS_RULE`); else a :class:`LogError` that says where it is not.
+
+        An arm's identification and replay filter and difference every joint over the whole record: across a gap or on
+        irregular stamps that would be a wrong result, so such a log is refused (the one-joint chain splits it instead).
+        """
+        t = np.asarray(self.t, dtype=np.float64)
+        rate = nominal_rate_hz(t)
+        if rate is None or sampling_kind(t) == "irregular":
+            raise LogError(where, f"irregular time stamps: {CONTIGUOUS_RULE}")
+        gaps = gap_starts(t, rate)
+        if len(gaps):
+            i = int(gaps[0])
+            raise LogError(where, f"{len(gaps)} gap(s), the first of {t[i + 1] - t[i]:.4g} s at t = {t[i]:.6g} s: {CONTIGUOUS_RULE}")
+        return self
 
     @property
     def fs_hz(self) -> float:

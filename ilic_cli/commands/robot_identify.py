@@ -119,8 +119,8 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
 
         refuse_out(out_dir, (log_path, urdf, *validate), o.get("plot_format", "png"))
     robot = load_robot(urdf)
-    log = read_log(log_path, robot, joints)
-    other = read_log(validate[0], robot, joints) if validate else None
+    log = read_log(log_path, robot, joints).contiguous(log_path)
+    other = read_log(validate[0], robot, joints).contiguous(validate[0]) if validate else None
     controller = recorded_controller(log, o, "IDIM-IV and DIDIM replay") if {"iv", "didim"} & set(methods) else None
     from ilic_cli.robot.base import base_parameters  # deferred: scipy.linalg and numba only for an arm
 

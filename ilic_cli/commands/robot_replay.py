@@ -73,7 +73,7 @@ def replay(log_path: Path, urdf: Path, joints: list[str] | None, o: Mapping[str,
 
     base = base_parameters(robot)
     beta = model_beta(o["model_file"], robot, base)
-    log = read_log(log_path, robot, joints)
+    log = read_log(log_path, robot, joints).contiguous(log_path)
     controller = recorded_controller(log, o, "a replay runs")
     from ilic_cli.io import jointlogs  # deferred: the writers only for an arm's log
     from ilic_cli.robot.dynamics import kept_vector  # deferred: numba only for an arm

@@ -176,3 +176,39 @@ def test_model_file_round_trip_through_replay_and_simulate(tmp_path: Path, capsy
         assert "model.json: made for the URDF" in _error(capsys, *args, "--model", str(out / "model.json"))
     assert not (tmp_path / "x.csv").exists() and not (tmp_path / "y.csv").exists()
     assert "not an arm's model file" in _error(capsys, "replay", str(first), "--urdf", ARM2, "--model", str(out / "report.json"), "-o", str(tmp_path / "z.csv"))
+
+
+def test_a_log_with_a_gap_or_irregular_stamps_is_refused_and_a_jittered_one_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], sims: tuple[Path, Path, str]
+) -> None:
+    """An arm's identification and replay filter over the whole record: a gap is refused in one line (it gave mx_shoulderR
+    +21 % with exit 0), a fixed-rate loop's stamp jitter is kept (the same estimates within 0.1 %)."""
+    from dataclasses import replace
+
+    from ilic_cli.io import jointlogs
+
+    first, _, _ = sims
+    log = jointlogs.read(first)
+    keep = np.r_[0:12000, 12200 : len(log.t)]
+    gapped = replace(log, t=log.t[keep], q=log.q[:, keep], tau=log.tau[:, keep], **{k: getattr(log, k)[:, keep] for k in ("q_ref", "qd_ref", "qdd_ref")})
+    jointlogs.write(gapped, tmp_path / "gap.csv")
+    err = _error(capsys, "identify", str(tmp_path / "gap.csv"), "--urdf", ARM2)
+    assert "1 gap(s), the first of 0.201 s at t = 11.999 s" in err and "one run at a fixed rate" in err
+    model = tmp_path / "model"
+    assert run(capsys, "identify", str(first), "--urdf", ARM2, "--method", "ls", "--out", str(model))[0] == 0
+    replay = ("replay", str(tmp_path / "gap.csv"), "--urdf", ARM2, "--model", str(model / "model.json"), "-o", str(tmp_path / "r.csv"))
+    assert "1 gap(s)" in _error(capsys, *replay)
+    assert not (tmp_path / "r.csv").exists()
+    irregular = replace(log, t=np.cumsum(np.random.default_rng(2).uniform(0.2e-3, 1.8e-3, len(log.t))))
+    jointlogs.write(irregular, tmp_path / "irregular.csv")
+    assert "irregular time stamps" in _error(capsys, "identify", str(tmp_path / "irregular.csv"), "--urdf", ARM2)
+    jittered = replace(log, t=log.t + np.random.default_rng(1).normal(0.0, 2e-5, len(log.t)))
+    jointlogs.write(jittered, tmp_path / "jitter.csv")
+    values = []
+    for path in (first, tmp_path / "jitter.csv"):
+        code, out, _ = run(capsys, "identify", str(path), "--urdf", ARM2, "--method", "ls", "--format", "json")
+        assert code == 0
+        values.append({n: p["value"] for n, p in json.loads(out)["methods"]["IDIM-WLS"]["parameters"].items()})
+    for name, value in values[0].items():
+        if not name.startswith("offset"):
+            assert values[1][name] == pytest.approx(value, rel=1e-3), name
