@@ -99,8 +99,10 @@ class JointLog:
 
     @property
     def fs_hz(self) -> float:
-        """The sample rate from the median period."""
-        return float(1.0 / np.median(np.diff(self.t)))
+        """The log's nominal sample rate (Hz): the time base's one definition (:func:`ilic_cli.timebase.nominal_rate_hz`), as for a one-joint log."""
+        rate = nominal_rate_hz(np.asarray(self.t, dtype=np.float64))
+        assert rate is not None, "the constructor requires two or more increasing stamps"
+        return rate
 
     @property
     def duration_s(self) -> float:

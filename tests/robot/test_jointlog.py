@@ -99,3 +99,14 @@ def test_bad_logs_are_one_line_errors(tmp_path: Path) -> None:
         JointLog(t=np.arange(3.0), joints=("a",), kinds=("revolute",), q=np.zeros((1, 2)), tau=np.zeros((1, 3)))
     with pytest.raises(LogError, match="joint types"):
         JointLog(t=np.arange(3.0), joints=("a",), kinds=("spherical",), q=np.zeros((1, 3)), tau=np.zeros((1, 3)))
+
+
+def test_an_arms_sample_rate_is_the_time_bases_one_definition() -> None:
+    """A fixed-rate loop whose stamps jitter (steps 0.8, 0.8, 1.4 ms): the nominal rate is 1 kHz (the mean step), as
+    :func:`ilic_cli.timebase.nominal_rate_hz` gives a one-joint log; a median period would say 1250 Hz."""
+    from ilic_cli.timebase import nominal_rate_hz
+
+    steps = np.tile([0.8e-3, 0.8e-3, 1.4e-3], 400)
+    t = np.concatenate([[0.0], np.cumsum(steps)])
+    log = JointLog(t=t, joints=("a",), kinds=("revolute",), q=np.zeros((1, len(t))), tau=np.zeros((1, len(t))))
+    assert log.fs_hz == nominal_rate_hz(t) == 1000.0
