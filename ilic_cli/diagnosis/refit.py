@@ -32,6 +32,7 @@ from ilic_cli.diagnosis.model_values import model_parameters
 from ilic_cli.diagnosis.oe_fit import OutputErrorFit, output_error_gauss_newton
 from ilic_cli.diagnosis.oe_fit import output_error_refit as _output_error_refit
 from ilic_cli.diagnosis.propose import Proposal
+from ilic_cli.diagnosis.search import searched_at_log_rate
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.stats import gls_covariance
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
@@ -144,7 +145,9 @@ def refit(
     if not (kept and replayed):
         return None
     data, base, rows = prop.data, prop.base, prop.rows
-    grids = {s.effect.id: s.effect.scan.grid(data.kin, data.fs_hz) for s in kept if s.effect.scan is not None}
+    # a value searched at the log's rate is not searched again on the closed-loop output error, which is compared in the rows'
+    # band: that band does not see it (a 500 Hz log's 30 Hz resonance); its linear coefficients are refitted
+    grids = {s.effect.id: s.effect.scan.grid(data.kin, data.fs_hz) for s in kept if s.effect.scan is not None and not searched_at_log_rate(s.effect, data)}
     inverse_fit: InverseFit | None = lambda s: _inverse_fit(data, base, s, rows)
     columns, theta0 = kept, final.res.theta
     if held:
