@@ -95,6 +95,8 @@ class RefitOutcome(Enum):
     """Stribeck friction found at the dwells, estimated on the open-loop segments (:mod:`ilic_cli.diagnosis.segments`)."""
     SEGMENTS_REFUTED = "segments refuted"
     """The open-loop segments' fit refutes the Stribeck friction found at the dwells."""
+    DRIFT = "drift"
+    """A friction drift was found on the rigid model: the closed-loop refit's plant has none, and the inverse model's estimates stand."""
 
     @property
     def quotes_output_error(self) -> bool:
