@@ -96,7 +96,7 @@ class RefitOutcome(Enum):
     SEGMENTS_REFUTED = "segments refuted"
     """The open-loop segments' fit refutes the Stribeck friction found at the dwells."""
     DRIFT = "drift"
-    """A friction drift was found on the rigid model: the closed-loop refit's plant has none, and the inverse model's estimates stand."""
+    """A friction drift given to the decisions is found on the final model too: the refit's plant has none; the inverse model's estimates stand."""
 
     @property
     def quotes_output_error(self) -> bool:
