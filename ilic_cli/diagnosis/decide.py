@@ -120,7 +120,7 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: R
                 settings.replay_noise,
             )
         if settings.replay_noise:
-            sensor = decision_sensor(log, settings.ls, data, base, known, rows, plant_of)
+            sensor = decision_sensor(log, settings.ls, data, base, known, rows, plant_of, prop.drift)
         kept, judged = replay_decide(
             log,
             data,
@@ -137,6 +137,7 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: R
             sensor=sensor,
             min_delay_periods=settings.min_delay_periods,
             fold_xatol_steps=settings.fold_xatol_steps,
+            drift=prop.drift,
         )
         verdicts += judged
         kept = kept[len(known) :]

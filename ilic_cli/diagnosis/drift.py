@@ -307,6 +307,34 @@ def drift_columns(t: np.ndarray, W: np.ndarray, names: tuple[str, ...], trends: 
     return np.column_stack(cols) if cols else np.zeros((len(t), 0))
 
 
+@dataclass(frozen=True)
+class GivenDrift:
+    """A friction drift found on the rigid model and given to every later fit (:func:`ilic_cli.diagnosis.propose.drift_given`): its
+    trends and their origin, the log's first sample."""
+
+    trends: list[Trend]
+    origin: float
+
+    def columns(self, t: np.ndarray, W: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+        """The trends' columns on the rows of ``W`` at times ``t`` (:func:`drift_columns`)."""
+        return drift_columns(t, W, names, self.trends, self.origin)
+
+    def plant(self, rigid: dict[str, float], effects: dict[str, Any], coefficients: np.ndarray) -> tuple[dict[str, float], dict[str, Any]]:
+        """The plant of a fit with the trends' columns (their ``coefficients``): each drifting coefficient at the log's start and the
+        ``friction_drift`` effect (as :meth:`DriftResult.plant_effect`): an exponential's level ``a + b exp(-(t - t0)/tau)`` starts
+        at ``a + b`` and changes by ``-b``; a line's starts at ``a`` at the rate of its coefficient."""
+        rigid, drift = dict(rigid), {"dFv": 0.0, "dFc": 0.0, "tau": 1.0, "Fv_rate": 0.0, "Fc_rate": 0.0}
+        for tr, c in zip(self.trends, coefficients, strict=True):
+            kind = "Fv" if tr.parameter.startswith("Fv") else "Fc"
+            if tr.tau is not None:
+                if tr.parameter in rigid:
+                    rigid[tr.parameter] += float(c)
+                drift[f"d{kind}"], drift["tau"] = -float(c), tr.tau
+            else:
+                drift[f"{kind}_rate"] = float(c)
+        return rigid, {**effects, "friction_drift": drift}
+
+
 def heldout_check(
     t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], trends: list[Trend], start: float, folds: int | None = None, guard: int | None = None
 ) -> tuple[float, float, float]:

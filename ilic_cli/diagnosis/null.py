@@ -349,8 +349,9 @@ def reproposed(data: IDIMData, base: Model, kept: list[Step], step: Step, rows: 
         return Step(eff, step.value)
     W, y, _ = system(data, base, kept, rows)
     searcher = Searcher(data, data.fs_hz, rows)
-    value = searcher.scan(eff, W, y)
-    value, _ = searcher.refine(eff, W, y, value)
+    at = searcher.log_rate(base, kept, factor=searcher.rate_factor(eff)) if searcher.at_log_rate(eff) else None
+    value = searcher.scan(eff, W, y, at=at)
+    value, _ = searcher.refine(eff, W, y, value, at=at)
     return Step(eff, value)
 
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.baseline import held, hold_s
-from ilic_cli.diagnosis.drift import detect_drift, drift_columns
+from ilic_cli.diagnosis.drift import GivenDrift, detect_drift
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
 from ilic_cli.diagnosis.settings import DiagnosisSettings
@@ -75,6 +75,8 @@ class Proposal:
     vprepared: PreparedLog | None
     vdata: IDIMData | None
     warnings: list[str]
+    drift: GivenDrift | None = None
+    """The friction drift found on the rigid model (:func:`drift_given`), in the selection's model and the replays' plants; ``None``: none."""
 
 
 def prepare_system(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMData:
@@ -122,27 +124,33 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
     if known:
         sel = replace(sel, effects=tuple(e for e in sel.effects if e not in {s.effect.id for s in known}))
     rows = moving_rows(data)
-    given = drift_given(data, base, known, rows, float(log.t[0]), settings)
+    drift = drift_given(data, base, known, rows, float(log.t[0]), settings)
+    given = None
+    if drift is not None:
+        W, _, names = system(data, base, known, rows)
+        given = drift.columns(data.t_dec[rows], W, names)
     selection = forward_select(data, base, fs, sel, validation=vdata, known=known, given=given)
     hold = hold_s(tau_sensor(log), fs)
-    return Proposal(prepared, log, data, base, known, selection, sel, rows, hold, joint, validate, vprepared, vdata, warnings)
+    return Proposal(prepared, log, data, base, known, selection, sel, rows, hold, joint, validate, vprepared, vdata, warnings, drift)
 
 
-def drift_given(data: IDIMData, base: Model, known: list[Step], rows: np.ndarray, origin: float, settings: DiagnosisSettings) -> np.ndarray:
-    """The trend columns of a friction drift found on the rigid model (``base + known``), for the catalogue's selection to
-    fit and test every candidate with (:func:`~ilic_cli.diagnosis.select.forward_select`'s ``given``); no column without one.
+def drift_given(data: IDIMData, base: Model, known: list[Step], rows: np.ndarray, origin: float, settings: DiagnosisSettings) -> GivenDrift | None:
+    """A friction drift found on the rigid model (``base + known``), whose trend columns the catalogue's selection fits and
+    tests every candidate with (:func:`~ilic_cli.diagnosis.select.forward_select`'s ``given``) and whose plant every deciding
+    replay carries (:func:`~ilic_cli.diagnosis.heldout_replay.replay_decide`); ``None`` without one.
 
     A second pass of each given the other: the drift is sought first on the rigid model, the catalogue's effects
     then with its columns in the model, and the drift sought again on the model of the effects kept (the finding,
     :func:`ilic_cli.diagnosis.drift.detect_drift` in :mod:`ilic_cli.diagnosis.core`). A drift tested after the
     catalogue only (before) left its trend in the residual of every candidate's held-out blocks over time: beside a
     warm-up, gravity and a spring looked alike (corpus s730: now gravity alone, MX within 2.4 %), or gravity passed its
-    F-test but not its held-out test (s731: now proposed; the replay, whose plant has no drift, still rejects it).
+    F-test but not its held-out test (s731: now proposed; the replay, whose plant had no drift, rejected it: the replays now
+    carry it, refitted on each fold with the trends' columns).
     """
     W, y, names = system(data, base, known, rows)
     t = data.t_dec[rows]
     found = detect_drift(t, W, y, names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change)
-    return drift_columns(t, W, names, found.findings, origin)
+    return GivenDrift(list(found.findings), origin) if found.findings else None
 
 
 def closed_loop_proposal(

@@ -26,12 +26,14 @@ import numpy as np
 
 from ilic_cli.diagnosis.closed_loop_refit import closed_loop_refit
 from ilic_cli.diagnosis.decide import Decision, without_last
+from ilic_cli.diagnosis.drift import detect_drift
 from ilic_cli.diagnosis.fits import INVERSE_METHOD, METHOD, OE_METHOD, InverseFit, Refit, ValueSearch, plant_problem
 from ilic_cli.diagnosis.heldout_replay import noisy_output_error
 from ilic_cli.diagnosis.model_values import model_parameters
 from ilic_cli.diagnosis.oe_fit import OutputErrorFit, output_error_gauss_newton
 from ilic_cli.diagnosis.oe_fit import output_error_refit as _output_error_refit
 from ilic_cli.diagnosis.propose import Proposal
+from ilic_cli.diagnosis.search import searched_at_log_rate
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.stats import gls_covariance
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
@@ -143,8 +145,17 @@ def refit(
         return found_at_dwells or Refit(False, owner.not_refitted, list(kept), final.names, outcome=RefitOutcome.AT_DWELLS)
     if not (kept and replayed):
         return None
+    if prop.drift is not None and _drift_found(prop, final, settings):
+        # the decisions replayed the drift (heldout_replay.fitted_plant); the refit's plants have none, and its closed-loop fit put the
+        # drift's error over time into the kept effects (corpus s730: gravity's MX 2.4 % -> 15 % off, DIDIM accepted). Only when the
+        # drift is still found on the final model: one the rigid model showed for a missing effect (s451: asymmetric friction) is not
+        # a drift, and the refit still places the current loop's lag (skipped: -0.41 ms kept for 0.227, a false alarm)
+        why = "no closed-loop refit: a friction drift is found, which the refit's plant does not carry; the inverse model's estimates stand"
+        return Refit(False, why, list(kept), final.names, outcome=RefitOutcome.DRIFT)
     data, base, rows = prop.data, prop.base, prop.rows
-    grids = {s.effect.id: s.effect.scan.grid(data.kin, data.fs_hz) for s in kept if s.effect.scan is not None}
+    # a value searched at the log's rate is not searched again on the closed-loop output error, which is compared in the rows'
+    # band: that band does not see it (a 500 Hz log's 30 Hz resonance); its linear coefficients are refitted
+    grids = {s.effect.id: s.effect.scan.grid(data.kin, data.fs_hz) for s in kept if s.effect.scan is not None and not searched_at_log_rate(s.effect, data)}
     inverse_fit: InverseFit | None = lambda s: _inverse_fit(data, base, s, rows)
     columns, theta0 = kept, final.res.theta
     if held:
@@ -178,6 +189,22 @@ def _inverse_fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarra
     """The inverse model's fit of ``base + steps`` on ``rows``: names, estimate, autocorrelation-aware covariance."""
     fit = fit_system(data, base, steps, rows)
     return fit.names, fit.theta, gls_covariance(fit.W, fit.y, fit.theta)
+
+
+def _drift_found(prop: Proposal, final: FinalFit, settings: DiagnosisSettings) -> bool:
+    """Whether a friction drift is found on the final model (as :mod:`ilic_cli.diagnosis.core` then reports it)."""
+    t = prop.data.t_dec[prop.rows]
+    found = detect_drift(
+        t,
+        final.W,
+        final.y,
+        final.names,
+        origin=float(prop.log.t[0]),
+        n_windows=settings.drift_windows,
+        alpha=settings.drift_alpha,
+        min_change=settings.drift_min_change,
+    )
+    return found.found
 
 
 def noise_objection(refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str, Any], before: float, known: list[Step], hold: float) -> str | None:

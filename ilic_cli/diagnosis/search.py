@@ -8,16 +8,18 @@ give the part of the grid the closed loop searches again (the replay per fold, t
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from ilic_cli.diagnosis.stats import batched_rss, lag1_autocorrelation, shifted_rss
-from ilic_cli.diagnosis.system import effect_columns, shifted_force
+from ilic_cli.diagnosis.system import Step, effect_columns, shifted_force
 from ilic_cli.effects import Effect
+from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ls import IDIMData
 from ilic_cli.lsq import lstsq
-from ilic_cli.regressor import Kinematics
+from ilic_cli.regressor import Kinematics, Model
 
 EXACT_GRID_MAX = 64
 """Grids up to this size are scanned with exactly decimated columns; larger
@@ -25,8 +27,49 @@ ones are screened on columns built from the decimated kinematics, and their
 best minima re-evaluated exactly."""
 
 
+def searched_at_log_rate(effect: Effect, data: IDIMData) -> bool:
+    """Whether ``effect``'s value is searched at the log's rate on ``data`` (:attr:`ilic_cli.effects.Scan.at_log_rate`)."""
+    return effect.scan is not None and effect.scan.at_log_rate is not None and effect.scan.at_log_rate(data.kin, data.fs_hz)
+
+
+@dataclass(frozen=True)
+class LogRate:
+    """A model's system at the log's rate (:meth:`Searcher.log_rate`): for each decimated row used, the samples of its
+    decimation span, decimated only by ``factor`` (:func:`log_rate_factor`: the band of the value's grid kept).
+
+    ``W`` is ``(rows, per_row, columns)``, ``y`` ``(rows, per_row)``; ``at`` the index of each in the log decimated by ``factor``.
+    """
+
+    W: np.ndarray
+    y: np.ndarray
+    at: np.ndarray
+    factor: int
+
+    def rows(self, rows: np.ndarray | slice, x: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(W, y)`` on the samples of ``rows`` (of the decimated rows used), ``x`` (``(rows, per_row, m)``) beside ``W``."""
+        W = self.W if x is None else np.concatenate([self.W, x], axis=2)
+        W, y = W[rows], self.y[rows]
+        return W.reshape(-1, W.shape[2]), y.reshape(-1)
+
+
+def log_rate_factor(fs_hz: float, decimation: int, top_hz: float) -> int:
+    """The decimation of a search at the log's rate: the coarsest that divides the rows' ``decimation`` and keeps ``top_hz`` (the top
+    of the value's grid) in its band (``0.8·(fs/2)/factor``, as :func:`ilic_cli.filtering.rows_band_hz`): 5 at 500 Hz for a 40 Hz top.
+
+    The band the search needs and no more: above it the log's rate holds the position noise differentiated twice, which a
+    resonance's column carries into the fit (the corpus's 500 Hz flexibility logs, searched on every sample: damping ratios
+    0.16-0.39 for 0.10-0.15; in the 40 Hz band 0.09-0.17).
+    """
+    r = max(int(decimation), 1)
+    return max(d for d in range(1, r + 1) if r % d == 0 and 0.8 * fs_hz / 2.0 / d >= top_hz * (1.0 - 1e-9))
+
+
 class Searcher:
-    """Scans the nonlinear parameter of effects on one IDIM data set, with cached grid columns."""
+    """Scans the nonlinear parameter of effects on one IDIM data set, with cached grid columns.
+
+    An effect whose value is searched at the log's rate (:attr:`ilic_cli.effects.Scan.at_log_rate`) is scanned and refined
+    on the model's :class:`LogRate` system (``at``); every other on the decimated rows ``(W0, y)``.
+    """
 
     def __init__(self, data: IDIMData, fs_hz: float, rows: np.ndarray) -> None:
         self.data = data
@@ -36,6 +79,66 @@ class Searcher:
         dec = data.decimate
         self.kin_dec = Kinematics(qd=dec(k.qd), qdd=dec(k.qdd), q=None if k.q is None else dec(k.q), t=data.t_dec)
         self._cache: dict[str, tuple[np.ndarray, np.ndarray, bool]] = {}
+        self._rate_cache: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at_log_rate(self, effect: Effect) -> bool:
+        """Whether ``effect``'s value is searched at the log's rate on this log (:attr:`ilic_cli.effects.Scan.at_log_rate`)."""
+        return searched_at_log_rate(effect, self.data)
+
+    def rate_factor(self, effect: Effect) -> int:
+        """The decimation of ``effect``'s search at the log's rate (:func:`log_rate_factor` of its grid's top)."""
+        assert effect.scan is not None
+        return log_rate_factor(self.fs, self.data.settings.decimation, float(effect.scan.grid(self.data.kin, self.fs)[-1]))
+
+    def spans(self, factor: int) -> np.ndarray:
+        """For each decimated row used, its decimation span in the log decimated by ``factor`` (indices, ``(rows, r / factor)``), centred on it."""
+        n, r = len(self.data.kin.qd), max(self.data.settings.decimation, 1)
+        kept = kept_indices(n, r)
+        kept = (kept if self.data.rows is None else kept[self.data.rows])[self.keep]
+        fine = kept_indices(n, factor)
+        m = r // factor
+        pos = (kept - fine[0]) // factor
+        return np.clip(pos[:, None] + np.arange(m)[None, :] - m // 2, 0, len(fine) - 1)
+
+    def decimated(self, x: np.ndarray, factor: int) -> np.ndarray:
+        """Full-rate column(s) ``x`` decimated by ``factor`` as the rows are by theirs (the same filter)."""
+        return replace(self.data, settings=replace(self.data.settings, decimation=factor), rows=None, memo={}).decimate(x)
+
+    def log_rate(self, base: Model, steps: list[Step] | tuple[Step, ...], given: np.ndarray | None = None, factor: int = 1) -> LogRate:
+        """The system of ``base + steps`` at the log's rate, decimated by ``factor``, on the rows' spans (:class:`LogRate`), as
+        :func:`ilic_cli.diagnosis.system.system` builds it on the rows: a shift moves the force, a held level is taken off it;
+        ``given`` columns (on the rows) are interpolated in time onto their spans (a friction drift's slow trends)."""
+        data, k = self.data, self.data.kin
+        t = k.t
+        assert t is not None
+        y = np.asarray(data.tau, dtype=np.float64)
+        cols = [np.asarray(base.matrix(k))]
+        for s in steps:
+            if s.effect.shift:
+                y = np.interp(t + float(s.value or 0.0), t, data.tau)
+        for s in steps:
+            if s.level is not None:
+                y = y - s.effect.matrix(k, s.value, self.fs) @ np.asarray(s.level, dtype=np.float64)
+            elif not s.effect.shift:
+                cols.append(s.effect.matrix(k, s.value, self.fs))
+        at = self.spans(factor)
+        W = self.decimated(np.hstack(cols), factor)[at]
+        if given is not None and given.shape[1]:
+            t_rows, t_at = data.t_dec[self.keep], t[kept_indices(len(t), factor)][at]
+            W = np.concatenate([W, np.stack([np.interp(t_at, t_rows, g) for g in given.T], axis=2)], axis=2)
+        return LogRate(W, self.decimated(y, factor)[at], at, factor)
+
+    def rate_grid(self, effect: Effect) -> tuple[np.ndarray, np.ndarray]:
+        """``(values, X)`` of an effect searched at the log's rate: X is ``(rows, per_row, G, m)``, its columns on the rows' spans."""
+        if effect.id not in self._rate_cache:
+            assert effect.scan is not None
+            values = effect.scan.grid(self.data.kin, self.fs)
+            factor = self.rate_factor(effect)
+            at = self.spans(factor)
+            full = np.concatenate([effect.matrix(self.data.kin, v, self.fs) for v in values], axis=1)
+            X = self.decimated(full, factor)[at]
+            self._rate_cache[effect.id] = (values, X.reshape(*at.shape, len(values), -1))
+        return self._rate_cache[effect.id]
 
     def grid(self, effect: Effect) -> tuple[np.ndarray, np.ndarray, bool]:
         """``(values, X, exact)``: X is ``(n, G, m)`` columns or, for a shift, ``(n, G)`` forces."""
@@ -68,14 +171,31 @@ class Searcher:
         """Decimated columns of an effect without a nonlinear parameter."""
         return effect_columns(self.data, effect)[self.keep]
 
-    def rss(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: Any, rows: np.ndarray | slice = slice(None)) -> float:
+    def fitted(
+        self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: Any, rows: np.ndarray | slice = slice(None), at: LogRate | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The system ``(W, y)`` with ``effect`` at ``value`` on ``rows``: at the log's rate on ``at`` for an effect searched there, else decimated."""
+        rate = self.at_log_rate(effect)
+        assert not rate or at is not None, f"{effect.id} is searched at the log's rate: give its LogRate"
+        if rate and at is not None:
+            assert at.factor == self.rate_factor(effect)
+            return at.rows(rows, self.decimated(effect.matrix(self.data.kin, value, self.fs), at.factor)[at.at])
         x = self.exact(effect, value)
         if effect.shift:
-            return lstsq(W0[rows], x[rows])[1]
-        return lstsq(np.hstack([W0, x])[rows], y[rows])[1]
+            return W0[rows], x[rows]
+        return np.hstack([W0, x])[rows], y[rows]
 
-    def scan(self, effect: Effect, W0: np.ndarray, y: np.ndarray, rows: np.ndarray | slice = slice(None), n_best: int = 3) -> float:
-        """Best grid value of ``effect`` added to ``(W0, y)`` on ``rows``."""
+    def rss(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: Any, rows: np.ndarray | slice = slice(None), at: LogRate | None = None) -> float:
+        return lstsq(*self.fitted(effect, W0, y, value, rows, at))[1]
+
+    def scan(self, effect: Effect, W0: np.ndarray, y: np.ndarray, rows: np.ndarray | slice = slice(None), n_best: int = 3, at: LogRate | None = None) -> float:
+        """Best grid value of ``effect`` added to ``(W0, y)`` on ``rows`` (to ``at``, on their spans, for an effect searched at the log's rate)."""
+        if self.at_log_rate(effect):
+            assert at is not None, f"{effect.id} is searched at the log's rate: give its LogRate"
+            values, X = self.rate_grid(effect)
+            Xr = X[rows]
+            W_at, y_at = at.rows(rows)
+            return float(values[int(np.argmin(batched_rss(W_at, y_at, Xr.reshape(-1, *Xr.shape[2:]))))])
         values, X, exact = self.grid(effect)
         if effect.shift:
             r = shifted_rss(W0[rows], X[rows])
@@ -94,17 +214,24 @@ class Searcher:
         exact_rss = [self.rss(effect, W0, y, float(values[i]), rows) for i in idx]
         return float(values[idx[int(np.argmin(exact_rss))]])
 
-    def refine(self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: float, rows: np.ndarray | None = None) -> tuple[Any, float | None]:
+    def grid_values(self, effect: Effect) -> np.ndarray:
+        """The grid of ``effect``'s value."""
+        return self.rate_grid(effect)[0] if self.at_log_rate(effect) else self.grid(effect)[0]
+
+    def refine(
+        self, effect: Effect, W0: np.ndarray, y: np.ndarray, value: float, rows: np.ndarray | None = None, at: LogRate | None = None
+    ) -> tuple[Any, float | None]:
         """1-D refinement between the neighbouring grid points; ``(value, std)`` from the RSS curvature.
 
         An effect with a secondary parameter gets it refined next (within its
         bounds), then the first again; its value is the pair. With ``rows``
-        (a training set) only the value is refined (std ``None``).
+        (a training set) only the value is refined (std ``None``). An effect
+        searched at the log's rate is refined, and its std taken, there (``at``).
         """
         assert effect.scan is not None
         sec = effect.scan.secondary
         sel = slice(None) if rows is None else rows
-        values = self.grid(effect)[0]
+        values = self.grid_values(effect)
         i = int(np.argmin(np.abs(values - value)))
         lo, hi = float(values[max(i - 1, 0)]), float(values[min(i + 1, len(values) - 1)])
         if lo == hi:
@@ -112,24 +239,22 @@ class Searcher:
         use_log = effect.scan.log and lo > 0
         other = None if sec is None else sec[4]
         pack = (lambda v: v) if sec is None else (lambda v: (v, other))  # noqa: E731
-        best = minimise(lambda v: self.rss(effect, W0, y, pack(v), sel), lo, hi, use_log)
+        best = minimise(lambda v: self.rss(effect, W0, y, pack(v), sel, at), lo, hi, use_log)
         if sec is not None:
-            other = minimise(lambda z: self.rss(effect, W0, y, (best, z), sel), sec[2], sec[3], True)
-            best = minimise(lambda v: self.rss(effect, W0, y, (v, other), sel), lo, hi, use_log)
+            other = minimise(lambda z: self.rss(effect, W0, y, (best, z), sel, at), sec[2], sec[3], True)
+            best = minimise(lambda v: self.rss(effect, W0, y, (v, other), sel, at), lo, hi, use_log)
         if rows is not None:
             return pack(best), None
         # curvature of the profile RSS at the optimum, in the parameter's own unit
         h = 1e-3 * abs(best) if best != 0 else 1e-3 * (hi - lo)
         if effect.shift:
             h = max(h, 0.05 / self.fs)
-        r0 = self.rss(effect, W0, y, pack(best))
-        rp, rm = self.rss(effect, W0, y, pack(best + h)), self.rss(effect, W0, y, pack(best - h))
+        r0 = self.rss(effect, W0, y, pack(best), at=at)
+        rp, rm = self.rss(effect, W0, y, pack(best + h), at=at), self.rss(effect, W0, y, pack(best - h), at=at)
         curv = (rp - 2 * r0 + rm) / h**2
-        n = len(y)
-        k = W0.shape[1] + len(effect.columns) + 1
-        x = self.exact(effect, pack(best))
-        W1 = W0 if effect.shift else np.hstack([W0, x])
-        y1 = x if effect.shift else y
+        W1, y1 = self.fitted(effect, W0, y, pack(best), at=at)
+        n = len(y1)
+        k = W1.shape[1] + 1
         theta, _ = lstsq(W1, y1)
         rho = lag1_autocorrelation(y1 - W1 @ theta)
         inflation = (1 + max(rho, 0.0)) / (1 - min(max(rho, 0.0), 0.99))

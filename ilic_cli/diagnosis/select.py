@@ -17,7 +17,18 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.search import DEFAULT_STEPS, EDGE_STEPS, EXACT_GRID_MAX, SEARCH_STEPS, SECONDARY_EDGE, Searcher, at_edge, minimise, search_range
+from ilic_cli.diagnosis.search import (
+    DEFAULT_STEPS,
+    EDGE_STEPS,
+    EXACT_GRID_MAX,
+    SEARCH_STEPS,
+    SECONDARY_EDGE,
+    LogRate,
+    Searcher,
+    at_edge,
+    minimise,
+    search_range,
+)
 from ilic_cli.diagnosis.stats import FTest, blocked_folds, diebold_mariano, heldout_errors, nested_f_test
 from ilic_cli.diagnosis.system import Step, SystemFit, effect_columns, extended, fit_system, moving_rows, shifted_force, system
 from ilic_cli.diagnosis.verdicts import Selection
@@ -247,8 +258,12 @@ def forward_select(
         cands = [EFFECTS[i] for i in settings.effects if i in EFFECTS and EFFECTS[i].identifiable and i not in in_model and applicable(EFFECTS[i], names)]
         if not cands:
             break
+        # an effect searched at the log's rate is searched on the model so far there (the given columns too)
+        factors = {searcher.rate_factor(e) for e in cands if searcher.at_log_rate(e)}
+        assert len(factors) <= 1, factors  # one effect searched there (a resonance)
+        at = searcher.log_rate(base, [*known, *out.steps], given, factors.pop()) if factors else None
         # the candidate explaining most of the mismatch first; significance and held-out error gate it
-        evals = sorted((_candidate(searcher, eff, W, y, len(cands)) for eff in cands), key=lambda e: e[0].relative_error_pct)
+        evals = sorted((_candidate(searcher, eff, W, y, len(cands), at) for eff in cands), key=lambda e: e[0].relative_error_pct)
         evals = parsimonious_first(evals, W, y, settings.alpha)
         tried: list[Evaluation] = []
         chosen = None
@@ -260,7 +275,7 @@ def forward_select(
             else:
                 prior = [*known, *out.steps]
                 ev = _heldout_judged(
-                    ev, searcher, eff, W, y, folds, settings.alpha_heldout, (data, validation, base, prior) if validation is not None else None
+                    ev, searcher, eff, W, y, folds, settings.alpha_heldout, (data, validation, base, prior) if validation is not None else None, at
                 )
                 tried.append(ev)
                 if ev.accepted:
@@ -279,15 +294,16 @@ Candidate = tuple[Evaluation, Effect, np.ndarray, np.ndarray]
 """A candidate's evaluation, its effect, and the system ``(W, y)`` with it."""
 
 
-def _candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, n_candidates: int) -> Candidate:
-    """``eff`` fitted on top of ``(W, y)``: its nonlinear value searched, its F-test (Bonferroni over the candidates and the grid points),
-    and, before any test, whether its estimate is outside its physics or on the edge of its search range."""
+def _candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, n_candidates: int, at: LogRate | None = None) -> Candidate:
+    """``eff`` fitted on top of ``(W, y)``: its nonlinear value searched (at the log's rate on ``at``, the same model there, for an
+    effect searched there), its F-test (Bonferroni over the candidates and the grid points), and, before any test, whether its
+    estimate is outside its physics or on the edge of its search range."""
     value, vstd = None, None
     if eff.nonlinear:
-        value = searcher.scan(eff, W, y)
-        value, vstd = searcher.refine(eff, W, y, value)
+        value = searcher.scan(eff, W, y, at=at)
+        value, vstd = searcher.refine(eff, W, y, value, at=at)
     # Bonferroni over the candidates and, for a searched parameter, its grid points (a shift's too)
-    trials = n_candidates * (len(searcher.grid(eff)[0]) if eff.nonlinear else 1)
+    trials = n_candidates * (len(searcher.grid_values(eff)) if eff.nonlinear else 1)
     if eff.shift:
         W1, y1, q = W, searcher.exact(eff, value), 1
     else:
@@ -300,7 +316,7 @@ def _candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, n_
     why = eff.impossible(theta1[W.shape[1] :], value) if eff.impossible is not None else None
     if why:
         ev = ev.decided(Selection.IMPOSSIBLE, why)
-    elif eff.nonlinear and (edge := at_edge(eff, searcher.grid(eff)[0], value)):
+    elif eff.nonlinear and (edge := at_edge(eff, searcher.grid_values(eff), value)):
         ev = ev.decided(Selection.AT_SEARCH_EDGE, edge)
     return ev, eff, W1, y1
 
@@ -314,11 +330,12 @@ def _heldout_judged(
     folds: list[tuple[np.ndarray, np.ndarray]],
     alpha_heldout: float,
     validation: tuple[IDIMData, IDIMData, Model, list[Step]] | None,
+    at: LogRate | None = None,
 ) -> Evaluation:
     """``ev``, whose F-test passed, judged on the held-out blocks (one-sided Diebold-Mariano at ``alpha_heldout``) and on the validation log
     (``(data, validation, base, steps so far)``): accepted, or why not."""
     e_before = heldout_errors(W, y, folds)
-    e_after = _heldout_candidate(searcher, eff, W, y, folds, ev.value)
+    e_after = _heldout_candidate(searcher, eff, W, y, folds, ev.value, at)
     before, after = relative_error_pct(y, y - e_before), relative_error_pct(y, y - e_after)
     p_cv = diebold_mariano(e_before, e_after)
     vb = va = None
@@ -336,7 +353,13 @@ def _heldout_judged(
 
 
 def _heldout_candidate(
-    searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, folds: list[tuple[np.ndarray, np.ndarray]], value: Any = None
+    searcher: Searcher,
+    eff: Effect,
+    W: np.ndarray,
+    y: np.ndarray,
+    folds: list[tuple[np.ndarray, np.ndarray]],
+    value: Any = None,
+    at: LogRate | None = None,
 ) -> np.ndarray:
     """Held-out errors of the model with ``eff``, its nonlinear parameter searched on each training set (``value``, the whole
     log's, for a time of the log: :attr:`ilic_cli.effects.Scan.of_the_whole_log`). A fold whose held-out block holds a
@@ -348,8 +371,8 @@ def _heldout_candidate(
         if eff.scan is not None and eff.scan.of_the_whole_log and value is not None:
             x = searcher.exact(eff, value)
         elif eff.nonlinear:
-            v = searcher.scan(eff, W, y, rows=train)
-            v, _ = searcher.refine(eff, W, y, v, rows=train)
+            v = searcher.scan(eff, W, y, rows=train, at=at)
+            v, _ = searcher.refine(eff, W, y, v, rows=train, at=at)
             x = searcher.exact(eff, v)
         else:
             x = searcher.exact_linear(eff)

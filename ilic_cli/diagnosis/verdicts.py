@@ -95,6 +95,8 @@ class RefitOutcome(Enum):
     """Stribeck friction found at the dwells, estimated on the open-loop segments (:mod:`ilic_cli.diagnosis.segments`)."""
     SEGMENTS_REFUTED = "segments refuted"
     """The open-loop segments' fit refutes the Stribeck friction found at the dwells."""
+    DRIFT = "drift"
+    """A friction drift given to the decisions is found on the final model too: the refit's plant has none; the inverse model's estimates stand."""
 
     @property
     def quotes_output_error(self) -> bool:

@@ -72,6 +72,11 @@ class Scan:
         diagnosis's held-out check keeps the whole log's value and refits the
         rest on each fold's training blocks, since a fold whose held-out
         block holds that time cannot place it from its training blocks.
+    at_log_rate : callable, optional
+        ``(kin, fs_hz) -> bool``: whether the value is searched at the log's rate (the full-rate samples of the rows'
+        decimation spans), not on the decimated rows: where its signature lies above the band the rows keep (a flexible
+        mode's resonance, which the 20 Hz of a 500 Hz log's rows filter out); its linear coefficients and every test
+        stay on the rows. ``None``: always on the rows.
     """
 
     name: str
@@ -80,6 +85,7 @@ class Scan:
     log: bool = True
     secondary: tuple[str, str, float, float, float] | None = None
     of_the_whole_log: bool = False
+    at_log_rate: Callable[[Kinematics, float], bool] | None = None
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.effects.definition import Effect, Estimate, EstimateResult, Fit, PlantParam, Scan, col
-from ilic_cli.effects.grids import FLEX_DAMPING, delay_grid, flexible_acceleration, resonance_grid
+from ilic_cli.effects.grids import FLEX_DAMPING, delay_grid, flexible_acceleration, resonance_at_log_rate, resonance_grid
 from ilic_cli.errors import ParameterError
 from ilic_cli.regressor import Kinematics
 
@@ -133,7 +133,7 @@ FLEXIBILITY = Effect(
     signature_kinds=("frequency", "acceleration"),
     columns=(col("M_load", "mass behind the flexibility", "kg"),),
     build=_flex_build,
-    scan=Scan("f_res", "Hz", resonance_grid, secondary=("damping_ratio", "", 0.005, 0.5, FLEX_DAMPING)),
+    scan=Scan("f_res", "Hz", resonance_grid, secondary=("damping_ratio", "", 0.005, 0.5, FLEX_DAMPING), at_log_rate=resonance_at_log_rate),
     impossible=lambda th, v: None if th[0] > 0 else f"negative mass behind the flexibility ({th[0]:.3g} kg)",
     estimate=_flex_estimate,
     scan_value=_flex_scan_value,

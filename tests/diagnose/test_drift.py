@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
-from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, detect_drift
+from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, GivenDrift, detect_drift
 from ilic_cli.diagnosis.drift_windows import MIN_WINDOWS
 from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.diagnosis.select import SelectSettings
@@ -48,6 +48,27 @@ def test_an_exponential_warm_up_of_viscous_friction_is_named_with_its_size() -> 
     plant = res.plant_effect()
     assert plant is not None and plant["dFv"] == pytest.approx(-200.0 / 3.0, rel=TOLERANCE)
     json.dumps(res.to_dict(), allow_nan=False)
+
+
+@pytest.mark.parametrize("shape", ["exponential", "linear"])
+def test_a_given_drift_s_plant_is_its_finding(shape: str) -> None:
+    """A drift found on the rigid model is in every deciding replay's plant (``GivenDrift.plant``, ``heldout_replay.fitted_plant``):
+    fitted with its trends' columns, the plant's friction starts at the drift's start and changes as the finding says (corpus s731:
+    the replays without it rejected gravity beside a warm-up)."""
+    if shape == "exponential":
+        t, W, y = _system(1, fv=lambda t: 200.0 - 200.0 / 3.0 * (1 - np.exp(-t / 6.0)))
+    else:
+        t, W, y = _system(2, fc=lambda t: 20.0 + 0.2 * t)
+    res = detect_drift(t, W, y, NAMES)
+    assert res.found and res.shape == shape
+    given = GivenDrift(res.findings, float(t[0]))
+    theta = np.linalg.lstsq(np.c_[W, given.columns(t, W, NAMES)], y, rcond=None)[0]
+    rigid, effects = given.plant(dict(zip(NAMES, theta[:4], strict=True)), {"spring": {"k": 1.0}}, theta[4:])
+    assert effects["spring"] == {"k": 1.0} and effects["friction_drift"] == pytest.approx(res.plant_effect(), rel=0.02, abs=1e-9)
+    for name, start in res.start_levels().items():
+        assert rigid[name] == pytest.approx(start, rel=0.02)
+    truth = {"Fv": 200.0, "Fc": 20.0}
+    assert all(rigid[n] == pytest.approx(v, rel=TOLERANCE) for n, v in truth.items())  # the level at the log's start
 
 
 def test_a_linear_wear_of_coulomb_friction_is_named_linear() -> None:

@@ -9,9 +9,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ilic_cli.diagnosis.select import Evaluation, Searcher, SelectSettings, forward_select, moving_rows, parsimonious_first, system, validation_error
+from ilic_cli.diagnosis.select import Evaluation, Searcher, SelectSettings, at_edge, forward_select, moving_rows, parsimonious_first, system, validation_error
 from ilic_cli.diagnosis.stats import nested_f_test
 from ilic_cli.effects import EFFECTS, catalogue_ids
+from ilic_cli.effects.grids import flexible_acceleration
+from ilic_cli.filtering import central_difference, kept_indices, rows_band_hz
 from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.lsq import lstsq
 from ilic_cli.regressor import Kinematics, get_model
@@ -162,7 +164,7 @@ class QuadraticSearcher(Searcher):
     def exact(self, effect, value):  # noqa: ANN001, ANN201
         return np.zeros((self.rows, 1))
 
-    def rss(self, effect, W0, y, value, rows=slice(None)) -> float:  # noqa: ANN001
+    def rss(self, effect, W0, y, value, rows=slice(None), at=None) -> float:  # noqa: ANN001
         v = value[0] if isinstance(value, tuple) else value
         return self.c0 + self.C * (v - self.v0) ** 2
 
@@ -174,7 +176,7 @@ def test_refine_std_is_the_curvature_std_of_an_exact_quadratic(use_log: bool) ->
     n = 50
     W0 = np.ones((n, 1))
     y = 5.0 + np.where(np.arange(n) % 2 == 0, 1.0, -1.0)  # residual alternates: lag-1 autocorrelation < 0, no inflation
-    effect = SimpleNamespace(id="quad", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=use_log))
+    effect = SimpleNamespace(id="quad", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=use_log, at_log_rate=None))
     s = QuadraticSearcher(data, np.linspace(1.0, 11.0, 11), v0=4.3, c0=2.0, curvature=3.0)
     value, std = s.refine(effect, W0, y, 4.0)
     assert value == pytest.approx(4.3, abs=1e-3)
@@ -191,7 +193,7 @@ def test_refine_std_scales_with_one_over_root_curvature() -> None:
     data = concealed_asymmetry(n=4000)
     W0 = np.ones((50, 1))
     y = 5.0 + np.where(np.arange(50) % 2 == 0, 1.0, -1.0)
-    effect = SimpleNamespace(id="quad", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False))
+    effect = SimpleNamespace(id="quad", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None))
     s1 = QuadraticSearcher(data, np.linspace(100.0, 1100.0, 11), v0=430.0, c0=2.0, curvature=3.0)
     s4 = QuadraticSearcher(data, np.linspace(100.0, 1100.0, 11), v0=430.0, c0=2.0, curvature=12.0)
     _, a = s1.refine(effect, W0, y, 400.0)
@@ -280,14 +282,16 @@ def test_refine_a_secondary_parameter_after_the_first() -> None:
     """RSS = c0 + C1 (v - v0)^2 + C2 (z - z0)^2: the pair (v0, z0) is found; the std is along v."""
 
     class TwoParameter(QuadraticSearcher):
-        def rss(self, effect, W0, y, value, rows=slice(None)) -> float:  # noqa: ANN001
+        def rss(self, effect, W0, y, value, rows=slice(None), at=None) -> float:  # noqa: ANN001
             v, z = value
             return self.c0 + self.C * (v - self.v0) ** 2 + 5.0 * (np.log(z) - np.log(0.2)) ** 2
 
     data = concealed_asymmetry(n=4000)
     W0 = np.ones((50, 1))
     y = 5.0 + np.where(np.arange(50) % 2 == 0, 1.0, -1.0)
-    effect = SimpleNamespace(id="quad2", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=("z", "", 0.005, 0.5, 0.05), log=True))
+    effect = SimpleNamespace(
+        id="quad2", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=("z", "", 0.005, 0.5, 0.05), log=True, at_log_rate=None)
+    )
     s = TwoParameter(data, np.geomspace(1.0, 100.0, 21), v0=4.3, c0=2.0, curvature=3.0)
     (v, z), std = s.refine(effect, W0, y, 4.0)
     assert v == pytest.approx(4.3, rel=1e-3) and z == pytest.approx(0.2, rel=1e-3)
@@ -435,7 +439,7 @@ class QuarticSearcher(QuadraticSearcher):
 
     D = 0.0
 
-    def rss(self, effect, W0, y, value, rows=slice(None)) -> float:  # noqa: ANN001
+    def rss(self, effect, W0, y, value, rows=slice(None), at=None) -> float:  # noqa: ANN001
         v = value[0] if isinstance(value, tuple) else value
         return self.c0 + self.C * (v - self.v0) ** 2 + self.D * (v - self.v0) ** 4
 
@@ -447,7 +451,7 @@ def test_refine_curvature_step_is_small(v0: float) -> None:
     n = 50
     W0 = np.ones((n, 1))
     y = 5.0 + np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
-    effect = SimpleNamespace(id="q4", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False))
+    effect = SimpleNamespace(id="q4", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None))
     s = QuarticSearcher(data, np.linspace(-5.0, 15.0, 21), v0=v0, c0=2.0, curvature=3.0)
     s.D = 50.0
     value, std = s.refine(effect, W0, y, round(v0))
@@ -465,7 +469,7 @@ def test_refine_std_inflation_for_correlated_residuals_and_flat_profiles() -> No
     y = 5.0 + e
     rho = lag1_autocorrelation(e)
     assert rho > 0.5
-    effect = SimpleNamespace(id="q", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False))
+    effect = SimpleNamespace(id="q", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None))
     s = QuadraticSearcher(data, np.linspace(1.0, 11.0, 11), v0=4.3, c0=2.0, curvature=0.3, rows=n)
     _, std = s.refine(effect, W0, y, 4.0)
     inflation = (1 + rho) / (1 - rho)
@@ -547,3 +551,32 @@ def test_gravity_and_a_spring_the_data_cannot_tell_apart_are_a_stated_ambiguity(
         ev = parsimonious_first(evals, W, y, 0.001)[0][0]
         assert (ev.effect, ev.indistinct_from) == (first, other), swing
         assert ("indistinct_from" in ev.to_dict()) is (other is not None)
+
+
+def test_a_flexible_mode_above_the_rows_band_is_searched_at_the_log_s_rate() -> None:
+    """A 500 Hz log's rows keep 20 Hz, a 30 Hz mode is beyond them: searched at the log's rate (the rows' decimation spans), the
+    resonance is found inside its grid and the rows then fit the mass behind it. Bounded by the rows' band, the search ended at
+    20 Hz, "at the edge of its search range" (corpus s260, s340, s510)."""
+    fs, n, f_res, zeta, m_load = 500.0, 3000, 30.0, 0.1, 8.0
+    t, q, qd, qdd = motion(n, fs)
+    for k, (f, a) in enumerate(((7.0, 2e-4), (13.0, 1e-4), (23.0, 5e-5), (31.0, 3e-5), (41.0, 2e-5))):  # a multisine up to 41 Hz, exact derivatives
+        w = 2.0 * math.pi * f
+        q, qd, qdd = q + a * np.sin(w * t + k), qd + a * w * np.cos(w * t + k), qdd - a * w * w * np.sin(w * t + k)
+    eff = EFFECTS["flexibility"]
+    qd, qdd = central_difference(q, 1.0 / fs), central_difference(central_difference(q, 1.0 / fs), 1.0 / fs)  # as the log's rate sees them
+    tau = rigid_force(qd, qdd) + m_load * (flexible_acceleration(qdd, f_res, fs, zeta) - qdd)
+    data = lsq_rows(t, q, tau, fs, BASE)
+    assert data.settings.decimation == 10 and rows_band_hz(fs) == pytest.approx(20.0)  # the rows keep 20 Hz
+    rows = moving_rows(data)
+    W, y, _ = system(data, BASE, [], rows)
+    s = Searcher(data, fs, rows)
+    assert s.rate_factor(eff) == 5  # the 40 Hz the grid reaches, as a 1 kHz log's rows keep: every other sample of the spans
+    at = s.log_rate(BASE, [], factor=5)
+    assert at.W.shape == (int(rows.sum()), 2, W.shape[1])
+    assert np.array_equal(data.kin.t[kept_indices(len(data.kin.t), 5)][at.at[:, 1]], data.t_dec[rows])  # each row's span holds the row
+    value = s.scan(eff, W, y, at=at)
+    value, _ = s.refine(eff, W, y, value, at=at)
+    assert at_edge(eff, s.grid_values(eff), value) is None
+    assert value[0] == pytest.approx(f_res, rel=0.01) and value[1] == pytest.approx(zeta, rel=0.25)  # one round of the refinement of each
+    theta, _ = lstsq(np.hstack([W, s.exact(eff, value)]), y)  # the mass behind the spring: on the rows
+    assert theta[-1] == pytest.approx(m_load, rel=0.05)

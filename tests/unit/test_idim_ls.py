@@ -86,7 +86,7 @@ def test_settings_are_the_benchmark_procedure() -> None:
 def test_the_decimation_is_the_rate_s_rule(fs: float, r: int) -> None:
     """The rows keep 40 Hz from 1 kHz up (a factor fixed at 10 kept 80 Hz at 2 kHz, 320 Hz at 8 kHz) and 0.04·fs below: 10 at
     and below 1 kHz (the benchmark). IDIM-LS, and an explicit factor (``band_hz=None``, ``identify --decimation``) as given."""
-    assert resonance_grid(None, fs)[-1] == pytest.approx(0.8 * fs / 2 / r)  # type: ignore[arg-type]  # the resonance search ends at the rows' band
+    assert resonance_grid(None, fs)[-1] == pytest.approx(min(0.1 * fs, 40.0))  # type: ignore[arg-type]  # the same modes at every rate that sees them
     t, q, qd, qdd = motion(int(10 * fs), fs)
     data = lsq_rows(t, q, rigid_force(qd, qdd), fs, get_model("rigid-offset"))
     assert data.settings.decimation == r and np.diff(data.t_dec) == pytest.approx(r / fs)
