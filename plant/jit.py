@@ -61,8 +61,9 @@ class _CacheLoadedBare(FunctionCache):
 
 def _bare_cache_load(dispatcher: Any) -> Any:
     """``dispatcher`` with its on-disk cache (``cache=True``) loaded by :class:`_CacheLoadedBare`."""
-    if type(getattr(dispatcher, "_cache", None)) is FunctionCache:
-        dispatcher._cache = _CacheLoadedBare(dispatcher.py_func)
+    cache = getattr(dispatcher, "_cache", None)
+    if type(cache) is FunctionCache:
+        cache.__class__ = _CacheLoadedBare  # the same cache (its files, its index), not a second one numba would set up again
     return dispatcher
 
 
