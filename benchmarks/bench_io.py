@@ -168,10 +168,12 @@ SIMULATE_OUTPUTS: list[tuple[str, list[str]]] = [
 """``ilic simulate`` outputs timed: .mat, MCAP, CSV, ROS 1 bag, ROS 2 bags with sqlite3 and MCAP storage."""
 
 SIMULATION_ONLY = (
-    "import sys; sys.argv = ['ilic', 'simulate']; from ilic_cli.commands import simulate; "
-    "from ilic_cli.simulation.scenarios import Overrides, run_scenario; run_scenario('paper-sim', Overrides(duration_s={duration}, seed=0))"
+    "import os, sys; sys.argv = ['ilic', 'simulate']; from ilic_cli.commands import simulate; "
+    "from ilic_cli.simulation.scenarios import Overrides, run_scenario; run_scenario('paper-sim', Overrides(duration_s={duration}, seed=0)); "
+    "os._exit(0)"
 )
-"""The baseline of ``ilic simulate``: the same imports and simulation in a process that writes nothing."""
+"""The baseline of ``ilic simulate``: the same imports and simulation in a process that writes nothing, and ends as ``ilic`` does
+(without the interpreter's teardown, :func:`ilic_cli.cli.run`)."""
 
 
 def simulate_rates(duration_s: float = 300.0, runs: int = 3) -> None:

@@ -1,3 +1,3 @@
-from ilic_cli.cli import main
+from ilic_cli.cli import run
 
-main()
+run()

@@ -286,7 +286,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     mdict[META_VAR] = np.array(dump_json(meta_for_writing(log.meta)))
     mdict[UNITS_VAR] = np.array(dump_json(dict(log.units)))
 
-    parts = matfast.dump(mdict, HEADER_TEXT)  # scipy.io's bytes, the variables compressed in threads
+    parts = matfast.dump(mdict, HEADER_TEXT)  # scipy.io's variables, compressed at zlib level 1 in threads
     if parts is not None:
         with open(path, "wb") as out:
             out.writelines(parts)
