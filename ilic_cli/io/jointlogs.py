@@ -292,7 +292,9 @@ def write_mcap(log: JointLog, path: Path, chunk_bytes: int = 2**20) -> None:
             schema.write(b)
             channel.write(b)
         f.write(b.end())
-        indexes = [_chunk(f, layout, stamps, values, start, per_chunk, head if start == 0 else b"") for start in range(0, len(stamps), per_chunk)]
+        rows = np.empty((min(per_chunk, len(stamps)), len(layout[0])), dtype=np.uint8)
+        rows[:] = np.frombuffer(layout[0], dtype=np.uint8)  # the constant bytes, once: every chunk overwrites all the variable ones
+        indexes = [_chunk(f, layout, stamps, values, start, rows, head if start == 0 else b"") for start in range(0, len(stamps), per_chunk)]
         DataEnd(data_section_crc=0).write(b)
         f.write(b.end())
         _summary(f, b, schemas, channels, indexes, stamps)
@@ -301,14 +303,17 @@ def write_mcap(log: JointLog, path: Path, chunk_bytes: int = 2**20) -> None:
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
-def _chunk(f: Any, layout: tuple[bytes, list[tuple[str, int, int]], int], stamps: np.ndarray, values: list[Any], start: int, count: int, head: bytes) -> Any:
-    """Write the chunk of samples ``start : start + count`` (after the records ``head``) and its message indexes; its chunk index."""
+def _chunk(f: Any, layout: tuple[bytes, list[Any], int], stamps: np.ndarray, values: list[Any], start: int, buffer: np.ndarray, head: bytes) -> Any:
+    """Write the chunk of the ``len(buffer)`` samples from ``start`` (after the records ``head``) and its message indexes; its chunk index.
+
+    ``buffer`` (samples, bytes) holds the layout's constant bytes; its variable ones are written here.
+    """
     from mcap.records import ChunkIndex  # deferred: with write_mcap's
 
     template, fields, first_length = layout
+    count = len(buffer)
     ns = stamps[start : start + count]
-    rows = np.empty((len(ns), len(template)), dtype=np.uint8)
-    rows[:] = np.frombuffer(template, dtype=np.uint8)
+    rows = buffer[: len(ns)]
     block = iter(v[:, start : start + count] for v in values)
     for kind, at, n in fields:
         if kind == "time":
@@ -322,7 +327,7 @@ def _chunk(f: Any, layout: tuple[bytes, list[tuple[str, int, int]], int], stamps
     length = len(head) + rows.nbytes
     f.write(struct.pack("<BQQQQIIQ", 0x06, 8 * 3 + 4 + 4 + 8 + length, int(ns[0]), int(ns[-1]), length, 0, 0, length))
     f.write(head)
-    f.write(rows.tobytes())
+    f.write(rows)
     end = f.tell()
     starts = len(head) + np.arange(len(ns), dtype=np.uint64) * len(template)
     channels = 2 if first_length < len(template) else 1
