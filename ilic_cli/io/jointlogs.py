@@ -279,6 +279,8 @@ def write_mcap(log: JointLog, path: Path, chunk_bytes: int = 2**20) -> None:
         schemas.append(Schema(id=i, name=msgtype, encoding=encoding, data=text.encode()))
         channels.append(Channel(id=i, schema_id=i, topic=topic, message_encoding="cdr", metadata={"offered_qos_profiles": "[]"}))
     stamps = np.round(log.t * 1e9).astype(np.int64)
+    if stamps[0] < 0:
+        raise LogError(path, f"time starts at {log.t[0]:g} s: an MCAP log time is unsigned nanoseconds")
     values = [log.q, log.tau] + ([getattr(log, r) for r in REFERENCES] if log.has_reference else [])
     layout = _layouts(list(log.joints), log.has_reference)
     meta = {"joints": [list(p) for p in zip(log.joints, log.kinds)], "meta": dict(log.meta)}

@@ -146,3 +146,11 @@ def test_mcap_file_holds_rosbags_messages_and_indexes_them(tmp_path: Path, refer
                     assert struct.unpack_from("<BQHIQ", chunk.data, offset)[::2] == (0x05, record.channel_id, ns)
                     indexed += 1
     assert indexed == len(ours)
+
+
+def test_mcap_file_of_a_log_starting_before_time_zero_is_refused(tmp_path: Path) -> None:
+    log = _log()
+    early = JointLog(t=log.t - 13.0, joints=log.joints, kinds=log.kinds, q=log.q, tau=log.tau)
+    with pytest.raises(LogError, match="time starts at -0.5 s: an MCAP log time is unsigned"):
+        jointlogs.write(early, tmp_path / "early.mcap")
+    assert not (tmp_path / "early.mcap").exists()
