@@ -111,11 +111,12 @@ def simulate(urdf: Path, o: dict[str, Any]) -> None:
         t=run.t,
         joints=robot.joints,
         kinds=robot.kinds,
-        q=np.ascontiguousarray(run.q.T),
-        tau=np.ascontiguousarray(run.tau.T),
-        q_ref=np.ascontiguousarray(run.q_ref.T),
-        qd_ref=np.ascontiguousarray(run.qd_ref.T),
-        qdd_ref=np.ascontiguousarray(run.qdd_ref.T),
+        # views (joint, sample) of the run's (sample, joint) arrays: the writers read them by blocks of samples, unchanged
+        q=run.q.T,
+        tau=run.tau.T,
+        q_ref=run.q_ref.T,
+        qd_ref=run.qd_ref.T,
+        qdd_ref=run.qdd_ref.T,
         meta=meta,
     )
     jointlogs.write(log, output)

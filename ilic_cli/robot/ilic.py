@@ -55,24 +55,36 @@ class RobotWindow:
         }
 
 
-def window_system(
-    robot: RobotModel, base: BaseParameters, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, tau: np.ndarray, fs_hz: float, settings: ILICSettings
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(W, y)`` of one window: the reference's base regressor and the torque (N, n), filtered, decimated, stacked joint-major."""
+def reference_system(
+    robot: RobotModel, base: BaseParameters, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, fs_hz: float, settings: ILICSettings
+) -> np.ndarray:
+    """``W`` of one window: the base regressor at the reference, filtered and decimated, joint-major (K n, b).
+
+    It needs the reference only, so the closed loop can have it computed while
+    it simulates the window (:func:`ilic_cli.robot.plant.simulate_loop`'s ``prepare``);
+    the torque is filtered apart (:func:`torque_rows`): the filter's output for a
+    row does not depend on the rows filtered with it (:func:`ilic_cli.filtering.lowpass_decimate`).
+    """
     active = active_columns(robot, base)
-    # only the columns a joint's rows can touch (about half on ur5like), with the torques, time contiguous, filtered in one call
-    columns, rows = base_columns(robot, base, active, q_ref, qd_ref, qdd_ref, np.asarray(tau, dtype=np.float64))
+    # only the columns a joint's rows can touch (about half on ur5like), time contiguous, filtered in one call
+    columns, rows = base_columns(robot, base, active, q_ref, qd_ref, qdd_ref, np.zeros((len(q_ref), robot.n)))
     coulomb = period_sign(np.asarray(qd_ref, dtype=np.float64))
     for j in range(robot.n):
         at = np.flatnonzero(base.kept[active[j]] == robot.index("Fc", j))
         if at.size:
             columns[rows[j] + at[0]] = coulomb[:, j]
+    # the torque's rows (zeros here) are filtered too: picking the others out would copy the 14 MB of a 10 s window
     filtered = lowpass_decimate(columns, settings.factor(fs_hz), settings.cutoff_hz, fs_hz, settings.filter_order, axis=1)
     W = np.zeros((robot.n, filtered.shape[1], base.b))
     for j in range(robot.n):
         W[j][:, active[j]] = filtered[rows[j] : rows[j + 1] - 1].T
-    y = filtered[rows[1:] - 1]
-    return W.reshape(-1, base.b), y.reshape(-1)
+    return W.reshape(-1, base.b)
+
+
+def torque_rows(tau: np.ndarray, fs_hz: float, settings: ILICSettings) -> np.ndarray:
+    """``y`` of one window: each joint's torque (N, n) filtered and decimated as :func:`reference_system`'s columns, joint-major."""
+    t = np.ascontiguousarray(np.asarray(tau, dtype=np.float64).T)
+    return lowpass_decimate(t, settings.factor(fs_hz), settings.cutoff_hz, fs_hz, settings.filter_order, axis=1).reshape(-1)
 
 
 def period_sign(qd: np.ndarray) -> np.ndarray:
@@ -105,6 +117,7 @@ def ilic_step(
     beta: np.ndarray,
     *,
     torque_held: bool = True,
+    system: np.ndarray | None = None,
 ) -> RobotWindow:
     """Estimate window ``k`` (reference ``(q_r, qd_r, qdd_r)``, measured torque ``tau``) and update the essential parameters of ``beta``.
 
@@ -112,12 +125,14 @@ def ilic_step(
     closed loop's), so it is moved half a period later, ``(tau[k-1] + tau[k]) / 2``,
     as :func:`ilic_cli.robot.idim.prepare` does: on the 6-joint scenario this
     halves the true parameters' residual (0.20 % to 0.11 % before the plant's
-    reversals were resolved).
+    reversals were resolved). ``system``: the window's :func:`reference_system`, when
+    computed already.
     """
     tau = np.asarray(tau, dtype=np.float64)
     if torque_held:
         tau = np.vstack([tau[:1], 0.5 * (tau[1:] + tau[:-1])])
-    W, y = window_system(robot, base, *reference, tau, fs_hz, settings)
+    W = reference_system(robot, base, *reference, fs_hz, settings) if system is None else system
+    y = torque_rows(tau, fs_hz, settings)
     result = solve(W, y, base.names, sigma="eq8")
     essential = essential_mask(result, settings.sigma_max_pct)
     return RobotWindow(k, float(t[0]), float(t[-1]), result, essential, np.where(essential, result.theta, np.asarray(beta, dtype=np.float64)))

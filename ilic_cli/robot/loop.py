@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ilic_cli.robot.dynamics import forward_at, placements, rnea_at, work_size
+from ilic_cli.robot.dynamics import forward_at, placements, rnea_at, workspace
 
 STICK_VELOCITY = 1e-9
 """|qd| (rad/s or m/s) at or below which a joint's stick/slip decision is taken."""
@@ -191,7 +191,7 @@ def run_steps(kin, g, plant, ctrl, hat, step, exact, dt, q_r, qd_r, qdd_r, state
         Filled: measured position, true position and velocity at ``t_k``, command over ``[t_k, t_k+1)``.
     """
     n = q_r.shape[1]
-    ws = np.empty(work_size(n))
+    ws = workspace(n)
     q, qd, prev = state[0], state[1], state[2]
     q_m, qd_hat, u, w = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     locked, sc = np.empty(n, dtype=np.bool_), np.empty((14, n))

@@ -6,6 +6,10 @@ window at a time. Between windows it hands the window's samples to
 bound by the caller: this module imports no estimator), which returns the
 controller's new standard parameter vector. ``changes`` replace the plant's
 true parameters at given times (a payload picked up by the last link).
+``prepare``, if given, computes what ``update`` needs from the window's
+reference alone (the IDIM-ILIC system of the reference) while the compiled
+loop (no GIL) simulates that window, in two threads (:func:`ilic_cli.parallel.ordered_map`;
+one after the other with ``ILIC_THREADS=1``: the same results).
 
 Deterministic per seed: the loop is deterministic; the torque and position
 noises of the log are drawn once from ``numpy.random.default_rng(seed)``.
@@ -13,13 +17,15 @@ noises of the log are drawn once from ``numpy.random.default_rng(seed)``.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
+from ilic_cli.parallel import ordered_map
 from ilic_cli.robot.dynamics import arrays, crba
 from ilic_cli.robot.loop import CTC, PD, run_steps
 from ilic_cli.robot.model import RobotModel
@@ -97,6 +103,8 @@ class Segment:
     qdd_ref: np.ndarray
     q: np.ndarray
     tau: np.ndarray
+    prepared: Any = None
+    """What ``prepare`` returned for this window (None without it)."""
 
 
 @dataclass(frozen=True)
@@ -153,6 +161,7 @@ def simulate_loop(
     update: Callable[[Segment, np.ndarray], np.ndarray] | None = None,
     changes: Sequence[tuple[float, np.ndarray]] = (),
     sink: Callable[[LoopRun, int, int], None] | None = None,
+    prepare: Callable[[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray], Any] | None = None,
 ) -> LoopRun:
     """Simulate the arm (true standard parameters ``pi``) tracking ``reference`` under the controller's ``model``.
 
@@ -161,6 +170,8 @@ def simulate_loop(
     of the plant, applied from the first sample at or after that time.
     ``sink(run, start, stop)`` is called after each window with the samples
     ``start:stop`` logged (a writer streaming the log out).
+    ``prepare(k, t, q_ref, qd_ref, qdd_ref)`` of each full window ``k`` runs beside its
+    simulation; its result reaches ``update`` as ``segment.prepared``.
     The state starts on the reference.
     """
     n = robot.n
@@ -184,6 +195,7 @@ def simulate_loop(
     plant = _drive(robot, plant_pi[min(plant_pi)])
     models = [model]
     start = 0
+    prepared = None
     run = LoopRun(t, q_log, tau, q_true, qd_true, q_ref, qd_ref, qdd_ref, settings.fs_hz)
     for stop in sorted(s for s in stops if s > 0):
         plant = _drive(robot, plant_pi[start]) if start in plant_pi else plant
@@ -191,7 +203,14 @@ def simulate_loop(
         s = slice(start, stop)
         reference_part = (q_ref[s], qd_ref[s], qdd_ref[s])
         logs = (q_log[s], q_true[s], qd_true[s], tau[s])
-        run_steps(kin, g, plant, ctrl, _drive(robot, model), step, settings.velocity == "exact", dt, *reference_part, state, *logs)
+        hat = _drive(robot, model)
+        steps = functools.partial(run_steps, kin, g, plant, ctrl, hat, step, settings.velocity == "exact", dt, *reference_part, state, *logs)
+        if prepare is not None and update is not None and start % win == 0 and start + win <= N:
+            w = slice(start, start + win)
+            task = functools.partial(prepare, start // win + 1, t[w], q_ref[w], qd_ref[w], qdd_ref[w])
+            prepared = ordered_map(lambda f: f(), [steps, task])[1]
+        else:
+            steps()
         if not np.all(np.isfinite(state)):
             raise FloatingPointError("the simulation diverged")
         tau[s] += noise_tau[s]
@@ -201,7 +220,7 @@ def simulate_loop(
                 sink(run, (stop - 1) // win * win, stop)
             if update is not None and stop % win == 0:
                 w = slice(stop - win, stop)
-                segment = Segment(stop // win, t[w], q_ref[w], qd_ref[w], qdd_ref[w], q_log[w], tau[w])
+                segment = Segment(stop // win, t[w], q_ref[w], qd_ref[w], qdd_ref[w], q_log[w], tau[w], prepared)
                 model = np.asarray(update(segment, model), dtype=np.float64)
                 models.append(model)
         start = stop

@@ -23,7 +23,7 @@ import numpy as np
 from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.robot.base import BaseParameters, base_parameters
 from ilic_cli.robot.dynamics import kept_vector
-from ilic_cli.robot.ilic import RobotWindow, ilic_step, relative_errors_pct
+from ilic_cli.robot.ilic import RobotWindow, ilic_step, reference_system, relative_errors_pct
 from ilic_cli.robot.model import RobotModel
 from ilic_cli.robot.plant import LoopRun, LoopSettings, Segment, simulate_loop
 from ilic_cli.robot.simulate import exciting_trajectory
@@ -136,16 +136,21 @@ def robot_sim(robot: RobotModel, settings: RobotSimSettings = RobotSimSettings()
     ilic = replace(settings.ilic, window_s=settings.window_s)
 
     def update(segment: Segment, model: np.ndarray) -> np.ndarray:
-        window = ilic_step(
-            robot, base, ilic, settings.loop.fs_hz, segment.k, segment.t, (segment.q_ref, segment.qd_ref, segment.qdd_ref), segment.tau, beta[-1]
-        )
+        reference = (segment.q_ref, segment.qd_ref, segment.qdd_ref)
+        window = ilic_step(robot, base, ilic, settings.loop.fs_hz, segment.k, segment.t, reference, segment.tau, beta[-1], system=segment.prepared)
         windows.append(window)
         beta.append(window.beta)
         return kept_vector(base.kept, window.beta, len(pi))
 
     model = kept_vector(base.kept, beta[0], len(pi))
     duration = settings.windows * settings.window_s
-    run = simulate_loop(robot, pi, trajectory, duration, model, settings.loop, window_s=settings.window_s, update=update, changes=changes, sink=sink)
+
+    def prepare(k: int, t: np.ndarray, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray) -> np.ndarray:
+        return reference_system(robot, base, q_ref, qd_ref, qdd_ref, settings.loop.fs_hz, ilic)
+
+    run = simulate_loop(
+        robot, pi, trajectory, duration, model, settings.loop, window_s=settings.window_s, update=update, changes=changes, sink=sink, prepare=prepare
+    )
     truths = []
     for w in windows:
         now = pi if not changes or w.t_end < changes[0][0] else changes[0][1]

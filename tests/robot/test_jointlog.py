@@ -110,3 +110,47 @@ def test_an_arms_sample_rate_is_the_time_bases_one_definition() -> None:
     t = np.concatenate([[0.0], np.cumsum(steps)])
     log = JointLog(t=t, joints=("a",), kinds=("revolute",), q=np.zeros((1, len(t))), tau=np.zeros((1, len(t))))
     assert log.fs_hz == nominal_rate_hz(t) == 1000.0
+
+
+@pytest.mark.parametrize("reference", [True, False])
+def test_mcap_file_holds_rosbags_messages_and_indexes_them(tmp_path: Path, reference: bool) -> None:
+    """write_mcap lays the samples out by numpy: every message byte for byte as rosbags' writer's, over several chunks, each indexed."""
+    import struct
+
+    from mcap.reader import make_reader
+    from mcap.records import Chunk, MessageIndex
+    from mcap.stream_reader import StreamReader
+
+    log = _log(reference)
+    jointlogs.write_mcap(log, tmp_path / "new.mcap", chunk_bytes=10_000)
+    jointlogs.write_bag(log, tmp_path / "bag", "mcap")
+
+    def messages(path: Path) -> tuple[list[tuple[str, int, int, bytes]], object]:
+        with path.open("rb") as f:
+            reader = make_reader(f)
+            found = [(c.topic, m.log_time, m.publish_time, bytes(m.data)) for _, c, m in reader.iter_messages(log_time_order=False)]
+            return found, reader.get_summary()
+
+    ours, summary = messages(tmp_path / "new.mcap")
+    theirs, their_summary = messages(next((tmp_path / "bag").glob("*.mcap")))
+    assert ours == theirs and len(ours) == N * (2 if reference else 1) + 1
+    assert summary.statistics.chunk_count > 4 and summary.statistics.channel_message_counts == their_summary.statistics.channel_message_counts
+    assert [(s.name, s.data) for s in summary.schemas.values()] == [(s.name, s.data) for s in their_summary.schemas.values()]
+    indexed, chunk = 0, None
+    with (tmp_path / "new.mcap").open("rb") as f:
+        for record in StreamReader(f, emit_chunks=True, validate_crcs=True).records:
+            chunk = record if isinstance(record, Chunk) else chunk
+            if isinstance(record, MessageIndex):
+                assert chunk is not None
+                for ns, offset in record.records:
+                    assert struct.unpack_from("<BQHIQ", chunk.data, offset)[::2] == (0x05, record.channel_id, ns)
+                    indexed += 1
+    assert indexed == len(ours)
+
+
+def test_mcap_file_of_a_log_starting_before_time_zero_is_refused(tmp_path: Path) -> None:
+    log = _log()
+    early = JointLog(t=log.t - 13.0, joints=log.joints, kinds=log.kinds, q=log.q, tau=log.tau)
+    with pytest.raises(LogError, match="time starts at -0.5 s: an MCAP log time is unsigned"):
+        jointlogs.write(early, tmp_path / "early.mcap")
+    assert not (tmp_path / "early.mcap").exists()
