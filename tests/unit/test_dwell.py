@@ -210,7 +210,7 @@ def test_a_proposal_that_cannot_be_replayed_is_still_the_closed_loops(monkeypatc
     log = make_synthetic_log(4000)
     base = get_model("rigid-offset")
     data = _prepare(prepare_log(log), base, LSSettings())
-    monkeypatch.setattr(heldout_replay, "_replayed", lambda *a, **k: None)  # no model is a valid plant
+    monkeypatch.setattr(heldout_replay, "_replayed_plant", lambda *a, **k: None)  # no model is a valid plant (every replay goes through it)
     step = dwell.proposal(np.geomspace(0.002, 0.08, 32), 20.0)
     plant = lambda steps, names, theta: model_parameters(steps, names, theta, np.zeros((len(theta),) * 2))  # noqa: E731
     _, (verdict,) = decide.replay_decide(log, data, base, [], [step], moving_rows(data), plant, sensor_noise=False)
