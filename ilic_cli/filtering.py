@@ -411,9 +411,14 @@ def rows_decimation(fs_hz: float, band_hz: float = ROWS_BAND_HZ) -> int:
     return decimation_factor(fs_hz, min(band_hz, ROWS_BAND_OF_FS * fs_hz))
 
 
+def decimated_band_hz(fs_hz: float, r: int) -> float:
+    """The band a decimation by ``r`` keeps at ``fs_hz`` (Hz): its anti-alias cut-off ``0.8·(fs/2)/r`` (the inverse of :func:`decimation_factor`)."""
+    return 0.8 * fs_hz / 2.0 / r
+
+
 def rows_band_hz(fs_hz: float) -> float:
-    """The band IDIM-LS's decimated rows keep at ``fs_hz`` (Hz): the anti-alias cut-off ``0.8·(fs/2)/r`` of :func:`rows_decimation`."""
-    return 0.8 * fs_hz / 2.0 / rows_decimation(fs_hz)
+    """The band IDIM-LS's decimated rows keep at ``fs_hz`` (Hz): :func:`decimated_band_hz` of :func:`rows_decimation`."""
+    return decimated_band_hz(fs_hz, rows_decimation(fs_hz))
 
 
 DECIMATION_RULE = (

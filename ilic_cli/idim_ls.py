@@ -24,7 +24,16 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.estimators.columns import Derived
-from ilic_cli.filtering import ROWS_BAND_HZ, butter_lowpass_zero_phase, central_difference, decimate_matlab, kept_indices, lowpass_decimate, rows_decimation
+from ilic_cli.filtering import (
+    ROWS_BAND_HZ,
+    butter_lowpass_zero_phase,
+    central_difference,
+    decimate_matlab,
+    decimated_band_hz,
+    kept_indices,
+    lowpass_decimate,
+    rows_decimation,
+)
 from ilic_cli.lsq import LSResult, SigmaConvention, evaluate, finite_or_none, pinv, solve
 from ilic_cli.regressor import Kinematics, Model
 
@@ -211,7 +220,7 @@ def robust_std(W: np.ndarray, e: np.ndarray) -> RobustStd:
 def _decimate(x: np.ndarray, settings: LSSettings, fs_hz: float) -> np.ndarray:
     if settings.matlab:
         return decimate_matlab(x, settings.decimation, axis=0)
-    return lowpass_decimate(x, settings.decimation, 0.8 * fs_hz / 2 / settings.decimation, fs_hz, 8, axis=0)
+    return lowpass_decimate(x, settings.decimation, decimated_band_hz(fs_hz, settings.decimation), fs_hz, 8, axis=0)
 
 
 def usable_mask(valid: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None:

@@ -16,7 +16,7 @@ import numpy as np
 from ilic_cli.diagnosis.stats import batched_rss, lag1_autocorrelation, shifted_rss
 from ilic_cli.diagnosis.system import Step, effect_columns, shifted_force
 from ilic_cli.effects import Effect
-from ilic_cli.filtering import kept_indices
+from ilic_cli.filtering import decimated_band_hz, kept_indices
 from ilic_cli.idim_ls import IDIMData
 from ilic_cli.lsq import lstsq
 from ilic_cli.regressor import Kinematics, Model
@@ -54,14 +54,14 @@ class LogRate:
 
 def log_rate_factor(fs_hz: float, decimation: int, top_hz: float) -> int:
     """The decimation of a search at the log's rate: the coarsest that divides the rows' ``decimation`` and keeps ``top_hz`` (the top
-    of the value's grid) in its band (``0.8·(fs/2)/factor``, as :func:`ilic_cli.filtering.rows_band_hz`): 5 at 500 Hz for a 40 Hz top.
+    of the value's grid) in its band (:func:`ilic_cli.filtering.decimated_band_hz`): 5 at 500 Hz for a 40 Hz top.
 
     The band the search needs and no more: above it the log's rate holds the position noise differentiated twice, which a
     resonance's column carries into the fit (the corpus's 500 Hz flexibility logs, searched on every sample: damping ratios
     0.16-0.39 for 0.10-0.15; in the 40 Hz band 0.09-0.17).
     """
     r = max(int(decimation), 1)
-    return max(d for d in range(1, r + 1) if r % d == 0 and 0.8 * fs_hz / 2.0 / d >= top_hz * (1.0 - 1e-9))
+    return max(d for d in range(1, r + 1) if r % d == 0 and decimated_band_hz(fs_hz, d) >= top_hz * (1.0 - 1e-9))
 
 
 class Searcher:
