@@ -270,6 +270,8 @@ def write_mcap(log: JointLog, path: Path, chunk_bytes: int = 2**20) -> None:
     from mcap.records import Channel, DataEnd, Header, Schema  # deferred: with the builder
     from rosbags.typesys import Stores, get_typestore  # deferred: rosbags' type store, for the message definitions
 
+    from ilic_cli.io.mcapscan import MAGIC  # deferred: with the builder (the MCAP reader's one definition)
+
     ts = get_typestore(Stores.ROS2_HUMBLE)
     topics = [(STATES, JOINT_STATE)] + ([(REFERENCE, TRAJECTORY)] if log.has_reference else []) + [(METADATA, STRING)]
     schemas, channels = [], []
@@ -289,7 +291,7 @@ def write_mcap(log: JointLog, path: Path, chunk_bytes: int = 2**20) -> None:
     per_chunk = max(1, chunk_bytes // len(layout[0]))
     b = RecordBuilder()
     with path.open("xb") as f:
-        f.write(MCAP_MAGIC)
+        f.write(MAGIC)
         Header(profile="ros2", library="ilic-cli").write(b)
         for schema, channel in zip(schemas, channels):
             schema.write(b)
@@ -301,9 +303,6 @@ def write_mcap(log: JointLog, path: Path, chunk_bytes: int = 2**20) -> None:
         DataEnd(data_section_crc=0).write(b)
         f.write(b.end())
         _summary(f, b, schemas, channels, indexes, stamps)
-
-
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
 def _chunk(f: Any, layout: tuple[bytes, list[Any], int], stamps: np.ndarray, values: list[Any], start: int, buffer: np.ndarray, head: bytes) -> Any:
@@ -358,6 +357,8 @@ def _summary(f: Any, b: Any, schemas: list[Any], channels: list[Any], indexes: l
     """The summary section (schemas, channels, chunk indexes, statistics), its offsets, the footer and the closing magic."""
     from mcap.records import Footer, Statistics, SummaryOffset  # deferred: with write_mcap's
 
+    from ilic_cli.io.mcapscan import MAGIC  # deferred: with write_mcap's
+
     summary_start = f.tell()
     counts = {c.id: len(stamps) for c in channels[:-1]} | {channels[-1].id: 1}
     statistics = Statistics(
@@ -383,7 +384,7 @@ def _summary(f: Any, b: Any, schemas: list[Any], channels: list[Any], indexes: l
         summary_offset.write(b)
     Footer(summary_start=summary_start, summary_offset_start=offsets_start, summary_crc=0).write(b)
     f.write(b.end())
-    f.write(MCAP_MAGIC)
+    f.write(MAGIC)
 
 
 def _messages(path: Path) -> tuple[list[tuple[str, str]], Any]:

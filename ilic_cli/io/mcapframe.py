@@ -28,8 +28,8 @@ from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Metadata, MetadataIndex, Schema, Statistics, SummaryOffset
 
 from ilic_cli.io.cdrcols import put
+from ilic_cli.io.mcapscan import MAGIC
 
-MAGIC = b"\x89MCAP0\r\n"
 MESSAGE_HEAD = 31
 """Bytes of a message record before its data."""
 
