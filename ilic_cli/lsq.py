@@ -129,6 +129,32 @@ def relative_std_pct(theta: np.ndarray, std: np.ndarray) -> np.ndarray:
         return np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
 
 
+def residual_sigma(e: np.ndarray, b: int, sigma: SigmaConvention) -> tuple[float, float]:
+    """``||e||`` and the error's standard deviation by ``sigma``'s convention (:func:`solve_batch`) for ``b`` parameters."""
+    err = float(np.linalg.norm(e))
+    return err, float(np.std(e, ddof=1)) if sigma == "sample_std" else err / np.sqrt(max(len(e) - b, 1))
+
+
+def _result(
+    names: tuple[str, ...], y: np.ndarray, theta: np.ndarray, std: np.ndarray, sig: float, err: float, cond: float, rank: int, cov: np.ndarray | None
+) -> LSResult:
+    """The one place an :class:`LSResult`'s derived fields are made: eq. (10)'s ``rel_std_pct`` and the relative error ``100 err / ||y||``."""
+    ny = float(np.linalg.norm(y))
+    return LSResult(
+        names=tuple(names),
+        theta=theta,
+        std=std,
+        rel_std_pct=relative_std_pct(theta, std),
+        sigma_rho=sig,
+        error_norm=err,
+        relative_error_pct=float(100.0 * err / ny) if ny > 0 else float("inf"),  # = relative_error_pct(y, y - e)
+        condition_number=cond,
+        rows=len(y),
+        rank=rank,
+        cov=cov,
+    )
+
+
 def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> list[LSResult]:
     """Solve ``y[k] = W[k] @ theta[k]`` for every ``k`` in the stack.
 
@@ -155,7 +181,6 @@ def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: 
     theta = np.einsum("kij,ki->kj", Vt, uty * s_inv)
     e = y - np.einsum("krb,kb->kr", W, theta)
     err_norm = np.linalg.norm(e, axis=1)
-    y_norm = np.linalg.norm(y, axis=1)
     if sigma == "sample_std":
         sig = np.std(e, axis=1, ddof=1)
     else:
@@ -174,23 +199,8 @@ def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: 
             touched = (np.abs(Vt[k][null]) > 1e-8).any(axis=0)
             std = np.where(touched, np.inf, std)
             cov = np.where(touched[:, None] | touched[None, :], np.inf, cov)
-        rel = relative_std_pct(theta[k], std)
         cond = float(s[k, 0] / s[k, -1]) if rank[k] == b else float("inf")
-        results.append(
-            LSResult(
-                names=tuple(names),
-                theta=theta[k],
-                std=std,
-                rel_std_pct=rel,
-                sigma_rho=float(sig[k]),
-                error_norm=float(err_norm[k]),
-                relative_error_pct=float(100.0 * err_norm[k] / y_norm[k]) if y_norm[k] > 0 else float("inf"),  # = relative_error_pct()
-                condition_number=cond,
-                rows=r,
-                rank=int(rank[k]),
-                cov=cov,
-            )
-        )
+        results.append(_result(names, y[k], theta[k], std, float(sig[k]), float(err_norm[k]), cond, int(rank[k]), cov))
     return results
 
 
@@ -204,23 +214,13 @@ def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, 
 
     Standard deviations use the sample-std convention of the benchmark.
     """
+    theta = np.asarray(theta, dtype=np.float64)
     e = y - W @ theta
     sig = float(np.std(e, ddof=1))
     s = np.linalg.svd(W, compute_uv=False)
-    var_unit = np.diag(pinv(W.T @ W))
-    std = sig * np.sqrt(var_unit)
-    return LSResult(
-        names=tuple(names),
-        theta=np.asarray(theta, dtype=np.float64),
-        std=std,
-        rel_std_pct=relative_std_pct(theta, std),
-        sigma_rho=sig,
-        error_norm=float(np.linalg.norm(e)),
-        relative_error_pct=relative_error_pct(y, W @ theta),
-        condition_number=float(s[0] / s[-1]),
-        rows=len(y),
-        rank=int((s > rank_tolerance(s[0], *W.shape)).sum()),
-    )
+    std = sig * np.sqrt(np.diag(pinv(W.T @ W)))
+    rank = int((s > rank_tolerance(s[0], *W.shape)).sum())
+    return _result(names, y, theta, std, sig, float(np.linalg.norm(e)), float(s[0] / s[-1]), rank, None)
 
 
 def solve_tall(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:
@@ -239,24 +239,10 @@ def solve_tall(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: S
     if not s[-1] > rank_tolerance(s[0], rows, b):
         return solve(W, y, names, sigma=sigma)
     theta = Vt.T @ ((U.T @ R[:b, b]) / s)
-    e = y - W @ theta
-    err = float(np.linalg.norm(e))
-    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else err / np.sqrt(rows - b)
+    err, sig = residual_sigma(y - W @ theta, b, sigma)
     cov = sig**2 * (Vt.T / s**2) @ Vt
     std = sig * np.sqrt(((Vt / s[:, None]) ** 2).sum(axis=0))
-    return LSResult(
-        names=tuple(names),
-        theta=theta,
-        std=std,
-        rel_std_pct=relative_std_pct(theta, std),
-        sigma_rho=sig,
-        error_norm=err,
-        relative_error_pct=relative_error_pct(y, W @ theta),
-        condition_number=float(s[0] / s[-1]),
-        rows=rows,
-        rank=b,
-        cov=cov,
-    )
+    return _result(names, y, theta, std, sig, err, float(s[0] / s[-1]), b, cov)
 
 
 def solve_iv(Z: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:
@@ -280,23 +266,9 @@ def solve_iv(Z: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...]
         cov = np.full((b, b), np.inf)
     else:
         theta = np.linalg.solve(A, Z.T @ y)
-    e = y - W @ theta
-    err_norm = float(np.linalg.norm(e))
-    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else err_norm / np.sqrt(max(r - b, 1))
+    err, sig = residual_sigma(y - W @ theta, b, sigma)
     if rank == b:
         A_inv = np.linalg.inv(A)
         cov = sig**2 * (A_inv @ (Z.T @ Z) @ A_inv.T)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    return LSResult(
-        names=tuple(names),
-        theta=theta,
-        std=std,
-        rel_std_pct=relative_std_pct(theta, std),
-        sigma_rho=sig,
-        error_norm=err_norm,
-        relative_error_pct=relative_error_pct(y, W @ theta),
-        condition_number=float(s[0] / s[-1]) if rank == b else float("inf"),
-        rows=r,
-        rank=rank,
-        cov=cov,
-    )
+    return _result(names, y, theta, std, sig, err, float(s[0] / s[-1]) if rank == b else float("inf"), rank, cov)
