@@ -31,8 +31,7 @@ from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
 from ilic_cli import __version__
-from ilic_cli.io import mcaplog, sqlitecells, sqlitewrite
-from ilic_cli.io.mcapframe import BulkWriter
+from ilic_cli.io import sqlitecells, sqlitewrite
 from ilic_cli.io.rosencode import Columns
 from ilic_cli.io.sqlitepages import table_max_local
 
@@ -188,6 +187,9 @@ class BulkMcapStorage:
     def __init__(self, path: Path, compression: CompressionMode) -> None:
         if compression != CompressionMode.NONE:
             raise WriterError("the bulk MCAP storage compresses its chunks itself; no bag compression")
+        from ilic_cli.io import mcaplog  # mcap (some 20 ms) deferred: an sqlite3 bag does not load it
+        from ilic_cli.io.mcapframe import BulkWriter  # mcap too
+
         self.path = path / f"{path.name}.mcap"
         self.stream = self.path.open("xb")
         self.writer = BulkWriter(self.stream, mcaplog._compression_name())
@@ -216,6 +218,8 @@ class BulkMcapStorage:
 
     def add_samples(self, columns: Columns, ids: dict[str, int]) -> None:
         """Add every per-sample message of ``columns`` (connection ids from ``ids``)."""
+        from ilic_cli.io import mcaplog  # mcap deferred (loaded by __init__ already)
+
         mcaplog.add_samples(self.writer, columns, {topic: self.channel_ids[cid] for topic, cid in ids.items()})
 
     def close(self, version: int, metadata: str) -> None:

@@ -21,7 +21,6 @@ not decrease (the caller inserts the rows with SQL otherwise).
 
 from __future__ import annotations
 
-import bisect
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -52,25 +51,38 @@ def pack(sizes: np.ndarray, capacity: int, separators: bool, final: bool = True)
     goes up to the parent page, not into a page, and the last run keeps at
     least one cell. Not ``final``: more cells follow, and only the pages that
     they cannot change are given (the cells after them wait).
+
+    Each page is as full as it can be: a page starting at cell ``a`` ends at
+    ``end[a]`` (one search for every cell at once), and the next starts at
+    ``end[a]`` (or after it, the separator); the chain of starts from cell 0
+    is followed by doubling (the starts so far, then where each of them
+    leads twice as many pages on), not page by page.
     """
     n = len(sizes)
-    cum = [0, *np.cumsum(np.asarray(sizes, dtype=np.int64) + 2).tolist()]  # a list: bisect is cheaper than a NumPy call per page
-    runs: list[tuple[int, int]] = []
-    a = 0
-    while a < n:
-        b = bisect.bisect_right(cum, cum[a] + capacity, lo=a) - 1
-        if b >= n:
-            if final:
-                runs.append((a, n))
-            break
-        if separators and b + 1 >= n:
-            if not final:
-                break
-            b -= 1  # the separator would be the last cell, leaving the last page empty
-        if b <= a:
-            raise NotWritten  # a cell that does not fit a page
-        runs.append((a, b))
-        a = b + 1 if separators else b
+    if not n:
+        return []
+    cum = np.concatenate([[0], np.cumsum(np.asarray(sizes, dtype=np.int64) + 2)])
+    end = np.searchsorted(cum, cum[:-1] + capacity, side="right") - 1
+    step = end + 1 if separators else end
+    jump = np.minimum(np.append(np.maximum(step, np.arange(1, n + 1)), n), n)  # cell n: past the last, where every chain stops
+    chain = np.zeros(1, dtype=np.int64)
+    while chain[-1] < n:
+        chain = np.concatenate([chain, jump[chain]])
+        jump = jump[jump]
+    starts = chain[chain < n]
+    ends = end[starts]
+    if (ends[:-1] <= starts[:-1]).any():
+        raise NotWritten  # a cell that does not fit a page
+    runs = list(zip(starts[:-1].tolist(), ends[:-1].tolist()))
+    a, b = int(starts[-1]), int(ends[-1])  # only the last page can reach the end
+    if b >= n:
+        runs += [(a, n)] if final else []
+    elif separators and b == n - 1 and final:
+        if b - 1 <= a or end[n - 1] < n:
+            raise NotWritten
+        runs += [(a, b - 1), (n - 1, n)]  # the separator would be the last cell, leaving the last page empty: one cell fewer
+    elif not separators or b != n - 1:
+        raise NotWritten  # a cell that does not fit a page
     return runs
 
 

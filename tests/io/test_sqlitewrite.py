@@ -204,3 +204,39 @@ def test_pages_hold_runs_of_cells_and_separators_go_up() -> None:
     assert sqlitewrite.pack(sizes, 36, separators=True) == [(0, 3), (4, 7)]
     assert sqlitewrite.pack(np.full(8, 10), 36, separators=True) == [(0, 3), (4, 6), (7, 8)]  # not (4, 7): 7 would go up, the last page empty
     assert sqlitewrite.pack(sizes, 36, separators=False, final=False) == [(0, 3), (3, 6)]  # the last cell waits for more
+    for last in (np.array([7, 7, 25]), np.array([7, 25])):  # a cell too big for a page, last
+        with pytest.raises(sqlitewrite.NotWritten):
+            sqlitewrite.pack(last, 21, separators=True)
+
+
+def _pack_one_page_at_a_time(sizes: np.ndarray, capacity: int, separators: bool, final: bool) -> list[tuple[int, int]] | None:
+    """:func:`ilic_cli.io.sqlitewrite.pack` page after page (None: a cell that does not fit)."""
+    n, runs, a = len(sizes), [], 0
+    while a < n:
+        b = a
+        while b < n and int(np.sum(sizes[a : b + 1] + 2)) <= capacity:
+            b += 1
+        if b >= n:
+            runs += [(a, n)] if final else []
+            break
+        if separators and b + 1 >= n:
+            if not final:
+                break
+            b -= 1
+        if b <= a:
+            return None
+        runs.append((a, b))
+        a = b + 1 if separators else b
+    return runs
+
+
+def test_pages_by_doubling_are_the_pages_one_at_a_time() -> None:
+    rng = np.random.default_rng(4)
+    for _ in range(600):
+        sizes = rng.integers(1, 40, int(rng.integers(0, 50)))
+        capacity, separators, final = int(rng.integers(20, 200)), bool(rng.integers(2)), bool(rng.integers(2))
+        try:
+            got: list[tuple[int, int]] | None = sqlitewrite.pack(sizes, capacity, separators, final)
+        except sqlitewrite.NotWritten:
+            got = None
+        assert got == _pack_one_page_at_a_time(sizes, capacity, separators, final), (sizes.tolist(), capacity, separators, final)
