@@ -21,14 +21,18 @@ not decrease (the caller inserts the rows with SQL otherwise).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ilic_cli.io.sqlitecells import WIDTH, Bulk, index_cells, index_fields, join, low_bytes, serial_types, table_cell_sizes, table_cells, varints
 from ilic_cli.io.sqlitepages import INDEX_INTERIOR, INDEX_LEAF, INTERIOR, LEAF, table_max_local
+
+if TYPE_CHECKING:
+    from concurrent.futures import Future
 
 HEADER = {LEAF: 8, INDEX_LEAF: 8, INTERIOR: 12, INDEX_INTERIOR: 12}
 """Bytes of a page's header by page type (an interior page's ends with its right-most child)."""
@@ -208,32 +212,40 @@ def write_trees(path: Path, table_root: int, index_root: int, prior: Before, bul
         raise NotWritten
     if not nondecreasing(prior.log_ns, bulk.log_ns):
         raise NotWritten
-    k = len(bulk.topic_ids)
-    n = len(bulk.log_ns)
     first_rowid = int(prior.rowid.max()) + 1 if len(prior.rowid) else 1
     with open(path, "r+b") as stream:
-        out = _Out(stream, page_size, pages + 1)
-        table = _Tree(out, LEAF, usable, table_root)
-        index = _Tree(out, INDEX_LEAF, usable, index_root)
-        table.space(len(prior.cells))[:] = np.frombuffer(prior.cells, dtype=np.uint8)
-        table.add(prior.sizes, prior.log_ns, prior.rowid, final=n == 0)
-        index.add_entries(prior.log_ns, prior.rowid, final=n == 0)
-        for s in range(0, n, SAMPLES_PER_BLOCK):
-            stop = min(s + SAMPLES_PER_BLOCK, n)
-            sizes = table_cell_sizes(bulk, first_rowid, s, stop)
-            table_cells(bulk, first_rowid, s, stop, table.space(int(sizes.sum())))
-            log_ns = np.repeat(bulk.log_ns[s:stop], k)
-            rowid = first_rowid + np.arange(s * k, stop * k, dtype=np.int64)
-            table.add(sizes, log_ns, rowid, final=stop == n)
-            index.add_entries(log_ns, rowid, final=stop == n)
-        table.finish()
-        index.finish()
+        out = _Out(stream.fileno(), page_size, pages + 1)
+        try:
+            _trees(out, usable, table_root, index_root, prior, bulk, first_rowid)
+        finally:
+            out.close()
         counter = (_be(head, 24, 4) + 1) & 0xFFFF_FFFF  # one more change, and the size valid for it
         head[24:28] = counter.to_bytes(4, "big")
         head[28:32] = (out.next - 1).to_bytes(4, "big")
         head[92:96] = counter.to_bytes(4, "big")
         stream.seek(0)
         stream.write(head)
+
+
+def _trees(out: _Out, usable: int, table_root: int, index_root: int, prior: Before, bulk: Bulk, first_rowid: int) -> None:
+    """The pages of both trees: the leaves a block of samples at a time, then the interior levels."""
+    k = len(bulk.topic_ids)
+    n = len(bulk.log_ns)
+    table = _Tree(out, LEAF, usable, table_root)
+    index = _Tree(out, INDEX_LEAF, usable, index_root)
+    table.space(len(prior.cells))[:] = np.frombuffer(prior.cells, dtype=np.uint8)
+    table.add(prior.sizes, prior.log_ns, prior.rowid, final=n == 0)
+    index.add_entries(prior.log_ns, prior.rowid, final=n == 0)
+    for s in range(0, n, SAMPLES_PER_BLOCK):
+        stop = min(s + SAMPLES_PER_BLOCK, n)
+        sizes = table_cell_sizes(bulk, first_rowid, s, stop)
+        table_cells(bulk, first_rowid, s, stop, table.space(int(sizes.sum())))
+        log_ns = np.repeat(bulk.log_ns[s:stop], k)
+        rowid = first_rowid + np.arange(s * k, stop * k, dtype=np.int64)
+        table.add(sizes, log_ns, rowid, final=stop == n)
+        index.add_entries(log_ns, rowid, final=stop == n)
+    table.finish()
+    index.finish()
 
 
 def nondecreasing(prior: np.ndarray, log_ns: np.ndarray) -> bool:
@@ -243,18 +255,32 @@ def nondecreasing(prior: np.ndarray, log_ns: np.ndarray) -> bool:
 
 
 class _Out:
-    """Pages built in one buffer, reused, then written at their page numbers; new pages numbered from ``first``."""
+    """Pages built in buffers taken in turn, written at their page numbers by a thread while the next pages are built.
 
-    def __init__(self, stream: BinaryIO, page_size: int, first: int) -> None:
-        self.stream, self.page_size, self.next = stream, page_size, first
-        self.buffer = np.zeros(0, dtype=np.uint8)
+    New pages are numbered from ``first``. A buffer is built again only once
+    its write is done; the bytes written and where do not depend on the
+    thread's timing.
+    """
+
+    BUFFERS = 2
+
+    def __init__(self, fd: int, page_size: int, first: int) -> None:
+        from concurrent.futures import ThreadPoolExecutor  # the writes overlap the building (os.pwrite lets the GIL go)
+
+        self.fd, self.page_size, self.next = fd, page_size, first
+        self.buffers = [np.zeros(0, dtype=np.uint8) for _ in range(self.BUFFERS)]
+        self.writes: list[Future[None] | None] = [None] * self.BUFFERS
+        self.turn = 0
+        self.pool = ThreadPoolExecutor(1)
 
     def pages(self, count: int) -> np.ndarray:
-        """``count`` pages of zeros."""
+        """``count`` pages of zeros, in the next buffer (for :meth:`put`)."""
+        self.turn = (self.turn + 1) % self.BUFFERS
+        self._wait(self.turn)
         size = count * self.page_size
-        if len(self.buffer) < size:
-            self.buffer = np.zeros(size, dtype=np.uint8)
-        out = self.buffer[:size].reshape(count, self.page_size)
+        if len(self.buffers[self.turn]) < size:
+            self.buffers[self.turn] = np.zeros(size, dtype=np.uint8)
+        out = self.buffers[self.turn][:size].reshape(count, self.page_size)
         out[:] = 0
         return out
 
@@ -266,9 +292,27 @@ class _Out:
         return np.arange(self.next - count, self.next, dtype=np.int64)
 
     def put(self, numbers: np.ndarray, pages: np.ndarray) -> None:
-        """Write ``pages`` at page numbers ``numbers`` (consecutive, or one page)."""
-        self.stream.seek((int(numbers[0]) - 1) * self.page_size)
-        self.stream.write(memoryview(pages.reshape(-1)))  # type: ignore[arg-type]  # numpy's stubs give ndarray the buffer protocol only for Python >= 3.12
+        """Write ``pages`` (the last :meth:`pages`) at page numbers ``numbers`` (consecutive, or one page)."""
+        self.writes[self.turn] = self.pool.submit(_write_at, self.fd, memoryview(pages.reshape(-1)), (int(numbers[0]) - 1) * self.page_size)  # type: ignore[arg-type]  # numpy's stubs give ndarray the buffer protocol only for Python >= 3.12
+
+    def _wait(self, turn: int) -> None:
+        write, self.writes[turn] = self.writes[turn], None
+        if write is not None:
+            write.result()  # its error, if any, raised here
+
+    def close(self) -> None:
+        """Wait for every write (raising the first error); stop the thread."""
+        try:
+            for turn in range(self.BUFFERS):
+                self._wait(turn)
+        finally:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _write_at(fd: int, data: memoryview, offset: int) -> None:
+    while len(data):
+        done = os.pwrite(fd, data, offset)
+        data, offset = data[done:], offset + done
 
 
 class _Tree:
