@@ -145,8 +145,8 @@ def table_cells(bulk: Bulk, first_rowid: int, start: int, stop: int, out: np.nda
     s_time = serial_types(log_ns)
     rowid = first_rowid + (start + np.arange(n, dtype=np.int64))[:, None] * k + np.arange(k)
     r_size = varint_sizes(rowid.reshape(-1)).reshape(n, k)
-    key = s_time * 16**k + (r_size * 16 ** np.arange(k)[::-1]).sum(axis=1)
-    edges = [0, *(np.flatnonzero(key[1:] != key[:-1]) + 1).tolist(), n]
+    layout = np.column_stack([s_time, r_size])
+    edges = [0, *(np.flatnonzero((layout[1:] != layout[:-1]).any(axis=1)) + 1).tolist(), n]
     blobs = [bulk.rows(j, start, stop) for j in range(k)]
     s_topic = [int(serial_types(np.array([tid]))[0]) for tid in bulk.topic_ids]
     blob_serial = [varints(np.array([2 * size + 12])) for size in bulk.sizes]
