@@ -53,9 +53,11 @@ class BulkSqlite3Storage(Sqlite3Writer):
     pages (:mod:`ilic_cli.io.sqlitewrite`): they wait for :meth:`close`, which
     lets sqlite3 finish the file and then writes the ``messages`` table and
     its ``timestamp_idx`` index as B-tree pages. Rows whose cells would spill
-    to overflow pages, a message written after the samples, or a file whose
-    trees are not as expected go to :meth:`insert_sql` instead (the rows are
-    the same either way).
+    to overflow pages, timestamps that decrease (the index's entries would
+    not be in id order), a message written after the samples, or a file
+    whose header or trees are not as expected go to :meth:`insert_sql`
+    instead: the same rows, ids and index either way (not the same bytes:
+    the pages are filled fuller than sqlite3 fills them).
     """
 
     pages = True
