@@ -7,8 +7,9 @@ Both implement the writer's storage protocol (``add_msgtype``,
 writer writes them (per sample: ``/joint_states``, ``/joint_reference``,
 ``/ilic/extras``).
 
-- :class:`BulkSqlite3Storage`: ``rosbags``' sqlite3 storage; sqlite3 cuts
-  each topic's messages, passed as one blob, into rows.
+- :class:`BulkSqlite3Storage`: ``rosbags``' sqlite3 storage; the ``messages``
+  table and its index are written as B-tree pages (:mod:`ilic_cli.io.sqlitewrite`),
+  or sqlite3 cuts each topic's messages, passed as one blob, into rows.
 - :class:`BulkMcapStorage`: an MCAP file written by
   :class:`ilic_cli.io.mcapframe.BulkWriter` (zstd chunks with CRCs, message
   indexes, summary), with ``rosbags``' channel metadata (``offered_qos_profiles``)
@@ -30,9 +31,9 @@ from rosbags.rosbag2.errors import WriterError
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
 from ilic_cli import __version__
-from ilic_cli.io import mcaplog
-from ilic_cli.io.mcapframe import BulkWriter
+from ilic_cli.io import sqlitecells, sqlitewrite
 from ilic_cli.io.rosencode import Columns
+from ilic_cli.io.sqlitepages import table_max_local
 
 SAMPLES_PER_INSERT = 65536
 """Samples inserted by one statement."""
@@ -46,8 +47,21 @@ class BulkSqlite3Storage(Sqlite3Writer):
 
     The database is not synced to disk at commit (``PRAGMA synchronous = OFF``),
     like every other output, which ``write_log`` writes to a temporary path and
-    renames; the file's bytes are the same.
+    renames.
+
+    The samples' rows are not inserted by sqlite3 when they can be written as
+    pages (:mod:`ilic_cli.io.sqlitewrite`): they wait for :meth:`close`, which
+    lets sqlite3 finish the file and then writes the ``messages`` table and
+    its ``timestamp_idx`` index as B-tree pages. Rows whose cells would spill
+    to overflow pages, timestamps that decrease (the index's entries would
+    not be in id order), a message written after the samples, or a file
+    whose header or trees are not as expected go to :meth:`insert_sql`
+    instead: the same rows, ids and index either way (not the same bytes:
+    the pages are filled fuller than sqlite3 fills them).
     """
+
+    pages = True
+    """Whether the samples' rows may be written as pages (else always with SQL)."""
 
     def __init__(self, path: Path, compression: CompressionMode) -> None:
         """``rosbags``' ``Sqlite3Writer.__init__``, with ``synchronous = OFF`` set before the schema is committed."""
@@ -58,9 +72,66 @@ class BulkSqlite3Storage(Sqlite3Writer):
         self.conn.execute("PRAGMA synchronous = OFF")  # before the schema's commit, which would wait for the disk
         self.conn.executescript(self.SQLITE_SCHEMA)
         self.cursor = self.conn.cursor()
+        self.pending: tuple[Columns, dict[str, int]] | None = None
+
+    def write(self, connection: Any, timestamp: int, data: bytes | memoryview) -> None:
+        """Insert one message (after the samples' rows, when they wait: the ids stay in the order of the calls)."""
+        self._insert_pending()
+        super().write(connection, timestamp, data)
 
     def add_samples(self, columns: Columns, ids: dict[str, int]) -> None:
-        """Insert every per-sample message of ``columns`` (topic ids from ``ids``).
+        """Write every per-sample message of ``columns`` (topic ids from ``ids``): as pages at :meth:`close`, or now with SQL."""
+        self._insert_pending()
+        topics = columns.sample_topics()
+        if not topics or not len(columns.log_ns):
+            return
+        if self.pages and self._fits(columns, ids):
+            self.pending = (columns, ids)
+        else:
+            self.insert_sql(columns, ids)
+
+    def _fits(self, columns: Columns, ids: dict[str, int]) -> bool:
+        """Whether every row's cell fits in a leaf page (no overflow pages) of a file whose header the page writer expects."""
+        try:  # the header as the schema's commit wrote it
+            _, usable, _ = sqlitewrite.header(self.path)
+        except sqlitewrite.NotWritten:
+            return False
+        return sqlitecells.max_payload(_bulk(columns, ids)) <= table_max_local(usable)
+
+    def _insert_pending(self) -> None:
+        if self.pending is not None:
+            columns, ids = self.pending
+            self.pending = None
+            self.insert_sql(columns, ids)
+
+    def close(self, version: int, metadata: str) -> None:
+        """``rosbags``' close, then the samples' rows written as pages, if they wait."""
+        if self.pending is None:
+            super().close(version, metadata)
+            return
+        columns, ids = self.pending
+        roots = dict(self.conn.execute("SELECT name, rootpage FROM sqlite_master WHERE name IN ('messages', 'timestamp_idx')").fetchall())
+        rows = self.conn.execute("SELECT id, timestamp, typeof(id), typeof(timestamp) FROM messages ORDER BY id").fetchall()
+        prior = None
+        if len(roots) == 2 and all(r[2] == r[3] == "integer" for r in rows):
+            rowid = np.array([r[0] for r in rows], dtype=np.int64)
+            log_ns = np.array([r[1] for r in rows], dtype=np.int64)
+            if sqlitewrite.nondecreasing(log_ns, columns.log_ns):  # else the index's entries would not be in id order
+                self.conn.commit()  # the rows so far on disk, for their cells
+                try:
+                    prior = sqlitewrite.before(self.path, roots["messages"], roots["timestamp_idx"], rowid, log_ns)
+                except sqlitewrite.NotWritten:
+                    prior = None  # the same rows by SQL; the file counts one more change
+        if prior is None:
+            self._insert_pending()
+            super().close(version, metadata)
+            return
+        self.pending = None
+        super().close(version, metadata)
+        sqlitewrite.write_trees(self.path, roots["messages"], roots["timestamp_idx"], prior, _bulk(columns, ids))
+
+    def insert_sql(self, columns: Columns, ids: dict[str, int]) -> None:
+        """Insert every per-sample message of ``columns`` (topic ids from ``ids``) with SQL.
 
         One ``INSERT`` per :data:`SAMPLES_PER_INSERT` samples (:func:`insert_rows_sql`)
         takes the samples' messages back to back as one blob and their log
@@ -69,14 +140,22 @@ class BulkSqlite3Storage(Sqlite3Writer):
         file, without a Python object per message.
         """
         topics = columns.sample_topics()
-        if not topics:
-            return
         sql = insert_rows_sql([ids[topic] for topic in topics], [columns.sizes[topic] for topic in topics], SAMPLES_PER_INSERT)
         for start in range(0, len(columns.log_ns), SAMPLES_PER_INSERT):
             stop = min(start + SAMPLES_PER_INSERT, len(columns.log_ns))
             stamps = np.char.zfill(columns.log_ns[start:stop].astype(f"S{STAMP_DIGITS}"), STAMP_DIGITS)
             messages = np.hstack([columns.rows(topic, start, stop) for topic in topics])
             self.cursor.execute(sql, [stop - start, memoryview(stamps), memoryview(messages)])  # type: ignore[arg-type]  # bound as blobs, not copied to bytes first; numpy's stubs give ndarray the buffer protocol only for Python >= 3.12
+
+
+def _bulk(columns: Columns, ids: dict[str, int]) -> sqlitecells.Bulk:
+    """The samples' rows of ``columns`` for the page writer."""
+    topics = columns.sample_topics()
+
+    def rows(k: int, start: int, stop: int) -> np.ndarray:
+        return columns.rows(topics[k], start, stop)
+
+    return sqlitecells.Bulk([ids[topic] for topic in topics], [columns.sizes[topic] for topic in topics], columns.log_ns, rows)
 
 
 def insert_rows_sql(topic_ids: list[int], sizes: list[int], most: int) -> str:
@@ -110,6 +189,9 @@ class BulkMcapStorage:
     def __init__(self, path: Path, compression: CompressionMode) -> None:
         if compression != CompressionMode.NONE:
             raise WriterError("the bulk MCAP storage compresses its chunks itself; no bag compression")
+        from ilic_cli.io import mcaplog  # mcap (some 20 ms) deferred: an sqlite3 bag does not load it
+        from ilic_cli.io.mcapframe import BulkWriter  # mcap too
+
         self.path = path / f"{path.name}.mcap"
         self.stream = self.path.open("xb")
         self.writer = BulkWriter(self.stream, mcaplog._compression_name())
@@ -138,6 +220,8 @@ class BulkMcapStorage:
 
     def add_samples(self, columns: Columns, ids: dict[str, int]) -> None:
         """Add every per-sample message of ``columns`` (connection ids from ``ids``)."""
+        from ilic_cli.io import mcaplog  # mcap deferred (loaded by __init__ already)
+
         mcaplog.add_samples(self.writer, columns, {topic: self.channel_ids[cid] for topic, cid in ids.items()})
 
     def close(self, version: int, metadata: str) -> None:

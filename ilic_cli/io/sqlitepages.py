@@ -34,6 +34,14 @@ COLUMNS = ["id", "topic_id", "timestamp", "data"]
 LEAF, INTERIOR = 0x0D, 0x05
 """Page types of a table B-tree."""
 
+INDEX_LEAF, INDEX_INTERIOR = 0x0A, 0x02
+"""Page types of an index B-tree."""
+
+
+def table_max_local(usable: int) -> int:
+    """The largest payload a table leaf cell holds in its page (a larger one spills to overflow pages)."""
+    return usable - 35
+
 
 class Unusual(Exception):
     """A file this module does not read: read the table with SQL."""
@@ -321,7 +329,7 @@ def _decode(u8: np.ndarray, cell: np.ndarray, page_end: np.ndarray, usable: int)
     payload = cells.varint()
     rowid = cells.varint()
     record = cell + cells.at
-    plain = cells.inside & (payload <= usable - 35)  # else the payload spills to overflow pages
+    plain = cells.inside & (payload <= table_max_local(usable))  # else the payload spills to overflow pages
     if (plain & (record + payload > page_end)).any():
         raise Unusual  # a cell past its page
     head_at = cells.at

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.errors import ChoiceError
-from ilic_cli.io import Selection, WriteOptions, read_log, rosschema, write_log
+from ilic_cli.io import Selection, WriteOptions, read_log, rosbulk, rosschema, write_log
 from ilic_cli.runlog import RunLog
 from tests.conftest import make_synthetic_log
 
@@ -80,8 +80,12 @@ def test_minimal_log_without_reference_or_velocity(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("name", "extra"), [("log.mcap", {}), ("bag", {"storage": "sqlite3"})], ids=["mcap", "rosbag2-sqlite3"])
-def test_bulk_writer_gives_the_per_message_writers_bytes(tmp_path: Path, name: str, extra: dict[str, Any]) -> None:
-    """Same log -> the same files from the bulk and the per-message writer (several chunks)."""
+def test_bulk_writer_gives_the_per_message_writers_bytes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str, extra: dict[str, Any]) -> None:
+    """Same log -> the same files from the bulk and the per-message writer (several chunks).
+
+    The sqlite3 storage through its SQL path: written as B-tree pages, its rows are the same, not its bytes (tests/io/test_sqlitewrite.py).
+    """
+    monkeypatch.setattr(rosbulk.BulkSqlite3Storage, "pages", False)
     log = make_synthetic_log(samples=12000)
     (tmp_path / "bulk").mkdir()
     (tmp_path / "each").mkdir()

@@ -1,5 +1,6 @@
 """ROS 2 sqlite3 bags in bulk: the read in batches joined by sqlite3 (their checks, the row-by-row
-fall-backs) and the write in statements that sqlite3 cuts into rows.
+fall-backs) and the write in statements that sqlite3 cuts into rows (the
+write as B-tree pages: tests/io/test_sqlitewrite.py).
 
 Every bag read here is also read message by message through ``rosbags``; the
 columns must have the same bits (:func:`tests.io.test_io_differential.read_both`).
@@ -163,8 +164,10 @@ def test_insert_statement_cuts_blobs_and_stamps_into_rows_in_order(samples: int)
 
 
 def test_bulk_sqlite3_writer_gives_the_per_message_bytes_across_statements(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The bulk writer's SQL path (the page path gives the same rows, not the same bytes: tests/io/test_sqlitewrite.py)."""
     log = make_synthetic_log(samples=N)
     monkeypatch.setattr(rosbulk, "SAMPLES_PER_INSERT", 700)  # 5 statements, the last one short
+    monkeypatch.setattr(rosbulk.BulkSqlite3Storage, "pages", False)
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
     bulk = write_log(log, tmp_path / "a" / "bag", options=WriteOptions(storage="sqlite3", fast=True))
