@@ -349,16 +349,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     head += META_PREFIX + " " + dump_json(meta_for_writing(log.meta)) + "\n"
     head += ",".join(names) + "\n"
     if getattr(options, "fast", True):
-        from ilic_cli.io.floattext import csv_rows  # deferred: numba, only when a CSV file is written
-
-        columns = [np.asarray(log.channels[n], dtype=np.float64) for n in names]
-        n = len(log)
-        buffer = None
-        with open(path, "wb") as stream:
-            stream.write(head.encode("utf-8"))
-            for start in range(0, n, ROWS_PER_BLOCK):
-                buffer, length = csv_rows(columns, start, min(n, start + ROWS_PER_BLOCK), buffer)
-                stream.write(buffer[:length].data)
+        _write_rows(path, head, [np.asarray(log.channels[n], dtype=np.float64) for n in names], len(log))
         return
     out = io.StringIO()
     out.write(head)
@@ -371,3 +362,15 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
 
 ROWS_PER_BLOCK = 32768
 """Rows laid out at once by the fast writer (a buffer of some 25 bytes a value)."""
+
+
+def _write_rows(path: Path, head: str, columns: list[np.ndarray], n: int) -> None:
+    """``head``, then the rows of ``columns`` laid out by :func:`ilic_cli.io.floattext.csv_rows`, a block of rows at a time in one reused buffer."""
+    from ilic_cli.io.floattext import csv_rows  # deferred: numba, only when a CSV file is written
+
+    buffer = None
+    with open(path, "wb") as stream:
+        stream.write(head.encode("utf-8"))
+        for start in range(0, n, ROWS_PER_BLOCK):
+            buffer, length = csv_rows(columns, start, min(n, start + ROWS_PER_BLOCK), buffer)
+            stream.write(buffer[:length].data)
