@@ -94,7 +94,7 @@ def test_exact_ties_go_to_the_even_digit() -> None:
 
 
 def test_decimal_patterns() -> None:
-    k = np.arange(0, 200_000, dtype=np.float64)
+    k = np.arange(0, 100_000, dtype=np.float64)
     _assert_repr(k / 1000.0)
     _assert_repr(k * 0.001)
     _assert_repr(k * 1e-6)
