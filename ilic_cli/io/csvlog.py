@@ -9,9 +9,10 @@ Layout::
     ...
 
 Both comment lines are optional when reading (units then default, and the
-nominal sample rate is derived from ``t``). Values are written with Python's
-``repr`` (the shortest text that reads back to the same float64), so a
-write/read round trip is exact. Any text that is not a number is refused with
+nominal sample rate is derived from ``t``). Values are written as Python's
+``repr`` writes them (the shortest text that reads back to the same float64;
+the compiled formatter :mod:`ilic_cli.io.floattext` writes the same bytes), so
+a write/read round trip is exact. Any text that is not a number is refused with
 its row (file line) and column.
 
 Reading parses the rows with pandas' C parser when the file below its header
