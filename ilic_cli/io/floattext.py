@@ -300,12 +300,11 @@ def _layout(d: np.uint64, k: int, out: np.ndarray, pos: int) -> int:
             out[pos] = 46
             out[pos + 1] = 48
             return pos + 2
-        # digits, then the point after e + 1 of them: the tail moves one place right
-        _put_digits(d, out, pos + n)
-        point = pos + e + 1
-        for i in range(pos + n, point, -1):
-            out[i] = out[i - 1]
-        out[point] = 46
+        # the digits one place right, then their first e + 1 one place left, before the point
+        _put_digits(d, out, pos + n + 1)
+        for i in range(pos, pos + e + 1):
+            out[i] = out[i + 1]
+        out[pos + e + 1] = 46
         return pos + n + 1
     if n == 1:
         out[pos] = _D0 + d
