@@ -130,6 +130,17 @@ def writer(duration_s: float) -> None:
     )
 
 
+def _short_decimals(rng: np.random.Generator, count: int) -> np.ndarray:
+    """Decimals of 1 to 17 random digits at random exponents read as float64, with the float64 on either side of each (a third each)."""
+    third = count // 3
+    digits = rng.integers(1, 18, size=third)
+    mantissas = [int(rng.integers(10 ** (d - 1), 10**d)) for d in digits.tolist()]
+    exponents = rng.integers(-340, 310, size=third).tolist()
+    values = np.array([float(f"{m}e{e}") for m, e in zip(mantissas, exponents)])
+    values = values[np.isfinite(values) & (values != 0.0)]
+    return np.concatenate([values, np.nextafter(values, np.inf), np.nextafter(values, -np.inf)])
+
+
 def sweep(count: int) -> None:
     from ilic_cli.io import floattext
 
@@ -141,6 +152,10 @@ def sweep(count: int) -> None:
         "k / 1000": np.arange(count) / 1000.0,
         "k * 1e-6": np.arange(count) * 1e-6,
         "integers": rng.integers(-(2**53), 2**53, size=count).astype(np.float64),
+        "short decimals and their neighbours": _short_decimals(rng, count),
+        "every exponent, random significands": (
+            rng.integers(1, 2**52, size=count, dtype=np.uint64) | (rng.integers(0, 2047, size=count, dtype=np.uint64) << np.uint64(52))
+        ).view(np.float64),
     }
     for kind, values in kinds.items():
         got = floattext.texts(values)

@@ -160,3 +160,13 @@ def test_csv_writer_is_the_repr_writer_byte_for_byte(tmp_path: Path, monkeypatch
     csvlog.write(log, slow, WriteOptions(fast=False))
     assert fast.read_bytes() == slow.read_bytes()
     assert fast.read_bytes().count(b"\n") == n + 3
+
+
+def test_short_decimals_and_their_neighbours() -> None:
+    # a decimal of few digits read as float64 prints as itself: the one-digit-shorter candidate's path, and its neighbours' near misses
+    rng = np.random.default_rng(17)
+    digits = rng.integers(1, 18, size=30_000).tolist()
+    exponents = rng.integers(-340, 310, size=30_000).tolist()
+    values = np.array([float(f"{int(rng.integers(10 ** (d - 1), 10**d))}e{e}") for d, e in zip(digits, exponents)])
+    values = values[np.isfinite(values) & (values != 0.0)]
+    _assert_repr(_neighbours(values))
