@@ -9,9 +9,10 @@ Layout::
     ...
 
 Both comment lines are optional when reading (units then default, and the
-nominal sample rate is derived from ``t``). Values are written with Python's
-``repr`` (the shortest text that reads back to the same float64), so a
-write/read round trip is exact. Any text that is not a number is refused with
+nominal sample rate is derived from ``t``). Values are written as Python's
+``repr`` writes them (the shortest text that reads back to the same float64;
+the compiled formatter :mod:`ilic_cli.io.floattext` writes the same bytes), so
+a write/read round trip is exact. Any text that is not a number is refused with
 its row (file line) and column.
 
 Reading parses the rows with pandas' C parser when the file below its header
@@ -337,8 +338,10 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     path : Path
         Destination file (a temporary path chosen by ``write_log``).
     options : WriteOptions
-        ``options.fast`` (default True) lays out blocks of rows with NumPy;
-        False joins the values row by row. Both write the same bytes.
+        ``options.fast`` (default True) lays out blocks of rows with the
+        compiled formatter (:mod:`ilic_cli.io.floattext`); False joins
+        Python's ``repr`` of the values row by row. Both write the same bytes
+        (tested).
     """
     names = list(log.channels)
     for name in names:
@@ -347,12 +350,7 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
     head += META_PREFIX + " " + dump_json(meta_for_writing(log.meta)) + "\n"
     head += ",".join(names) + "\n"
     if getattr(options, "fast", True):
-        with open(path, "wb") as stream:
-            stream.write(head.encode("utf-8"))
-            columns = [np.asarray(log.channels[n], dtype=np.float64) for n in names]
-            n = len(log)
-            for start in range(0, n, ROWS_PER_BLOCK):
-                stream.write(_rows_text(columns, start, min(n, start + ROWS_PER_BLOCK)))
+        _write_rows(path, head, [np.asarray(log.channels[n], dtype=np.float64) for n in names], len(log))
         return
     out = io.StringIO()
     out.write(head)
@@ -364,36 +362,16 @@ def write(log: RunLog, path: Path, options: WriteOptions) -> None:
 
 
 ROWS_PER_BLOCK = 32768
-"""Rows formatted at once by the fast writer."""
+"""Rows laid out at once by the fast writer (a buffer of some 25 bytes a value)."""
 
 
-def _texts(values: np.ndarray) -> np.ndarray:
-    """``repr`` of each value as bytes; a column with repeated values (estimates, references at rest) formats each distinct value once.
+def _write_rows(path: Path, head: str, columns: list[np.ndarray], n: int) -> None:
+    """``head``, then the rows of ``columns`` laid out by :func:`ilic_cli.io.floattext.csv_rows`, a block of rows at a time in one reused buffer."""
+    from ilic_cli.io.floattext import csv_rows  # deferred: numba, only when a CSV file is written
 
-    Values are told apart by their bits (``-0.0`` and ``0.0`` print differently).
-    """
-    bits = np.ascontiguousarray(values).view(np.uint64)
-    distinct, inverse = np.unique(bits, return_inverse=True)
-    if len(distinct) > len(values) // 2:  # mostly distinct: the sort does not pay
-        return np.array(list(map(repr, values.tolist())), dtype="S")
-    return np.array(list(map(repr, distinct.view(np.float64).tolist())), dtype="S")[inverse.reshape(-1)]
-
-
-def _rows_text(columns: list[np.ndarray], start: int, stop: int) -> bytes:
-    """Rows ``start..stop-1`` as CSV text: ``repr`` of every value, ``,`` between, ``\n`` after.
-
-    Each column's texts go into a NUL-padded byte matrix, one row per sample,
-    with the separators in their own columns; dropping the NUL padding leaves
-    the rows exactly as joining the texts would.
-    """
-    texts = [_texts(col[start:stop]) for col in columns]
-    widths = [t.dtype.itemsize for t in texts]
-    matrix = np.zeros((stop - start, sum(widths) + len(texts)), dtype=np.uint8)
-    at = 0
-    for j, (text, width) in enumerate(zip(texts, widths)):
-        matrix[:, at : at + width] = text.view(np.uint8).reshape(-1, width)
-        at += width
-        matrix[:, at] = ord(",") if j < len(texts) - 1 else ord("\n")
-        at += 1
-    flat = matrix.reshape(-1)
-    return flat[flat != 0].tobytes()
+    buffer = None
+    with open(path, "wb") as stream:
+        stream.write(head.encode("utf-8"))
+        for start in range(0, n, ROWS_PER_BLOCK):
+            buffer, length = csv_rows(columns, start, min(n, start + ROWS_PER_BLOCK), buffer)
+            stream.write(buffer[:length].data)
