@@ -32,6 +32,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.drift import GivenDrift
 from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
+from ilic_cli.diagnosis.replay_again import Heldout, judged_again
 from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, minimise, search_range
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import blocked_folds, diebold_mariano
@@ -222,11 +223,7 @@ def replay_decide(
             # there, the kept step has one value (measured: on a clean current-loop trapezoid the kept lag's own value
             # gave a held-out error of 0.869 %, the per-fold values 0.892 %, a fall a next candidate would be credited with)
             current = replays.heldout(kept) if search and st is not proposed[-1] else after
-    return kept, verdicts
-
-
-Heldout = tuple[np.ndarray, np.ndarray, list[Any]]
-"""Held-out simulated force (decimated) and position errors (blocks concatenated), and the value each fold used."""
+    return judged_again(replays, proposed, kept, verdicts, alpha, null, (validate, vsensor) if validate is not None else None)
 
 
 class _Folds:

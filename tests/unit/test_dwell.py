@@ -61,11 +61,22 @@ def test_search_finds_a_peak_above_half_the_coulomb_level() -> None:
     assert calls[0][1] == pytest.approx(20.0 * dwell.START_LEVEL_OF_FC)  # the vs profile first, at the proposal's level
 
 
+def test_search_finds_a_peak_of_several_coulomb_levels() -> None:
+    """A static friction 5.8 times the Coulomb level (Fs = 4.8 Fc, the corpus's S-curve s371 and s722): inside the levels searched
+    (up to 8 Fc), where up to 2 Fc it was on their top edge in every fold."""
+    vs = np.geomspace(0.002, 0.08, 8)
+    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    error, _ = _surface(0.011, 96.0)
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0)
+    assert found is not None and found.level is not None
+    assert found.value == pytest.approx(0.011, rel=1e-6) and found.level[0] == pytest.approx(96.0, rel=1e-6)
+
+
 @pytest.mark.parametrize(
     ("v0", "f0", "baseline", "why"),
     [
         (0.011, 0.2, 2.0, "the least level tried: no measured level"),
-        (0.011, 40.0, 2.0, "the largest level tried"),
+        (0.011, 160.0, 2.0, "the largest level tried"),
         (0.0005, 1.7, 2.0, "below the vs grid"),
         (0.5, 1.7, 2.0, "above the vs grid"),
         (0.011, 1.7, 0.5, "does not beat the model without it"),
@@ -154,7 +165,7 @@ def test_the_coulomb_level_and_the_grids() -> None:
     vs_grid = np.geomspace(0.001, 0.04, 32)
     vs, fs = dwell.grids(vs_grid, -20.0)
     assert np.array_equal(vs, vs_grid[:: dwell.VS_EVERY]) and len(vs) == 8
-    assert fs.tolist() == pytest.approx([0.625, 1.25, 2.5, 5.0, 10.0, 20.0, 40.0])
+    assert fs.tolist() == pytest.approx([0.625, 1.25, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0])
     first = dwell.proposal(vs_grid, -20.0)
     assert first.effect is STRIBECK and first.value == vs_grid[16] and first.level == (2.5,)
 
