@@ -20,9 +20,9 @@ from types import ModuleType
 from typing import Any
 
 from ilic_cli.effects import EFFECTS, EffectParams
+from ilic_cli.jit import njit
 from plant import kernel
 from plant.dynamics import generic_effects
-from plant.jit import njit
 
 
 def kernel_for(effects: Mapping[str, EffectParams]) -> ModuleType:

@@ -48,6 +48,7 @@ import math
 
 import numpy as np
 
+from ilic_cli.jit import njit
 from ilic_cli.parameters import STANDARD_GRAVITY
 from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PD_SAME, C_PULSE_RAMP, C_VMAX
 from plant.dynamics import (
@@ -83,7 +84,6 @@ from plant.dynamics import (
     P_VEPS,
     P_VS,
 )
-from plant.jit import njit
 from plant.kernel_linear import linear_acceleration, linear_coefficients, linear_period, rest_direction
 
 # A copy of this module compiled for effects without a compiled form

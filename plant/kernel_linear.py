@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ilic_cli.jit import njit
 from plant.dynamics import P_DM, P_FC_NEG, P_FC_POS, P_FV_NEG, P_FV_POS, P_M, P_TCH
-from plant.jit import njit
 
 
 @njit(cache=True, nogil=True)

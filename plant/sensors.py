@@ -9,8 +9,8 @@ import numpy as np
 
 from ilic_cli.effects import EffectParams
 from ilic_cli.errors import ParameterError
+from ilic_cli.jit import njit
 from plant.dynamics import measurement_lag_s
-from plant.jit import njit
 
 
 def held_signal(u: np.ndarray, T: float, times: np.ndarray, width: float) -> np.ndarray:

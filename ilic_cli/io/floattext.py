@@ -39,7 +39,8 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
+
+from ilic_cli.jit import njit
 
 Q_MIN = -1074
 """The binary exponent of the subnormals (``v = c 2^Q_MIN``)."""

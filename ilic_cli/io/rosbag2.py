@@ -4,8 +4,9 @@ Writing creates a bag of format version 9 (Humble CDR types, the topics of
 :mod:`ilic_cli.io.rosschema`) with the storage plugin of
 ``WriteOptions.storage``, through ``rosbags``' writer; with
 ``WriteOptions.fast`` (the default) its storage takes the messages in bulk
-(:mod:`ilic_cli.io.rosbulk`: an sqlite3 file identical to the per-message
-one, or an MCAP file with zstd chunks). Reading accepts both storages; the ``.mcap`` files
+(:mod:`ilic_cli.io.rosbulk`: an sqlite3 file with the per-message writer's
+rows, ids and index, its table and index written as B-tree pages, or an MCAP
+file with zstd chunks). Reading accepts both storages; the ``.mcap`` files
 of an MCAP-backed bag are first checked with :func:`ilic_cli.io.mcaplog.scan`
 (CRCs, bounded decompression). With ``fast`` (the default) that scan of a
 bag's only, uncompressed ``.mcap`` file is also the read, and an sqlite3 bag's

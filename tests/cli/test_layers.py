@@ -2,7 +2,8 @@
 
 Layers, lowest first (``docs/layout.md``). A module may import only from its own layer or a lower one:
 
-0. types: the run-log model, its time base and the errors every layer speaks (``runlog``, ``timebase``, ``errors``, ``parallel``);
+0. types: the run-log model, its time base and the errors every layer speaks (``runlog``, ``timebase``, ``errors``, ``parallel``,
+   and ``jit``, numba's loader every compiled loop goes through);
 1. io: the readers and writers (``io/``), which fill a run log;
 2. preparation: repairs and the usable rows (``quality``, ``prepare``);
 3. vocabulary: parameters, effects, regressor, least squares, filtering, the LM solver, the rigid-body model;
@@ -28,7 +29,19 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("ilic_cli", "plant")
 
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("types", ("ilic_cli", "ilic_cli.errors", "ilic_cli.method_names", "ilic_cli.runlog", "ilic_cli.jointlog", "ilic_cli.timebase", "ilic_cli.parallel")),
+    (
+        "types",
+        (
+            "ilic_cli",
+            "ilic_cli.errors",
+            "ilic_cli.method_names",
+            "ilic_cli.runlog",
+            "ilic_cli.jointlog",
+            "ilic_cli.timebase",
+            "ilic_cli.parallel",
+            "ilic_cli.jit",
+        ),
+    ),
     ("io", ("ilic_cli.io",)),
     ("preparation", ("ilic_cli.quality", "ilic_cli.prepare")),
     (

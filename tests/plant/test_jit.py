@@ -1,4 +1,4 @@
-"""``plant/jit.py`` (issue 33): numba's BLAS check answered without ``scipy.linalg`` (the same answer, and BLAS still there when asked for);
+"""``ilic_cli/jit.py`` (issue 33): numba's BLAS check answered without ``scipy.linalg`` (the same answer, and BLAS still there when asked for);
 the cached loop loaded without numba's registries, which a function not in the cache still gets."""
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def test_loop_loads_without_scipy_linalg_and_blas_still_works(tmp_path: Path) ->
     for run in range(2):
         folder = tmp_path / f"run{run}"
         folder.mkdir()
-        (folder / "uncached.py").write_text("from plant.jit import njit\n\n\n@njit(cache=True)\ndef twice(x):\n    return 2.0 * x\n")
+        (folder / "uncached.py").write_text("from ilic_cli.jit import njit\n\n\n@njit(cache=True)\ndef twice(x):\n    return 2.0 * x\n")
         proc = subprocess.run([sys.executable, "-c", PROBE, str(folder)], capture_output=True, text=True, check=True, timeout=300)
     report = json.loads(proc.stdout.strip().splitlines()[-1])
     assert report["samples"] == 500

@@ -1,4 +1,8 @@
-"""numba's ``njit`` for the plant's loops: the BLAS check answered without ``scipy.linalg``; a cached loop loaded without numba's registries.
+"""numba's ``njit`` for the compiled loops (the plant's, the CSV writer's float text): the BLAS check answered without ``scipy.linalg``; a cached
+function loaded without numba's registries.
+
+In the lowest layer (types) so that every layer may compile through it: the I/O layer's CSV writer
+(:mod:`ilic_cli.io.floattext`) as well as the plant.
 
 When numba first compiles or loads a function from its cache, it imports its
 array implementations (``numba.np.arraymath``), whose module body checks once
@@ -6,7 +10,7 @@ that a BLAS is there (``numba.np.linalg.ensure_blas``: ``import
 scipy.linalg.cython_blas``, which imports all of ``scipy.linalg`` and, through
 scipy's array-API layer, ``numpy.f2py``): about 0.3 s of CPU before a cached
 loop runs (``ilic simulate``; profiled, 0.33 s of the 0.8 s of a first 1 s
-simulation). The plant's loops call no BLAS.
+simulation). The plant's loops and the float text call no BLAS.
 
 :func:`_arraymath_without_scipy_linalg` imports ``numba.np.arraymath`` while
 ``ensure_blas`` is :func:`_blas_installed`: the same answer (numba's
