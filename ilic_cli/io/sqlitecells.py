@@ -68,6 +68,7 @@ Field = tuple[np.ndarray, np.ndarray]
 
 
 def varints(values: np.ndarray) -> Field:
+    """Each non-negative value as sqlite3's big-endian varint: 7 bits a byte, the high bit set on every byte but the last."""
     v = np.asarray(values, dtype=np.int64)
     size = varint_sizes(v)
     out = np.empty((len(v), max(int(size.max(initial=0)), 1)), dtype=np.uint8)
@@ -85,6 +86,7 @@ def integers(values: np.ndarray, serial: np.ndarray) -> Field:
 
 
 def constant(data: bytes, n: int) -> Field:
+    """The same bytes ``data`` in each of ``n`` cells (a read-only broadcast, not copied)."""
     return np.broadcast_to(np.frombuffer(data, dtype=np.uint8), (n, len(data))), np.full(n, len(data), dtype=np.int64)
 
 
