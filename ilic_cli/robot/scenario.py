@@ -17,6 +17,7 @@ the joint axis at ``payload_offset_m``), to be tracked by the windows that follo
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -119,7 +120,7 @@ def with_payload(robot: RobotModel, pi: np.ndarray, mass_kg: float, offset_m: fl
     return pi
 
 
-def same_system(known: list[tuple[tuple[np.ndarray, ...], np.ndarray]], reference: tuple[np.ndarray, ...], make: Any) -> np.ndarray:
+def same_system(known: list[tuple[tuple[np.ndarray, ...], np.ndarray]], reference: tuple[np.ndarray, ...], make: Callable[[], np.ndarray]) -> np.ndarray:
     """The window system of ``reference`` made by ``make()``, or the one made for the last window if its reference holds the same bits.
 
     :func:`ilic_cli.robot.ilic.reference_system` is a pure function of the

@@ -27,7 +27,7 @@ def test_a_periodic_reference_repeats_its_bits_and_is_the_trajectory_to_roundoff
 
 
 def test_the_window_system_is_made_again_when_any_of_the_reference_differs() -> None:
-    known: list = []
+    known: list[tuple[tuple[np.ndarray, ...], np.ndarray]] = []
     made: list[int] = []
 
     def make() -> np.ndarray:
