@@ -22,20 +22,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ilic_cli.robot.kernel import act_inv, cross, placement
+from ilic_cli.robot.kernel import placement
 from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel
 
 STRIDE = len(PER_JOINT)
 IA = len(INERTIAL)
 """Offset of ``Ia`` in a joint's 14 standard parameters."""
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _inertia_times(pi: np.ndarray, c: int, x: np.ndarray, out: np.ndarray) -> None:
-    """``out = I_O x`` for the symmetric inertia at ``pi[c+4 : c+10]``."""
-    out[0] = pi[c + 4] * x[0] + pi[c + 5] * x[1] + pi[c + 7] * x[2]
-    out[1] = pi[c + 5] * x[0] + pi[c + 6] * x[1] + pi[c + 8] * x[2]
-    out[2] = pi[c + 7] * x[0] + pi[c + 8] * x[1] + pi[c + 9] * x[2]
 
 
 @njit(cache=True, nogil=True)
@@ -63,7 +55,7 @@ def _split(ws, n):
     return ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def placements(prismatic, axes, rotations, translations, q, ws):
     """Compute every link's placement at ``q`` into the workspace (read by :func:`rnea_at` and :func:`crba_at`)."""
     Rs, ps, _, _, _, _, _ = _split(ws, len(q))
@@ -71,49 +63,103 @@ def placements(prismatic, axes, rotations, translations, q, ws):
         placement(prismatic[i], axes[i], q[i], rotations[i], translations[i], Rs[i], ps[i])
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _cross(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> tuple[float, float, float]:
+    """``a x b`` of scalars (kept in registers: :func:`ilic_cli.robot.kernel.cross`'s formula)."""
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
 @njit(cache=True, nogil=True)
 def rnea_at(prismatic, parents, axes, gravity, pi, qd, qdd, tau, ws):
-    """:func:`rnea` at the placements already in ``ws`` (:func:`placements`)."""
+    """:func:`rnea` at the placements already in ``ws`` (:func:`placements`).
+
+    Each link's motion and force are computed in scalars (registers) and stored
+    once, for its children and the backward pass (with 3-vector work arrays
+    every store made the compiled code load the other vectors again): the same operations in the same order, bit for bit the same torques.
+    The parent's motion comes in as :func:`ilic_cli.robot.kernel.act_inv` carries
+    it; the force is ``f = I a + v x* (I v)``: with the momenta ``P = m v + w x h``
+    and ``L = I_O w + h x v``, ``f_l = m a + al x h + w x P``, ``f_a = I_O al + h x a + w x L + v x P``.
+    """
     n = len(qd)
-    Rs, ps, links, _, _, _, tmp = _split(ws, n)
-    v, w, a, al, fl, fa, sl, sa = links[0], links[1], links[2], links[3], links[4], links[5], links[6], links[7]
-    t1, t2, t3, P, L, zero, mg = tmp[0], tmp[1], tmp[2], tmp[3], tmp[4], tmp[5], tmp[6]
-    for r in range(3):
-        zero[r] = 0.0
-        mg[r] = -gravity[r]
+    Rs, ps, links, _, _, _, _ = _split(ws, n)
+    v, w, a, al, fl, fa = links[0], links[1], links[2], links[3], links[4], links[5]
     for i in range(n):
         R, p = Rs[i], ps[i]
         par = parents[i]
         if par < 0:
-            act_inv(R, p, zero, zero, v[i], w[i])
-            act_inv(R, p, mg, zero, a[i], al[i])
+            vl0, vl1, vl2, wl0, wl1, wl2 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            al0, al1, al2, aa0, aa1, aa2 = -gravity[0], -gravity[1], -gravity[2], 0.0, 0.0, 0.0
         else:
-            act_inv(R, p, v[par], w[par], v[i], w[i])
-            act_inv(R, p, a[par], al[par], a[i], al[i])
-        for r in range(3):
-            sl[i, r] = axes[i, r] if prismatic[i] else 0.0
-            sa[i, r] = 0.0 if prismatic[i] else axes[i, r]
-            v[i, r] += sl[i, r] * qd[i]
-            w[i, r] += sa[i, r] * qd[i]
-            t1[r] = sl[i, r] * qd[i]
-            t2[r] = sa[i, r] * qd[i]
+            vl0, vl1, vl2, wl0, wl1, wl2 = v[par, 0], v[par, 1], v[par, 2], w[par, 0], w[par, 1], w[par, 2]
+            al0, al1, al2, aa0, aa1, aa2 = a[par, 0], a[par, 1], a[par, 2], al[par, 0], al[par, 1], al[par, 2]
+        R00, R01, R02, R10, R11, R12, R20, R21, R22 = R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2]
+        p0, p1, p2 = p[0], p[1], p[2]
+        # the parent's motion in this link's frame: lin' = R' (lin - p x ang), ang' = R' ang
+        d0, d1, d2 = vl0 - (p1 * wl2 - p2 * wl1), vl1 - (p2 * wl0 - p0 * wl2), vl2 - (p0 * wl1 - p1 * wl0)
+        v0, v1, v2 = R00 * d0 + R10 * d1 + R20 * d2, R01 * d0 + R11 * d1 + R21 * d2, R02 * d0 + R12 * d1 + R22 * d2
+        w0, w1, w2 = R00 * wl0 + R10 * wl1 + R20 * wl2, R01 * wl0 + R11 * wl1 + R21 * wl2, R02 * wl0 + R12 * wl1 + R22 * wl2
+        d0, d1, d2 = al0 - (p1 * aa2 - p2 * aa1), al1 - (p2 * aa0 - p0 * aa2), al2 - (p0 * aa1 - p1 * aa0)
+        a0, a1, a2 = R00 * d0 + R10 * d1 + R20 * d2, R01 * d0 + R11 * d1 + R21 * d2, R02 * d0 + R12 * d1 + R22 * d2
+        b0, b1, b2 = R00 * aa0 + R10 * aa1 + R20 * aa2, R01 * aa0 + R11 * aa1 + R21 * aa2, R02 * aa0 + R12 * aa1 + R22 * aa2
+        u0, u1, u2 = axes[i, 0], axes[i, 1], axes[i, 2]
+        sl0, sl1, sl2 = (u0, u1, u2) if prismatic[i] else (0.0, 0.0, 0.0)
+        sa0, sa1, sa2 = (0.0, 0.0, 0.0) if prismatic[i] else (u0, u1, u2)
+        x, xx = qd[i], qdd[i]
+        v0, v1, v2 = v0 + sl0 * x, v1 + sl1 * x, v2 + sl2 * x
+        w0, w1, w2 = w0 + sa0 * x, w1 + sa1 * x, w2 + sa2 * x
+        t10, t11, t12 = sl0 * x, sl1 * x, sl2 * x
+        t20, t21, t22 = sa0 * x, sa1 * x, sa2 * x
         # a += S qdd + v x (S qd) (spatial cross: (w x t1 + v x t2, w x t2))
-        cross(w[i], t1, t3)
-        for r in range(3):
-            a[i, r] += sl[i, r] * qdd[i] + t3[r]
-        cross(v[i], t2, t3)
-        for r in range(3):
-            a[i, r] += t3[r]
-        cross(w[i], t2, t3)
-        for r in range(3):
-            al[i, r] += sa[i, r] * qdd[i] + t3[r]
-        _body_force(pi, STRIDE * i, v[i], w[i], a[i], al[i], fl[i], fa[i], t1, t2, t3, P, L)
+        c0, c1, c2 = _cross(w0, w1, w2, t10, t11, t12)
+        a0, a1, a2 = a0 + (sl0 * xx + c0), a1 + (sl1 * xx + c1), a2 + (sl2 * xx + c2)
+        c0, c1, c2 = _cross(v0, v1, v2, t20, t21, t22)
+        a0, a1, a2 = a0 + c0, a1 + c1, a2 + c2
+        c0, c1, c2 = _cross(w0, w1, w2, t20, t21, t22)
+        b0, b1, b2 = b0 + (sa0 * xx + c0), b1 + (sa1 * xx + c1), b2 + (sa2 * xx + c2)
+        v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2] = v0, v1, v2, w0, w1, w2
+        a[i, 0], a[i, 1], a[i, 2], al[i, 0], al[i, 1], al[i, 2] = a0, a1, a2, b0, b1, b2
+        # f = I a + v x* (I v), with the momenta P and L
+        c = STRIDE * i
+        m, h0, h1, h2 = pi[c], pi[c + 1], pi[c + 2], pi[c + 3]
+        Ixx, Ixy, Iyy, Ixz, Iyz, Izz = pi[c + 4], pi[c + 5], pi[c + 6], pi[c + 7], pi[c + 8], pi[c + 9]
+        c0, c1, c2 = _cross(w0, w1, w2, h0, h1, h2)
+        P0, P1, P2 = m * v0 + c0, m * v1 + c1, m * v2 + c2
+        L0, L1, L2 = Ixx * w0 + Ixy * w1 + Ixz * w2, Ixy * w0 + Iyy * w1 + Iyz * w2, Ixz * w0 + Iyz * w1 + Izz * w2
+        c0, c1, c2 = _cross(h0, h1, h2, v0, v1, v2)
+        L0, L1, L2 = L0 + c0, L1 + c1, L2 + c2
+        c0, c1, c2 = _cross(b0, b1, b2, h0, h1, h2)
+        e0, e1, e2 = _cross(w0, w1, w2, P0, P1, P2)
+        fl[i, 0], fl[i, 1], fl[i, 2] = m * a0 + c0 + e0, m * a1 + c1 + e1, m * a2 + c2 + e2
+        c0, c1, c2 = _cross(h0, h1, h2, a0, a1, a2)
+        e0, e1, e2 = _cross(w0, w1, w2, L0, L1, L2)
+        g0, g1, g2 = _cross(v0, v1, v2, P0, P1, P2)
+        fa[i, 0] = Ixx * b0 + Ixy * b1 + Ixz * b2 + (c0 + e0 + g0)
+        fa[i, 1] = Ixy * b0 + Iyy * b1 + Iyz * b2 + (c1 + e1 + g1)
+        fa[i, 2] = Ixz * b0 + Iyz * b1 + Izz * b2 + (c2 + e2 + g2)
     for i in range(n - 1, -1, -1):
-        tau[i] = sl[i, 0] * fl[i, 0] + sl[i, 1] * fl[i, 1] + sl[i, 2] * fl[i, 2] + sa[i, 0] * fa[i, 0] + sa[i, 1] * fa[i, 1] + sa[i, 2] * fa[i, 2]
+        f0, f1, f2, F0, F1, F2 = fl[i, 0], fl[i, 1], fl[i, 2], fa[i, 0], fa[i, 1], fa[i, 2]
+        u0, u1, u2 = axes[i, 0], axes[i, 1], axes[i, 2]
+        if prismatic[i]:
+            tau[i] = u0 * f0 + u1 * f1 + u2 * f2 + 0.0 * F0 + 0.0 * F1 + 0.0 * F2
+        else:
+            tau[i] = 0.0 * f0 + 0.0 * f1 + 0.0 * f2 + u0 * F0 + u1 * F1 + u2 * F2
         tau[i] += pi[STRIDE * i + IA] * qdd[i]
         par = parents[i]
         if par >= 0:
-            _act_force(Rs[i], ps[i], fl[i], fa[i], fl[par], fa[par], t1)
+            R, p = Rs[i], ps[i]
+            # the force in the parent's frame: f_l' = R f_l, f_a' = R f_a + p x R f_l
+            t0 = R[0, 0] * f0 + R[0, 1] * f1 + R[0, 2] * f2
+            t1 = R[1, 0] * f0 + R[1, 1] * f1 + R[1, 2] * f2
+            t2 = R[2, 0] * f0 + R[2, 1] * f1 + R[2, 2] * f2
+            fl[par, 0] += t0
+            fl[par, 1] += t1
+            fl[par, 2] += t2
+            fa[par, 0] += R[0, 0] * F0 + R[0, 1] * F1 + R[0, 2] * F2
+            fa[par, 1] += R[1, 0] * F0 + R[1, 1] * F1 + R[1, 2] * F2
+            fa[par, 2] += R[2, 0] * F0 + R[2, 1] * F1 + R[2, 2] * F2
+            fa[par, 0] += p[1] * t2 - p[2] * t1
+            fa[par, 1] += p[2] * t0 - p[0] * t2
+            fa[par, 2] += p[0] * t1 - p[1] * t0
 
 
 @njit(cache=True, nogil=True)
@@ -124,46 +170,6 @@ def rnea(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, 
     rnea_at(prismatic, parents, axes, gravity, pi, qd, qdd, tau, ws)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _act_force(R: np.ndarray, p: np.ndarray, fl: np.ndarray, fa: np.ndarray, acc_l: np.ndarray, acc_a: np.ndarray, t: np.ndarray) -> None:
-    """``acc += X* f``: a child's force in its parent's frame, ``f_l' = R f_l``, ``f_a' = R f_a + p x R f_l``."""
-    for r in range(3):
-        t[r] = R[r, 0] * fl[0] + R[r, 1] * fl[1] + R[r, 2] * fl[2]
-        acc_l[r] += t[r]
-        acc_a[r] += R[r, 0] * fa[0] + R[r, 1] * fa[1] + R[r, 2] * fa[2]
-    acc_a[0] += p[1] * t[2] - p[2] * t[1]
-    acc_a[1] += p[2] * t[0] - p[0] * t[2]
-    acc_a[2] += p[0] * t[1] - p[1] * t[0]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _body_force(pi, c, v, w, a, al, fl, fa, t1, t2, t3, P, L):
-    """``f = I a + v x* (I v)`` of the link whose inertial parameters start at ``pi[c]``.
-
-    ``P = m v + w x h`` and ``L = I_O w + h x v`` are the momenta;
-    ``f_l = m a + al x h + w x P``, ``f_a = I_O al + h x a + w x L + v x P``.
-    """
-    m = pi[c]
-    h = pi[c + 1 : c + 4]
-    cross(w, h, t1)
-    for r in range(3):
-        P[r] = m * v[r] + t1[r]
-    _inertia_times(pi, c, w, L)
-    cross(h, v, t1)
-    for r in range(3):
-        L[r] += t1[r]
-    cross(al, h, t1)
-    cross(w, P, t2)
-    for r in range(3):
-        fl[r] = m * a[r] + t1[r] + t2[r]
-    _inertia_times(pi, c, al, fa)
-    cross(h, a, t1)
-    cross(w, L, t2)
-    cross(v, P, t3)
-    for r in range(3):
-        fa[r] += t1[r] + t2[r] + t3[r]
-
-
 @njit(cache=True, nogil=True)
 def crba_at(prismatic, parents, axes, pi, M, ws):
     """Fill ``M`` (n, n) with the joint-space inertia at the placements in ``ws`` (``Ia`` on the diagonal).
@@ -172,8 +178,7 @@ def crba_at(prismatic, parents, axes, pi, M, ws):
     ``h' = R h + m p``, ``I' = R I R' - ([R h]x [p]x + [p]x [R h]x) - m [p]x^2``.
     """
     n = len(parents)
-    Rs, ps, _, comp, _, _, tmp = _split(ws, n)
-    Fl, Fa, sl, sa, t, Gl, Ga = tmp[5], tmp[6], tmp[7], tmp[8], tmp[9], tmp[10], tmp[11]
+    Rs, ps, _, comp, _, _, _ = _split(ws, n)
     M[:, :] = 0.0  # joints on other branches do not couple
     for i in range(n):
         for c in range(10):
@@ -182,32 +187,36 @@ def crba_at(prismatic, parents, axes, pi, M, ws):
         if parents[i] >= 0:
             _composite_to_parent(Rs[i], ps[i], comp[i], comp[parents[i]])
     for i in range(n):
-        for r in range(3):
-            sl[r] = axes[i, r] if prismatic[i] else 0.0
-            sa[r] = 0.0 if prismatic[i] else axes[i, r]
-        # F = I^c S: (m s_l + s_a x h, I_O s_a + h x s_l)
-        m = comp[i, 0]
-        h = comp[i, 1:4]
-        cross(sa, h, t)
-        for r in range(3):
-            Fl[r] = m * sl[r] + t[r]
-        _inertia_times(comp[i], 0, sa, Fa)
-        cross(h, sl, t)
-        for r in range(3):
-            Fa[r] += t[r]
-        M[i, i] = sl[0] * Fl[0] + sl[1] * Fl[1] + sl[2] * Fl[2] + sa[0] * Fa[0] + sa[1] * Fa[1] + sa[2] * Fa[2] + pi[STRIDE * i + IA]
+        u0, u1, u2 = axes[i, 0], axes[i, 1], axes[i, 2]
+        sl0, sl1, sl2 = (u0, u1, u2) if prismatic[i] else (0.0, 0.0, 0.0)
+        sa0, sa1, sa2 = (0.0, 0.0, 0.0) if prismatic[i] else (u0, u1, u2)
+        # F = I^c S: (m s_l + s_a x h, I_O s_a + h x s_l), in scalars
+        m, h0, h1, h2 = comp[i, 0], comp[i, 1], comp[i, 2], comp[i, 3]
+        Ixx, Ixy, Iyy, Ixz, Iyz, Izz = comp[i, 4], comp[i, 5], comp[i, 6], comp[i, 7], comp[i, 8], comp[i, 9]
+        c0, c1, c2 = _cross(sa0, sa1, sa2, h0, h1, h2)
+        F0, F1, F2 = m * sl0 + c0, m * sl1 + c1, m * sl2 + c2
+        c0, c1, c2 = _cross(h0, h1, h2, sl0, sl1, sl2)
+        G0 = Ixx * sa0 + Ixy * sa1 + Ixz * sa2 + c0
+        G1 = Ixy * sa0 + Iyy * sa1 + Iyz * sa2 + c1
+        G2 = Ixz * sa0 + Iyz * sa1 + Izz * sa2 + c2
+        M[i, i] = sl0 * F0 + sl1 * F1 + sl2 * F2 + sa0 * G0 + sa1 * G1 + sa2 * G2 + pi[STRIDE * i + IA]
         j = i
         while parents[j] >= 0:
-            for r in range(3):
-                Gl[r], Ga[r] = 0.0, 0.0
-            _act_force(Rs[j], ps[j], Fl, Fa, Gl, Ga, t)
-            for r in range(3):
-                Fl[r], Fa[r] = Gl[r], Ga[r]
+            R, p = Rs[j], ps[j]
+            # the force in the parent's frame: F' = R F, G' = R G + p x R F
+            t0 = R[0, 0] * F0 + R[0, 1] * F1 + R[0, 2] * F2
+            t1 = R[1, 0] * F0 + R[1, 1] * F1 + R[1, 2] * F2
+            t2 = R[2, 0] * F0 + R[2, 1] * F1 + R[2, 2] * F2
+            g0 = R[0, 0] * G0 + R[0, 1] * G1 + R[0, 2] * G2
+            g1 = R[1, 0] * G0 + R[1, 1] * G1 + R[1, 2] * G2
+            g2 = R[2, 0] * G0 + R[2, 1] * G1 + R[2, 2] * G2
+            G0, G1, G2 = g0 + (p[1] * t2 - p[2] * t1), g1 + (p[2] * t0 - p[0] * t2), g2 + (p[0] * t1 - p[1] * t0)
+            F0, F1, F2 = t0, t1, t2
             j = parents[j]
             if prismatic[j]:
-                M[i, j] = axes[j, 0] * Fl[0] + axes[j, 1] * Fl[1] + axes[j, 2] * Fl[2]
+                M[i, j] = axes[j, 0] * F0 + axes[j, 1] * F1 + axes[j, 2] * F2
             else:
-                M[i, j] = axes[j, 0] * Fa[0] + axes[j, 1] * Fa[1] + axes[j, 2] * Fa[2]
+                M[i, j] = axes[j, 0] * G0 + axes[j, 1] * G1 + axes[j, 2] * G2
             M[j, i] = M[i, j]
 
 
@@ -219,7 +228,7 @@ def crba(prismatic, parents, axes, rotations, translations, pi, q, M):
     crba_at(prismatic, parents, axes, pi, M, ws)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _composite_to_parent(R: np.ndarray, p: np.ndarray, c: np.ndarray, acc: np.ndarray) -> None:
     """``acc += X* c X``: the composite inertia ``c`` (10 parameters) of a child in its parent's frame."""
     m = c[0]
@@ -232,24 +241,23 @@ def _composite_to_parent(R: np.ndarray, p: np.ndarray, c: np.ndarray, acc: np.nd
     acc[1] += Rh0 + m * p[0]
     acc[2] += Rh1 + m * p[1]
     acc[3] += Rh2 + m * p[2]
-    # R I R' + 2 (Rh . p) E - p Rh' - Rh p' - m (p p' - |p|^2 E), per (xx, xy, yy, xz, yz, zz)
+    # R I R' + 2 (Rh . p) E - p Rh' - Rh p' - m (p p' - |p|^2 E), per (xx, xy, yy, xz, yz, zz): pinocchio's order
     Ixx, Ixy, Iyy, Ixz, Iyz, Izz = c[4], c[5], c[6], c[7], c[8], c[9]
-    # R I R' entry (r, s) = R[r] . (I R[s]) (R[r]: row r of R)
-    slot = 4
-    for s in range(3):
-        a0 = Ixx * R[s, 0] + Ixy * R[s, 1] + Ixz * R[s, 2]
-        a1 = Ixy * R[s, 0] + Iyy * R[s, 1] + Iyz * R[s, 2]
-        a2 = Ixz * R[s, 0] + Iyz * R[s, 1] + Izz * R[s, 2]
-        Rhs = Rh0 if s == 0 else (Rh1 if s == 1 else Rh2)
-        for r in range(s + 1):  # (0,0) (0,1) (1,1) (0,2) (1,2) (2,2): pinocchio's order
-            Rhr = Rh0 if r == 0 else (Rh1 if r == 1 else Rh2)
-            e = 1.0 if r == s else 0.0
-            RIR = R[r, 0] * a0 + R[r, 1] * a1 + R[r, 2] * a2
-            acc[slot] += RIR - (p[r] * Rhs + Rhr * p[s] - 2.0 * ab * e) - m * (p[r] * p[s] - pp * e)
-            slot += 1
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2]
+    p0, p1, p2 = p[0], p[1], p[2]
+    # column s of I R': I R[s] (R[s]: row s of R); entry (r, s) of R I R' = R[r] . (I R[s])
+    x0, x1, x2 = Ixx * R00 + Ixy * R01 + Ixz * R02, Ixy * R00 + Iyy * R01 + Iyz * R02, Ixz * R00 + Iyz * R01 + Izz * R02
+    y0, y1, y2 = Ixx * R10 + Ixy * R11 + Ixz * R12, Ixy * R10 + Iyy * R11 + Iyz * R12, Ixz * R10 + Iyz * R11 + Izz * R12
+    z0, z1, z2 = Ixx * R20 + Ixy * R21 + Ixz * R22, Ixy * R20 + Iyy * R21 + Iyz * R22, Ixz * R20 + Iyz * R21 + Izz * R22
+    acc[4] += R00 * x0 + R01 * x1 + R02 * x2 - (p0 * Rh0 + Rh0 * p0 - 2.0 * ab) - m * (p0 * p0 - pp)
+    acc[5] += R00 * y0 + R01 * y1 + R02 * y2 - (p0 * Rh1 + Rh0 * p1) - m * (p0 * p1)
+    acc[6] += R10 * y0 + R11 * y1 + R12 * y2 - (p1 * Rh1 + Rh1 * p1 - 2.0 * ab) - m * (p1 * p1 - pp)
+    acc[7] += R00 * z0 + R01 * z1 + R02 * z2 - (p0 * Rh2 + Rh0 * p2) - m * (p0 * p2)
+    acc[8] += R10 * z0 + R11 * z1 + R12 * z2 - (p1 * Rh2 + Rh1 * p2) - m * (p1 * p2)
+    acc[9] += R20 * z0 + R21 * z1 + R22 * z2 - (p2 * Rh2 + Rh2 * p2 - 2.0 * ab) - m * (p2 * p2 - pp)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def cholesky_solve(M: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """``out = M^-1 b`` for a symmetric positive definite ``M`` (small: written out, no LAPACK call); ``M`` is overwritten."""
     n = len(b)
@@ -276,7 +284,7 @@ def cholesky_solve(M: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
         out[i] = s / M[i, i]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd, ws):
     """Fill ``qdd`` with ``M^-1 (tau - h(q, qd))`` using the workspace ``ws``; joints with ``locked`` True are held (``qdd = 0``)."""
     n = len(q)

@@ -28,6 +28,11 @@ eq. 25, or the plant's velocity: ``exact``):
   ``u = M_hat(q_m) w + N_hat(q_m, qd_hat) + Fv_hat qd_r + Fc_hat (2/pi) atan(alpha qd_r) + offset_hat``
   (eqs. 16, 31), ``M_hat w + N_hat`` by :func:`~ilic_cli.robot.dynamics.rnea_at` of the controller's parameters;
 - PD: ``u = ff_k + Kp (q_r - q_m) + Kv (qd_r - qd_hat)``, ``ff_k`` the same model along the reference.
+
+numba's cache (``cache=True``) keys each function on its own file only: the
+functions here are compiled with :mod:`ilic_cli.robot.dynamics`' kernels in them
+(``forward_at`` inlined), so a change there must come with a change to this file
+(or the caches removed), else the old kernels keep running from the cache.
 """
 
 from __future__ import annotations

@@ -213,8 +213,10 @@ def simulate_loop(
             steps()
         if not np.all(np.isfinite(state)):
             raise FloatingPointError("the simulation diverged")
-        tau[s] += noise_tau[s]
-        q_log[s] += noise_q[s]
+        if noise_tau is not None:
+            tau[s] += noise_tau[s]
+        if noise_q is not None:
+            q_log[s] += noise_q[s]
         if stop % win == 0 or stop == N:
             if sink is not None:
                 sink(run, (stop - 1) // win * win, stop)
@@ -227,9 +229,9 @@ def simulate_loop(
     return LoopRun(t, q_log, tau, q_true, qd_true, q_ref, qd_ref, qdd_ref, settings.fs_hz, tuple(models))
 
 
-def _noise(shape: tuple[int, int], settings: LoopSettings) -> tuple[np.ndarray, np.ndarray]:
-    """The log's torque and position noise, drawn once from the seed (zeros when none)."""
+def _noise(shape: tuple[int, int], settings: LoopSettings) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The log's torque and position noise, drawn once from the seed (None when none: nothing is added)."""
     rng = np.random.default_rng(settings.seed)
-    tau = rng.standard_normal(shape) * np.asarray(settings.torque_noise, dtype=np.float64) if settings.torque_noise else np.zeros(shape)
-    q = rng.standard_normal(shape) * np.asarray(settings.position_noise, dtype=np.float64) if settings.position_noise else np.zeros(shape)
+    tau = rng.standard_normal(shape) * np.asarray(settings.torque_noise, dtype=np.float64) if settings.torque_noise else None
+    q = rng.standard_normal(shape) * np.asarray(settings.position_noise, dtype=np.float64) if settings.position_noise else None
     return tau, q

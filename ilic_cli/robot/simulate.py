@@ -59,6 +59,44 @@ class Trajectory:
         return tuple(a.reshape(times.shape + (n,)) for a in (q, qd, qdd))  # type: ignore[return-value]
 
 
+@dataclass(frozen=True)
+class Periodic:
+    """``trajectory`` known to repeat every ``period_s``: at the times of a grid of ``fs_hz``, one period is evaluated and repeated.
+
+    When every frequency of the trajectory is a whole multiple of ``1 / period_s``
+    and a period is a whole number ``P`` of samples (:meth:`period_samples`),
+    the value at ``t`` is the value at ``t mod period_s``: the samples
+    ``k / fs_hz`` (``k = 0, 1, ...``) are the trajectory at ``(k mod P) / fs_hz``,
+    and every period's samples are the same bits. Evaluating ``sin`` at the
+    phase within the period rather than at ``t`` differs by roundoff only
+    (the argument ``2 pi f t`` loses some 1e-13 rad at t = 600 s; the phase
+    loses none of that). Other times, or another period, are evaluated as given.
+    """
+
+    trajectory: Trajectory
+    period_s: float
+    fs_hz: float
+
+    def period_samples(self) -> int | None:
+        """``P``, the samples of a period on the grid; None when ``period_s`` is not a period of the trajectory or not whole samples."""
+        cycles = np.asarray(self.trajectory.frequency_hz, dtype=np.float64) * self.period_s
+        samples = self.period_s * self.fs_hz
+        whole = np.allclose(cycles, np.round(cycles), rtol=0.0, atol=1e-9) and abs(samples - round(samples)) < 1e-9 and round(samples) >= 1
+        return int(round(samples)) if whole else None
+
+    def at(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``q, qd, qdd`` at times ``t`` (shape ``t.shape + (n,)``), as :meth:`Trajectory.at`."""
+        times = np.asarray(t, dtype=np.float64)
+        flat = times.reshape(-1)
+        index = np.arange(len(flat))
+        period = self.period_samples()
+        if period is None or not np.array_equal(index * (1.0 / self.fs_hz), flat):  # not the grid from 0 (simulate_loop's times)
+            return self.trajectory.at(times)
+        one = self.trajectory.at(index[:period] * (1.0 / self.fs_hz))
+        phase = index % period
+        return tuple(a[phase].reshape(times.shape + (len(self.trajectory.q0),)) for a in one)  # type: ignore[return-value]
+
+
 def exciting_trajectory(q0: np.ndarray, speed: np.ndarray, seed: int, *, harmonics: int = 5, f0_hz: float = 0.1) -> Trajectory:
     """A random sum of ``harmonics`` sines per joint at multiples of ``f0_hz`` (up to ``harmonics * f0_hz`` apart, random phases).
 
