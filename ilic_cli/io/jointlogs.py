@@ -33,11 +33,12 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.errors import LogError
+from ilic_cli.io import rosschema
+from ilic_cli.io.rosschema import JOINT_STATE, STRING, TRAJECTORY
 from ilic_cli.jointlog import REFERENCES, JointLog
 
 MARK = "# ilic-joints "
 STATES, REFERENCE, METADATA = "/joint_states", "/joint_reference", "/ilic/metadata"
-JOINT_STATE, TRAJECTORY, STRING = "sensor_msgs/msg/JointState", "trajectory_msgs/msg/JointTrajectory", "std_msgs/msg/String"
 PREFIXES = ("qdd_ref_", "qd_ref_", "q_ref_", "tau_", "q_")
 """Wide CSV column prefixes, longest first (``q_ref_a`` is not the position of joint ``ref_a``)."""
 
@@ -159,9 +160,8 @@ def _log(path: Path, t: np.ndarray, joints: Sequence[str], types: tuple[str, ...
 def write_bag(log: JointLog, path: Path, storage: str) -> None:
     """A ROS 2 bag folder (``storage``: ``sqlite3`` or ``mcap``) written message by message with rosbags' writer."""
     from rosbags.rosbag2 import StoragePlugin, Writer  # deferred: rosbags' writer is needed only to write a bag
-    from rosbags.typesys import Stores, get_typestore  # deferred: with the writer
 
-    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ts = rosschema.typestore(rosschema.ROS2)  # Humble's types that ilic writes
     JointState, Header, Time = ts.types[JOINT_STATE], ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
     Trajectory, Point, Duration = ts.types[TRAJECTORY], ts.types["trajectory_msgs/msg/JointTrajectoryPoint"], ts.types["builtin_interfaces/msg/Duration"]
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
@@ -268,11 +268,10 @@ def write_mcap(log: JointLog, path: Path, chunk_bytes: int = 2**20) -> None:
     """
     from mcap.data_stream import RecordBuilder  # deferred: MCAP's record writers, only to write an MCAP file
     from mcap.records import Channel, DataEnd, Header, Schema  # deferred: with the builder
-    from rosbags.typesys import Stores, get_typestore  # deferred: rosbags' type store, for the message definitions
 
     from ilic_cli.io.mcapscan import MAGIC  # deferred: with the builder (the MCAP reader's one definition)
 
-    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ts = rosschema.typestore(rosschema.ROS2)  # Humble's types that ilic writes, for their message definitions
     topics = [(STATES, JOINT_STATE)] + ([(REFERENCE, TRAJECTORY)] if log.has_reference else []) + [(METADATA, STRING)]
     schemas, channels = [], []
     for i, (topic, msgtype) in enumerate(topics, start=1):

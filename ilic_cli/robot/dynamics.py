@@ -20,8 +20,8 @@ The tests check :func:`forward` against pinocchio's ``aba`` and :func:`rnea` aga
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ilic_cli.jit import njit
 from ilic_cli.robot.kernel import placement
 from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel
 

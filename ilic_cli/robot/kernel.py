@@ -18,7 +18,8 @@ Compiled once with ``cache=True`` (the machine code is kept in ``__pycache__``).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ilic_cli.jit import njit
 
 
 @njit(cache=True, nogil=True, inline="always")

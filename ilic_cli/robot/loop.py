@@ -38,8 +38,8 @@ functions here are compiled with :mod:`ilic_cli.robot.dynamics`' kernels in them
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from ilic_cli.jit import njit
 from ilic_cli.robot.dynamics import forward_at, placements, rnea_at, workspace
 
 STICK_VELOCITY = 1e-9
