@@ -19,6 +19,7 @@ import numpy as np
 
 from ilic_cli.effects import Effects, effects_to_dict
 from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.prefault import populate_beside
 from ilic_cli.regressor import Model, get_model
 from ilic_cli.runlog import RunLog
 from plant.controllers import CTCSettings, OpenLoopSettings, PDSettings, chi_vector
@@ -296,6 +297,7 @@ def simulate_loop(
     dist = draw_disturbance(n, seed, effects, fs_hz) if "disturbance" in effects else None
     x, cs = _initial_state((float(q_r[0]), float(qd_r[0])) if x0 is None else x0, T)
     out = tuple(np.zeros(n) for _ in range(6))
+    backing = populate_beside(out)  # their pages' memory on another core, not in the loop's writes
     model, names, chi = _ctc_start(controller)
     chi_hist = np.zeros((len(names), n)).T  # (n, b), each parameter's history contiguous (the log's channels)
     loop = _Loop(kernel_for(effects).run_periods, x, cs, q_r, qd_r, qdd_r, pul, noise_q, p, controller.vector(), names, int(substeps), T, dist, out)
@@ -314,6 +316,8 @@ def simulate_loop(
         windows = _online(loop, chi, chi_hist, update, window, int(round(controller.window_s * fs_hz)), progress)
     else:
         _fixed(loop, chi, chi_hist, progress)
+    if backing is not None:
+        backing.join()
     tau = measured_force(out_u, T, n, effects, tau_sensor, noise_tau)
     t = np.arange(n, dtype=np.float64)
     t *= T  # = np.arange(n) * T

@@ -26,6 +26,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ilic_cli.parallel import ordered_map
+from ilic_cli.prefault import populate_beside
 from ilic_cli.robot.dynamics import arrays, crba
 from ilic_cli.robot.loop import CTC, PD, run_steps
 from ilic_cli.robot.model import RobotModel
@@ -188,6 +189,7 @@ def simulate_loop(
     if step.any():
         state[2] = np.where(step > 0, np.round(state[2] / np.where(step > 0, step, 1.0)) * step, state[2])
     q_log, q_true, qd_true, tau = (np.empty((N, n)) for _ in range(4))
+    backing = populate_beside((q_log, q_true, qd_true, tau))  # their pages' memory on the other core, not in the loop's writes
     noise_tau, noise_q = _noise((N, n), settings)
     win = N if window_s is None else max(1, int(round(window_s * settings.fs_hz)))
     stops = {N} | {min(N, s) for s in range(win, N, win)} | {int(math.ceil(c * settings.fs_hz - 1e-9)) for c, _ in changes if 0 < c * settings.fs_hz < N}
@@ -226,6 +228,8 @@ def simulate_loop(
                 model = np.asarray(update(segment, model), dtype=np.float64)
                 models.append(model)
         start = stop
+    if backing is not None:
+        backing.join()
     return LoopRun(t, q_log, tau, q_true, qd_true, q_ref, qd_ref, qdd_ref, settings.fs_hz, tuple(models))
 
 

@@ -3,7 +3,7 @@
 Layers, lowest first (``docs/layout.md``). A module may import only from its own layer or a lower one:
 
 0. types: the run-log model, its time base and the errors every layer speaks (``runlog``, ``timebase``, ``errors``, ``parallel``,
-   and ``jit``, numba's loader every compiled loop goes through);
+   ``jit``, numba's loader every compiled loop goes through, and ``prefault``, memory for fresh arrays beside the loop filling them);
 1. io: the readers and writers (``io/``), which fill a run log;
 2. preparation: repairs and the usable rows (``quality``, ``prepare``);
 3. vocabulary: parameters, effects, regressor, least squares, filtering, the LM solver, the rigid-body model;
@@ -40,6 +40,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "ilic_cli.timebase",
             "ilic_cli.parallel",
             "ilic_cli.jit",
+            "ilic_cli.prefault",
         ),
     ),
     ("io", ("ilic_cli.io",)),
