@@ -5,8 +5,8 @@ Times, in process CPU time (steadier than wall time on a shared machine):
 * ns per value of :func:`ilic_cli.io.floattext.texts`' kernel and of
   ``repr`` (``repr(list)`` and ``map(repr)``) on 1M standard normals;
 * the compiled formatter's first call in a fresh process (numba's cache load);
-* ``ilic simulate``'s stages in a fresh process: imports, the loop's load,
-  the loop, the first CSV write and a second one;
+* ``ilic simulate``'s stages in a fresh process (``bench_io.simulate_stages``):
+  imports, the loop's load, the loop, each writer's (CSV's among them);
 * the stages of writing a ``paper-sim`` log of ``--duration`` seconds to CSV:
   the compiled rows (:func:`ilic_cli.io.floattext.csv_rows`) and the whole
   ``csvlog.write`` against ``repr`` of the same values.
@@ -42,30 +42,6 @@ t1 = time.process_time()
 csv_rows([np.arange(4.0)], 0, 4)
 t2 = time.process_time()
 print(f"{t1 - t0:.4f} {t2 - t1:.4f}")
-"""
-
-
-STAGES = """
-import time
-c0 = time.process_time()
-from ilic_cli.commands import simulate
-from ilic_cli.io import WriteOptions, write_log
-from ilic_cli.simulation.scenarios import Overrides, run_scenario
-c1 = time.process_time()
-run_scenario('paper-sim', Overrides(duration_s=1.0, seed=0))
-c2 = time.process_time()
-log = run_scenario('paper-sim', Overrides(duration_s={duration}, seed=0))
-c3 = time.process_time()
-import pathlib, tempfile
-work = pathlib.Path(tempfile.mkdtemp())
-write_log(log, work / 'x.csv', None, WriteOptions())
-c4 = time.process_time()
-write_log(log, work / 'y.csv', None, WriteOptions())
-c5 = time.process_time()
-print(f'stages (CPU s): imports {{c1 - c0:.3f}}, compiled loop load {{c2 - c1:.3f}}, loop and log {{c3 - c2:.3f}}, '
-      f'first CSV write {{c4 - c3:.3f}} (a second {{c5 - c4:.3f}}: the first less the formatter load from the numba cache)')
-import shutil
-shutil.rmtree(work)
 """
 
 
@@ -163,12 +139,6 @@ def sweep(count: int) -> None:
         print(f"sweep {kind}: {count} values, {len(bad)} differ from repr {bad[:3]}")
 
 
-def stages(duration_s: float) -> None:
-    """``ilic simulate``'s stages in a fresh process, CPU seconds (three processes)."""
-    for _ in range(3):
-        subprocess.run([sys.executable, "-c", STAGES.format(duration=duration_s)], cwd=ROOT, check=True)
-
-
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=300.0)
@@ -176,7 +146,9 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     per_value(np.random.default_rng(1).standard_normal(1_000_000))
     first_call()
-    stages(args.duration)
+    from benchmarks.bench_io import simulate_stages  # the stages of `ilic simulate` with each writer, CSV's among them
+
+    simulate_stages(args.duration)
     writer(args.duration)
     if args.sweep:
         sweep(args.sweep)
