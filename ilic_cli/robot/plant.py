@@ -150,6 +150,11 @@ def _drive(robot: RobotModel, pi: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return pi, robot.drive(pi, "Fv").copy(), robot.drive(pi, "Fc").copy(), robot.drive(pi, "offset").copy()
 
 
+def loop_times(duration_s: float, fs_hz: float) -> np.ndarray:
+    """The loop's sample times over ``duration_s``: ``k / fs_hz``, ``k = 0 .. round(duration_s fs_hz) - 1`` (what :func:`simulate_loop` logs)."""
+    return np.arange(int(round(duration_s * fs_hz))) * (1.0 / fs_hz)
+
+
 def simulate_loop(
     robot: RobotModel,
     pi: np.ndarray,
@@ -177,8 +182,8 @@ def simulate_loop(
     """
     n = robot.n
     dt = 1.0 / settings.fs_hz
-    N = int(round(duration_s * settings.fs_hz))
-    t = np.arange(N) * dt
+    t = loop_times(duration_s, settings.fs_hz)
+    N = len(t)
     q_ref, qd_ref, qdd_ref = (np.ascontiguousarray(a) for a in reference.at(t))
     kin = arrays(robot)
     g = np.ascontiguousarray(robot.gravity)
