@@ -15,6 +15,9 @@ standard vector with those base parameters.
 
 Friction (``Fv, Fc, offset``) is not theirs: the plant (:mod:`ilic_cli.robot.plant`) adds it.
 The tests check :func:`forward` against pinocchio's ``aba`` and :func:`rnea` against ``rnea`` to 1e-10.
+
+An edit here does not renew the cached closed loop that compiles these functions into itself
+(:mod:`ilic_cli.robot.loop`: numba keys a cache on the function's own file): touch that file too, or remove its cache.
 """
 
 from __future__ import annotations
