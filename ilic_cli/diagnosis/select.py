@@ -125,7 +125,7 @@ class Evaluation:
     outcome: Selection = Selection.PENDING
     """The inverse model's decision, typed (``reason`` says it in words, and later stages may add to it)."""
     indistinct_from: str | None = None
-    """An effect the data cannot tell from this one (:func:`parsimonious_first`): neither's columns add significantly to the
+    """An effect the data cannot tell from this one (:func:`parsimonious_first`): neither's fitted force adds significantly to the
     model with the other's, over the range the log visits; ``None``: none. A typed ambiguity, stated with the finding."""
 
     def decided(self, outcome: Selection, detail: str | None = None, **figures: Any) -> Evaluation:
