@@ -281,8 +281,8 @@ def _indistinct(effect: Effect, ev: Evaluation) -> str:
     if ev.indistinct_from is None:
         return ""
     return (
-        f"{effect.id} or {ev.indistinct_from}: the data cannot tell them apart over the range the log visits (neither's columns add "
-        f"significantly to the model with the other's); a log over a wider range decides"
+        f"{effect.id} or {ev.indistinct_from}: the data cannot tell them apart over the range the log visits (neither's fitted force "
+        f"adds significantly to the model with the other's); a log over a wider range decides"
     )
 
 

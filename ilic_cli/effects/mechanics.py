@@ -171,6 +171,10 @@ SPRING = Effect(
     build=lambda kin, value, fs_hz: np.c_[kin.q],
     estimate=_spring_estimate,
     sentence=lambda p: f"stiffness {p['k'].value:.4g} N/m",
+    # a passive elastic element stores energy as it leaves its rest position: its stiffness is positive. A force that grows
+    # away from rest is no spring (on a revolute joint it is what gravity about an upright position makes: corpus s530,
+    # s732, gravity with MY > 0 fitted as k < 0 and stated as "spring or gravity")
+    impossible=lambda th, v: None if th[0] >= 0 else f"negative stiffness (k = {th[0]:.3g}) is not a spring: its force grows away from rest",
 )
 
 
