@@ -236,3 +236,21 @@ def test_a_log_with_a_gap_is_split_by_idim_ls_and_refused_by_a_replay_irregular_
     for name, value in values[0].items():
         if not name.startswith("offset"):
             assert values[1][name] == pytest.approx(value, rel=1e-3), name
+
+
+def test_one_joint_is_the_case_n_1_of_the_arm_chain(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """axis1 (one prismatic joint, an EMPS-like 95 kg carriage): the URDF, the CTC with online IDIM-ILIC and IDIM-WLS run
+    at n = 1 (pinocchio gives a one-joint Jacobian as a vector: it was an internal error). The base parameter of the
+    moving mass combines the carriage's mass and the rotor inertia, as the one-joint chain's M."""
+    log = tmp_path / "axis1.csv"
+    code, out, err = run(capsys, "simulate", "--urdf", str(FIXTURES / "axis1.urdf"), "--scenario", "robot-sim", "--duration", "20", "-o", str(log))
+    assert code == 0, err
+    code, out, err = run(capsys, "identify", str(log), "--urdf", str(FIXTURES / "axis1.urdf"), "--method", "ls", "--format", "json")
+    assert code == 0, err
+    doc = json.loads(out)
+    assert [b["name"] for b in doc["base_parameters"]] == ["Ia_carriageR", "Fv_carriage", "Fc_carriage", "offset_carriage"]
+    assert doc["base_parameters"][0]["combines"] == {"Ia_carriage": 1.0, "m_carriage": 1.0}
+    truth, fit = doc["true_base_parameters"], doc["methods"]["IDIM-WLS"]["parameters"]
+    assert truth["Ia_carriageR"] == pytest.approx(95.0 + 0.35)  # the scenario's rotor inertia on the one joint
+    for name, tol in (("Ia_carriageR", 1e-3), ("Fv_carriage", 0.03), ("Fc_carriage", 0.03)):
+        assert fit[name]["value"] == pytest.approx(truth[name], rel=tol), name
