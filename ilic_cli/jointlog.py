@@ -20,7 +20,7 @@ import numpy as np
 
 from ilic_cli.errors import LogError
 from ilic_cli.runlog import Controller, Provenance
-from ilic_cli.timebase import gap_starts, nominal_rate_hz, sampling_kind
+from ilic_cli.timebase import gap_starts, nominal_rate_hz, sampling_kind, segments
 
 JOINT_TYPES = ("revolute", "prismatic")
 UNITS = {"revolute": ("rad", "N·m"), "prismatic": ("m", "N")}
@@ -30,8 +30,8 @@ REFERENCES = ("q_ref", "qd_ref", "qdd_ref")
 
 
 CONTIGUOUS_RULE = (
-    "an arm's log is identified and replayed as one run at a fixed rate (stamp jitter of a fixed-rate loop is kept; a step "
-    "above 1.5 periods is a gap): cut it at its gaps and give each part"
+    "an arm's log is replayed, and identified by IDIM-ILIC, IDIM-IV and DIDIM, as one run at a fixed rate (stamp jitter of "
+    "a fixed-rate loop is kept; a step above 1.5 periods is a gap; IDIM-LS takes the parts between gaps): cut it at its gaps and give each part"
 )
 """The rule :meth:`JointLog.contiguous` states when it refuses a log."""
 
@@ -96,6 +96,18 @@ class JointLog:
             i = int(gaps[0])
             raise LogError(where, f"{len(gaps)} gap(s), the first of {t[i + 1] - t[i]:.4g} s at t = {t[i]:.6g} s: {CONTIGUOUS_RULE}")
         return self
+
+    def parts(self, where: Any = None) -> tuple[tuple[int, int], ...]:
+        """The ``(start, stop)`` sample ranges between the log's gaps (the one-joint chain's :func:`ilic_cli.timebase.segments`).
+
+        IDIM-LS filters and decimates each part on its own (:func:`ilic_cli.robot.idim.prepare_parts`). Irregular
+        stamps are a :class:`LogError`, as for :meth:`contiguous`.
+        """
+        t = np.asarray(self.t, dtype=np.float64)
+        rate = nominal_rate_hz(t)
+        if rate is None or sampling_kind(t) == "irregular":
+            raise LogError(where, f"irregular time stamps: {CONTIGUOUS_RULE}")
+        return segments(t, rate)
 
     @property
     def fs_hz(self) -> float:

@@ -53,7 +53,14 @@ def model_entry(doc: Mapping[str, Any], method: str) -> tuple[str, Mapping[str, 
 
 
 def write_identify(
-    doc: Mapping[str, Any], log: JointLog, robot: Any, base: Any, out_dir: Path, settings: tuple[Any, str, str], inputs: tuple[Path, ...]
+    doc: Mapping[str, Any],
+    log: JointLog,
+    parts: tuple[tuple[int, int], ...],
+    robot: Any,
+    base: Any,
+    out_dir: Path,
+    settings: tuple[Any, str, str],
+    inputs: tuple[Path, ...],
 ) -> None:
     """Write the report, the model file and the per-joint torque plots into ``out_dir``.
 
@@ -78,23 +85,24 @@ def write_identify(
     written = [out_dir / n for n in REPORTS]
     if plot_format != "none":
         theta = np.array([np.nan if v is None else v for v in values.values()], dtype=np.float64)
-        written += _torque_plots(log, robot, base, ls, theta, name, out_dir, plot_format)
+        written += _torque_plots(log, parts, robot, base, ls, theta, name, out_dir, plot_format)
     note(f"ilic: wrote {', '.join(str(p) for p in written)}")
 
 
-def _torque_plots(log: JointLog, robot: Any, base: Any, ls: Any, theta: np.ndarray, method: str, out_dir: Path, plot_format: str) -> list[Path]:
-    """Each joint's measured torque and the model's on the decimated rows (every row: no ``min_speed``), against time."""
-    from ilic_cli.filtering import kept_indices  # deferred: with the plots
+def _torque_plots(
+    log: JointLog, parts: tuple[tuple[int, int], ...], robot: Any, base: Any, ls: Any, theta: np.ndarray, method: str, out_dir: Path, plot_format: str
+) -> list[Path]:
+    """Each joint's measured torque and the model's on the decimated rows of the fitted parts (every row: no ``min_speed``), against time."""
     from ilic_cli.plotting import plot_joint_torques  # deferred: matplotlib only when a plot is written
-    from ilic_cli.robot.idim import prepare  # deferred: numba only for an arm
+    from ilic_cli.robot.idim import prepare_parts  # deferred: numba only for an arm
 
     held = bool(log.meta.get("torque_held", False))
-    system = prepare(log.q.T, log.tau.T, log.fs_hz, robot, base, ls, torque_held=held)
-    t = log.t[system.settings.trim :]
-    t = t[kept_indices(len(t), system.settings.decimation)]
+    system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, torque_held=held)
+    assert system.sample is not None
     model = system.W @ theta
+    first = system.joint == 0  # every joint has a row at each kept sample (no min_speed): the first joint's times are all joints'
     measured = [system.y[system.joint == j] for j in range(robot.n)]
     fitted = [model[system.joint == j] for j in range(robot.n)]
     units = [log.units(j)[1] for j in range(robot.n)]
     title = f"log {Path(str(log.meta.get('source', 'log'))).name}; model: the {method} estimate"
-    return plot_joint_torques(t[: len(measured[0])], list(robot.joints), units, measured, fitted, title, out_dir, plot_format)
+    return plot_joint_torques(log.t[system.sample[first]], list(robot.joints), units, measured, fitted, title, out_dir, plot_format)

@@ -46,6 +46,15 @@ RUNNABLE = ("ls", "ilic", "iv", "didim")
 """The methods that run on n joints (a composite ``--method`` runs its :data:`ilic_cli.method_names.COMPOSITES` entry's)."""
 
 
+Parts = tuple[tuple[int, int], ...]
+"""``(start, stop)`` sample ranges of a log between its gaps (:meth:`ilic_cli.jointlog.JointLog.parts`)."""
+
+PARTS_RULE = (
+    "IDIM-LS filtered and decimated each contiguous part between the log's gaps on its own and stacked their rows (a part too short for the filters left out)"
+)
+"""What ``identify --urdf --method ls`` says it did with a log that has gaps (the one-joint chain's rule)."""
+
+
 def identify_options(func: F) -> F:
     """Add ``--urdf``, ``--joints`` and ``--min-speed`` to ``ilic identify``; with ``--urdf`` the n-joint identification runs instead."""
 
@@ -119,15 +128,20 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
 
         refuse_out(out_dir, (log_path, urdf, *validate), o.get("plot_format", "png"))
     robot = load_robot(urdf)
-    log = read_log(log_path, robot, joints).contiguous(log_path)
-    other = read_log(validate[0], robot, joints).contiguous(validate[0]) if validate else None
+    log = read_log(log_path, robot, joints)
+    # IDIM-LS takes the parts between gaps, as the one-joint chain; the replays and IDIM-ILIC's windows need one run
+    parts = log.parts(log_path) if methods == ("ls",) else ((0, len(log.t)),)
+    if len(parts) == 1:
+        log = log.contiguous(log_path)
+    other = read_log(validate[0], robot, joints) if validate else None
+    other_parts = other.parts(validate[0]) if other is not None else ()
     controller = recorded_controller(log, o, "IDIM-IV and DIDIM replay") if {"iv", "didim"} & set(methods) else None
     from ilic_cli.robot.base import base_parameters  # deferred: scipy.linalg and numba only for an arm
 
     base = base_parameters(robot)
     ls = _ls_settings(o, defaults, log.fs_hz)
     held = bool(log.meta.get("torque_held", False))
-    check = _Validation(robot, base, ls, min_speed, held, other, validate)
+    check = _Validation(robot, base, ls, min_speed, held, (other, other_parts), validate)
     doc: dict[str, Any] = {
         "log": str(log_path),
         "urdf": robot.path,
@@ -135,12 +149,13 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
         "joints": [{"name": j, "type": k} for j, k in zip(robot.joints, robot.kinds)],
         "samples": len(log.t),
         "sample_rate_hz": log.fs_hz,
+        **({"parts": {"count": len(parts), "rule": PARTS_RULE}} if len(parts) > 1 else {}),
         "base_parameters": [{"name": n, "combines": dict(base.combination(i))} for i, n in enumerate(base.names)],
         "unidentifiable": list(base.unidentifiable),
         "methods": {},
     }
     if "ls" in methods:
-        doc["methods"]["IDIM-WLS"] = _ls(log, robot, base, ls, min_speed, held, float(o["sigma_max"]))
+        doc["methods"]["IDIM-WLS"] = _ls(log, parts, robot, base, ls, min_speed, held, float(o["sigma_max"]))
     if "ilic" in methods:
         doc["methods"]["IDIM-ILIC"] = _ilic(log, robot, base, _ilic_settings(o, defaults, log))
     for m in ("iv", "didim"):
@@ -160,7 +175,7 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
     if out_dir is not None:
         from ilic_cli.commands.robot_files import write_identify  # deferred: the report files only with --out
 
-        write_identify(doc, log, robot, base, out_dir, (ls, str(o["method"]), o.get("plot_format", "png")), (log_path, urdf, *validate))
+        write_identify(doc, log, parts, robot, base, out_dir, (ls, str(o["method"]), o.get("plot_format", "png")), (log_path, urdf, *validate))
     if o["out_format"] == "json":
         click.echo(json.dumps(doc, indent=2))
     else:
@@ -172,13 +187,14 @@ def identify(log_path: Path, urdf: Path, joints: list[str] | None, min_speed: fl
 class _Validation:
     """``--validate``'s relative error of base parameters on the other log (IDIM-WLS's rows: its settings, ``min_speed`` and ``torque_held``)."""
 
-    def __init__(self, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, other: JointLog | None, validate: tuple[Path, ...]):
+    def __init__(self, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, other: tuple[JointLog | None, Parts], validate: tuple[Path, ...]):
         self.system, self.where = None, validate[0] if validate else None
-        if other is not None:
-            from ilic_cli.robot.idim import prepare  # deferred: numba only for an arm
+        log, parts = other
+        if log is not None:
+            from ilic_cli.robot.idim import prepare_parts  # deferred: numba only for an arm
 
             try:
-                self.system = prepare(other.q.T, other.tau.T, other.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
+                self.system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, min_speed=min_speed, torque_held=held)
             except ValueError as exc:
                 raise IlicError(self.where, str(exc)) from None
 
@@ -190,12 +206,12 @@ class _Validation:
         return {"validation": {"log": str(self.where), "relative_error_pct": finite_or_none(validation_error_pct(theta, self.system))}}
 
 
-def _ls(log: JointLog, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, sigma_max: float) -> dict[str, Any]:
-    """IDIM-WLS, with its essential parameters and the fit of those alone (:func:`ilic_cli.robot.idim.essential_fit`)."""
-    from ilic_cli.robot.idim import essential_fit, prepare, solve_system  # deferred: numba only for an arm
+def _ls(log: JointLog, parts: Parts, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, sigma_max: float) -> dict[str, Any]:
+    """IDIM-WLS on the log's ``parts`` between gaps, with its essential parameters and the fit of those alone (:func:`ilic_cli.robot.idim.essential_fit`)."""
+    from ilic_cli.robot.idim import essential_fit, prepare_parts, solve_system  # deferred: numba only for an arm
 
     try:
-        system = prepare(log.q.T, log.tau.T, log.fs_hz, robot, base, ls, min_speed=min_speed, torque_held=held)
+        system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, min_speed=min_speed, torque_held=held)
         fit = solve_system(system)
         mask, reduced = essential_fit(system, fit, sigma_max)
     except ValueError as exc:

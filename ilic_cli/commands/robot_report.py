@@ -25,6 +25,8 @@ def identify_markdown(doc: Mapping[str, Any]) -> str:
     joints = ", ".join(f"{j['name']} ({j['type']})" for j in doc["joints"])
     lines = [f"# {doc['log']}", "", f"- URDF: {doc['urdf']} (sha256 {doc['sha256'][:12]}); joints: {joints}"]
     lines.append(f"- {doc['samples']} samples at {doc['sample_rate_hz']:.6g} Hz; {len(doc['base_parameters'])} base parameters")
+    if "parts" in doc:
+        lines.append(f"- {doc['parts']['count']} parts between gaps: {doc['parts']['rule']}")
     combines = {b["name"]: _combines(b["combines"]) for b in doc["base_parameters"]}
     truth = doc.get("true_base_parameters")
     for name, m in doc["methods"].items():

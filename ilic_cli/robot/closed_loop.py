@@ -14,8 +14,8 @@ measured system's rows), giving ``W_s`` and the decimated ``tau_s``:
 
 Each joint's rows are weighted by the IDIM-WLS estimate's error standard
 deviations (:func:`ilic_cli.robot.idim.solve_system`), kept over the
-iterations. The stop rule and the settings are the 1-DOF chain's
-(:class:`ilic_cli.closed_loop_id.ClosedLoopSettings`).
+iterations. The iteration, its stop rule and the settings are the 1-DOF chain's
+(:func:`ilic_cli.closed_loop_id.iterate`, :class:`ilic_cli.closed_loop_id.ClosedLoopSettings`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.closed_loop_id import DEFAULT_SETTINGS, METHODS, ClosedLoopSettings
+from ilic_cli.closed_loop_id import DEFAULT_SETTINGS, METHODS, ClosedLoopSettings, iterate
 from ilic_cli.errors import ParameterError
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.lsq import LSResult, finite_or_none, solve, solve_iv
@@ -99,27 +99,15 @@ def closed_loop_identify(
     def residual(beta: np.ndarray, tau_s: np.ndarray) -> float:
         return float(np.linalg.norm(yw - tau_s if method == "didim" else yw - Ww @ beta))
 
-    beta = start.theta
-    Ws, ts = replay(beta)
-    eps = residual(beta, ts)
-    history = [(0, beta, eps)]
-    converged, reason = False, f"iteration limit ({settings.max_iterations}) reached"
-    res = start.result
-    for k in range(1, settings.max_iterations + 1):
+    def step(Ws: np.ndarray, ts: np.ndarray, beta: np.ndarray) -> LSResult:
         if method == "didim":
-            res = solve(Ws, yw - ts + Ws @ beta, base.names, sigma=ls_settings.sigma)
-        else:
-            res = solve_iv(Ws, Ww, yw, base.names, sigma=ls_settings.sigma)
-        new = res.theta
-        with np.errstate(divide="ignore", invalid="ignore"):
-            change = np.abs(new - beta) / np.abs(beta)
-        dtheta = float(100.0 * np.max(change[np.isfinite(change)], initial=0.0))
-        Ws, ts = replay(new)
-        new_eps = residual(new, ts)
-        deps = 100.0 * abs(new_eps - eps) / eps if eps > 0 else 0.0
-        history.append((k, new, new_eps))
-        beta, eps = new, new_eps
-        if deps < settings.tolerance_pct or dtheta < settings.tolerance_pct:
-            converged, reason = True, f"moved by {min(deps, dtheta):.3g} % (< {settings.tolerance_pct:g} %) at iteration {k}"
-            break
-    return RobotClosedLoopResult(name, res, tuple(history), converged, reason)
+            return solve(Ws, yw - ts + Ws @ beta, base.names, sigma=ls_settings.sigma)
+        return solve_iv(Ws, Ww, yw, base.names, sigma=ls_settings.sigma)
+
+    def replay_at(beta: np.ndarray, k: int) -> tuple[None, np.ndarray, np.ndarray]:
+        return (None, *replay(beta))
+
+    history, res, _, _, _, _, converged, reason = iterate(
+        start.theta, replay_at, residual, step, float(np.linalg.norm(yw)), settings, minimises=method == "didim"
+    )
+    return RobotClosedLoopResult(name, res, tuple((it.k, it.theta, it.error_norm) for it in history), converged, reason)

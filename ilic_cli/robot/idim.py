@@ -58,6 +58,8 @@ class RobotSystem:
     settings: LSSettings
     kept: tuple[np.ndarray, ...] = ()
     """Per joint, the decimated rows kept by ``min_speed`` (empty: every row)."""
+    sample: np.ndarray | None = None
+    """The log's sample each row stands for (its time: ``t[sample]``); ``None`` for a system made without it."""
 
 
 @dataclass(frozen=True)
@@ -124,6 +126,7 @@ def prepare(
     min_speed: float = 0.0,
     torque_held: bool = False,
     keep: tuple[np.ndarray, ...] = (),
+    rows_needed: int | None = None,
 ) -> RobotSystem:
     """Filter, differentiate, trim and decimate each joint as the 1-DOF chain; stack the joints' base systems.
 
@@ -146,6 +149,9 @@ def prepare(
         Per joint, the decimated rows to keep, in place of ``min_speed``'s (another
         system's :attr:`RobotSystem.kept`: the closed-loop methods pair the rows of
         the measured and the simulated logs).
+    rows_needed : int, optional
+        ``min_speed`` leaving this many rows or fewer is an error (default: the base parameters' number;
+        :func:`prepare_parts` asks for 0 of a part and checks the stack).
     """
     settings = settings.at_rate(fs_hz)  # the decimation by the log's rate, the 1-DOF chain's one rule (unless given: band_hz None)
     q, tau = np.asarray(q, dtype=np.float64), np.asarray(tau, dtype=np.float64)
@@ -181,12 +187,59 @@ def prepare(
         kept = tuple(valid_rows(np.abs(qd[:, j]) > min_speed, settings.decimation) for j in range(robot.n))
     if kept:
         parts = [p[k] for p, k in zip(parts, kept)]
-        if sum(len(p) for p in parts) <= base.b:
+        if sum(len(p) for p in parts) <= (base.b if rows_needed is None else rows_needed):
             raise ValueError(f"only {sum(len(p) for p in parts)} rows move faster than {min_speed:g}: too few for {base.b} base parameters")
     W = np.concatenate([p[:, :-1] for p in parts])
     y = np.concatenate([p[:, -1] for p in parts])
     joint = np.concatenate([np.full(len(p), j) for j, p in enumerate(parts)])
-    return RobotSystem(W=W, y=y, joint=joint, names=base.names, joints=robot.joints, settings=settings, kept=kept)
+    at = settings.trim + kept_indices(len(q) - settings.trim, settings.decimation)
+    sample = np.concatenate([at[k] for k in kept]) if kept else np.tile(at, robot.n)
+    return RobotSystem(W=W, y=y, joint=joint, names=base.names, joints=robot.joints, settings=settings, kept=kept, sample=sample)
+
+
+def prepare_parts(
+    q: np.ndarray,
+    tau: np.ndarray,
+    fs_hz: float,
+    robot: RobotModel,
+    base: BaseParameters,
+    parts: tuple[tuple[int, int], ...],
+    settings: LSSettings = LSSettings(),
+    *,
+    min_speed: float = 0.0,
+    torque_held: bool = False,
+) -> RobotSystem:
+    """:func:`prepare` of each contiguous part ``(start, stop)`` of a log cut at its gaps (:func:`ilic_cli.timebase.segments`), stacked.
+
+    The one-joint chain's rule (``idim_ls._systems``): each part is filtered, differentiated and decimated on its own;
+    a part shorter than :func:`ilic_cli.idim_ls.min_samples` is left out, and none left is an error. Rows are
+    joint-major within each part; :attr:`RobotSystem.sample` says which sample each stands for.
+    """
+    if len(parts) == 1:
+        return prepare(q, tau, fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held)
+    shortest = min_samples(settings.at_rate(fs_hz))
+    systems = []
+    for a, b in parts:
+        if b - a < shortest:
+            continue
+        try:
+            one = prepare(q[a:b], tau[a:b], fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held, rows_needed=0)
+        except ValueError:
+            continue  # a part with no row fast enough (min_speed): it adds nothing
+        assert one.sample is not None
+        systems.append(replace(one, sample=one.sample + a, kept=()))
+    if not systems:
+        raise ValueError(f"no contiguous part of the log has the {shortest} samples IDIM-LS needs")
+    joined = replace(
+        systems[0],
+        W=np.concatenate([s.W for s in systems]),
+        y=np.concatenate([s.y for s in systems]),
+        joint=np.concatenate([s.joint for s in systems]),
+        sample=np.concatenate([s.sample for s in systems if s.sample is not None]),
+    )
+    if len(joined.y) <= base.b:
+        raise ValueError(f"only {len(joined.y)} rows in the log's contiguous parts: too few for {base.b} base parameters")
+    return joined
 
 
 def base_columns(

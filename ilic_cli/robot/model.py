@@ -163,7 +163,7 @@ def load_urdf(path: str | Path) -> RobotModel:
         joint = model.joints[i]
         if joint.nv != 1 or joint.nq not in (1, 2):
             raise IlicError(path, f"joint {model.names[i]!r} ({joint.shortname()}) is not revolute, continuous or prismatic")
-        s = pin.getJointJacobian(model, pdata, i, pin.LOCAL)[:, joint.idx_v]
+        s = np.asarray(pin.getJointJacobian(model, pdata, i, pin.LOCAL)).reshape(6, model.nv)[:, joint.idx_v]  # (6,) for one joint: eigenpy's vector
         lin, ang = s[:3], s[3:]
         if np.allclose(lin, 0.0) and np.isclose(np.linalg.norm(ang), 1.0):
             kinds.append("revolute")

@@ -18,7 +18,7 @@ from ilic_cli.robot.base import base_parameters  # noqa: E402
 FIXTURES = Path(__file__).parents[2] / "fixtures"
 
 
-@pytest.mark.parametrize("arm", ("arm2.urdf", "ur5like.urdf"))
+@pytest.mark.parametrize("arm", ("axis1.urdf", "arm2.urdf", "ur5like.urdf"))
 def test_rnea_crba_and_forward_dynamics_match_pinocchio(arm: str) -> None:
     robot = rm.load_urdf(FIXTURES / arm)
     pi = robot.parameters({f"Ia_{j}": 0.05 * (k + 1) for k, j in enumerate(robot.joints)})

@@ -15,7 +15,7 @@ from ilic_cli.errors import IlicError, ParameterError  # noqa: E402
 from ilic_cli.robot import model as rm  # noqa: E402
 
 FIXTURES = Path(__file__).parents[2] / "fixtures"
-ARMS = ("arm2.urdf", "ur5like.urdf")
+ARMS = ("axis1.urdf", "arm2.urdf", "ur5like.urdf")  # axis1: the one-joint case n = 1
 
 
 def _truth(robot: rm.RobotModel) -> np.ndarray:
