@@ -24,13 +24,10 @@ the residual norm ``eps_k`` (DIDIM: ``||y - W_s theta_k||``; IV:
 ``||y - W theta_k||``) moves by less than ``tolerance_pct`` relative to
 ``eps_{k-1}``, or the largest relative parameter change
 ``max |theta_k - theta_{k-1}| / |theta_{k-1}|`` is below it, or after
-``max_iterations``. DIDIM, which minimises its output error, also stops when
-that error has stopped falling (:data:`STALL_ITERATIONS`: on a noise-free log the
-replayed loop's quantisation sets its floor) and then, as at the limit, its
-estimate is the iterate of the smallest error; IDIM-IV's is the last iterate.
-Each estimate has the standard deviations of its own step (DIDIM: eq. 9 on
-``W_s``; IV: the IV covariance). One iteration (:func:`iterate`) for one joint
-and for an arm's n (:mod:`ilic_cli.robot.closed_loop`).
+``max_iterations``. The estimate is the last iterate, with the standard
+deviations of its own step (DIDIM: eq. 9 on ``W_s``; IV: the IV covariance).
+One iteration (:func:`iterate`) for one joint and for an arm's n
+(:mod:`ilic_cli.robot.closed_loop`).
 Pure numerics on a :class:`~ilic_cli.runlog.RunLog` in memory: no file I/O.
 """
 
@@ -358,7 +355,7 @@ def closed_loop_identify(
             return solve(Ws, y - tau_s + Ws @ theta, names, sigma=ls_settings.sigma)
         return solve_iv(Ws, measured.W, y, names, sigma=ls_settings.sigma)
 
-    history, res, theta, eps, sim, tau_s, converged, reason = iterate(theta, replay_at, residual, step, y_norm, settings, minimises=method == "didim")
+    history, res, theta, eps, sim, tau_s, converged, reason = iterate(theta, replay_at, residual, step, y_norm, settings)
     if method == "didim":  # the criterion DIDIM minimises, at the final estimate
         res = replace(res, error_norm=eps, relative_error_pct=100.0 * eps / y_norm)
     return ClosedLoopResult(
@@ -385,12 +382,6 @@ S = TypeVar("S")
 """A replay of the iteration: a one-joint :class:`~ilic_cli.runlog.RunLog`, or nothing an arm keeps."""
 
 
-STALL_ITERATIONS = 2
-"""DIDIM stops when this many iterations in a row have not lowered its output error below the smallest so far (by
-``tolerance_pct``): the simulated loop's own noise (the encoder's quantisation of a replay that is not the recorded
-run) then sets the error's floor, and further steps only wander on it. The estimate is the iterate of the smallest error."""
-
-
 def iterate(
     theta: np.ndarray,
     replay_at: Callable[[np.ndarray, int], tuple[S, np.ndarray, np.ndarray]],
@@ -398,15 +389,11 @@ def iterate(
     step: Step,
     y_norm: float,
     settings: ClosedLoopSettings,
-    *,
-    minimises: bool,
 ) -> tuple[list[Iteration], LSResult, np.ndarray, float, S, np.ndarray, bool, str]:
     """The iteration from ``theta`` (the module's stop rule), for one joint or an arm's n (:mod:`ilic_cli.robot.closed_loop`).
 
-    ``replay_at(theta, k) -> (replay, W_s, tau_s)``; ``minimises``: the step minimises ``residual`` (DIDIM's output
-    error), so that it also stops at the error's floor (:data:`STALL_ITERATIONS`) and returns the iterate of the smallest
-    error; IDIM-IV's residual is not what it minimises, and its estimate is the last iterate.
-    Returns the history, the estimate's step, its theta and residual, its replay and force, converged, why it stopped.
+    ``replay_at(theta, k) -> (replay, W_s, tau_s)``. Returns the history, the last step's estimate, its theta and
+    residual, its replay and force, converged, why it stopped.
     """
     sim, Ws, tau_s = replay_at(theta, 0)
     eps = residual(theta, tau_s)
@@ -414,8 +401,6 @@ def iterate(
     converged, reason = False, f"iteration limit ({settings.max_iterations}) reached"
     res: LSResult | None = None
     tol = settings.tolerance_pct
-    best: tuple[int, LSResult | None, np.ndarray, float, S, np.ndarray] = (0, None, theta, eps, sim, tau_s)
-    stalled = 0
     for k in range(1, settings.max_iterations + 1):
         # DIDIM: Gauss-Newton on the output error with the Jacobian d tau_s / d theta ~= W_s:
         # theta_k = theta_{k-1} + W_s^+ (y - tau_s), i.e. the LS of y - tau_s + W_s theta_{k-1} on W_s; IDIM-IV: Z = W_s
@@ -423,7 +408,7 @@ def iterate(
         new = res.theta
         with np.errstate(divide="ignore", invalid="ignore"):
             change = np.abs(new - theta) / np.abs(theta)
-        dtheta = float(100.0 * np.max(change[np.isfinite(change)], initial=0.0))  # a parameter at exactly 0 has no relative change
+        dtheta = float(100.0 * np.max(change[np.isfinite(change)], initial=0.0))  # a parameter at exactly 0 (held by the model) has none
         sim, Ws, tau_s = replay_at(new, k)
         new_eps = residual(new, tau_s)
         deps = 100.0 * abs(new_eps - eps) / eps if eps > 0 else 0.0
@@ -435,22 +420,5 @@ def iterate(
         if dtheta < tol:
             converged, reason = True, f"the largest relative parameter change was {dtheta:.3g} % (< {tol:g} %) at iteration {k}"
             break
-        if not minimises:
-            continue
-        if eps < best[3] * (1.0 - tol / 100.0) or best[1] is None and eps < best[3]:
-            best, stalled = (k, res, theta, eps, sim, tau_s), 0
-        else:
-            stalled += 1
-        if stalled >= STALL_ITERATIONS and best[1] is not None:
-            converged = True
-            reason = (
-                f"the output error stopped falling: iterations {k - stalled + 1}-{k} did not lower it below iteration {best[0]}'s "
-                f"by {tol:g} % (its floor); the estimate is iteration {best[0]}'s"
-            )
-            _, res, theta, eps, sim, tau_s = best
-            break
-    if minimises and not converged and best[1] is not None and best[3] < eps:  # at the limit: the smallest error's iterate
-        reason += f"; the estimate is iteration {best[0]}'s, of the smallest output error"
-        _, res, theta, eps, sim, tau_s = best
-    assert res is not None  # max_iterations >= 1, and a best iterate is a step's
+    assert res is not None  # max_iterations >= 1
     return history, res, theta, eps, sim, tau_s, converged, reason

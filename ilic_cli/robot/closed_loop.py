@@ -107,7 +107,5 @@ def closed_loop_identify(
     def replay_at(beta: np.ndarray, k: int) -> tuple[None, np.ndarray, np.ndarray]:
         return (None, *replay(beta))
 
-    history, res, _, _, _, _, converged, reason = iterate(
-        start.theta, replay_at, residual, step, float(np.linalg.norm(yw)), settings, minimises=method == "didim"
-    )
+    history, res, _, _, _, _, converged, reason = iterate(start.theta, replay_at, residual, step, float(np.linalg.norm(yw)), settings)
     return RobotClosedLoopResult(name, res, tuple((it.k, it.theta, it.error_norm) for it in history), converged, reason)
