@@ -28,8 +28,11 @@ TEST_WORKERS ?= 2
 # one BLAS thread a worker: the TEST_WORKERS processes already share the cores (BLAS's own threads on top oversubscribed them)
 TEST_ENV := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
 
+# the tests' CPU time, steady under other load (wall time is not): make test PYTEST_ARGS="-p tests.cpu_durations --cpu-durations=30"
+PYTEST_ARGS ?=
+
 test: $(STAMP)
-	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal
+	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal $(PYTEST_ARGS)
 
 # the tiers without closed-loop diagnoses or long simulations
 FAST_TESTS := tests/unit tests/vocabulary tests/io

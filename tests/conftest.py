@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.runlog import RunLog
+from tests.shared_cache import use_folder
 
 SHARED_EMPS = Path(__file__).parents[1].parent / "shared" / "emps"
 """``../shared/emps`` relative to the repository root (read-only data, never copied)."""
@@ -68,6 +69,13 @@ def require_shared() -> Path:
         return SHARED_EMPS
     skip_outside_ci(f"EMPS recordings missing from {SHARED_EMPS}: {', '.join(missing)}; CI must provide ../shared beside the clone")
     raise AssertionError("unreachable")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _shared_artefacts(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Under pytest-xdist, the artefacts of :mod:`tests.shared_cache` go beside the workers' tmp dirs (one folder for the run)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        use_folder(tmp_path_factory.getbasetemp().parent / "shared-artefacts")
 
 
 @pytest.fixture(scope="session")
