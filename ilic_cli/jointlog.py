@@ -28,6 +28,9 @@ UNITS = {"revolute": ("rad", "N·m"), "prismatic": ("m", "N")}
 
 REFERENCES = ("q_ref", "qd_ref", "qdd_ref")
 
+Parts = tuple[tuple[int, int], ...]
+"""``(start, stop)`` sample ranges of a log between its gaps (:meth:`JointLog.parts`)."""
+
 
 CONTIGUOUS_RULE = (
     "an arm's log is replayed, and identified by IDIM-ILIC, IDIM-IV and DIDIM, as one run at a fixed rate (stamp jitter of "
@@ -97,7 +100,7 @@ class JointLog:
             raise LogError(where, f"{len(gaps)} gap(s), the first of {t[i + 1] - t[i]:.4g} s at t = {t[i]:.6g} s: {CONTIGUOUS_RULE}")
         return self
 
-    def parts(self, where: Any = None) -> tuple[tuple[int, int], ...]:
+    def parts(self, where: Any = None) -> Parts:
         """The ``(start, stop)`` sample ranges between the log's gaps (the one-joint chain's :func:`ilic_cli.timebase.segments`).
 
         IDIM-LS filters and decimates each part on its own (:func:`ilic_cli.robot.idim.prepare_parts`). Irregular

@@ -22,7 +22,7 @@ import numpy as np
 from ilic_cli.commands.common import note
 from ilic_cli.errors import IlicError
 from ilic_cli.io.atomic import atomic_write_text, same_path
-from ilic_cli.jointlog import JointLog
+from ilic_cli.jointlog import JointLog, Parts
 from ilic_cli.method_names import COMPOSITES
 
 REPORTS = ("report.md", "report.json", "model.json")
@@ -55,7 +55,7 @@ def model_entry(doc: Mapping[str, Any], method: str) -> tuple[str, Mapping[str, 
 def write_identify(
     doc: Mapping[str, Any],
     log: JointLog,
-    parts: tuple[tuple[int, int], ...],
+    parts: Parts,
     robot: Any,
     base: Any,
     out_dir: Path,
@@ -89,16 +89,13 @@ def write_identify(
     note(f"ilic: wrote {', '.join(str(p) for p in written)}")
 
 
-def _torque_plots(
-    log: JointLog, parts: tuple[tuple[int, int], ...], robot: Any, base: Any, ls: Any, theta: np.ndarray, method: str, out_dir: Path, plot_format: str
-) -> list[Path]:
+def _torque_plots(log: JointLog, parts: Parts, robot: Any, base: Any, ls: Any, theta: np.ndarray, method: str, out_dir: Path, plot_format: str) -> list[Path]:
     """Each joint's measured torque and the model's on the decimated rows of the fitted parts (every row: no ``min_speed``), against time."""
     from ilic_cli.plotting import plot_joint_torques  # deferred: matplotlib only when a plot is written
     from ilic_cli.robot.idim import prepare_parts  # deferred: numba only for an arm
 
     held = bool(log.meta.get("torque_held", False))
     system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, torque_held=held)
-    assert system.sample is not None
     model = system.W @ theta
     first = system.joint == 0  # every joint has a row at each kept sample (no min_speed): the first joint's times are all joints'
     measured = [system.y[system.joint == j] for j in range(robot.n)]

@@ -28,7 +28,7 @@ from ilic_cli.commands.robot import joints_option, load_robot, read_log, recorde
 from ilic_cli.errors import IlicError
 from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
-from ilic_cli.jointlog import JointLog
+from ilic_cli.jointlog import JointLog, Parts
 from ilic_cli.lsq import finite_or_none
 from ilic_cli.method_names import COMPOSITES
 
@@ -45,9 +45,6 @@ The decimation is the 1-DOF chain's rule by the log's rate (:func:`ilic_cli.filt
 RUNNABLE = ("ls", "ilic", "iv", "didim")
 """The methods that run on n joints (a composite ``--method`` runs its :data:`ilic_cli.method_names.COMPOSITES` entry's)."""
 
-
-Parts = tuple[tuple[int, int], ...]
-"""``(start, stop)`` sample ranges of a log between its gaps (:meth:`ilic_cli.jointlog.JointLog.parts`)."""
 
 PARTS_RULE = (
     "IDIM-LS filtered and decimated each contiguous part between the log's gaps on its own and stacked their rows (a part too short for the filters left out)"

@@ -31,6 +31,7 @@ from ilic_cli.filter_design import cheby1_ba
 from ilic_cli.filtering import _polished_roots, butter_lowpass_zero_phase, central_difference, kept_indices
 from ilic_cli.idim_ilic import essential_mask
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
+from ilic_cli.jointlog import Parts
 from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve_tall
 from ilic_cli.parallel import ordered_map
 from ilic_cli.robot.base import BaseParameters
@@ -56,10 +57,10 @@ class RobotSystem:
     names: tuple[str, ...]
     joints: tuple[str, ...]
     settings: LSSettings
+    sample: np.ndarray
+    """The log's sample each row stands for (its time: ``t[sample]``)."""
     kept: tuple[np.ndarray, ...] = ()
     """Per joint, the decimated rows kept by ``min_speed`` (empty: every row)."""
-    sample: np.ndarray | None = None
-    """The log's sample each row stands for (its time: ``t[sample]``); ``None`` for a system made without it."""
 
 
 @dataclass(frozen=True)
@@ -151,7 +152,7 @@ def prepare(
         the measured and the simulated logs).
     rows_needed : int, optional
         ``min_speed`` leaving this many rows or fewer is an error (default: the base parameters' number;
-        :func:`prepare_parts` asks for 0 of a part and checks the stack).
+        -1: never, :func:`prepare_parts`, which leaves out a part with none and checks the stack).
     """
     settings = settings.at_rate(fs_hz)  # the decimation by the log's rate, the 1-DOF chain's one rule (unless given: band_hz None)
     q, tau = np.asarray(q, dtype=np.float64), np.asarray(tau, dtype=np.float64)
@@ -203,7 +204,7 @@ def prepare_parts(
     fs_hz: float,
     robot: RobotModel,
     base: BaseParameters,
-    parts: tuple[tuple[int, int], ...],
+    parts: Parts,
     settings: LSSettings = LSSettings(),
     *,
     min_speed: float = 0.0,
@@ -222,12 +223,9 @@ def prepare_parts(
     for a, b in parts:
         if b - a < shortest:
             continue
-        try:
-            one = prepare(q[a:b], tau[a:b], fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held, rows_needed=0)
-        except ValueError:
-            continue  # a part with no row fast enough (min_speed): it adds nothing
-        assert one.sample is not None
-        systems.append(replace(one, sample=one.sample + a, kept=()))
+        one = prepare(q[a:b], tau[a:b], fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held, rows_needed=-1)
+        if len(one.y):  # a part with no row fast enough (min_speed) adds nothing
+            systems.append(replace(one, sample=one.sample + a, kept=()))
     if not systems:
         raise ValueError(f"no contiguous part of the log has the {shortest} samples IDIM-LS needs")
     joined = replace(
@@ -235,7 +233,7 @@ def prepare_parts(
         W=np.concatenate([s.W for s in systems]),
         y=np.concatenate([s.y for s in systems]),
         joint=np.concatenate([s.joint for s in systems]),
-        sample=np.concatenate([s.sample for s in systems if s.sample is not None]),
+        sample=np.concatenate([s.sample for s in systems]),
     )
     if len(joined.y) <= base.b:
         raise ValueError(f"only {len(joined.y)} rows in the log's contiguous parts: too few for {base.b} base parameters")

@@ -217,7 +217,6 @@ def test_a_log_with_a_gap_is_split_by_idim_ls_and_refused_by_a_replay_irregular_
     q, tau = gapped.q.T, gapped.tau.T
     stack = prepare_parts(q, tau, 1000.0, robot, base, ((0, 12000), (12000, len(q))), ls)
     second = prepare(q[12000:], tau[12000:], 1000.0, robot, base, ls)
-    assert stack.sample is not None and second.sample is not None
     assert np.array_equal(stack.W[-len(second.y) :], second.W) and np.array_equal(stack.sample[-len(second.y) :], second.sample + 12000)
     assert ls.at_rate(1000.0).trim <= stack.sample[0] < 12000 and np.all(np.diff(stack.sample[stack.joint == 0]) > 0)
     replay = ("replay", str(tmp_path / "gap.csv"), "--urdf", ARM2, "--model", str(model / "model.json"), "-o", str(tmp_path / "r.csv"))
