@@ -24,6 +24,8 @@ from ilic_cli.timebase import gap_starts, nominal_rate_hz, sampling_kind, segmen
 
 JOINT_TYPES = ("revolute", "prismatic")
 UNITS = {"revolute": ("rad", "N·m"), "prismatic": ("m", "N")}
+TYPES_ASSUMED = "types_assumed"
+"""Metadata key: the joints a reader took as ``revolute`` because neither the file nor the caller gave their type."""
 """REP 103 units of a joint type: (position, effort)."""
 
 REFERENCES = ("q_ref", "qd_ref", "qdd_ref")
@@ -169,6 +171,7 @@ class JointLog:
                 {
                     "name": j,
                     "type": k,
+                    "type_assumed": j in self.meta.get(TYPES_ASSUMED, ()),
                     "position_unit": qu,
                     "effort_unit": tu,
                     "q_min": float(self.q[i].min()),

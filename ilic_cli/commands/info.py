@@ -11,7 +11,7 @@ import click
 
 from ilic_cli.commands.common import input_options, load
 from ilic_cli.commands.robot import info_options
-from ilic_cli.errors import ChoiceError
+from ilic_cli.errors import ChoiceError, LogError
 from ilic_cli.io import bag_folder, detect_format
 from ilic_cli.io.overview import overview
 
@@ -142,6 +142,8 @@ def command(
     try:
         log = load(log_path, input_format, topic, ref_topic, joint, columns)
     except ChoiceError as exc:  # the container parsed; which of its topics or joints is for the user to say
+        if exc.choice == "joint" and _joints_listed(log_path, input_format, fmt, out_format):
+            return
         topics = _overview(log_path, input_format, fmt)
         topic_rows = [t.to_dict() for t in topics]
         summary = {"file": str(log_path), "format": fmt, "topics": topic_rows, "choose": exc.message()}
@@ -156,6 +158,31 @@ def command(
         click.echo(json.dumps(summary, indent=2, default=_json_default))
     else:
         click.echo(render_markdown(summary), nl=False)
+
+
+JOINTS_NOTE = "An arm's log of several joints: `identify` and `replay` read it whole with --urdf ARM.urdf, and any command one joint with --joint NAME"
+
+
+def _joints_listed(path: Path, input_format: str | None, fmt: str, out_format: str) -> bool:
+    """Print a JointState log of several joints as an arm's log: its joints, types and ranges, then its topics.
+
+    False when it cannot be read as one (a ROS 1 bag, no effort, several JointState topics): the caller lists the topics to choose from.
+    """
+    from ilic_cli.commands.robot import info_markdown, joints_summary  # deferred: the n-joint reader only for such a log
+
+    try:
+        summary = joints_summary(path, None, None)
+    except LogError:
+        return False
+    summary["format"] = fmt
+    summary["topics"] = [t.to_dict() for t in _overview(path, input_format, fmt)]
+    summary["read_as"] = JOINTS_NOTE
+    if out_format == "json":
+        click.echo(json.dumps(summary, indent=2, default=_json_default))
+    else:
+        topics = _topics_markdown(summary["topics"])
+        click.echo("\n".join([info_markdown(summary).rstrip("\n"), "", f"{JOINTS_NOTE}.", "", *topics]).rstrip("\n") + "\n", nl=False)
+    return True
 
 
 def _overview(path: Path, input_format: str | None, fmt: str) -> list[Any]:

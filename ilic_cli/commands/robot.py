@@ -102,11 +102,7 @@ def info_options(func: F) -> F:
 
         if urdf is None and joints is None and not is_wide_csv(log_path):
             return func(log_path, **options)
-        robot = load_robot(urdf) if urdf is not None else None
-        log = read_log(log_path, robot, joints_option(joints))
-        summary = log.to_dict() | {"file": str(log_path)}
-        if robot is not None:
-            summary["urdf"] = {"path": robot.path, "sha256": robot.sha256}
+        summary = joints_summary(log_path, urdf, joints)
         if options["out_format"] == "json":
             click.echo(json.dumps(summary, indent=2, default=str))
         else:
@@ -114,6 +110,19 @@ def info_options(func: F) -> F:
         return None
 
     return urdf_option(cast(F, wrapper))
+
+
+def joints_summary(log_path: Path, urdf: Path | None, joints: str | None) -> dict[str, Any]:
+    """``ilic info`` of an n-joint log: its joints with their types and ranges (and the URDF read with it).
+
+    Also what ``ilic info`` gives, without ``--urdf`` or ``--joints``, for a JointState log of several joints.
+    """
+    robot = load_robot(urdf) if urdf is not None else None
+    log = read_log(log_path, robot, joints_option(joints))
+    summary = log.to_dict() | {"file": str(log_path)}
+    if robot is not None:
+        summary["urdf"] = {"path": robot.path, "sha256": robot.sha256}
+    return summary
 
 
 def info_markdown(summary: Mapping[str, Any]) -> str:
@@ -129,5 +138,8 @@ def info_markdown(summary: Mapping[str, Any]) -> str:
     lines += ["", "| joint | type | q min | q max | effort min | effort max |", "| --- | --- | --- | --- | --- | --- |"]
     for j in summary["joints"]:
         qu, tu = j["position_unit"], j["effort_unit"]
-        lines.append(f"| {j['name']} | {j['type']} | {j['q_min']:.6g} {qu} | {j['q_max']:.6g} {qu} | {j['tau_min']:.6g} {tu} | {j['tau_max']:.6g} {tu} |")
+        kind = f"{j['type']} (assumed)" if j.get("type_assumed") else j["type"]
+        lines.append(f"| {j['name']} | {kind} | {j['q_min']:.6g} {qu} | {j['q_max']:.6g} {qu} | {j['tau_min']:.6g} {tu} | {j['tau_max']:.6g} {tu} |")
+    if any(j.get("type_assumed") for j in summary["joints"]):
+        lines += ["", "The log gives no joint type: (assumed) ones are read as revolute; --urdf ARM.urdf gives the types."]
     return "\n".join(lines) + "\n"

@@ -3,7 +3,8 @@
 - **Wide CSV**: columns ``t``, then per joint ``q_<joint>``, ``tau_<joint>`` and,
   with a reference, ``q_ref_<joint>``, ``qd_ref_<joint>``, ``qdd_ref_<joint>``.
   A first line ``# ilic-joints {json}`` holds the joint types and the metadata
-  (without it every joint is read as ``revolute`` unless the caller says).
+  (without it every joint is read as ``revolute`` unless the caller says, and the log's
+  metadata names those joints under :data:`ilic_cli.jointlog.TYPES_ASSUMED`).
   Floats are written by ``repr`` (the shortest exact text): the round trip is lossless.
 - **ROS 2**: ``sensor_msgs/msg/JointState`` on ``/joint_states`` (or the only
   JointState topic): ``position`` and ``effort`` per name (``velocity`` is
@@ -35,7 +36,7 @@ import numpy as np
 from ilic_cli.errors import LogError
 from ilic_cli.io import rosschema
 from ilic_cli.io.rosschema import JOINT_STATE, STRING, TRAJECTORY
-from ilic_cli.jointlog import REFERENCES, JointLog
+from ilic_cli.jointlog import REFERENCES, TYPES_ASSUMED, JointLog
 
 MARK = "# ilic-joints "
 STATES, REFERENCE, METADATA = "/joint_states", "/joint_reference", "/ilic/metadata"
@@ -87,8 +88,23 @@ def write(log: JointLog, path: Path) -> None:
         write_bag(log, path, "sqlite3")
 
 
+def _metadata(log: JointLog) -> dict[str, Any]:
+    """What every writer stores beside the samples: the joints with their types, and the log's metadata (the types now declared)."""
+    return {"joints": [list(p) for p in zip(log.joints, log.kinds)], "meta": {k: v for k, v in log.meta.items() if k != TYPES_ASSUMED}}
+
+
+def _types(
+    joints: Sequence[str], declared: Mapping[str, Any], kinds: Mapping[str, str] | None, meta: Mapping[str, Any]
+) -> tuple[tuple[str, ...], dict[str, Any]]:
+    """Each joint's type (the file's, else the caller's, else ``revolute``), and ``meta`` naming the joints so assumed."""
+    given = dict(kinds or {})
+    assumed = [j for j in joints if not (declared.get(j) or given.get(j))]
+    types = tuple(str(declared.get(j) or given.get(j) or "revolute") for j in joints)
+    return types, dict(meta) | ({TYPES_ASSUMED: assumed} if assumed else {})
+
+
 def _header(log: JointLog) -> str:
-    return MARK + json.dumps({"joints": [list(p) for p in zip(log.joints, log.kinds)], "meta": dict(log.meta)}, sort_keys=True, default=str)
+    return MARK + json.dumps(_metadata(log), sort_keys=True, default=str)
 
 
 def write_csv(log: JointLog, path: Path) -> None:
@@ -132,9 +148,8 @@ def read_csv(path: Path, kinds: Mapping[str, str] | None = None) -> JointLog:
         if lacking:
             raise LogError(path, f"no {what}_<joint> column for {', '.join(lacking)}" + (" (a log without effort)" if what == "tau" else ""))
     refs = {r: np.array([found[r][j] for j in joints]) if all(j in found.get(r, {}) for j in joints) else None for r in REFERENCES}
-    given = dict(kinds or {})
-    types = tuple(str(declared.get(j) or given.get(j) or "revolute") for j in joints)
-    return _log(path, frame["t"].to_numpy(dtype=np.float64), joints, types, found, refs, header.get("meta") or {})
+    types, meta = _types(joints, declared, kinds, header.get("meta") or {})
+    return _log(path, frame["t"].to_numpy(dtype=np.float64), joints, types, found, refs, meta)
 
 
 def _exact(pd: Any) -> dict[str, str]:
@@ -168,7 +183,7 @@ def write_bag(log: JointLog, path: Path, storage: str) -> None:
     stamps = np.round(log.t * 1e9).astype(np.int64)
     names = list(log.joints)
     zeros = np.zeros(log.n)
-    meta = {"joints": [list(p) for p in zip(log.joints, log.kinds)], "meta": dict(log.meta)}
+    meta = _metadata(log)
     with Writer(path, version=9, storage_plugin=plugin) as writer:
         states = writer.add_connection(STATES, JOINT_STATE, typestore=ts)
         refs = writer.add_connection(REFERENCE, TRAJECTORY, typestore=ts) if log.has_reference else None
@@ -284,7 +299,7 @@ def write_mcap(log: JointLog, path: Path, chunk_bytes: int = 2**20) -> None:
         raise LogError(path, f"time starts at {log.t[0]:g} s: an MCAP log time is unsigned nanoseconds")
     values = [log.q, log.tau] + ([getattr(log, r) for r in REFERENCES] if log.has_reference else [])
     layout = _layouts(list(log.joints), log.has_reference)
-    meta = {"joints": [list(p) for p in zip(log.joints, log.kinds)], "meta": dict(log.meta)}
+    meta = _metadata(log)
     info = ts.serialize_cdr(ts.types[STRING](data=json.dumps(meta, sort_keys=True, default=str)), STRING)
     head = struct.pack("<BQHIQQ", 0x05, 22 + len(info), len(topics), 0, int(stamps[0]), int(stamps[0])) + bytes(info)
     per_chunk = max(1, chunk_bytes // len(layout[0]))
@@ -469,8 +484,6 @@ def read_ros(path: Path, kinds: Mapping[str, str] | None = None, joints: Sequenc
     refs: dict[str, np.ndarray | None] = dict.fromkeys(REFERENCES)
     if len(ref) == len(t):
         refs = {r: np.array([x[i] for x in ref]).T for i, r in enumerate(REFERENCES)}
-    declared = dict(meta.get("joints") or [])
-    given = dict(kinds or {})
-    types = tuple(str(declared.get(j) or given.get(j) or "revolute") for j in names)
+    types, kept = _types(names, dict(meta.get("joints") or []), kinds, meta.get("meta") or {})
     found = {"q": dict(zip(names, np.array(q).T)), "tau": dict(zip(names, np.array(tau).T))}
-    return _log(path, np.array(t, dtype=np.float64) * 1e-9, names, types, found, refs, meta.get("meta") or {})
+    return _log(path, np.array(t, dtype=np.float64) * 1e-9, names, types, found, refs, kept)

@@ -228,7 +228,9 @@ CASES: dict[str, Case] = {
         _ros("reference/feedback", "mcap", controller=("wrist", "elbow")), refusal="topic /jtc/controller_state has no joint 'axis'"
     ),
     # 9./11. several joints and no --joint: one line naming the joints and the option
-    "no-joint-chosen": Case(_ros("ros1", "ros1"), (), refusal="topic /joint_states has 2 joints (axis, wrist); choose one with --joint"),
+    "no-joint-chosen": Case(
+        _ros("ros1", "ros1"), (), refusal="topic /joint_states has 2 joints (axis, wrist): an arm is read with --urdf ARM.urdf; choose one joint with --joint"
+    ),
     # 1. gaps: 200 messages lost (whole record: the tolerance is on the published M)
     "gap": Case(_ros("reference/feedback", "mcap-ros2", controller=(), drop=(12000, 200)), samples=None, tolerance=1e-3),
     # 2. stamp jitter +-0.15 ms

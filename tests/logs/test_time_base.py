@@ -256,7 +256,10 @@ def test_info_gives_an_overview_of_any_container(tmp_path: Path) -> None:
     res = run_cli("info", str(robot))
     assert res.status == 0, res.stderr
     assert "| /robot/joint_states | sensor_msgs/msg/JointState | 50 | 500 | shoulder, elbow, wrist |" in res.stdout
-    assert "Choose:" in res.stdout and "3 joints" in res.stdout
+    # several joints: read as an arm's log (their types not in the file: said to be assumed), the topics after them
+    assert "| elbow | revolute (assumed) | 10 rad | 10.049 rad |" in res.stdout and "--urdf ARM.urdf gives the types" in res.stdout
+    listed = json.loads(run_cli("info", str(robot), "--format", "json").stdout)
+    assert [j["type_assumed"] for j in listed["joints"]] == [True] * 3 and listed["topics"][0]["joints"] == ["shoulder", "elbow", "wrist"]
     doc = json.loads(run_cli("info", str(robot), "--joint", "elbow", "--format", "json").stdout)
     assert doc["joint"] == "elbow" and doc["topics"][0]["joints"] == ["shoulder", "elbow", "wrist"] and doc["quality"]
     for name in ("own.mcap", "own.bag", "own_bag"):

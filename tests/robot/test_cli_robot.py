@@ -106,6 +106,11 @@ def test_ur5like_to_mcap_and_identify(tmp_path: Path, capsys: pytest.CaptureFixt
     friction, truth = doc["methods"]["IDIM-WLS"]["friction"], doc["true_base_parameters"]
     for name in (f"{f}_{j['name']}" for j in doc["joints"] for f in ("Fv", "Fc")):
         assert friction[name]["value"] == pytest.approx(truth[name], rel=0.03), name  # issue 30: friction within 3 %
+    # an arm's log without --urdf: `info` lists its joints with the types the log declares; a 1-joint command says how to read it
+    code, out, err = run(capsys, "info", str(out_path))
+    assert code == 0, err
+    assert "| elbow_joint | revolute | " in out and "(assumed)" not in out and "10000 samples" in out and "| /joint_states |" in out
+    assert "--urdf ARM.urdf" in _error(capsys, "identify", str(out_path), "--method", "ls")
 
 
 def _error(capsys: pytest.CaptureFixture[str], *args: str) -> str:
