@@ -10,12 +10,17 @@ Prints the issue's rates (:func:`tests.corpus.measure.summary`), their breakdown
 noise model, writer and effect, and every failure with the diagnosis's reason (its JSON ``decisions``), as
 Markdown. ``--check``: exit 1 when a rate of the "Done when" does not hold (:func:`tests.corpus.measure.failures`).
 
-Usage: python benchmarks/corpus_robot.py [--jobs 2] [--cases GLOB] [--json FILE] [--rows FILE] [--check]
+``--reseed K``: every case with another seed (its seed plus ``K`` times :data:`RESEED_STEP`; the same axis, rate,
+trajectory, noise model, effects and target): new noise, disturbance and draws, a check that the rates do not rest on
+the corpus's own seeds.
+
+Usage: python benchmarks/corpus_robot.py [--jobs 2] [--cases GLOB] [--json FILE] [--rows FILE] [--check] [--reseed K]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import fnmatch
 import json
 import math
@@ -32,6 +37,9 @@ sys.path.insert(0, str(ROOT))
 
 from tests.corpus.measure import BY, breakdown, failures, run_case, summary  # noqa: E402
 from tests.corpus.robot import cases  # noqa: E402
+
+RESEED_STEP = 3000
+"""``--reseed K`` adds ``K`` times this to every seed: a multiple of 3, so each case keeps its variant (``Case.variant``)."""
 
 
 def _pct(k: int, n: int) -> str:
@@ -143,8 +151,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, default=None, help="also write every row and the summary as JSON")
     ap.add_argument("--check", action="store_true", help="exit 1 when a rate of issue 29's 'Done when' does not hold")
     ap.add_argument("--rows", type=Path, default=None, help="keep each row in FILE as it is done, and reuse the rows already there")
+    ap.add_argument("--reseed", type=int, default=0, metavar="K", help="every case with its seed plus K x %d (default 0: the corpus's own)" % RESEED_STEP)
     args = ap.parse_args(argv)
     chosen = [c for c in cases() if fnmatch.fnmatch(c.name, args.cases)]
+    if args.reseed:
+        chosen = [dataclasses.replace(c, seed=c.seed + args.reseed * RESEED_STEP) for c in chosen]
     if not chosen:
         print(f"no case matches {args.cases!r}", file=sys.stderr)
         return 2
