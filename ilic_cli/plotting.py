@@ -27,6 +27,28 @@ def _pyplot():
     return plt
 
 
+GAP_FACTOR = 1.5
+"""A step of the time axis longer than this many times its median step is a gap: the plotted lines break there."""
+
+
+def broken_at_gaps(t: np.ndarray, *series: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``t`` and each of ``series`` with a NaN put in every gap of ``t`` (:data:`GAP_FACTOR`), so a line is not drawn across it.
+
+    A log with gaps is fitted by its contiguous parts (the rows of each part stacked): joined, its lines would draw
+    samples that do not exist. Each series has ``len(t)`` samples.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    out = [np.asarray(y, dtype=np.float64) for y in series]
+    if len(t) < 3:
+        return (t, *out)
+    dt = np.diff(t)
+    at = np.flatnonzero(dt > GAP_FACTOR * float(np.median(dt))) + 1
+    if not len(at):
+        return (t, *out)
+    mid = 0.5 * (t[at - 1] + t[at])
+    return (np.insert(t, at, mid), *(np.insert(y, at, np.nan) for y in out))
+
+
 def _save(fig, path: Path) -> Path:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=path.suffix.lstrip("."), dpi=120, bbox_inches="tight")
@@ -78,19 +100,20 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         written.append(_save(fig, outdir / f"parameters.{image_format}"))
     if report.ls is not None and report.ls.y is not None and report.ls.y_hat is not None:
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
-        t = report.ls.t if report.ls.t is not None else np.arange(len(report.ls.y))
-        ax1.plot(t, report.ls.y_hat, lw=1.4, color="C1", label="IDIM-LS model")
+        t_rows = report.ls.t if report.ls.t is not None else np.arange(len(report.ls.y))
+        t, y_hat = broken_at_gaps(t_rows, report.ls.y_hat)
+        ax1.plot(t, y_hat, lw=1.4, color="C1", label="IDIM-LS model")
         for i, cl in enumerate(report.closed_loop()):
-            if cl.y_hat is not None and len(cl.y_hat) == len(t):
-                ax1.plot(t, cl.y_hat, lw=1.0, ls="--", color=f"C{i + 4}", label=f"{cl.method} model")
-        ax1.plot(t, report.ls.y, lw=0.6, color="C0", label="measured (decimated)")
+            if cl.y_hat is not None and len(cl.y_hat) == len(t_rows):
+                ax1.plot(t, broken_at_gaps(t_rows, cl.y_hat)[1], lw=1.0, ls="--", color=f"C{i + 4}", label=f"{cl.method} model")
+        ax1.plot(t, broken_at_gaps(t_rows, report.ls.y)[1], lw=0.6, color="C0", label="measured (decimated)")
         ax1.set_ylabel("force (N)")
         ax1.legend(fontsize=8)
         error = report.ls.y - report.ls.y_hat
-        ax2.plot(t, error, lw=0.8, color="C3")
+        ax2.plot(t, broken_at_gaps(t_rows, error)[1], lw=0.8, color="C3")
         edges = edge_rows(len(error))
         scale_y(ax2, error[edges : len(error) - edges])
-        mark_edges(ax2, t, edges)
+        mark_edges(ax2, t_rows, edges)
         ax2.set_ylabel("error (N)")
         ax2.set_xlabel("t (s)")
         for ax in (ax1, ax2):
@@ -114,7 +137,7 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         written.append(_save(fig, outdir / f"convergence.{image_format}"))
     if "q_ref" in log:
         fig, ax = plt.subplots(figsize=(9, 3))
-        ax.plot(log.t, log["q_ref"] - log["q"], lw=0.6)
+        ax.plot(*broken_at_gaps(log.t, log["q_ref"] - log["q"]), lw=0.6)
         ax.set_xlabel("t (s)")
         ax.set_ylabel("e_q = q_ref − q (m)")
         ax.grid(alpha=0.3)
@@ -172,13 +195,14 @@ def plot_joint_torques(
     written: list[Path] = []
     for joint, unit, y, y_hat in zip(joints, units, measured, model, strict=True):
         tj = t[: len(y)]
+        residual = y - y_hat
+        tb, yb, y_hatb, residualb = broken_at_gaps(tj, y, y_hat, residual)
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 5), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-        ax1.plot(tj, y, lw=0.7, color="C0", label="measured (filtered, decimated)")
-        ax1.plot(tj, y_hat, lw=1.0, ls="--", color="C1", label="model W·θ̂")
+        ax1.plot(tb, yb, lw=0.7, color="C0", label="measured (filtered, decimated)")
+        ax1.plot(tb, y_hatb, lw=1.0, ls="--", color="C1", label="model W·θ̂")
         ax1.set_ylabel(f"torque ({unit})")
         ax1.legend(fontsize=8, loc="upper right")
-        residual = y - y_hat
-        ax2.plot(tj, residual, lw=0.7, color="C3", label="residual (measured − model)")
+        ax2.plot(tb, residualb, lw=0.7, color="C3", label="residual (measured − model)")
         edges = edge_rows(len(residual))
         scale_y(ax2, residual[edges : len(residual) - edges])
         mark_edges(ax2, tj, edges)
