@@ -87,8 +87,8 @@ def decode(source: Collected, selection: Selection, path: Path) -> RunLog:
 def _of_an_arm(source: Collected, path: Path) -> bool:
     """True when the metadata is an n-joint log's (:mod:`ilic_cli.io.jointlogs`: a ``joints`` list, no one-joint ``format``).
 
-    Such a log is a plain JointState log to this reader: one of its joints is read by ``--joint``,
-    and without it the joints are listed to choose from (the whole arm is read with ``--urdf``).
+    Such a log is a plain JointState log to this reader: one of its joints is read when chosen,
+    and without a choice the joints are listed to choose from (the whole arm is read with its URDF).
     """
     series = source.series(TOPIC_METADATA)
     if len(series) == 0 or series.text is None:
@@ -236,7 +236,7 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
         joints = list(seen)
         if len(joints) > 1:
             listed = ", ".join(joints[:20]) + (", ..." if len(joints) > 20 else "")
-            raise ChoiceError(path, f"topic {topic} has {len(joints)} joints ({listed}): an arm is read with --urdf ARM.urdf; choose one joint", "joint")
+            raise ChoiceError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one", "joint")
         joint = joints[0] if joints else ""
     # per name list: index of the joint, -1 when named without it, -2 when unnamed
     table = np.array([names.index(joint) if joint in names else (-1 if names else -2) for names in series.names], dtype=np.int64)
