@@ -12,6 +12,7 @@ or the ``mcap`` reader (an MCAP file); joints are read by name.
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -177,18 +178,43 @@ def read_ros(path: Path, kinds: Mapping[str, str] | None = None, joints: Sequenc
 
 
 def declares_joints(path: Path) -> bool:
-    """True when the ROS log's ``/ilic/metadata`` declares its joints (:func:`ilic_cli.io.jointparts.is_joints_metadata`); else False, readable or not."""
+    """True when the ROS log's ``/ilic/metadata`` declares its joints (:func:`ilic_cli.io.jointparts.is_joints_metadata`); else False, readable or not.
+
+    Its first message is read raw (a ``std_msgs/String``'s length and bytes), without rosbags' type store: telling a
+    one-joint log apart costs the one-joint chain little.
+    """
     try:
-        topics, messages = _messages(path)
-        if (METADATA, STRING) not in topics:
-            return False
-        try:
-            for topic, _, _, msg in messages:
-                if topic == METADATA:
-                    payload = json.loads(msg.data)
-                    return isinstance(payload, dict) and is_joints_metadata(payload)
-        finally:
-            messages.close()
+        text = _metadata_text(path)
+        payload = None if text is None else json.loads(text)
     except Exception:  # noqa: BLE001 - an unreadable log is not an n-joint one: its reader says what is wrong
         return False
-    return False
+    return isinstance(payload, dict) and is_joints_metadata(payload)
+
+
+def _metadata_text(path: Path) -> str | None:
+    """The text of the first ``/ilic/metadata`` message of an MCAP file, a ROS 1 bag or a ROS 2 bag folder (None: it has none)."""
+    if path.is_dir():
+        from rosbags.rosbag2 import Reader as Reader2  # deferred: a bag folder only
+
+        with Reader2(path) as bag:
+            connections = [c for c in bag.connections if c.topic == METADATA and c.msgtype == STRING]
+            return next((_cdr_string(raw) for _, _, raw in bag.messages(connections=connections)), None) if connections else None
+    if path.suffix.lower() == ".bag":
+        from rosbags.rosbag1 import Reader as Reader1  # deferred: a ROS 1 bag only
+
+        with Reader1(path) as bag:
+            connections = [c for c in bag.connections if c.topic == METADATA and c.msgtype == STRING]
+            for _, _, raw in bag.messages(connections=connections) if connections else ():
+                (length,) = struct.unpack_from("<I", raw)
+                return bytes(raw[4 : 4 + length]).decode()
+            return None
+    from mcap.reader import make_reader  # deferred: an MCAP file only
+
+    with path.open("rb") as f:
+        return next((_cdr_string(m.data) for _, _, m in make_reader(f).iter_messages(topics=[METADATA])), None)
+
+
+def _cdr_string(raw: bytes) -> str:
+    """A ``std_msgs/msg/String`` in CDR: the encapsulation header (its second byte: 1 little endian), the length with the NUL, the bytes."""
+    (length,) = struct.unpack_from("<I" if raw[1] & 1 else ">I", raw, 4)
+    return bytes(raw[8 : 8 + length - 1]).decode()
