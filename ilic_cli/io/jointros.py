@@ -126,6 +126,11 @@ def _messages(path: Path) -> tuple[list[tuple[str, str]], Any]:
     return topics, mcap()
 
 
+def _unreadable(path: Path, exc: Exception) -> LogError:
+    """A ROS log that rosbags or mcap cannot read, in one line."""
+    return LogError(path, f"cannot read the ROS log: {str(exc).strip() or type(exc).__name__}")
+
+
 def read_ros(path: Path, kinds: Mapping[str, str] | None = None, joints: Sequence[str] | None = None) -> JointLog:
     """A JointState log (see the module's docstring); ``joints``: the names wanted (checked on the first message)."""
     try:
@@ -133,7 +138,7 @@ def read_ros(path: Path, kinds: Mapping[str, str] | None = None, joints: Sequenc
     except LogError:
         raise
     except Exception as exc:  # rosbags and mcap raise their own error types for a damaged file
-        raise LogError(path, f"cannot read the ROS log: {str(exc).strip() or type(exc).__name__}") from None
+        raise _unreadable(path, exc) from None
     state_topics = [t for t, m in topics if m == JOINT_STATE]
     if not state_topics:
         raise LogError(path, "no sensor_msgs/msg/JointState topic")
@@ -147,28 +152,35 @@ def read_ros(path: Path, kinds: Mapping[str, str] | None = None, joints: Sequenc
     names: list[str] = []
     meta: dict[str, Any] = {}
     order: np.ndarray | None = None
-    for tp, _, ns, msg in messages:
-        if tp == METADATA:
-            meta = json.loads(msg.data)
-        elif tp == topic:
-            if order is None:
-                names = list(joints) if joints is not None else list(msg.name)
-                missing = [j for j in names if j not in msg.name]
-                if missing:
-                    raise LogError(path, f"no joint {', '.join(missing)} in {topic} (it has {', '.join(msg.name)})")
-                order = np.array([list(msg.name).index(j) for j in names])
-            if len(msg.effort) < len(msg.name):
-                raise LogError(path, f"{topic} has no effort for its joints (a log without effort)")
-            t.append(ns if msg.header.stamp is None else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
-            q.append(msg.position[order])
-            tau.append(msg.effort[order])
-        elif tp == REFERENCE and msg.points:
-            p = msg.points[0]
-            idx = [list(msg.joint_names).index(j) for j in names] if names and set(names) <= set(msg.joint_names) else None
-            if idx is not None:
-                ref.append((p.positions[idx], p.velocities[idx], p.accelerations[idx]))
+    try:
+        for tp, _, ns, msg in messages:
+            if tp == METADATA:
+                meta = json.loads(msg.data)
+            elif tp == topic:
+                if order is None:
+                    names = list(joints) if joints is not None else list(msg.name)
+                    missing = [j for j in names if j not in msg.name]
+                    if missing:
+                        raise LogError(path, f"no joint {', '.join(missing)} in {topic} (it has {', '.join(msg.name)})")
+                    order = np.array([list(msg.name).index(j) for j in names])
+                if len(msg.effort) < len(msg.name):
+                    raise LogError(path, f"{topic} has no effort for its joints (a log without effort)")
+                t.append(ns if msg.header.stamp is None else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+                q.append(msg.position[order])
+                tau.append(msg.effort[order])
+            elif tp == REFERENCE and msg.points:
+                p = msg.points[0]
+                idx = [list(msg.joint_names).index(j) for j in names] if names and set(names) <= set(msg.joint_names) else None
+                if idx is not None:
+                    ref.append((p.positions[idx], p.velocities[idx], p.accelerations[idx]))
+    except LogError:
+        raise
+    except Exception as exc:  # a damaged message or chunk past the index, metadata that is not JSON
+        raise _unreadable(path, exc) from None
     if order is None:
         raise LogError(path, f"{topic} holds no message")
+    if not isinstance(meta, dict):
+        raise LogError(path, f"{METADATA} is not a JSON object")
     refs: dict[str, np.ndarray | None] = dict.fromkeys(REFERENCES)
     if len(ref) == len(t):
         refs = {r: np.array([x[i] for x in ref]).T for i, r in enumerate(REFERENCES)}

@@ -115,6 +115,17 @@ def test_ros1_bag_by_rosbags_writer_with_more_joints_is_read_by_name(tmp_path: P
     assert log.meta["types_assumed"] == ["shoulder", "elbow"] and not jointlogs.declares_joints(tmp_path / "other.bag")
     with pytest.raises(LogError, match=r"no joint wrist in /arm/joint_states \(it has gripper, elbow, base_yaw, shoulder\)"):
         jointlogs.read(tmp_path / "other.bag", joints=["shoulder", "wrist"])
+    for text, problem in [("not json", "cannot read the ROS log: Expecting value"), ("[1]", "/ilic/metadata is not a JSON object")]:
+        bad = tmp_path / f"bad{len(text)}.bag"
+        with Writer(bad) as writer:
+            conn = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
+            info = writer.add_connection("/ilic/metadata", "std_msgs/msg/String", typestore=ts)
+            writer.write(info, 1, ts.serialize_ros1(ts.types["std_msgs/msg/String"](data=text), "std_msgs/msg/String"))
+            header = Header(seq=0, stamp=Time(sec=1, nanosec=0), frame_id="")
+            state = State(header=header, name=names, position=pos[0], velocity=pos[0], effort=eff[0])
+            writer.write(conn, 2, ts.serialize_ros1(state, "sensor_msgs/msg/JointState"))
+        with pytest.raises(LogError, match=problem):
+            jointlogs.read(bad)
 
 
 def run(capsys: pytest.CaptureFixture[str], *args: str | Path) -> tuple[int, str, str]:
