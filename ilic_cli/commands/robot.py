@@ -124,17 +124,19 @@ def convert_options(func: F) -> F:
     @functools.wraps(func)
     def wrapper(source: Path, target: Path, **options: Any) -> Any:
         urdf, joints = options.pop("urdf"), options.pop("robot_joints")
+        from ilic_cli.io import bag_folder  # deferred: with the readers (`ilic convert --help`)
+
+        kind, log = options["input_format"], bag_folder(source, options["input_format"])  # a bag folder's storage file or metadata.yaml: the folder
         if urdf is None and joints is None:
             from ilic_cli.io.jointlogs import declares_joints, kind_of  # deferred: the readers only when a log is read (`ilic convert --help`)
 
-            kind = options["input_format"]
-            if not declares_joints(source, kind):
+            if not declares_joints(log, kind):
                 return func(source, target, **options)
             if options["joint"] is not None:
-                if (kind or kind_of(source)) not in ("csv", "mat"):
+                if (kind or kind_of(log)) not in ("csv", "mat"):
                     return func(source, target, **options)  # one joint of an arm's ROS log: the one-joint log, by the one-joint chain
                 raise IlicError("--joint", f"{source} is an arm's log: --joints {options['joint']} converts that joint (as an arm's log)")
-        return convert_joints(source, target, urdf, joints, options)
+        return convert_joints(log, target, urdf, joints, options)
 
     return urdf_option(cast(F, wrapper))
 

@@ -172,7 +172,13 @@ def test_convert_refuses_what_does_not_apply_in_one_line(tmp_path: Path, capsys:
     scipy.io.savemat(str(bad), {"t": log.t.reshape(-1, 1), "q": log.q.T[:, :2], "tau": log.tau.T, "joint_names": np.array([["a", "b", "c"]], dtype=object)})
     code, out, err = run(capsys, "convert", bad, tmp_path / "out.csv")
     assert (code, out) == (2, "") and err == f"ilic: error: {bad}: q is float64 (200, 2); expected float64 of size 200 x 3\n"
+    code, out, err = run(capsys, "convert", tmp_path / "arm.mat", tmp_path / "nowhere" / "out.csv")
+    assert (code, out, err) == (2, "", f"ilic: error: {tmp_path / 'nowhere' / 'out.csv'}: no such folder {tmp_path / 'nowhere'}\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.mat", "bad.mat"]  # no output, no temporary left
+    jointlogs.write(log, tmp_path / "bag")
+    code, _, err = run(capsys, "convert", tmp_path / "bag" / "metadata.yaml", tmp_path / "back.mat")  # a path inside a bag folder: the folder
+    assert code == 0 and "3 joints a, ref_b, c" in err
+    _same(jointlogs.read(tmp_path / "back.mat"), log)
 
 
 def test_identify_gives_the_same_estimates_on_a_log_converted_to_each_format(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
