@@ -126,17 +126,17 @@ def convert_options(func: F) -> F:
         urdf, joints = options.pop("urdf"), options.pop("robot_joints")
         from ilic_cli.io import bag_folder  # deferred: with the readers (`ilic convert --help`)
 
-        kind, log = options["input_format"], bag_folder(source, options["input_format"])  # a bag folder's storage file or metadata.yaml: the folder
+        kind, path = options["input_format"], bag_folder(source, options["input_format"])  # a bag folder's storage file or metadata.yaml: the folder
         if urdf is None and joints is None:
             from ilic_cli.io.jointlogs import declares_joints, kind_of  # deferred: the readers only when a log is read (`ilic convert --help`)
 
-            if not declares_joints(log, kind):
+            if not declares_joints(path, kind):
                 return func(source, target, **options)
             if options["joint"] is not None:
-                if (kind or kind_of(log)) not in ("csv", "mat"):
+                if (kind or kind_of(path)) not in ("csv", "mat"):
                     return func(source, target, **options)  # one joint of an arm's ROS log: the one-joint log, by the one-joint chain
                 raise IlicError("--joint", f"{source} is an arm's log: --joints {options['joint']} converts that joint (as an arm's log)")
-        return convert_joints(log, target, urdf, joints, options)
+        return convert_joints(path, target, urdf, joints, options)
 
     return urdf_option(cast(F, wrapper))
 
