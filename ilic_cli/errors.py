@@ -91,6 +91,8 @@ class ChoiceError(LogError):
     adds the option that makes the choice.
     """
 
-    def __init__(self, where: str | Path | None, problem: str, choice: str) -> None:
+    def __init__(self, where: str | Path | None, problem: str, choice: str, candidates: tuple[str, ...] = ()) -> None:
         self.choice = choice
+        self.candidates = candidates
+        """What there is to choose from (the joints of a topic, the topics), when the log names them."""
         super().__init__(where, problem)

@@ -92,8 +92,8 @@ def load(path: str | Path, input_format: str | None, topic: str | None, ref_topi
     try:
         return read_log(path, input_format, selection(topic, ref_topic, joint, columns, effort), progress=progress)
     except ChoiceError as exc:
-        arm = ", or read the arm whole with --urdf ARM.urdf" if exc.choice == "joint" else ""  # several joints: an arm's log
-        raise ChoiceError(exc.where, f"{exc.problem} with --{exc.choice}{arm}", exc.choice) from None
+        arm = ", or read the arm whole with --urdf ARM.urdf" if exc.choice == "joint" and len(exc.candidates) > 1 else ""  # an arm's log
+        raise ChoiceError(exc.where, f"{exc.problem} with --{exc.choice}{arm}", exc.choice, exc.candidates) from None
 
 
 def _size(path: Path) -> int:

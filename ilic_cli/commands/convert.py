@@ -7,12 +7,17 @@ from pathlib import Path
 import click
 
 from ilic_cli.commands.common import LOG_FORMATS, input_options, load, note, options_named
+from ilic_cli.commands.robot import convert_options
 from ilic_cli.errors import LogError
 from ilic_cli.io import WriteOptions, detect_format, write_log
 from ilic_cli.io.atomic import same_path
 
 
-@click.command("convert", help="Convert a log between .mat, CSV, MCAP, ROS 1 .bag and ROS 2 bag folders.")
+@click.command(
+    "convert",
+    help="Convert a log between .mat, CSV, MCAP, ROS 1 .bag and ROS 2 bag folders. An arm's log (--urdf, --joints, or a log that declares its joints) "
+    "is converted whole: every joint, its reference, types and metadata.",
+)
 @click.argument("source", metavar="IN", type=click.Path(path_type=Path))
 @click.argument("target", metavar="OUT", type=click.Path(path_type=Path))
 @click.option(
@@ -28,6 +33,7 @@ from ilic_cli.io.atomic import same_path
     help="Put the log on a uniform grid at HZ: restamped when the stamps only jitter at that rate, else interpolated linearly.",
 )
 @input_options
+@convert_options
 def command(
     source: Path,
     target: Path,

@@ -166,7 +166,7 @@ JOINTS_NOTE = "An arm's log of several joints: `identify` and `replay` read it w
 def _joints_listed(path: Path, input_format: str | None, fmt: str, out_format: str) -> bool:
     """Print a JointState log of several joints as an arm's log: its joints, types and ranges, then its topics.
 
-    False when it cannot be read as one (a ROS 1 bag, no effort, several JointState topics): the caller lists the topics to choose from.
+    False when it cannot be read as one (no effort, several JointState topics, a container it does not take): the caller lists the topics to choose from.
     """
     from ilic_cli.commands.robot import info_markdown, joints_summary  # deferred: the n-joint reader only for such a log
 

@@ -1,8 +1,9 @@
-"""Arms of n joints on the command line: ``--urdf`` and ``--joints`` of ``ilic identify`` and ``ilic info`` (issue 30).
+"""Arms of n joints on the command line: ``--urdf`` and ``--joints`` of ``ilic identify``, ``ilic info`` and ``ilic convert`` (issue 30).
 
 The 1-joint commands hand over to this module when ``--urdf`` (or ``--joints``,
-or a wide CSV) is given: :func:`identify_options` and :func:`info_options`
-wrap their command. The log is an :class:`ilic_cli.jointlog.JointLog` read by
+or a wide CSV) is given: :func:`identify_options`, :func:`info_options` and
+:func:`convert_options` wrap their command (``ilic convert`` also for a log that
+declares its joints: :func:`ilic_cli.io.jointlogs.declares_joints`). The log is an :class:`ilic_cli.jointlog.JointLog` read by
 joint name (:mod:`ilic_cli.io.jointlogs`); the numerics are :mod:`ilic_cli.robot`'s.
 """
 
@@ -55,20 +56,21 @@ def load_robot(urdf: Path) -> Any:
     return load_urdf(urdf)
 
 
-def read_log(path: Path, robot: Any, joints: list[str] | None) -> JointLog:
+def read_log(path: Path, robot: Any, joints: list[str] | None, kind: str | None = None) -> JointLog:
     """The log's joints, their types checked against the URDF's.
 
     ``joints``: without a URDF, the joints to read; with one, the log's names of
     the URDF's moving joints in the URDF's order (default: the URDF's own names).
+    ``kind``: the log's format (default: from the path).
     """
     from ilic_cli.io import jointlogs  # deferred: numpy and the readers only for an n-joint log (`ilic info --help` imports this module)
 
     if robot is None:
-        return jointlogs.read(path, joints)
+        return jointlogs.read(path, joints, kind=kind)
     if joints is not None and len(joints) != robot.n:
         raise IlicError("--joints", f"{len(joints)} names for the {robot.n} joints {robot.path} moves ({', '.join(robot.joints)})")
     names = joints or list(robot.joints)
-    log = jointlogs.read(path, names, dict(zip(names, robot.kinds)))
+    log = jointlogs.read(path, names, dict(zip(names, robot.kinds)), kind)
     log = replace(log, joints=tuple(robot.joints))
     wrong = [f"{j} ({k}, the URDF: {u})" for j, k, u in zip(names, log.kinds, robot.kinds) if k != u]
     if wrong:
@@ -93,14 +95,15 @@ def recorded_controller(log: JointLog, o: Mapping[str, Any], purpose: str) -> di
 
 
 def info_options(func: F) -> F:
-    """Add ``--urdf`` and ``--joints`` to ``ilic info``; with either, or for a wide CSV, the joints are listed."""
+    """Add ``--urdf`` and ``--joints`` to ``ilic info``; with either, or for a wide CSV or an arm's ``.mat``, the joints are listed."""
 
     @functools.wraps(func)
     def wrapper(log_path: Path, **options: Any) -> Any:
         urdf, joints = options.pop("urdf"), options.pop("robot_joints")
         from ilic_cli.io.jointlogs import is_wide_csv  # deferred: numpy and the readers only when a log is read (`ilic info --help`)
+        from ilic_cli.io.jointmat import is_joint_mat  # deferred: with the CSV's
 
-        if urdf is None and joints is None and not is_wide_csv(log_path):
+        if urdf is None and joints is None and not is_wide_csv(log_path) and not is_joint_mat(log_path):
             return func(log_path, **options)
         summary = joints_summary(log_path, urdf, joints)
         if options["out_format"] == "json":
@@ -110,6 +113,61 @@ def info_options(func: F) -> F:
         return None
 
     return urdf_option(cast(F, wrapper))
+
+
+def convert_options(func: F) -> F:
+    """Add ``--urdf`` and ``--joints`` to ``ilic convert``; with either, or for a log that declares its joints, the arm's log is converted whole.
+
+    ``--joint NAME`` alone keeps the one-joint conversion (one joint of an arm's log).
+    """
+
+    @functools.wraps(func)
+    def wrapper(source: Path, target: Path, **options: Any) -> Any:
+        urdf, joints = options.pop("urdf"), options.pop("robot_joints")
+        from ilic_cli.io import bag_folder  # deferred: with the readers (`ilic convert --help`)
+
+        kind, path = options["input_format"], bag_folder(source, options["input_format"])  # a bag folder's storage file or metadata.yaml: the folder
+        if urdf is None and joints is None:
+            from ilic_cli.io.jointlogs import declares_joints, kind_of  # deferred: the readers only when a log is read (`ilic convert --help`)
+
+            if not declares_joints(path, kind):
+                return func(source, target, **options)
+            if options["joint"] is not None:
+                if (kind or kind_of(path)) not in ("csv", "mat"):
+                    return func(source, target, **options)  # one joint of an arm's ROS log: the one-joint log, by the one-joint chain
+                raise IlicError("--joint", f"{source} is an arm's log: --joints {options['joint']} converts that joint (as an arm's log)")
+        return convert_joints(path, target, urdf, joints, options)
+
+    return urdf_option(cast(F, wrapper))
+
+
+ONE_JOINT_OPTIONS = {"--joint": "joint", "--topic": "topic", "--ref-topic": "ref_topic", "--columns": "columns", "--resample": "resample_hz"}
+"""``ilic convert``'s options that read or resample a one-joint log (an arm's log is converted whole, as recorded)."""
+
+
+def convert_joints(source: Path, target: Path, urdf: Path | None, joints: str | None, o: Mapping[str, Any]) -> None:
+    """``ilic convert`` of an n-joint log: every joint, its reference, types and metadata, as recorded (:mod:`ilic_cli.io.jointlogs`)."""
+    # deferred: numpy, the readers and the writers only to convert an arm's log (`ilic convert --help` imports this module)
+    from ilic_cli.commands.common import note
+    from ilic_cli.io import detect_format, jointlogs
+    from ilic_cli.io.atomic import same_path
+
+    given = [option for option, name in ONE_JOINT_OPTIONS.items() if o.get(name) is not None]
+    if click.get_current_context().meta.get("ilic_effort") is not None:
+        given.append("--effort")
+    if given:
+        raise IlicError(given[0], f"applies to a one-joint log; {source} is an arm's log, converted whole as recorded (docs/robots.md)")
+    if same_path(source, target):
+        raise LogError(target, "output would overwrite the input; choose another output path")
+    fmt = detect_format(target, o["out_format"], for_writing=True)
+    robot = load_robot(urdf) if urdf is not None else None
+    log = read_log(source, robot, joints_option(joints), o["input_format"])
+    jointlogs.write(log, target, fmt, o["storage"])
+    storage = f", {o['storage']} storage" if fmt == "rosbag2" else ""
+    note(
+        f"ilic: wrote {target} ({fmt}{storage}): {len(log.t)} samples at {log.fs_hz:g} Hz, {log.duration_s:.6g} s, "
+        f"{log.n} joint{'s' if log.n != 1 else ''} {', '.join(log.joints)}{', with reference' if log.has_reference else ''}"
+    )
 
 
 def joints_summary(log_path: Path, urdf: Path | None, joints: str | None) -> dict[str, Any]:

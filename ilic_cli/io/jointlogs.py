@@ -1,4 +1,6 @@
-"""n-joint logs (:class:`ilic_cli.jointlog.JointLog`) in a wide CSV, a ROS 2 bag folder (sqlite3 or MCAP storage) or an MCAP file.
+"""n-joint logs (:class:`ilic_cli.jointlog.JointLog`) in every format: wide CSV, MCAP, ROS 2 bag folder, ROS 1 ``.bag``, ``.mat``.
+
+A ROS 2 bag folder has sqlite3 or MCAP storage.
 
 - **Wide CSV**: columns ``t``, then per joint ``q_<joint>``, ``tau_<joint>`` and,
   with a reference, ``q_ref_<joint>``, ``qd_ref_<joint>``, ``qdd_ref_<joint>``.
@@ -6,20 +8,26 @@
   (without it every joint is read as ``revolute`` unless the caller says, and the log's
   metadata names those joints under :data:`ilic_cli.jointlog.TYPES_ASSUMED`).
   Floats are written by ``repr`` (the shortest exact text): the round trip is lossless.
-- **ROS 2**: ``sensor_msgs/msg/JointState`` on ``/joint_states`` (or the only
+- **ROS 2 and ROS 1**: ``sensor_msgs/JointState`` on ``/joint_states`` (or the only
   JointState topic): ``position`` and ``effort`` per name (``velocity`` is
-  written as 0 and not read); the reference as a ``trajectory_msgs/msg/JointTrajectory``
+  written as 0 and not read); the reference as a ``trajectory_msgs/JointTrajectory``
   of one point on ``/joint_reference``; the metadata as JSON in a
-  ``std_msgs/msg/String`` on ``/ilic/metadata``. A bag folder is written with
-  rosbags' own writer; an MCAP file by :func:`write_mcap`, the same records
+  ``std_msgs/String`` on ``/ilic/metadata``; time as the header's stamp in integer
+  nanoseconds. The same messages in every container (:mod:`ilic_cli.io.jointros`): a ROS 2
+  bag folder and a ROS 1 ``.bag`` (ROS 1 Noetic types) are written with rosbags'
+  own writers; an MCAP file by :func:`write_mcap`, the same records
   (profile ``ros2``, CDR messages, 1 MiB uncompressed chunks with their message
   indexes and summary) laid out by numpy: every sample's two messages have one
   layout, so the samples of a chunk are filled column by column instead of
   serialised one message at a time (a 10-minute 1 kHz 6-joint log, 443 MB: 0.35 s
   of CPU, 21.3 s by rosbags' writer; docs/robots.md). The file holds no
   ``rosbag2`` metadata record (rosbags' writer adds one; readers of MCAP need none).
+- **MATLAB** ``.mat``: :mod:`ilic_cli.io.jointmat` (``t``, ``q``, ``tau`` and the
+  reference as (N, n) matrices, ``joint_names``, ``joint_types``, ``metadata``).
 
 Joints are selected by name: a bag may hold more joints than the URDF moves.
+Every writer writes into a temporary name beside the output and renames it
+when done: a failed write leaves nothing.
 """
 
 from __future__ import annotations
@@ -34,25 +42,34 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosschema
+from ilic_cli.io import jointros, rosschema
+from ilic_cli.io.jointparts import METADATA, REFERENCE, STATES
+from ilic_cli.io.jointparts import joint_log as _log
+from ilic_cli.io.jointparts import joint_types as _types
+from ilic_cli.io.jointparts import stored_metadata as _metadata
+from ilic_cli.io.jointros import read_ros as read_ros  # the ROS readers and writers, by their former names here
+from ilic_cli.io.jointros import write_bag as write_bag
+from ilic_cli.io.jointros import write_bag1
 from ilic_cli.io.rosschema import JOINT_STATE, STRING, TRAJECTORY
-from ilic_cli.jointlog import REFERENCES, TYPES_ASSUMED, JointLog
+from ilic_cli.jointlog import REFERENCES, JointLog
 
 MARK = "# ilic-joints "
-STATES, REFERENCE, METADATA = "/joint_states", "/joint_reference", "/ilic/metadata"
 PREFIXES = ("qdd_ref_", "qd_ref_", "q_ref_", "tau_", "q_")
 """Wide CSV column prefixes, longest first (``q_ref_a`` is not the position of joint ``ref_a``)."""
 
 
+KINDS = {".csv": "csv", ".mcap": "mcap", ".bag": "rosbag1", ".mat": "mat"}
+"""An n-joint log file's kind by its extension (a folder is a ``rosbag2``); the names are the log formats' (``--format``)."""
+
+
 def kind_of(path: Path) -> str:
-    """``csv``, ``mcap`` (a file) or ``rosbag2`` (a folder)."""
+    """``csv``, ``mcap`` (a file), ``rosbag1`` (``.bag``), ``mat`` or ``rosbag2`` (a folder)."""
     if path.is_dir():
         return "rosbag2"
-    if path.suffix.lower() == ".mcap":
-        return "mcap"
-    if path.suffix.lower() == ".csv":
-        return "csv"
-    raise LogError(path, "not an n-joint log: expected a .csv, an .mcap file or a ROS 2 bag folder")
+    kind = KINDS.get(path.suffix.lower())
+    if kind is None:
+        raise LogError(path, "not an n-joint log: expected a .csv, .mcap, .bag or .mat file or a ROS 2 bag folder")
+    return kind
 
 
 def is_wide_csv(path: Path) -> bool:
@@ -63,44 +80,71 @@ def is_wide_csv(path: Path) -> bool:
         return f.readline().startswith(MARK.encode())
 
 
-def read(path: Path, joints: Sequence[str] | None = None, kinds: Mapping[str, str] | None = None) -> JointLog:
-    """Read an n-joint log, keeping ``joints`` (by name, in that order; default: all). ``kinds``: joint types where the file gives none."""
+def read(path: Path, joints: Sequence[str] | None = None, kinds: Mapping[str, str] | None = None, kind: str | None = None) -> JointLog:
+    """Read an n-joint log, keeping ``joints`` (by name, in that order; default: all). ``kinds``: joint types where the file gives none.
+
+    ``kind``: the log's format (:func:`kind_of`'s names; default: from the path).
+    """
     if not path.exists():
         raise LogError(path, "no such file or folder")
-    kind = kind_of(path)
-    log = read_csv(path, kinds) if kind == "csv" else read_ros(path, kinds, joints)
+    kind = kind or kind_of(path)
+    if kind == "csv":
+        log = read_csv(path, kinds)
+    elif kind == "mat":
+        from ilic_cli.io import jointmat  # deferred: scipy.io only for a .mat
+
+        log = jointmat.read(path, kinds)
+    else:
+        log = read_ros(path, kinds, joints)
     return log if joints is None else log.select(joints, path)
 
 
-def write(log: JointLog, path: Path) -> None:
-    """Write ``log`` to ``path`` (``.csv``, ``.mcap``, else a ROS 2 bag folder with sqlite3 storage)."""
+def write(log: JointLog, path: Path, kind: str | None = None, storage: str = "sqlite3") -> None:
+    """Write ``log`` to ``path``: ``kind`` (:func:`kind_of`'s names) or, by default, by its extension, without one a ROS 2 bag folder.
+
+    ``storage``: a ROS 2 bag folder's (``sqlite3`` or ``mcap``). The log is written
+    under a temporary name in the output's folder, then renamed: never over an existing path, never half.
+    """
     if path.exists():
         raise LogError(path, "exists already: choose another output")
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        write_csv(log, path)
-    elif suffix == ".mcap":
-        with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
-            part = Path(tmp) / path.name
-            write_mcap(log, part)
-            part.replace(path)
-    else:
-        write_bag(log, path, "sqlite3")
+    if not path.parent.is_dir():
+        raise LogError(path, f"no such folder {path.parent}")
+    kind = kind or KINDS.get(path.suffix.lower(), "rosbag2")
+    with tempfile.TemporaryDirectory(dir=path.parent, prefix=".ilic-") as tmp:
+        part = Path(tmp) / (path.name or "log")
+        try:
+            if kind == "csv":
+                write_csv(log, part)
+            elif kind == "mcap":
+                write_mcap(log, part)
+            elif kind == "rosbag1":
+                write_bag1(log, part)
+            elif kind == "mat":
+                from ilic_cli.io import jointmat  # deferred: scipy.io only for a .mat
+
+                jointmat.write(log, part)
+            else:
+                write_bag(log, part, storage)
+        except LogError as exc:  # named by the output, not by its temporary name
+            raise LogError(path, exc.problem) from None
+        part.replace(path)
 
 
-def _metadata(log: JointLog) -> dict[str, Any]:
-    """What every writer stores beside the samples: the joints with their types, and the log's metadata (the types now declared)."""
-    return {"joints": [list(p) for p in zip(log.joints, log.kinds)], "meta": {k: v for k, v in log.meta.items() if k != TYPES_ASSUMED}}
+def declares_joints(path: Path, kind: str | None = None) -> bool:
+    """True when ``path`` is an n-joint log by its own content: a wide CSV (its mark), an n-joint ``.mat`` (:mod:`ilic_cli.io.jointmat`)
+    or a ROS log whose ``/ilic/metadata`` (:func:`ilic_cli.io.jointparts.is_joints_metadata`) declares its joints. False for any other log, readable or not.
+    """
+    try:
+        kind = kind or kind_of(path)
+    except LogError:
+        return False
+    if kind == "csv":
+        return is_wide_csv(path)
+    if kind == "mat":
+        from ilic_cli.io.jointmat import is_joint_mat  # deferred: scipy.io only for a .mat
 
-
-def _types(
-    joints: Sequence[str], declared: Mapping[str, Any], kinds: Mapping[str, str] | None, meta: Mapping[str, Any]
-) -> tuple[tuple[str, ...], dict[str, Any]]:
-    """Each joint's type (the file's, else the caller's, else ``revolute``), and ``meta`` naming the joints so assumed."""
-    given = dict(kinds or {})
-    assumed = [j for j in joints if not (declared.get(j) or given.get(j))]
-    types = tuple(str(declared.get(j) or given.get(j) or "revolute") for j in joints)
-    return types, dict(meta) | ({TYPES_ASSUMED: assumed} if assumed else {})
+        return is_joint_mat(path)
+    return jointros.declares_joints(path)
 
 
 def _header(log: JointLog) -> str:
@@ -155,55 +199,6 @@ def read_csv(path: Path, kinds: Mapping[str, str] | None = None) -> JointLog:
 def _exact(pd: Any) -> dict[str, str]:
     """pandas' exact float parsing: the default from pandas 3, ``float_precision="round_trip"`` before."""
     return {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
-
-
-def _log(path: Path, t: np.ndarray, joints: Sequence[str], types: tuple[str, ...], found: Any, refs: Any, meta: Mapping[str, Any]) -> JointLog:
-    try:
-        return JointLog(
-            t=t,
-            joints=tuple(joints),
-            kinds=types,
-            q=np.array([found["q"][j] for j in joints]),
-            tau=np.array([found["tau"][j] for j in joints]),
-            meta=dict(meta) | {"source": str(path)},
-            **refs,
-        )
-    except LogError as exc:
-        raise LogError(path, exc.problem) from None
-
-
-def write_bag(log: JointLog, path: Path, storage: str) -> None:
-    """A ROS 2 bag folder (``storage``: ``sqlite3`` or ``mcap``) written message by message with rosbags' writer."""
-    from rosbags.rosbag2 import StoragePlugin, Writer  # deferred: rosbags' writer is needed only to write a bag
-
-    ts = rosschema.typestore(rosschema.ROS2)  # Humble's types that ilic writes
-    JointState, Header, Time = ts.types[JOINT_STATE], ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
-    Trajectory, Point, Duration = ts.types[TRAJECTORY], ts.types["trajectory_msgs/msg/JointTrajectoryPoint"], ts.types["builtin_interfaces/msg/Duration"]
-    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-    stamps = np.round(log.t * 1e9).astype(np.int64)
-    names = list(log.joints)
-    zeros = np.zeros(log.n)
-    meta = _metadata(log)
-    with Writer(path, version=9, storage_plugin=plugin) as writer:
-        states = writer.add_connection(STATES, JOINT_STATE, typestore=ts)
-        refs = writer.add_connection(REFERENCE, TRAJECTORY, typestore=ts) if log.has_reference else None
-        info = writer.add_connection(METADATA, STRING, typestore=ts)
-        first = int(stamps[0])
-        writer.write(info, first, ts.serialize_cdr(ts.types[STRING](data=json.dumps(meta, sort_keys=True, default=str)), STRING))
-        for k, ns in enumerate(stamps.tolist()):
-            header = Header(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id="")
-            msg = JointState(header=header, name=names, position=log.q[:, k].copy(), velocity=zeros, effort=log.tau[:, k].copy())
-            writer.write(states, ns, ts.serialize_cdr(msg, JOINT_STATE))
-            if refs is not None:
-                assert log.q_ref is not None and log.qd_ref is not None and log.qdd_ref is not None
-                point = Point(
-                    positions=log.q_ref[:, k].copy(),
-                    velocities=log.qd_ref[:, k].copy(),
-                    accelerations=log.qdd_ref[:, k].copy(),
-                    effort=np.zeros(0),
-                    time_from_start=Duration(sec=0, nanosec=0),
-                )
-                writer.write(refs, ns, ts.serialize_cdr(Trajectory(header=header, joint_names=names, points=[point]), TRAJECTORY))
 
 
 class _Cdr:
@@ -399,91 +394,3 @@ def _summary(f: Any, b: Any, schemas: list[Any], channels: list[Any], indexes: l
     Footer(summary_start=summary_start, summary_offset_start=offsets_start, summary_crc=0).write(b)
     f.write(b.end())
     f.write(MAGIC)
-
-
-def _messages(path: Path) -> tuple[list[tuple[str, str]], Any]:
-    """The topics ``(name, msgtype)`` and an iterator of ``(topic, msgtype, log time ns, message)`` of a bag folder or an MCAP file."""
-    from rosbags.typesys import Stores, get_typestore  # deferred: rosbags' type store, only to read ROS logs
-
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    if path.is_dir():
-        from rosbags.highlevel import AnyReader  # deferred: with the type store
-
-        reader = AnyReader([path], default_typestore=ts)
-        reader.open()
-        topics = [(c.topic, c.msgtype) for c in reader.connections]
-
-        def bag() -> Any:
-            try:
-                for c, ns, raw in reader.messages():
-                    yield c.topic, c.msgtype, ns, reader.deserialize(raw, c.msgtype)
-            finally:
-                reader.close()
-
-        return topics, bag()
-    from mcap.reader import make_reader  # deferred: an MCAP file only
-
-    with path.open("rb") as f:
-        summary = make_reader(f).get_summary()
-    if summary is None:
-        raise LogError(path, "an MCAP file without a summary")
-    topics = [(ch.topic, summary.schemas[ch.schema_id].name) for ch in summary.channels.values()]
-
-    def mcap() -> Any:
-        with path.open("rb") as f:
-            for schema, channel, message in make_reader(f).iter_messages(log_time_order=True):
-                if schema is not None:  # a channel without a schema holds no ROS message
-                    yield channel.topic, schema.name, message.log_time, ts.deserialize_cdr(message.data, schema.name)
-
-    return topics, mcap()
-
-
-def read_ros(path: Path, kinds: Mapping[str, str] | None = None, joints: Sequence[str] | None = None) -> JointLog:
-    """A JointState log (see the module's docstring); ``joints``: the names wanted (checked on the first message)."""
-    try:
-        topics, messages = _messages(path)
-    except LogError:
-        raise
-    except Exception as exc:  # rosbags and mcap raise their own error types for a damaged file
-        raise LogError(path, f"cannot read the ROS log: {str(exc).strip() or type(exc).__name__}") from None
-    state_topics = [t for t, m in topics if m == JOINT_STATE]
-    if not state_topics:
-        raise LogError(path, "no sensor_msgs/msg/JointState topic")
-    topic = STATES if STATES in state_topics else state_topics[0]
-    if len(state_topics) > 1 and topic != STATES:
-        raise LogError(path, f"several JointState topics ({', '.join(state_topics)}) and none is {STATES}")
-    t: list[int] = []
-    q: list[np.ndarray] = []
-    tau: list[np.ndarray] = []
-    ref: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    names: list[str] = []
-    meta: dict[str, Any] = {}
-    order: np.ndarray | None = None
-    for tp, _, ns, msg in messages:
-        if tp == METADATA:
-            meta = json.loads(msg.data)
-        elif tp == topic:
-            if order is None:
-                names = list(joints) if joints is not None else list(msg.name)
-                missing = [j for j in names if j not in msg.name]
-                if missing:
-                    raise LogError(path, f"no joint {', '.join(missing)} in {topic} (it has {', '.join(msg.name)})")
-                order = np.array([list(msg.name).index(j) for j in names])
-            if len(msg.effort) < len(msg.name):
-                raise LogError(path, f"{topic} has no effort for its joints (a log without effort)")
-            t.append(ns if msg.header.stamp is None else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
-            q.append(msg.position[order])
-            tau.append(msg.effort[order])
-        elif tp == REFERENCE and msg.points:
-            p = msg.points[0]
-            idx = [list(msg.joint_names).index(j) for j in names] if names and set(names) <= set(msg.joint_names) else None
-            if idx is not None:
-                ref.append((p.positions[idx], p.velocities[idx], p.accelerations[idx]))
-    if order is None:
-        raise LogError(path, f"{topic} holds no message")
-    refs: dict[str, np.ndarray | None] = dict.fromkeys(REFERENCES)
-    if len(ref) == len(t):
-        refs = {r: np.array([x[i] for x in ref]).T for i, r in enumerate(REFERENCES)}
-    types, kept = _types(names, dict(meta.get("joints") or []), kinds, meta.get("meta") or {})
-    found = {"q": dict(zip(names, np.array(q).T)), "tau": dict(zip(names, np.array(tau).T))}
-    return _log(path, np.array(t, dtype=np.float64) * 1e-9, names, types, found, refs, kept)

@@ -26,6 +26,7 @@ import numpy as np
 
 from ilic_cli.errors import ChoiceError, LogError
 from ilic_cli.io.container import guarded
+from ilic_cli.io.jointparts import is_joints_metadata
 from ilic_cli.io.rosjson import parse_json_object, parse_units
 from ilic_cli.io.rosschema import (
     CONTROLLER_STATE,
@@ -85,7 +86,7 @@ def decode(source: Collected, selection: Selection, path: Path) -> RunLog:
 
 
 def _of_an_arm(source: Collected, path: Path) -> bool:
-    """True when the metadata is an n-joint log's (:mod:`ilic_cli.io.jointlogs`: a ``joints`` list, no one-joint ``format``).
+    """True when the metadata is an n-joint log's (:func:`ilic_cli.io.jointparts.is_joints_metadata`).
 
     Such a log is a plain JointState log to this reader: one of its joints is read when chosen,
     and without a choice the joints are listed to choose from (the whole arm is read with its URDF).
@@ -93,8 +94,7 @@ def _of_an_arm(source: Collected, path: Path) -> bool:
     series = source.series(TOPIC_METADATA)
     if len(series) == 0 or series.text is None:
         return False
-    payload = parse_json_object(series.text, path, f"{TOPIC_METADATA} message")
-    return "format" not in payload and isinstance(payload.get("joints"), list)
+    return is_joints_metadata(parse_json_object(series.text, path, f"{TOPIC_METADATA} message"))
 
 
 def decode_guarded(source: Collected, selection: Selection, path: Path, container: str) -> RunLog:
@@ -236,7 +236,7 @@ def _joint_state_series(source: Collected, topic: str, joint: str | None, path: 
         joints = list(seen)
         if len(joints) > 1:
             listed = ", ".join(joints[:20]) + (", ..." if len(joints) > 20 else "")
-            raise ChoiceError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one", "joint")
+            raise ChoiceError(path, f"topic {topic} has {len(joints)} joints ({listed}); choose one", "joint", tuple(joints))
         joint = joints[0] if joints else ""
     # per name list: index of the joint, -1 when named without it, -2 when unnamed
     table = np.array([names.index(joint) if joint in names else (-1 if names else -2) for names in series.names], dtype=np.int64)
