@@ -24,6 +24,17 @@ from ilic_cli.timebase import gap_starts, nominal_rate_hz, sampling_kind, segmen
 
 JOINT_TYPES = ("revolute", "prismatic")
 UNITS = {"revolute": ("rad", "N·m"), "prismatic": ("m", "N")}
+"""Position and force units of a joint by its type (ROS REP 103: a JointState is in these units and says nothing of which)."""
+MOTION_CHANNELS = {"q": "", "q_ref": "", "qd": "/s", "qd_ref": "/s", "qdd_ref": "/s^2"}
+"""A one-joint log's channels in the joint's position unit (or its derivatives: the unit's suffix)."""
+
+
+def channel_units(kind: str) -> dict[str, str]:
+    """The unit of each channel of a one-joint log of a ``kind`` joint (:data:`UNITS`, :data:`MOTION_CHANNELS`)."""
+    position, force = UNITS[kind]
+    return {"tau": force} | {name: position + suffix for name, suffix in MOTION_CHANNELS.items()}
+
+
 TYPES_ASSUMED = "types_assumed"
 """Metadata key: the joints a reader took as ``revolute`` because neither the file nor the caller gave their type."""
 """REP 103 units of a joint type: (position, effort)."""

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.errors import LogError, ParameterError
+from ilic_cli.jointlog import MOTION_CHANNELS, UNITS, channel_units
 from ilic_cli.quality import assess_log, saturation_mask
 from ilic_cli.runlog import RunLog
 from ilic_cli.timebase import SAMPLING_RULE, clock_deviation, irregular_grid, nominal_rate_hz, sampling_kind, segments
@@ -291,20 +292,6 @@ def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
     return PreparedLog(log=log, fs_hz=fs, valid=valid, warnings=warnings, segments=segments(log.t, fs), saturated=saturated)
 
 
-JOINT_UNITS = {"prismatic": ("m", "N"), "revolute": ("rad", "N·m")}
-"""Position and force units of a joint (ROS REP 103: a JointState is in these units and says nothing of which)."""
-
-
-MOTION_CHANNELS = {"q": "", "q_ref": "", "qd": "/s", "qd_ref": "/s", "qdd_ref": "/s^2"}
-"""Channels in the joint's position unit (or its derivatives: the unit's suffix), scaled by a transmission."""
-
-
-def _joint_units(joint: str) -> tuple[str, str]:
-    if joint not in JOINT_UNITS:
-        raise ParameterError("load_joint", joint, "prismatic or revolute")
-    return JOINT_UNITS[joint]
-
-
 def as_joint(log: RunLog, joint: str) -> RunLog:
     """``log`` with the position and force units of a ``joint`` axis, values unchanged.
 
@@ -312,9 +299,9 @@ def as_joint(log: RunLog, joint: str) -> RunLog:
     radians and newton-metres, by the joint's type, which the message does not
     say): the user's declaration labels every parameter (kg or kg·m², ...).
     """
-    position, force = _joint_units(joint)
-    labels = {"tau": force} | {n: position + suffix for n, suffix in MOTION_CHANNELS.items()}
-    units = dict(log.units) | {name: unit for name, unit in labels.items() if name in log.channels}
+    if joint not in UNITS:
+        raise ParameterError("load_joint", joint, "prismatic or revolute")
+    units = dict(log.units) | {name: unit for name, unit in channel_units(joint).items() if name in log.channels}
     return RunLog(dict(log.channels), units, dict(log.meta))
 
 

@@ -45,6 +45,7 @@ from ilic_cli.io.rosschema import (
     TRAJECTORY_POINT,
 )
 from ilic_cli.io.rostopics import Collected
+from ilic_cli.jointlog import UNITS, channel_units
 from ilic_cli.runlog import RunLog
 from ilic_cli.timebase import nominal_rate_hz
 
@@ -80,21 +81,38 @@ def decode(source: Collected, selection: Selection, path: Path) -> RunLog:
     """
     topics = source.topics
     meta_topic = topics.get(TOPIC_METADATA)
-    if meta_topic is not None and meta_topic.msgtype == STRING and selection.topic in (None, TOPIC_STATES) and not _of_an_arm(source, path):
+    ours = meta_topic is not None and meta_topic.msgtype == STRING and selection.topic in (None, TOPIC_STATES)
+    arm = _arm_joints(source, path) if ours else None
+    if ours and arm is None:
         return _decode_ilic(source, selection, path)
-    return _decode_foreign(source, selection, path)
+    log = _decode_foreign(source, selection, path)
+    return log if arm is None else _arm_joint(log, arm)
 
 
-def _of_an_arm(source: Collected, path: Path) -> bool:
-    """True when the metadata is an n-joint log's (:func:`ilic_cli.io.jointparts.is_joints_metadata`).
+def _arm_joints(source: Collected, path: Path) -> dict[str, str] | None:
+    """Each joint's declared type when the metadata is an n-joint log's (:func:`ilic_cli.io.jointparts.is_joints_metadata`), else None.
 
     Such a log is a plain JointState log to this reader: one of its joints is read when chosen,
     and without a choice the joints are listed to choose from (the whole arm is read with its URDF).
     """
     series = source.series(TOPIC_METADATA)
     if len(series) == 0 or series.text is None:
-        return False
-    return is_joints_metadata(parse_json_object(series.text, path, f"{TOPIC_METADATA} message"))
+        return None
+    payload = parse_json_object(series.text, path, f"{TOPIC_METADATA} message")
+    if not is_joints_metadata(payload):
+        return None
+    return {str(p[0]): str(p[1]) for p in payload["joints"] if isinstance(p, list) and len(p) == 2 and p[1] in UNITS}
+
+
+def _arm_joint(log: RunLog, kinds: dict[str, str]) -> RunLog:
+    """One joint of an n-joint log in its declared type's units (rad and N·m for a revolute one), without the velocity
+    the n-joint writers fill with zeros (:mod:`ilic_cli.io.jointros`: a JointState's ``velocity`` is written 0, not measured)."""
+    kind = kinds.get(str(log.meta.get("joint")))
+    channels = {k: v for k, v in log.channels.items() if k != "qd"}
+    units = {k: u for k, u in log.units.items() if k in channels}
+    if kind is not None:
+        units |= {k: u for k, u in channel_units(kind).items() if k in channels}
+    return RunLog(channels, units, dict(log.meta))
 
 
 def decode_guarded(source: Collected, selection: Selection, path: Path, container: str) -> RunLog:

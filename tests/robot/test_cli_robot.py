@@ -111,6 +111,10 @@ def test_ur5like_to_mcap_and_identify(tmp_path: Path, capsys: pytest.CaptureFixt
     assert code == 0, err
     assert "| elbow_joint | revolute | " in out and "(assumed)" not in out and "10000 samples" in out and "| /joint_states |" in out
     assert "--urdf ARM.urdf" in _error(capsys, "identify", str(out_path), "--method", "ls")
+    # one joint of it through the one-joint chain: in its declared type's units, without the velocity the writer fills with 0
+    code, out, err = run(capsys, "info", str(out_path), "--joint", "elbow_joint", "--format", "json")
+    units = {c["name"]: c["unit"] for c in json.loads(out)["channels"]}
+    assert code == 0 and units["q"] == "rad" and units["tau"] == "N·m" and units["qdd_ref"] == "rad/s^2" and "qd" not in units, (units, err)
 
 
 def _error(capsys: pytest.CaptureFixture[str], *args: str) -> str:
