@@ -83,6 +83,10 @@ PROGRESS_MIN_BYTES = 20 * 2**20
 """Files (or bag folders) at least this large show a progress bar while they are read."""
 
 
+ARM_HINT = "identify and replay read an arm's log whole with --urdf ARM.urdf"
+"""What a one-joint command adds when a log holds several joints."""
+
+
 def load(path: str | Path, input_format: str | None, topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None = None) -> RunLog:
     """Read a log with the shared input options (with a progress bar for large files on a terminal)."""
 
@@ -92,7 +96,9 @@ def load(path: str | Path, input_format: str | None, topic: str | None, ref_topi
     try:
         return read_log(path, input_format, selection(topic, ref_topic, joint, columns, effort), progress=progress)
     except ChoiceError as exc:
-        arm = ", or read the arm whole with --urdf ARM.urdf" if exc.choice == "joint" and len(exc.candidates) > 1 else ""  # an arm's log
+        if exc.choice == "urdf":  # an arm's log that holds no one-joint choice
+            raise ChoiceError(exc.where, f"{exc.problem}: {ARM_HINT}", exc.choice, exc.candidates) from None
+        arm = f" ({ARM_HINT})" if exc.choice == "joint" and len(exc.candidates) > 1 else ""  # several joints: maybe an arm's log
         raise ChoiceError(exc.where, f"{exc.problem} with --{exc.choice}{arm}", exc.choice, exc.candidates) from None
 
 

@@ -34,11 +34,11 @@ import numpy as np
 from ilic_cli.errors import LogError
 from ilic_cli.io import matfast
 from ilic_cli.io.jointparts import joint_log, joint_types, stored_metadata
-from ilic_cli.io.mat import HEADER_TEXT, _load_scipy
+from ilic_cli.io.mat import HEADER_TEXT, JOINT_NAMES_VAR, _load_scipy
 from ilic_cli.io.rosjson import parse_json_object
 from ilic_cli.jointlog import REFERENCES, JointLog
 
-NAMES, TYPES, META = "joint_names", "joint_types", "metadata"
+NAMES, TYPES, META = JOINT_NAMES_VAR, "joint_types", "metadata"
 
 
 def is_joint_mat(path: Path) -> bool:

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ilic_cli.errors import LogError
+from ilic_cli.errors import ChoiceError, LogError
 from ilic_cli.io import matfast
 from ilic_cli.io.rosjson import dump_json, meta_for_writing, parse_json_object, parse_units
 from ilic_cli.runlog import RunLog
@@ -58,6 +58,8 @@ MAX_DECLARED_BYTES = 2 * 2**30
 """Refuse files whose variables declare more than this many bytes in total."""
 
 HEADER_TEXT = b"MATLAB 5.0 MAT-file, written by ilic"
+JOINT_NAMES_VAR = "joint_names"
+"""The variable of an n-joint ``.mat`` (:mod:`ilic_cli.io.jointmat`) that names its joints: such a file is an arm's, not one axis's."""
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
 
 
@@ -161,6 +163,9 @@ def read(path: Path, selection: Selection, *, fast: bool = True) -> RunLog:
         With ``tau = gtau * vir`` unless the file has a ``tau`` variable.
     """
     data = {k: v for k, v in _load(path).items() if not k.startswith("__")}
+    if JOINT_NAMES_VAR in data and "qm" not in data:  # an arm's log: read whole with its URDF (the command line names the option)
+        names = tuple(str(np.asarray(x).reshape(-1)[0]) for x in np.asarray(data[JOINT_NAMES_VAR], dtype=object).reshape(-1))
+        raise ChoiceError(path, f"an n-joint log of {len(names)} joints ({', '.join(names[:20])})", "urdf", names)
     for required in ("t", "qm"):
         if required not in data:
             what = "time" if required == "t" else "measured position"

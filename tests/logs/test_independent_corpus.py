@@ -229,7 +229,9 @@ CASES: dict[str, Case] = {
     ),
     # 9./11. several joints and no --joint: one line naming the joints and the option
     "no-joint-chosen": Case(
-        _ros("ros1", "ros1"), (), refusal="topic /joint_states has 2 joints (axis, wrist); choose one with --joint, or read the arm whole with --urdf ARM.urdf"
+        _ros("ros1", "ros1"),
+        (),
+        refusal="topic /joint_states has 2 joints (axis, wrist); choose one with --joint (identify and replay read an arm's log whole with --urdf ARM.urdf)",
     ),
     # 1. gaps: 200 messages lost (whole record: the tolerance is on the published M)
     "gap": Case(_ros("reference/feedback", "mcap-ros2", controller=(), drop=(12000, 200)), samples=None, tolerance=1e-3),

@@ -111,6 +111,9 @@ def test_ur5like_to_mcap_and_identify(tmp_path: Path, capsys: pytest.CaptureFixt
     assert code == 0, err
     assert "| elbow_joint | revolute | " in out and "(assumed)" not in out and "10000 samples" in out and "| /joint_states |" in out
     assert "--urdf ARM.urdf" in _error(capsys, "identify", str(out_path), "--method", "ls")
+    arm_mat = tmp_path / "ur5.mat"
+    assert run(capsys, "convert", str(out_path), str(arm_mat))[0] == 0
+    assert "an n-joint log of 6 joints (shoulder_pan_joint," in _error(capsys, "diagnose", str(arm_mat))  # not "missing variable 'qm'"
     # one joint of it through the one-joint chain: in its declared type's units, without the velocity the writer fills with 0
     code, out, err = run(capsys, "info", str(out_path), "--joint", "elbow_joint", "--format", "json")
     units = {c["name"]: c["unit"] for c in json.loads(out)["channels"]}
