@@ -33,7 +33,7 @@ IA = len(INERTIAL)
 """Offset of ``Ia`` in a joint's 14 standard parameters."""
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def workspace(n: int) -> tuple:
     """The scratch arrays the compiled functions take (``ws``), made once per run (views cut from one array per call cost 0.18 us each time).
 
@@ -55,7 +55,7 @@ def workspace(n: int) -> tuple:
     )
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def placements(prismatic, axes, rotations, translations, q, ws):
     """Compute every link's placement at ``q`` into the workspace (read by :func:`rnea_at` and :func:`crba_at`)."""
     Rs, ps = ws[0], ws[1]
@@ -63,13 +63,13 @@ def placements(prismatic, axes, rotations, translations, q, ws):
         placement(prismatic[i], axes[i], q[i], rotations[i], translations[i], Rs[i], ps[i])
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def _cross(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> tuple[float, float, float]:
     """``a x b`` of scalars (kept in registers: :func:`ilic_cli.robot.kernel.cross`'s formula)."""
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
-@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def rnea_at(prismatic, parents, axes, gravity, pi, qd, qdd, tau, ws):
     """:func:`rnea` at the placements already in ``ws`` (:func:`placements`).
 
@@ -161,7 +161,7 @@ def rnea_at(prismatic, parents, axes, gravity, pi, qd, qdd, tau, ws):
             links[5, par, 2] += ps[i, 0] * t1 - ps[i, 1] * t0
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def rnea(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, qdd, tau):
     """Fill ``tau`` (n,) with the rigid torques at ``q, qd, qdd`` for standard parameters ``pi`` (``Ia qdd`` included)."""
     ws = workspace(len(q))
@@ -169,7 +169,7 @@ def rnea(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, 
     rnea_at(prismatic, parents, axes, gravity, pi, qd, qdd, tau, ws)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def crba_at(prismatic, parents, axes, pi, M, ws):
     """Fill ``M`` (n, n) with the joint-space inertia at the placements in ``ws`` (``Ia`` on the diagonal).
 
@@ -220,7 +220,7 @@ def crba_at(prismatic, parents, axes, pi, M, ws):
             M[j, i] = M[i, j]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def crba(prismatic, parents, axes, rotations, translations, pi, q, M):
     """Fill ``M`` (n, n) with the joint-space inertia at ``q`` for standard parameters ``pi`` (``Ia`` on the diagonal)."""
     ws = workspace(len(q))
@@ -228,7 +228,7 @@ def crba(prismatic, parents, axes, rotations, translations, pi, q, M):
     crba_at(prismatic, parents, axes, pi, M, ws)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def _composite_to_parent(Rs: np.ndarray, ps: np.ndarray, comp: np.ndarray, i: int, par: int) -> None:
     """``comp[par] += X* comp[i] X``: the composite inertia of child ``i`` (10 parameters) in its parent's frame (placements ``Rs[i], ps[i]``)."""
     m = comp[i, 0]
@@ -257,7 +257,7 @@ def _composite_to_parent(Rs: np.ndarray, ps: np.ndarray, comp: np.ndarray, i: in
     comp[par, 9] += R20 * z0 + R21 * z1 + R22 * z2 - (p2 * Rh2 + Rh2 * p2 - 2.0 * ab) - m * (p2 * p2 - pp)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def cholesky_solve(M: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
     """``out = M^-1 b`` for a symmetric positive definite ``M`` (small: written out, no LAPACK call); ``M`` is overwritten."""
     n = len(b)
@@ -284,7 +284,7 @@ def cholesky_solve(M: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
         out[i] = s / M[i, i]
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd, ws):
     """Fill ``qdd`` with ``M^-1 (tau - h(q, qd))`` using the workspace ``ws``; joints with ``locked`` True are held (``qdd = 0``)."""
     n = len(q)
@@ -304,7 +304,7 @@ def forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q
     cholesky_solve(M, rhs, qdd)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def forward(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd):
     """Fill ``qdd`` with ``M^-1 (tau - h(q, qd))``; joints with ``locked`` True are held: ``qdd = 0`` there."""
     forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd, workspace(len(q)))
