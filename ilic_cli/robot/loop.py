@@ -33,8 +33,8 @@ The functions run at every step are compiled without numba's reference counting
 (``_nrt=False``; they allocate nothing: :func:`run_steps` makes every array once):
 with it, each array a compiled call takes (and each row view) was counted on entry
 and released on exit, an atomic increment and decrement each, some hundred pairs a
-step (``perf``: 19 % of the loop's time, 6.0-6.6 us a step before, 4.1-4.4 after, the
-same log bits). ``error_model="numpy"``: a float division by zero gives inf or nan
+step (``perf``: 19 % of all the samples of a process replaying the run's windows, about
+a quarter of the loop's; 6.0-6.6 us a step before, 4.1-4.4 after, the same log bits). ``error_model="numpy"``: a float division by zero gives inf or nan
 (caught by :func:`ilic_cli.robot.plant.simulate_loop`'s finiteness check) instead of
 a raise path after every division. ``fastmath={"contract"}`` (here and in
 :mod:`ilic_cli.robot.dynamics`): a product and the sum it feeds are fused (FMA, one
