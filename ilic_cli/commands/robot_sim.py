@@ -96,7 +96,7 @@ def simulate(urdf: Path, o: dict[str, Any]) -> None:
     from ilic_cli.robot.scenario import robot_sim, true_parameters  # deferred: numba only for an arm
 
     pi = true_parameters(robot) if o.get("model") is None else _model_truth(Path(o["model"]), robot)
-    result = robot_sim(robot, settings, truth=pi)
+    result = robot_sim(robot, settings, truth=pi, true_state=False)  # the log holds the measured position, not the true one
     run = result.run
     meta = {
         "scenario": {"name": SCENARIO, "windows": settings.windows, "window_s": settings.window_s, "seed": settings.seed},

@@ -13,7 +13,11 @@ of the first link) belongs to no base parameter.
 
 from __future__ import annotations
 
+import importlib.machinery
+import importlib.util
+import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -117,16 +121,68 @@ def stacked_regressor(robot: RobotModel, samples: int | None = None, seed: int =
     return regressor(robot, *random_states(robot, samples, seed))
 
 
-def base_parameters(robot: RobotModel, *, samples: int | None = None, seed: int = 0) -> BaseParameters:
-    """The base parameters of ``robot`` by QR with column pivoting of :func:`stacked_regressor`."""
-    from scipy.linalg import qr, solve_triangular  # deferred: scipy.linalg costs ~0.2 s of import
+def flapack() -> Any:
+    """scipy's LAPACK wrappers (the module behind ``scipy.linalg.lapack``), loaded without importing ``scipy.linalg``.
 
+    ``scipy.linalg``'s package imports some 0.17 s of modules (its array-API layer,
+    ``numpy.f2py``, ``numpy.ma``, ``numpy.testing``) before any routine runs; its
+    extension ``_flapack`` alone loads in 4-5 ms. When ``scipy.linalg`` is imported
+    already, its own module. Not put in ``sys.modules``: a later ``import
+    scipy.linalg`` loads the package as usual (CPython hands it the same extension).
+    """
+    loaded = sys.modules.get("scipy.linalg._flapack")
+    if loaded is not None:
+        return loaded
+    import scipy  # deferred: the top package only (numba's import did already), not scipy.linalg
+
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        path = Path(scipy.__file__ or "").parent / "linalg" / f"_flapack{suffix}"
+        extension = importlib.util.spec_from_file_location("scipy.linalg._flapack", path) if path.is_file() else None
+        if extension is not None and extension.loader is not None:
+            module = importlib.util.module_from_spec(extension)
+            extension.loader.exec_module(module)
+            return module
+    from scipy.linalg import _flapack  # scipy laid out otherwise: through its package
+
+    return _flapack
+
+
+def pivoted_qr(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``R, perm`` of ``scipy.linalg.qr(Y, mode="economic", pivoting=True)`` (rows >= columns), bit for bit: the same LAPACK call.
+
+    LAPACK's ``dgeqp3`` with the workspace it asks for, as scipy's ``qr`` calls it (``Q`` is not formed).
+    """
+    geqp3 = flapack().dgeqp3
+    Y = np.asarray_chkfinite(Y, dtype=np.float64)
+    lwork = int(geqp3(Y, lwork=-1)[-2][0].real)
+    qr, jpvt, _, _, info = geqp3(Y, lwork=lwork)
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal geqp3")
+    return np.triu(qr[: Y.shape[1], :]), jpvt - 1
+
+
+def upper_solve(U: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``scipy.linalg.solve_triangular(U, B)`` (``U`` upper triangular, not Fortran-ordered), bit for bit: LAPACK's ``dtrtrs`` on ``U'`` as scipy calls it."""
+    if B.size == 0:
+        return np.empty(B.shape)
+    U, B = np.asarray_chkfinite(U, dtype=np.float64), np.asarray_chkfinite(B, dtype=np.float64)
+    trtrs = flapack().dtrtrs
+    x, info = trtrs(U, B, lower=False, trans=0, unitdiag=False) if U.flags.f_contiguous else trtrs(U.T, B, lower=True, trans=True, unitdiag=False)
+    if info > 0:
+        raise np.linalg.LinAlgError(f"singular matrix: resolution failed at diagonal {info - 1}")
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}-th argument of internal trtrs")
+    return np.asarray(x)
+
+
+def base_parameters(robot: RobotModel, *, samples: int | None = None, seed: int = 0) -> BaseParameters:
+    """The base parameters of ``robot`` by QR with column pivoting of :func:`stacked_regressor` (:func:`pivoted_qr`, :func:`upper_solve`)."""
     Y = stacked_regressor(robot, samples, seed)
-    _, R, perm = qr(Y, mode="economic", pivoting=True)
+    R, perm = pivoted_qr(Y)
     d = np.abs(np.diag(R))
     tol = float(rank_tolerance(d[0], *Y.shape))
     b = int(np.sum(d > tol))
-    K = solve_triangular(R[:b, :b], R[:b, b:])
+    K = upper_solve(R[:b, :b], R[:b, b:])
     K[np.abs(K) < ZERO_COEFFICIENT * max(1.0, float(np.abs(K).max(initial=0.0)))] = 0.0
     p = Y.shape[1]
     G = np.zeros((b, p))

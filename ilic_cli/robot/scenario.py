@@ -137,11 +137,14 @@ def same_system(known: list[tuple[tuple[np.ndarray, ...], np.ndarray]], referenc
     return system
 
 
-def robot_sim(robot: RobotModel, settings: RobotSimSettings = RobotSimSettings(), *, sink: Any = None, truth: np.ndarray | None = None) -> RobotSimResult:
+def robot_sim(
+    robot: RobotModel, settings: RobotSimSettings = RobotSimSettings(), *, sink: Any = None, truth: np.ndarray | None = None, true_state: bool = True
+) -> RobotSimResult:
     """Run the scenario; ``sink(run, start, stop)`` receives the log window by window (:func:`ilic_cli.robot.record`).
 
     ``truth``: the arm's standard parameters (default :func:`true_parameters`; an identified model's
-    :func:`ilic_cli.robot.dynamics.kept_vector`).
+    :func:`ilic_cli.robot.dynamics.kept_vector`). ``true_state=False``: the run's true position and
+    velocity are not kept (:func:`ilic_cli.robot.plant.simulate_loop`; the same log, estimates and models).
     """
     q0 = np.asarray(settings.q0 or np.zeros(robot.n), dtype=np.float64)
     speed = np.asarray(settings.speed or np.full(robot.n, 1.5), dtype=np.float64)
@@ -175,7 +178,18 @@ def robot_sim(robot: RobotModel, settings: RobotSimSettings = RobotSimSettings()
         return same_system(systems, (q_ref, qd_ref, qdd_ref), lambda: reference_system(robot, base, q_ref, qd_ref, qdd_ref, settings.loop.fs_hz, ilic))
 
     run = simulate_loop(
-        robot, pi, reference, duration, model, settings.loop, window_s=settings.window_s, update=update, changes=changes, sink=sink, prepare=prepare
+        robot,
+        pi,
+        reference,
+        duration,
+        model,
+        settings.loop,
+        window_s=settings.window_s,
+        update=update,
+        changes=changes,
+        sink=sink,
+        prepare=prepare,
+        true_state=true_state,
     )
     truths = []
     for w in windows:

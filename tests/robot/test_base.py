@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ from tests.conftest import import_or_skip
 import_or_skip("pinocchio")
 
 from ilic_cli.robot import model as rm  # noqa: E402
-from ilic_cli.robot.base import base_parameters, stacked_regressor  # noqa: E402
+from ilic_cli.robot.base import base_parameters, pivoted_qr, stacked_regressor, upper_solve  # noqa: E402
 
 FIXTURES = Path(__file__).parents[2] / "fixtures"
 
@@ -79,3 +80,28 @@ def random_states_for(robot: rm.RobotModel) -> tuple[np.ndarray, np.ndarray, np.
     from ilic_cli.robot.base import random_states
 
     return random_states(robot, 50, seed=9)
+
+
+@pytest.mark.parametrize("arm", ("axis1.urdf", "arm2.urdf", "ur5like.urdf"))
+def test_the_qr_and_the_triangular_solve_are_scipys_bit_for_bit(arm: str) -> None:
+    """``pivoted_qr`` and ``upper_solve`` call LAPACK without importing ``scipy.linalg``: the same bits as its ``qr`` and ``solve_triangular``."""
+    from scipy.linalg import qr, solve_triangular
+
+    Y = stacked_regressor(rm.load_urdf(FIXTURES / arm))
+    _, R, perm = qr(Y, mode="economic", pivoting=True)
+    R_, perm_ = pivoted_qr(Y)
+    assert np.array_equal(R, R_) and np.array_equal(perm, perm_)
+    for b in (np.linalg.matrix_rank(Y), Y.shape[1]):
+        assert np.array_equal(solve_triangular(R[:b, :b], R[:b, b:]), upper_solve(R[:b, :b], R[:b, b:]))
+    F = np.asfortranarray(R[:4, :4])  # the other branch: a Fortran-ordered matrix solved as it is
+    assert np.array_equal(solve_triangular(F, R[:4, 4:]), upper_solve(F, R[:4, 4:]))
+
+
+def test_the_base_parameters_do_not_import_scipy_linalg(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``scipy.linalg``'s package (0.17 s of imports) is not needed: with its import made to fail, the same base parameters."""
+    robot = rm.load_urdf(FIXTURES / "arm2.urdf")
+    expected = base_parameters(robot)
+    monkeypatch.setitem(sys.modules, "scipy.linalg", None)  # an import of it raises ImportError
+    monkeypatch.delitem(sys.modules, "scipy.linalg._flapack", raising=False)
+    base = base_parameters(robot)
+    assert np.array_equal(base.kept, expected.kept) and np.array_equal(base.regrouping, expected.regrouping)

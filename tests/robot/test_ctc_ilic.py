@@ -142,3 +142,15 @@ def test_a_window_system_from_the_reference_and_the_torque_apart_equals_filterin
         assert np.array_equal(W[j][:, active[j]], together[rows[j] : rows[j + 1] - 1].T)
         assert not W[j][:, ~active[j]].any()
     assert np.array_equal(torque_rows(tau, 1000.0, settings), together[rows[1:] - 1].reshape(-1))
+
+
+def test_a_run_without_its_true_state_has_the_same_log_estimates_and_models() -> None:
+    """``true_state=False`` (``ilic simulate``'s): the loop's true position and velocity go to one window's buffers, reused; nothing else moves."""
+    robot = load_urdf(FIXTURES / "arm2.urdf")
+    settings = RobotSimSettings(windows=3, window_s=1.0, payload_kg=0.5, payload_at_s=1.5)  # the payload splits window 2 in two runs of the loop
+    kept, lean = robot_sim(robot, settings), robot_sim(robot, settings, true_state=False)
+    assert kept.run.q_true.shape == (3000, robot.n) and lean.run.q_true.shape == lean.run.qd_true.shape == (0, robot.n)
+    for name in ("q", "tau", "q_ref"):
+        assert np.array_equal(getattr(kept.run, name), getattr(lean.run, name)), name
+    assert all(np.array_equal(a, b) for a, b in zip(kept.run.models, lean.run.models, strict=True))
+    assert np.array_equal(kept.relative_errors_pct(), lean.relative_errors_pct())
