@@ -206,6 +206,9 @@ def declares_joints(path: Path) -> bool:
 def _metadata_text(path: Path) -> str | None:
     """The text of the first ``/ilic/metadata`` message of an MCAP file, a ROS 1 bag or a ROS 2 bag folder (None: it has none)."""
     if path.is_dir():
+        dbs, mcaps = sorted(path.glob("*.db3")), sorted(path.glob("*.mcap"))
+        if len(dbs) + len(mcaps) == 1:  # one uncompressed storage file: read directly (rosbags' metadata.yaml parse costs 10-20 ms)
+            return _sqlite_metadata(dbs[0]) if dbs else _mcap_metadata(mcaps[0])
         from rosbags.rosbag2 import Reader as Reader2  # deferred: a bag folder only
 
         with Reader2(path) as bag:
@@ -220,10 +223,26 @@ def _metadata_text(path: Path) -> str | None:
                 (length,) = struct.unpack_from("<I", raw)
                 return bytes(raw[4 : 4 + length]).decode()
             return None
+    return _mcap_metadata(path)
+
+
+def _mcap_metadata(path: Path) -> str | None:
+    """The text of the first ``/ilic/metadata`` message of an MCAP file (None: it has none)."""
     from mcap.reader import make_reader  # deferred: an MCAP file only
 
     with path.open("rb") as f:
         return next((_cdr_string(m.data) for _, _, m in make_reader(f).iter_messages(topics=[METADATA])), None)
+
+
+def _sqlite_metadata(path: Path) -> str | None:
+    """The text of the first ``/ilic/metadata`` message of a ROS 2 bag's sqlite3 storage (None: it has none)."""
+    import contextlib
+    import sqlite3  # deferred: a ROS 2 sqlite3 bag only (its reader imports it too)
+
+    query = "SELECT m.data FROM messages m JOIN topics t ON m.topic_id = t.id WHERE t.name = ? AND t.type = ? ORDER BY m.timestamp, m.id LIMIT 1"
+    with contextlib.closing(sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)) as db:
+        row = db.execute(query, (METADATA, STRING)).fetchone()
+    return None if row is None else _cdr_string(bytes(row[0]))
 
 
 def _cdr_string(raw: bytes) -> str:
