@@ -11,6 +11,7 @@ or the ``mcap`` reader (an MCAP file); joints are read by name.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import struct
 from collections.abc import Mapping, Sequence
@@ -236,7 +237,6 @@ def _mcap_metadata(path: Path) -> str | None:
 
 def _sqlite_metadata(path: Path) -> str | None:
     """The text of the first ``/ilic/metadata`` message of a ROS 2 bag's sqlite3 storage (None: it has none)."""
-    import contextlib
     import sqlite3  # deferred: a ROS 2 sqlite3 bag only (its reader imports it too)
 
     query = "SELECT m.data FROM messages m JOIN topics t ON m.topic_id = t.id WHERE t.name = ? AND t.type = ? ORDER BY m.timestamp, m.id LIMIT 1"
