@@ -13,6 +13,7 @@ from ilic_cli.cli import main
 from ilic_cli.errors import LogError
 from ilic_cli.io import jointlogs
 from ilic_cli.jointlog import REFERENCES, JointLog
+from tests.robot.test_jointlog import FOREIGN_JOINTS, foreign_states
 
 N = 200
 FIXTURES = Path(__file__).parents[2] / "fixtures"
@@ -99,15 +100,11 @@ def test_ros1_bag_by_rosbags_writer_with_more_joints_is_read_by_name(tmp_path: P
 
     ts = get_typestore(Stores.ROS1_NOETIC)
     State, Header, Time = ts.types["sensor_msgs/msg/JointState"], ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
-    names = ["gripper", "elbow", "base_yaw", "shoulder"]
-    rng = np.random.default_rng(3)
-    pos, eff = rng.standard_normal((50, 4)), rng.standard_normal((50, 4))
+    messages, pos, eff = foreign_states(ts, ros1=True)
+    names = FOREIGN_JOINTS
     with Writer(tmp_path / "other.bag") as writer:
         conn = writer.add_connection("/arm/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
-        for k in range(50):
-            ns = 1_000_000_000 + k * 2_000_000
-            header = Header(seq=k, stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="")
-            msg = State(header=header, name=names, position=pos[k], velocity=pos[k], effort=eff[k])
+        for ns, msg in messages:
             writer.write(conn, ns, ts.serialize_ros1(msg, "sensor_msgs/msg/JointState"))
     log = jointlogs.read(tmp_path / "other.bag", joints=["shoulder", "elbow"])
     assert log.joints == ("shoulder", "elbow") and log.kinds == ("revolute", "revolute") and not log.has_reference

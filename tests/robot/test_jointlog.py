@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -62,24 +63,36 @@ def test_csv_without_effort_is_refused(tmp_path: Path) -> None:
         jointlogs.read(tmp_path / "x.csv")
 
 
+FOREIGN_JOINTS = ["gripper", "elbow", "base_yaw", "shoulder"]
+"""The joints of another writer's bag: more than arm2 moves, in another order."""
+
+
+def foreign_states(ts: Any, ros1: bool = False) -> tuple[list[tuple[int, Any]], np.ndarray, np.ndarray]:
+    """50 JointState messages of :data:`FOREIGN_JOINTS` at 500 Hz in ``ts``'s types (``ros1``: with a header ``seq``), and their positions and efforts."""
+    State, Header, Time = ts.types["sensor_msgs/msg/JointState"], ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
+    rng = np.random.default_rng(3)
+    pos, eff = rng.standard_normal((50, 4)), rng.standard_normal((50, 4))
+    messages = []
+    for k in range(50):
+        ns = 1_000_000_000 + k * 2_000_000
+        stamp = Time(sec=ns // 10**9, nanosec=ns % 10**9)
+        header = Header(seq=k, stamp=stamp, frame_id="") if ros1 else Header(stamp=stamp, frame_id="")
+        messages.append((ns, State(header=header, name=FOREIGN_JOINTS, position=pos[k], velocity=pos[k], effort=eff[k])))
+    return messages, pos, eff
+
+
 def test_bag_by_rosbags_with_more_joints_than_the_urdf_is_read_by_name(tmp_path: Path) -> None:
     """Issue 30's Done-when: a bag written by rosbags' writer, 4 joints in another order, read for arm2's shoulder and elbow."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
-    State, Header, Time = ts.types["sensor_msgs/msg/JointState"], ts.types["std_msgs/msg/Header"], ts.types["builtin_interfaces/msg/Time"]
-    names = ["gripper", "elbow", "base_yaw", "shoulder"]
-    rng = np.random.default_rng(3)
-    pos, eff = rng.standard_normal((50, 4)), rng.standard_normal((50, 4))
+    messages, pos, eff = foreign_states(ts)
     for storage in (StoragePlugin.SQLITE3, StoragePlugin.MCAP):
         path = tmp_path / storage.name
         with Writer(path, version=9, storage_plugin=storage) as writer:
             conn = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
-            for k in range(50):
-                ns = 1_000_000_000 + k * 2_000_000
-                header = Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="")
-                msg = State(header=header, name=names, position=pos[k], velocity=pos[k], effort=eff[k])
+            for ns, msg in messages:
                 writer.write(conn, ns, ts.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
         log = jointlogs.read(path, joints=["shoulder", "elbow"])
         assert log.joints == ("shoulder", "elbow") and log.kinds == ("revolute", "revolute")
