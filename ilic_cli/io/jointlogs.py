@@ -21,7 +21,8 @@ A ROS 2 bag folder has sqlite3 or MCAP storage.
   layout, so the samples of a chunk are filled column by column instead of
   serialised one message at a time (a 10-minute 1 kHz 6-joint log, 443 MB: 0.35 s
   of CPU, 21.3 s by rosbags' writer; docs/robots.md). The file holds no
-  ``rosbag2`` metadata record (rosbags' writer adds one; readers of MCAP need none).
+  ``rosbag2`` metadata record (rosbags' writer adds one; readers of MCAP need none). Such a
+  file is read back as columns (:func:`read_own_mcap`); any other, message by message.
 - **MATLAB** ``.mat``: :mod:`ilic_cli.io.jointmat` (``t``, ``q``, ``tau`` and the
   reference as (N, n) matrices, ``joint_names``, ``joint_types``, ``metadata``).
 
@@ -43,7 +44,7 @@ import numpy as np
 
 from ilic_cli.errors import LogError
 from ilic_cli.io import jointros, rosschema
-from ilic_cli.io.jointparts import METADATA, REFERENCE, STATES
+from ilic_cli.io.jointparts import METADATA, REFERENCE, STATES, is_joints_metadata
 from ilic_cli.io.jointparts import joint_log as _log
 from ilic_cli.io.jointparts import joint_types as _types
 from ilic_cli.io.jointparts import stored_metadata as _metadata
@@ -95,7 +96,7 @@ def read(path: Path, joints: Sequence[str] | None = None, kinds: Mapping[str, st
 
         log = jointmat.read(path, kinds)
     else:
-        log = read_ros(path, kinds, joints)
+        log = (read_own_mcap(path, kinds) if kind == "mcap" else None) or read_ros(path, kinds, joints)
     return log if joints is None else log.select(joints, path)
 
 
@@ -394,3 +395,64 @@ def _summary(f: Any, b: Any, schemas: list[Any], channels: list[Any], indexes: l
     Footer(summary_start=summary_start, summary_offset_start=offsets_start, summary_crc=0).write(b)
     f.write(b.end())
     f.write(MAGIC)
+
+
+CHUNK_HEAD = struct.Struct("<BQQQQI")
+"""A chunk record's opcode, length, start and end times, uncompressed size and CRC; its compression's name follows."""
+
+
+def read_own_mcap(path: Path, kinds: Mapping[str, str] | None = None) -> JointLog | None:
+    """An MCAP file as :func:`write_mcap` lays it out, read as columns; None for any other (the per-message reader takes it).
+
+    Every sample's records have one layout (:func:`_layouts`: the joints' names from the metadata): each chunk's records
+    after the metadata's are checked byte for byte against it where they hold no value (channels, sequence, lengths,
+    names, zero velocities), and the stamps and values are taken as strided views. The same log as the per-message
+    reader's (tested), some 30 times faster (a 10-minute 6-joint log: 31 s message by message).
+    """
+    from mcap.reader import make_reader  # deferred: an MCAP file only
+
+    with path.open("rb") as f:
+        summary = make_reader(f).get_summary()
+        channels = {} if summary is None else {c.topic: (c.id, summary.schemas[c.schema_id].name) for c in summary.channels.values()}
+        if summary is None or channels.get(STATES) != (1, JOINT_STATE) or channels.get(METADATA, (0, ""))[1] != STRING:
+            return None
+        reference = channels.get(REFERENCE) == (2, TRAJECTORY)
+        if len(channels) != 2 + reference or any(c.compression for c in summary.chunk_indexes):
+            return None
+        text = jointros.mcap_metadata_text(path)
+        meta = json.loads(text) if text else {}
+        declared = dict(meta.get("joints") or []) if isinstance(meta, dict) and is_joints_metadata(meta) else {}
+        names = list(declared)
+        if not names:
+            return None
+        template, fields, _ = _layouts(names, reference)
+        size = len(template)
+        fixed = np.ones(size, dtype=bool)
+        for what, at, n in fields:
+            fixed[at : at + (16 if what == "time" else 8 if what == "stamp" else 8 * n)] = False
+        expected = np.frombuffer(template, dtype=np.uint8)[fixed]
+        parts: list[np.ndarray] = []
+        for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
+            f.seek(index.chunk_start_offset)
+            head = f.read(CHUNK_HEAD.size + 4)
+            opcode, _, _, _, raw_size, _, name_length = (*CHUNK_HEAD.unpack_from(head), struct.unpack_from("<I", head, CHUNK_HEAD.size)[0])
+            f.seek(name_length + 8, 1)
+            records = np.frombuffer(f.read(raw_size), dtype=np.uint8)
+            if opcode != 0x06 or len(records) != raw_size:
+                return None
+            if not parts:  # the first chunk starts with the metadata's record
+                records = records[9 + int(records[1:9].view("<u8")[0]) :]
+            if len(records) % size:
+                return None
+            rows = records.reshape(-1, size)
+            if not np.array_equal(rows[:, fixed], np.broadcast_to(expected, (len(rows), len(expected)))):
+                return None
+            parts.append(rows)
+    rows = np.concatenate(parts) if parts else np.empty((0, size), dtype=np.uint8)
+    stamp = next(at for what, at, _ in fields if what == "stamp")
+    ns = rows[:, stamp : stamp + 4].copy().view("<i4")[:, 0].astype(np.int64) * 1_000_000_000 + rows[:, stamp + 4 : stamp + 8].copy().view("<u4")[:, 0]
+    values = [rows[:, at : at + 8 * n].copy().view("<f8").T for what, at, n in fields if what == "values"]
+    found = {"q": dict(zip(names, values[0])), "tau": dict(zip(names, values[1]))}
+    refs: dict[str, np.ndarray | None] = {r: np.ascontiguousarray(v) for r, v in zip(REFERENCES, values[2:])} if reference else dict.fromkeys(REFERENCES)
+    types, kept = _types(names, declared, kinds, meta.get("meta") or {})
+    return _log(path, ns.astype(np.float64) * 1e-9, names, types, found, refs, kept)

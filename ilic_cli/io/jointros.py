@@ -209,7 +209,7 @@ def _metadata_text(path: Path) -> str | None:
     if path.is_dir():
         dbs, mcaps = sorted(path.glob("*.db3")), sorted(path.glob("*.mcap"))
         if len(dbs) + len(mcaps) == 1:  # one uncompressed storage file: read directly (rosbags' metadata.yaml parse costs 10-20 ms)
-            return _sqlite_metadata(dbs[0]) if dbs else _mcap_metadata(mcaps[0])
+            return _sqlite_metadata(dbs[0]) if dbs else mcap_metadata_text(mcaps[0])
         from rosbags.rosbag2 import Reader as Reader2  # deferred: a bag folder only
 
         with Reader2(path) as bag:
@@ -224,10 +224,10 @@ def _metadata_text(path: Path) -> str | None:
                 (length,) = struct.unpack_from("<I", raw)
                 return bytes(raw[4 : 4 + length]).decode()
             return None
-    return _mcap_metadata(path)
+    return mcap_metadata_text(path)
 
 
-def _mcap_metadata(path: Path) -> str | None:
+def mcap_metadata_text(path: Path) -> str | None:
     """The text of the first ``/ilic/metadata`` message of an MCAP file (None: it has none)."""
     from mcap.reader import make_reader  # deferred: an MCAP file only
 

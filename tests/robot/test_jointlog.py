@@ -10,6 +10,7 @@ import pytest
 
 from ilic_cli.errors import LogError
 from ilic_cli.io import jointlogs
+from ilic_cli.io.jointros import read_ros
 from ilic_cli.jointlog import JointLog
 
 N = 300
@@ -159,6 +160,17 @@ def test_mcap_file_holds_rosbags_messages_and_indexes_them(tmp_path: Path, refer
                     assert struct.unpack_from("<BQHIQ", chunk.data, offset)[::2] == (0x05, record.channel_id, ns)
                     indexed += 1
     assert indexed == len(ours)
+    # read back as columns (its own layout): the per-message reader's log, bit for bit; any other byte layout is left to that reader
+    fast, slow = jointlogs.read_own_mcap(tmp_path / "new.mcap"), read_ros(tmp_path / "new.mcap")
+    assert fast is not None and fast.joints == slow.joints and fast.kinds == slow.kinds and fast.meta == slow.meta
+    for name in ("t", "q", "tau", "q_ref", "qd_ref", "qdd_ref"):
+        a, b = getattr(fast, name), getattr(slow, name)
+        assert (a is None and b is None) if not reference and name.endswith("ref") else np.array_equal(a, b), name
+    data = bytearray((tmp_path / "new.mcap").read_bytes())
+    at = data.rindex(b"ref_b")  # a joint's name in the last sample's records: no longer the layout the names give
+    data[at + 4] = ord("B")
+    (tmp_path / "other.mcap").write_bytes(bytes(data))
+    assert jointlogs.read_own_mcap(tmp_path / "other.mcap") is None and jointlogs.read_own_mcap(next((tmp_path / "bag").glob("*.mcap"))) is None
 
 
 def test_mcap_file_of_a_log_starting_before_time_zero_is_refused(tmp_path: Path) -> None:
