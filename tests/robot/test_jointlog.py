@@ -171,6 +171,10 @@ def test_mcap_file_holds_rosbags_messages_and_indexes_them(tmp_path: Path, refer
     data[at + 4] = ord("B")
     (tmp_path / "other.mcap").write_bytes(bytes(data))
     assert jointlogs.read_own_mcap(tmp_path / "other.mcap") is None and jointlogs.read_own_mcap(next((tmp_path / "bag").glob("*.mcap"))) is None
+    (tmp_path / "cut.mcap").write_bytes(bytes(data[: len(data) // 2]))  # damaged: the per-message reader's one-line error
+    assert jointlogs.read_own_mcap(tmp_path / "cut.mcap") is None
+    with pytest.raises(LogError, match="cannot read the ROS log"):
+        jointlogs.read(tmp_path / "cut.mcap")
 
 
 def test_mcap_file_of_a_log_starting_before_time_zero_is_refused(tmp_path: Path) -> None:
