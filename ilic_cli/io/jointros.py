@@ -6,7 +6,8 @@ The messages (:mod:`ilic_cli.io.jointlogs`' docstring) are the same in every con
 (:func:`ros_messages`): ROS 2 Humble's types in a ROS 2 bag, ROS 1 Noetic's in a
 ROS 1 bag (whose headers carry a sequence number), each written by rosbags' own
 writer. Reading goes through rosbags' ``AnyReader`` (a bag folder, a ROS 1 bag)
-or the ``mcap`` reader (an MCAP file); joints are read by name.
+or the ``mcap`` reader (an MCAP file); joints are read by name. A ROS 2 bag of one
+sqlite3 file whose topics each keep one layout is read as columns (:func:`_sqlite_columns`).
 """
 
 from __future__ import annotations
@@ -133,7 +134,15 @@ def _unreadable(path: Path, exc: Exception) -> LogError:
 
 
 def read_ros(path: Path, kinds: Mapping[str, str] | None = None, joints: Sequence[str] | None = None) -> JointLog:
-    """A JointState log (see the module's docstring); ``joints``: the names wanted (checked on the first message)."""
+    """A JointState log (see the module's docstring); ``joints``: the names wanted (checked on the first message).
+
+    A ROS 2 bag folder of one sqlite3 file whose topics each keep one message layout is read as columns
+    (:func:`_sqlite_columns`); any other log message by message.
+    """
+    if path.is_dir():
+        fast = _sqlite_columns(path, kinds, joints)
+        if fast is not None:
+            return fast
     try:
         topics, messages = _messages(path)
     except LogError:
@@ -249,3 +258,146 @@ def _cdr_string(raw: bytes) -> str:
     """A ``std_msgs/msg/String`` in CDR: the encapsulation header (its second byte: 1 little endian), the length with the NUL, the bytes."""
     (length,) = struct.unpack_from("<I" if raw[1] & 1 else ">I", raw, 4)
     return bytes(raw[8 : 8 + length - 1]).decode()
+
+
+def _sqlite_columns(path: Path, kinds: Mapping[str, str] | None, joints: Sequence[str] | None) -> JointLog | None:
+    """A ROS 2 sqlite3 bag read as columns: the same log as :func:`read_ros`'s message by message, or None.
+
+    Each topic's messages are fetched in one query; when they all have the first one's size and its bytes wherever
+    it holds no value (:func:`_walk`: the names, lengths, padding), the stamps and values are strided views of the
+    joined blobs (a 10-minute 6-joint bag: some 40 times faster). None for anything else (several storage files, another
+    layout, a topic the per-message reader would refuse or read otherwise): that reader takes it and says what is wrong.
+    """
+    try:
+        return _sqlite_read(path, kinds, joints)
+    except Exception:  # noqa: BLE001 - the per-message reader reads it again and names the problem in one line
+        return None
+
+
+def _sqlite_read(path: Path, kinds: Mapping[str, str] | None, joints: Sequence[str] | None) -> JointLog | None:
+    import sqlite3  # deferred: a ROS 2 sqlite3 bag only (its reader imports it too)
+
+    dbs = sorted(path.glob("*.db3"))
+    if len(dbs) != 1 or any(path.glob("*.mcap")) or any(path.glob("*.zstd")):
+        return None
+    with contextlib.closing(sqlite3.connect(f"{dbs[0].resolve().as_uri()}?mode=ro", uri=True)) as db:
+        topics = {name: (tid, kind) for tid, name, kind in db.execute("SELECT id, name, type FROM topics")}
+        states = [name for name, (_, kind) in topics.items() if kind == JOINT_STATE]
+        if STATES in states:
+            states = [STATES]
+        if len(states) != 1:
+            return None
+
+        def rows(name: str) -> tuple[np.ndarray, np.ndarray] | None:
+            got = db.execute("SELECT timestamp, data FROM messages WHERE topic_id = ? ORDER BY timestamp, id", (topics[name][0],)).fetchall()
+            sizes = {len(d) for _, d in got}
+            if not got or len(sizes) != 1:
+                return None
+            return np.array([ts for ts, _ in got], dtype=np.int64), np.frombuffer(b"".join(d for _, d in got), dtype=np.uint8).reshape(len(got), -1)
+
+        state = rows(states[0])
+        meta_rows = (
+            db.execute("SELECT m.data FROM messages m WHERE m.topic_id = ? ORDER BY m.timestamp, m.id LIMIT 1", (topics[METADATA][0],)).fetchall()
+            if topics.get(METADATA, (0, ""))[1] == STRING
+            else []
+        )
+        reference = rows(REFERENCE) if topics.get(REFERENCE, (0, ""))[1] == TRAJECTORY else None
+    if state is None:
+        return None
+    log_ns, buf = state
+    lay = _walk(bytes(buf[0]), JOINT_STATE)
+    if lay is None or not _same_layout(buf, lay):
+        return None
+    name = lay["strings"]["name"]
+    names = list(joints) if joints is not None else list(name)
+    (p_at, p_n), (e_at, e_n) = lay["arrays"]["position"], lay["arrays"]["effort"]
+    if any(j not in name for j in names) or e_n < len(name) or p_n < len(name):
+        return None
+    order = np.array([name.index(j) for j in names], dtype=np.intp)
+    meta = json.loads(_cdr_string(bytes(meta_rows[0][0]))) if meta_rows else {}
+    if not isinstance(meta, dict):
+        return None
+    refs: dict[str, np.ndarray | None] = dict.fromkeys(REFERENCES)
+    if reference is not None and len(reference[0]) == len(log_ns) and reference[0][0] >= log_ns[0]:
+        ref_lay = _walk(bytes(reference[1][0]), TRAJECTORY)
+        if ref_lay is None or not _same_layout(reference[1], ref_lay) or not set(names) <= set(ref_lay["strings"]["joint_names"]):
+            return None
+        idx = np.array([list(ref_lay["strings"]["joint_names"]).index(j) for j in names], dtype=np.intp)
+        refs = {r: _values(reference[1], *ref_lay["arrays"][f])[:, idx].T.copy() for r, f in zip(REFERENCES, ("positions", "velocities", "accelerations"))}
+    at = lay["times"]["stamp"]
+    ns = buf[:, at : at + 4].copy().view("<i4")[:, 0].astype(np.int64) * 1_000_000_000 + buf[:, at + 4 : at + 8].copy().view("<u4")[:, 0]
+    found = {"q": dict(zip(names, _values(buf, p_at, p_n)[:, order].T)), "tau": dict(zip(names, _values(buf, e_at, e_n)[:, order].T))}
+    types, kept = joint_types(names, dict(meta.get("joints") or []), kinds, meta.get("meta") or {})
+    return joint_log(path, ns.astype(np.float64) * 1e-9, names, types, found, refs, kept)
+
+
+def _values(buf: np.ndarray, at: int, n: int) -> np.ndarray:
+    """The float64 sequence of ``n`` values at byte ``at`` of every message (rows of ``buf``)."""
+    return buf[:, at : at + 8 * n].copy().view("<f8")
+
+
+def _same_layout(buf: np.ndarray, lay: dict[str, Any]) -> bool:
+    """Whether every message (row) has the first one's bytes wherever the layout holds no value."""
+    fixed = ~lay["varying"]
+    return bool(np.array_equal(buf[:, fixed], np.broadcast_to(buf[0, fixed], (len(buf), int(fixed.sum())))))
+
+
+def _walk(data: bytes, msgtype: str) -> dict[str, Any] | None:
+    """Where the stamps and float64 values of one little-endian CDR ``JointState`` or one-point ``JointTrajectory`` lie, or None.
+
+    ``varying`` marks the bytes that hold values (stamps, floats): every other byte is the layout's (lengths, names, padding).
+    """
+    if data[:4] != b"\x00\x01\x00\x00":
+        return None
+    size, pos = len(data), 4
+    varying = np.zeros(size, dtype=bool)
+    out: dict[str, Any] = {"times": {}, "arrays": {}, "strings": {}, "varying": varying}
+
+    def align(at: int, n: int) -> int:
+        return 4 + ((at - 4 + n - 1) & -n)
+
+    def u32(at: int) -> int:
+        return int(struct.unpack_from("<I", data, at)[0])
+
+    def text(at: int) -> tuple[str, int]:
+        at = align(at, 4)
+        n = u32(at)
+        return data[at + 4 : at + 3 + n].decode(), at + 4 + n
+
+    def time(name: str) -> None:
+        nonlocal pos
+        pos = align(pos, 4)
+        out["times"][name] = pos
+        varying[pos : pos + 8] = True
+        pos += 8
+
+    def doubles(name: str) -> None:
+        nonlocal pos
+        pos = align(pos, 4)
+        n = u32(pos)
+        pos = align(pos + 4, 8) if n else pos + 4
+        out["arrays"][name] = (pos, n)
+        varying[pos : pos + 8 * n] = True
+        pos += 8 * n
+
+    time("stamp")
+    _, pos = text(pos)
+    pos = align(pos, 4)
+    count, pos = u32(pos), pos + 4
+    items = []
+    for _ in range(count):
+        item, pos = text(pos)
+        items.append(item)
+    out["strings"]["joint_names" if msgtype == TRAJECTORY else "name"] = items
+    if msgtype == TRAJECTORY:
+        pos = align(pos, 4)
+        if u32(pos) != 1:
+            return None
+        pos += 4
+        for name in ("positions", "velocities", "accelerations", "effort"):
+            doubles(name)
+        time("time_from_start")
+    else:
+        for name in ("position", "velocity", "effort"):
+            doubles(name)
+    return out if pos == size else None

@@ -177,6 +177,25 @@ def test_mcap_file_holds_rosbags_messages_and_indexes_them(tmp_path: Path, refer
         jointlogs.read(tmp_path / "cut.mcap")
 
 
+@pytest.mark.parametrize("reference", [True, False])
+def test_sqlite_bag_read_as_columns_is_the_per_message_log(tmp_path: Path, reference: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A ROS 2 sqlite3 bag of one layout per topic is read as columns: bit for bit the per-message reader's log."""
+    from ilic_cli.io import jointros
+
+    log = _log(reference)
+    jointlogs.write_bag(log, tmp_path / "bag", "sqlite3")
+    fast = jointros._sqlite_columns(tmp_path / "bag", None, None)
+    chosen = jointros._sqlite_columns(tmp_path / "bag", None, ["c", "a"])  # joints asked for in another order: their own columns
+    assert chosen is not None and np.array_equal(chosen.q, log.q[[2, 0]]) and np.array_equal(chosen.tau, log.tau[[2, 0]])
+    assert not reference or all(np.array_equal(getattr(chosen, r), getattr(log, r)[[2, 0]]) for r in ("q_ref", "qd_ref", "qdd_ref"))
+    monkeypatch.setattr(jointros, "_sqlite_columns", lambda *args: None)
+    slow = jointros.read_ros(tmp_path / "bag")
+    assert fast is not None and (fast.joints, fast.kinds, fast.meta) == (slow.joints, slow.kinds, slow.meta)
+    for name in ("t", "q", "tau", "q_ref", "qd_ref", "qdd_ref"):
+        a, b = getattr(fast, name), getattr(slow, name)
+        assert (a is None and b is None) if not reference and name.endswith("ref") else np.array_equal(a, b), name
+
+
 def test_mcap_file_of_a_log_starting_before_time_zero_is_refused(tmp_path: Path) -> None:
     log = _log()
     early = JointLog(t=log.t - 13.0, joints=log.joints, kinds=log.kinds, q=log.q, tau=log.tau)
