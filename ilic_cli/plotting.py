@@ -101,16 +101,16 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
     if report.ls is not None and report.ls.y is not None and report.ls.y_hat is not None:
         fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
         t_rows = report.ls.t if report.ls.t is not None else np.arange(len(report.ls.y))
-        t, y_hat = broken_at_gaps(t_rows, report.ls.y_hat)
+        error = report.ls.y - report.ls.y_hat
+        models = [(i, cl.method, cl.y_hat) for i, cl in enumerate(report.closed_loop()) if cl.y_hat is not None and len(cl.y_hat) == len(t_rows)]
+        t, y_hat, y, error_b, *cl_hats = broken_at_gaps(t_rows, report.ls.y_hat, report.ls.y, error, *(hat for _, _, hat in models))
         ax1.plot(t, y_hat, lw=1.4, color="C1", label="IDIM-LS model")
-        for i, cl in enumerate(report.closed_loop()):
-            if cl.y_hat is not None and len(cl.y_hat) == len(t_rows):
-                ax1.plot(t, broken_at_gaps(t_rows, cl.y_hat)[1], lw=1.0, ls="--", color=f"C{i + 4}", label=f"{cl.method} model")
-        ax1.plot(t, broken_at_gaps(t_rows, report.ls.y)[1], lw=0.6, color="C0", label="measured (decimated)")
+        for (i, method, _), cl_hat in zip(models, cl_hats, strict=True):
+            ax1.plot(t, cl_hat, lw=1.0, ls="--", color=f"C{i + 4}", label=f"{method} model")
+        ax1.plot(t, y, lw=0.6, color="C0", label="measured (decimated)")
         ax1.set_ylabel("force (N)")
         ax1.legend(fontsize=8)
-        error = report.ls.y - report.ls.y_hat
-        ax2.plot(t, broken_at_gaps(t_rows, error)[1], lw=0.8, color="C3")
+        ax2.plot(t, error_b, lw=0.8, color="C3")
         edges = edge_rows(len(error))
         scale_y(ax2, error[edges : len(error) - edges])
         mark_edges(ax2, t_rows, edges)

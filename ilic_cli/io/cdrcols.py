@@ -22,20 +22,30 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.io.rosschema import JOINT_STATE, STRING, TRAJECTORY_POINT
+from ilic_cli.io.rosschema import JOINT_STATE, STRING, TRAJECTORY, TRAJECTORY_POINT
 
 LITTLE_ENDIAN = b"\x00\x01\x00\x00"
 """CDR encapsulation header of a little-endian plain CDR message."""
 
-# field kinds, in message order
+# field kinds, in message order (``one``: a sequence's length, which must be 1)
+_POINT: tuple[tuple[str, str], ...] = (
+    ("f64s", "positions"),
+    ("f64s", "velocities"),
+    ("f64s", "accelerations"),
+    ("f64s", "effort"),
+    ("time", "time_from_start"),
+)
 _FIELDS: dict[str, tuple[tuple[str, str], ...]] = {
     JOINT_STATE: (("time", "stamp"), ("string", "frame_id"), ("strings", "name"), ("f64s", "position"), ("f64s", "velocity"), ("f64s", "effort")),
-    TRAJECTORY_POINT: (("f64s", "positions"), ("f64s", "velocities"), ("f64s", "accelerations"), ("f64s", "effort"), ("time", "time_from_start")),
+    TRAJECTORY_POINT: _POINT,
     STRING: (("string", "data"),),
+    TRAJECTORY: (("time", "stamp"), ("string", "frame_id"), ("strings", "joint_names"), ("one", "points"), *_POINT),
 }
 
-FAST_TYPES = frozenset(_FIELDS)
-"""Message types whose runs can be decoded and encoded as columns."""
+FAST_TYPES = frozenset({JOINT_STATE, TRAJECTORY_POINT, STRING})
+"""Message types whose runs the one-joint collector decodes and encodes as columns. :func:`layout` walks a one-point
+``JointTrajectory`` too (an arm's reference, :mod:`ilic_cli.io.jointros`), which that collector does not take as columns:
+its trajectories may hold any number of points."""
 
 MAX_STRINGS = 4096
 """Most strings in one ``name`` list that a layout accepts."""
@@ -115,6 +125,11 @@ def layout(data: bytes, msgtype: str) -> Layout | None:
             if got is None:
                 return None
             strings[name], pos = got
+        elif kind == "one":
+            pos = align(pos, 4)
+            if u32(pos) != 1:
+                return None
+            pos += 4
         elif kind == "strings":
             pos = align(pos, 4)
             count = u32(pos)

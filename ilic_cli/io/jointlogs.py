@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import jointros, rosschema
+from ilic_cli.io import cdrcols, jointros, rosschema
 from ilic_cli.io.jointparts import METADATA, REFERENCE, STATES, is_joints_metadata
 from ilic_cli.io.jointparts import joint_log as _log
 from ilic_cli.io.jointparts import joint_types as _types
@@ -428,40 +428,45 @@ def _own_mcap(path: Path, kinds: Mapping[str, str] | None) -> JointLog | None:
         reference = channels.get(REFERENCE) == (2, TRAJECTORY)
         if len(channels) != 2 + reference or any(c.compression for c in summary.chunk_indexes):
             return None
-        text = jointros.mcap_metadata_text(path)
-        meta = json.loads(text) if text else {}
-        declared = dict(meta.get("joints") or []) if isinstance(meta, dict) and is_joints_metadata(meta) else {}
-        names = list(declared)
-        if not names:
-            return None
-        template, fields, _ = _layouts(names, reference)
-        size = len(template)
-        fixed = np.ones(size, dtype=bool)
-        for what, at, n in fields:
-            fixed[at : at + (16 if what == "time" else 8 if what == "stamp" else 8 * n)] = False
-        expected = np.frombuffer(template, dtype=np.uint8)[fixed]
-        parts: list[np.ndarray] = []
-        for index in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset):
-            f.seek(index.chunk_start_offset)
-            head = f.read(CHUNK_HEAD.size + 4)
-            opcode, _, _, _, raw_size, _, name_length = (*CHUNK_HEAD.unpack_from(head), struct.unpack_from("<I", head, CHUNK_HEAD.size)[0])
-            f.seek(name_length + 8, 1)
-            records = np.frombuffer(f.read(raw_size), dtype=np.uint8)
-            if opcode != 0x06 or len(records) != raw_size:
-                return None
-            if not parts:  # the first chunk starts with the metadata's record
-                records = records[9 + int(records[1:9].view("<u8")[0]) :]
-            if len(records) % size:
-                return None
-            rows = records.reshape(-1, size)
-            if not np.array_equal(rows[:, fixed], np.broadcast_to(expected, (len(rows), len(expected)))):
-                return None
-            parts.append(rows)
-    rows = np.concatenate(parts) if parts else np.empty((0, size), dtype=np.uint8)
-    stamp = next(at for what, at, _ in fields if what == "stamp")
-    ns = rows[:, stamp : stamp + 4].copy().view("<i4")[:, 0].astype(np.int64) * 1_000_000_000 + rows[:, stamp + 4 : stamp + 8].copy().view("<u4")[:, 0]
-    values = [rows[:, at : at + 8 * n].copy().view("<f8").T for what, at, n in fields if what == "values"]
+        read = [_chunk_records(f, c.chunk_start_offset) for c in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)]
+    chunks = [r for r in read if r is not None]
+    if not chunks or len(chunks) != len(read):
+        return None
+    # the first chunk starts with the metadata's record (opcode, length; channel, sequence, log and publish times; its CDR)
+    first = chunks[0]
+    end = 9 + int(first[1:9].view("<u8")[0])
+    if int(first[9:11].view("<u2")[0]) != channels[METADATA][0]:
+        return None
+    meta = json.loads(jointros.cdr_string(bytes(first[31:end])))
+    declared = dict(meta.get("joints") or []) if isinstance(meta, dict) and is_joints_metadata(meta) else {}
+    names = list(declared)
+    if not names:
+        return None
+    template, fields, _ = _layouts(names, reference)
+    size = len(template)
+    fixed = np.ones(size, dtype=bool)
+    for what, at, n in fields:
+        fixed[at : at + (16 if what == "time" else 8 if what == "stamp" else 8 * n)] = False
+    expected = np.frombuffer(template, dtype=np.uint8)[fixed]
+    records = np.concatenate([first[end:], *chunks[1:]])
+    if len(records) % size:
+        return None
+    rows = records.reshape(-1, size)
+    if not np.array_equal(rows[:, fixed], np.broadcast_to(expected, (len(rows), len(expected)))):
+        return None
+    count, stamp = len(rows), next(at for what, at, _ in fields if what == "stamp")
+    values = [cdrcols.column(records, at, size, count, "<f8", n, copy=False).T for what, at, n in fields if what == "values"]
     found = {"q": dict(zip(names, values[0])), "tau": dict(zip(names, values[1]))}
     refs: dict[str, np.ndarray | None] = {r: np.ascontiguousarray(v) for r, v in zip(REFERENCES, values[2:])} if reference else dict.fromkeys(REFERENCES)
     types, kept = _types(names, declared, kinds, meta.get("meta") or {})
-    return _log(path, ns.astype(np.float64) * 1e-9, names, types, found, refs, kept)
+    return _log(path, cdrcols.times_ns(records, stamp, size, count).astype(np.float64) * 1e-9, names, types, found, refs, kept)
+
+
+def _chunk_records(f: Any, offset: int) -> np.ndarray | None:
+    """The records of the uncompressed chunk at ``offset`` (after its opcode, length, times, size, CRC and compression), or None."""
+    f.seek(offset)
+    head = f.read(CHUNK_HEAD.size + 4)
+    opcode, _, _, _, raw_size, _ = CHUNK_HEAD.unpack_from(head)
+    f.seek(struct.unpack_from("<I", head, CHUNK_HEAD.size)[0] + 8, 1)  # the compression's name, the records' length
+    records = np.frombuffer(f.read(raw_size), dtype=np.uint8)
+    return records if opcode == 0x06 and len(records) == raw_size else None

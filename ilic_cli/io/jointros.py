@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.errors import LogError
-from ilic_cli.io import rosschema
+from ilic_cli.io import cdrcols, rosschema
 from ilic_cli.io.jointparts import METADATA, REFERENCE, STATES, is_joints_metadata, joint_log, joint_types, stored_metadata
 from ilic_cli.io.rosschema import JOINT_STATE, STRING, TRAJECTORY
 from ilic_cli.jointlog import REFERENCES, JointLog
@@ -218,12 +218,12 @@ def _metadata_text(path: Path) -> str | None:
     if path.is_dir():
         dbs, mcaps = sorted(path.glob("*.db3")), sorted(path.glob("*.mcap"))
         if len(dbs) + len(mcaps) == 1:  # one uncompressed storage file: read directly (rosbags' metadata.yaml parse costs 10-20 ms)
-            return _sqlite_metadata(dbs[0]) if dbs else mcap_metadata_text(mcaps[0])
+            return _sqlite_metadata(dbs[0]) if dbs else _mcap_metadata(mcaps[0])
         from rosbags.rosbag2 import Reader as Reader2  # deferred: a bag folder only
 
         with Reader2(path) as bag:
             connections = [c for c in bag.connections if c.topic == METADATA and c.msgtype == STRING]
-            return next((_cdr_string(raw) for _, _, raw in bag.messages(connections=connections)), None) if connections else None
+            return next((cdr_string(raw) for _, _, raw in bag.messages(connections=connections)), None) if connections else None
     if path.suffix.lower() == ".bag":
         from rosbags.rosbag1 import Reader as Reader1  # deferred: a ROS 1 bag only
 
@@ -233,28 +233,33 @@ def _metadata_text(path: Path) -> str | None:
                 (length,) = struct.unpack_from("<I", raw)
                 return bytes(raw[4 : 4 + length]).decode()
             return None
-    return mcap_metadata_text(path)
+    return _mcap_metadata(path)
 
 
-def mcap_metadata_text(path: Path) -> str | None:
+def _mcap_metadata(path: Path) -> str | None:
     """The text of the first ``/ilic/metadata`` message of an MCAP file (None: it has none)."""
     from mcap.reader import make_reader  # deferred: an MCAP file only
 
     with path.open("rb") as f:
-        return next((_cdr_string(m.data) for _, _, m in make_reader(f).iter_messages(topics=[METADATA])), None)
+        return next((cdr_string(m.data) for _, _, m in make_reader(f).iter_messages(topics=[METADATA])), None)
 
 
 def _sqlite_metadata(path: Path) -> str | None:
     """The text of the first ``/ilic/metadata`` message of a ROS 2 bag's sqlite3 storage (None: it has none)."""
     import sqlite3  # deferred: a ROS 2 sqlite3 bag only (its reader imports it too)
 
-    query = "SELECT m.data FROM messages m JOIN topics t ON m.topic_id = t.id WHERE t.name = ? AND t.type = ? ORDER BY m.timestamp, m.id LIMIT 1"
     with contextlib.closing(sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)) as db:
-        row = db.execute(query, (METADATA, STRING)).fetchone()
-    return None if row is None else _cdr_string(bytes(row[0]))
+        return _sqlite_metadata_in(db)
 
 
-def _cdr_string(raw: bytes) -> str:
+def _sqlite_metadata_in(db: Any) -> str | None:
+    """The text of the first ``/ilic/metadata`` message in an open ROS 2 sqlite3 storage (None: it has none)."""
+    query = "SELECT m.data FROM messages m JOIN topics t ON m.topic_id = t.id WHERE t.name = ? AND t.type = ? ORDER BY m.timestamp, m.id LIMIT 1"
+    row = db.execute(query, (METADATA, STRING)).fetchone()
+    return None if row is None else cdr_string(bytes(row[0]))
+
+
+def cdr_string(raw: bytes) -> str:
     """A ``std_msgs/msg/String`` in CDR: the encapsulation header (its second byte: 1 little endian), the length with the NUL, the bytes."""
     (length,) = struct.unpack_from("<I" if raw[1] & 1 else ">I", raw, 4)
     return bytes(raw[8 : 8 + length - 1]).decode()
@@ -264,7 +269,7 @@ def _sqlite_columns(path: Path, kinds: Mapping[str, str] | None, joints: Sequenc
     """A ROS 2 sqlite3 bag read as columns: the same log as :func:`read_ros`'s message by message, or None.
 
     Each topic's messages are fetched in one query; when they all have the first one's size and its bytes wherever
-    it holds no value (:func:`_walk`: the names, lengths, padding), the stamps and values are strided views of the
+    it holds no value (:func:`ilic_cli.io.cdrcols.layout`: the names, lengths, padding), the stamps and values are strided views of the
     joined blobs (a 10-minute 6-joint bag: some 40 times faster). None for anything else (several storage files, another
     layout, a topic the per-message reader would refuse or read otherwise): that reader takes it and says what is wrong.
     """
@@ -296,108 +301,42 @@ def _sqlite_read(path: Path, kinds: Mapping[str, str] | None, joints: Sequence[s
             return np.array([ts for ts, _ in got], dtype=np.int64), np.frombuffer(b"".join(d for _, d in got), dtype=np.uint8).reshape(len(got), -1)
 
         state = rows(states[0])
-        meta_rows = (
-            db.execute("SELECT m.data FROM messages m WHERE m.topic_id = ? ORDER BY m.timestamp, m.id LIMIT 1", (topics[METADATA][0],)).fetchall()
-            if topics.get(METADATA, (0, ""))[1] == STRING
-            else []
-        )
+        text = _sqlite_metadata_in(db)
         reference = rows(REFERENCE) if topics.get(REFERENCE, (0, ""))[1] == TRAJECTORY else None
     if state is None:
         return None
     log_ns, buf = state
-    lay = _walk(bytes(buf[0]), JOINT_STATE)
-    if lay is None or not _same_layout(buf, lay):
+    lay = _one_layout(buf, JOINT_STATE)
+    if lay is None:
         return None
-    name = lay["strings"]["name"]
+    name = lay.strings["name"]
     names = list(joints) if joints is not None else list(name)
-    (p_at, p_n), (e_at, e_n) = lay["arrays"]["position"], lay["arrays"]["effort"]
+    (p_at, p_n), (e_at, e_n) = lay.arrays["position"], lay.arrays["effort"]
     if any(j not in name for j in names) or e_n < len(name) or p_n < len(name):
         return None
     order = np.array([name.index(j) for j in names], dtype=np.intp)
-    meta = json.loads(_cdr_string(bytes(meta_rows[0][0]))) if meta_rows else {}
+    meta = json.loads(text) if text is not None else {}
     if not isinstance(meta, dict):
         return None
     refs: dict[str, np.ndarray | None] = dict.fromkeys(REFERENCES)
     if reference is not None and len(reference[0]) == len(log_ns) and reference[0][0] >= log_ns[0]:
-        ref_lay = _walk(bytes(reference[1][0]), TRAJECTORY)
-        if ref_lay is None or not _same_layout(reference[1], ref_lay) or not set(names) <= set(ref_lay["strings"]["joint_names"]):
+        ref_lay = _one_layout(reference[1], TRAJECTORY)
+        if ref_lay is None or not set(names) <= set(ref_lay.strings["joint_names"]):
             return None
-        idx = np.array([list(ref_lay["strings"]["joint_names"]).index(j) for j in names], dtype=np.intp)
-        refs = {r: _values(reference[1], *ref_lay["arrays"][f])[:, idx].T.copy() for r, f in zip(REFERENCES, ("positions", "velocities", "accelerations"))}
-    at = lay["times"]["stamp"]
-    ns = buf[:, at : at + 4].copy().view("<i4")[:, 0].astype(np.int64) * 1_000_000_000 + buf[:, at + 4 : at + 8].copy().view("<u4")[:, 0]
+        idx = np.array([list(ref_lay.strings["joint_names"]).index(j) for j in names], dtype=np.intp)
+        refs = {r: _values(reference[1], *ref_lay.arrays[f])[:, idx].T.copy() for r, f in zip(REFERENCES, ("positions", "velocities", "accelerations"))}
+    ns = cdrcols.times_ns(buf.reshape(-1), lay.times["stamp"], lay.size, len(buf))
     found = {"q": dict(zip(names, _values(buf, p_at, p_n)[:, order].T)), "tau": dict(zip(names, _values(buf, e_at, e_n)[:, order].T))}
     types, kept = joint_types(names, dict(meta.get("joints") or []), kinds, meta.get("meta") or {})
     return joint_log(path, ns.astype(np.float64) * 1e-9, names, types, found, refs, kept)
 
 
 def _values(buf: np.ndarray, at: int, n: int) -> np.ndarray:
-    """The float64 sequence of ``n`` values at byte ``at`` of every message (rows of ``buf``)."""
-    return buf[:, at : at + 8 * n].copy().view("<f8")
+    """The ``n`` float64 values at byte ``at`` of every message (rows of ``buf``), as a (messages, n) view."""
+    return cdrcols.column(buf.reshape(-1), at, buf.shape[1], len(buf), "<f8", n, copy=False)
 
 
-def _same_layout(buf: np.ndarray, lay: dict[str, Any]) -> bool:
-    """Whether every message (row) has the first one's bytes wherever the layout holds no value."""
-    fixed = ~lay["varying"]
-    return bool(np.array_equal(buf[:, fixed], np.broadcast_to(buf[0, fixed], (len(buf), int(fixed.sum())))))
-
-
-def _walk(data: bytes, msgtype: str) -> dict[str, Any] | None:
-    """Where the stamps and float64 values of one little-endian CDR ``JointState`` or one-point ``JointTrajectory`` lie, or None.
-
-    ``varying`` marks the bytes that hold values (stamps, floats): every other byte is the layout's (lengths, names, padding).
-    """
-    if data[:4] != b"\x00\x01\x00\x00":
-        return None
-    size, pos = len(data), 4
-    varying = np.zeros(size, dtype=bool)
-    out: dict[str, Any] = {"times": {}, "arrays": {}, "strings": {}, "varying": varying}
-
-    def align(at: int, n: int) -> int:
-        return 4 + ((at - 4 + n - 1) & -n)
-
-    def u32(at: int) -> int:
-        return int(struct.unpack_from("<I", data, at)[0])
-
-    def text(at: int) -> tuple[str, int]:
-        at = align(at, 4)
-        n = u32(at)
-        return data[at + 4 : at + 3 + n].decode(), at + 4 + n
-
-    def time(name: str) -> None:
-        nonlocal pos
-        pos = align(pos, 4)
-        out["times"][name] = pos
-        varying[pos : pos + 8] = True
-        pos += 8
-
-    def doubles(name: str) -> None:
-        nonlocal pos
-        pos = align(pos, 4)
-        n = u32(pos)
-        pos = align(pos + 4, 8) if n else pos + 4
-        out["arrays"][name] = (pos, n)
-        varying[pos : pos + 8 * n] = True
-        pos += 8 * n
-
-    time("stamp")
-    _, pos = text(pos)
-    pos = align(pos, 4)
-    count, pos = u32(pos), pos + 4
-    items = []
-    for _ in range(count):
-        item, pos = text(pos)
-        items.append(item)
-    out["strings"]["joint_names" if msgtype == TRAJECTORY else "name"] = items
-    if msgtype == TRAJECTORY:
-        pos = align(pos, 4)
-        if u32(pos) != 1:
-            return None
-        pos += 4
-        for name in ("positions", "velocities", "accelerations", "effort"):
-            doubles(name)
-        time("time_from_start")
-    else:
-        for name in ("position", "velocity", "effort"):
-            doubles(name)
-    return out if pos == size else None
+def _one_layout(buf: np.ndarray, msgtype: str) -> cdrcols.Layout | None:
+    """The first message's layout (:func:`ilic_cli.io.cdrcols.layout`) when every message (row of ``buf``) keeps it, else None."""
+    lay = cdrcols.layout(bytes(buf[0]), msgtype)
+    return lay if lay is not None and cdrcols.matching_rows(buf.reshape(-1), 0, buf.shape[1], len(buf), lay) == len(buf) else None
