@@ -31,6 +31,15 @@ GAP_FACTOR = 1.5
 """A step of the time axis longer than this many times its median step is a gap: the plotted lines break there."""
 
 
+def gap_starts(t: np.ndarray) -> np.ndarray:
+    """Index of the first sample after each gap of ``t``: a step longer than :data:`GAP_FACTOR` times its median step."""
+    t = np.asarray(t, dtype=np.float64)
+    if len(t) < 3:
+        return np.zeros(0, dtype=np.intp)
+    dt = np.diff(t)
+    return np.flatnonzero(dt > GAP_FACTOR * float(np.median(dt))) + 1
+
+
 def broken_at_gaps(t: np.ndarray, *series: np.ndarray) -> tuple[np.ndarray, ...]:
     """``t`` and each of ``series`` with a NaN put in every gap of ``t`` (:data:`GAP_FACTOR`), so a line is not drawn across it.
 
@@ -39,10 +48,7 @@ def broken_at_gaps(t: np.ndarray, *series: np.ndarray) -> tuple[np.ndarray, ...]
     """
     t = np.asarray(t, dtype=np.float64)
     out = [np.asarray(y, dtype=np.float64) for y in series]
-    if len(t) < 3:
-        return (t, *out)
-    dt = np.diff(t)
-    at = np.flatnonzero(dt > GAP_FACTOR * float(np.median(dt))) + 1
+    at = gap_starts(t)
     if not len(at):
         return (t, *out)
     mid = 0.5 * (t[at - 1] + t[at])
@@ -112,7 +118,7 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         ax1.legend(fontsize=8)
         ax2.plot(t, error_b, lw=0.8, color="C3")
         edges = edge_rows(len(error))
-        scale_y(ax2, error[edges : len(error) - edges])
+        scale_y(ax2, error[scaled_rows(t_rows, edges)])
         mark_edges(ax2, t_rows, edges)
         ax2.set_ylabel("error (N)")
         ax2.set_xlabel("t (s)")
@@ -169,11 +175,27 @@ def scale_y(ax, values: np.ndarray, margin: float = 0.08) -> None:
     ax.set_ylim(lo - pad, hi + pad)
 
 
+def edge_spans(t: np.ndarray, edges: int) -> list[tuple[int, int]]:
+    """The rows ``[a, b)`` left out of an error axis's scale: ``edges`` at both ends of each contiguous part of ``t`` (split at
+    :func:`gap_starts`), where each part's filters start and end (a log with gaps is fitted part by part)."""
+    bounds = [0, *gap_starts(t).tolist(), len(t)]
+    return [span for a, b in zip(bounds[:-1], bounds[1:]) if edges > 0 and b - a > 2 * edges for span in ((a, a + edges), (b - edges, b))]
+
+
+def scaled_rows(t: np.ndarray, edges: int) -> np.ndarray:
+    """True for the rows an error axis is scaled on: every row but :func:`edge_spans`'."""
+    keep = np.ones(len(t), dtype=bool)
+    for a, b in edge_spans(t, edges):
+        keep[a:b] = False
+    return keep
+
+
 def mark_edges(ax, t: np.ndarray, edges: int) -> None:
-    """Shade the rows left out of the scale at both ends."""
-    if edges > 0 and len(t) > 2 * edges:
-        ax.axvspan(t[0], t[edges], color="0.85", zorder=0, label="edges (not scaled)")
-        ax.axvspan(t[-edges - 1], t[-1], color="0.85", zorder=0)
+    """Shade the rows left out of the scale (:func:`edge_spans`)."""
+    spans = edge_spans(t, edges)
+    for k, ((a, b), (c, d)) in enumerate(zip(spans[::2], spans[1::2], strict=True)):  # a part's start, then its end
+        ax.axvspan(t[a], t[b], color="0.85", zorder=0, label="edges (not scaled)" if k == 0 else None)
+        ax.axvspan(t[c - 1], t[d - 1], color="0.85", zorder=0)
 
 
 def plot_joint_torques(
@@ -204,7 +226,7 @@ def plot_joint_torques(
         ax1.legend(fontsize=8, loc="upper right")
         ax2.plot(tb, residualb, lw=0.7, color="C3", label="residual (measured − model)")
         edges = edge_rows(len(residual))
-        scale_y(ax2, residual[edges : len(residual) - edges])
+        scale_y(ax2, residual[scaled_rows(tj, edges)])
         mark_edges(ax2, tj, edges)
         ax2.set_ylabel(f"residual ({unit})")
         ax2.set_xlabel("t (s)")

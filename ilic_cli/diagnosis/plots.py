@@ -10,7 +10,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.io.atomic import atomic_path
-from ilic_cli.plotting import edge_rows, mark_edges, scale_y
+from ilic_cli.plotting import edge_rows, mark_edges, scale_y, scaled_rows
 from ilic_cli.spectra import welch_psd
 
 if TYPE_CHECKING:
@@ -89,7 +89,8 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
         axes[1].plot(t, diffs[1], lw=0.5, label="augmented")
         axes[1].set_ylabel("IDIM residual (N)")
     edges = edge_rows(len(t))
-    scale_y(axes[1], np.concatenate([d[edges : len(d) - edges] for d in diffs]))
+    keep = scaled_rows(t, edges)
+    scale_y(axes[1], np.concatenate([d[keep] for d in diffs]))
     mark_edges(axes[1], t, edges)
     axes[1].legend(loc="upper right")
     axes[1].set_xlabel("time (s)")

@@ -30,3 +30,13 @@ def test_an_arms_torque_plot_is_broken_at_the_gap(tmp_path: Path, monkeypatch: p
     lines = [line for ax in figures[0].axes for line in ax.get_lines()]
     assert len(lines) == 3 and all(int(np.isnan(np.asarray(line.get_ydata(), dtype=float)).sum()) == 1 for line in lines)
     plotting._pyplot().close("all")
+
+
+def test_the_error_scale_leaves_out_each_parts_edges() -> None:
+    """The filters start and end at a gap as at the log's ends: the rows there are out of an error axis's scale."""
+    t = np.concatenate([np.arange(100) * 0.01, 2.0 + np.arange(100) * 0.01])
+    assert plotting.edge_spans(t, 3) == [(0, 3), (97, 100), (100, 103), (197, 200)]
+    keep = plotting.scaled_rows(t, 3)
+    assert keep.sum() == 200 - 12 and not keep[97:103].any() and keep[3:97].all()
+    # without a gap, the log's two ends as before
+    assert plotting.edge_spans(np.arange(50) * 0.01, 2) == [(0, 2), (48, 50)]
