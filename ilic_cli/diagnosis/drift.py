@@ -42,7 +42,7 @@ import numpy as np
 from ilic_cli.diagnosis.drift_windows import WINDOWS, WindowEstimates, estimable_windows
 from ilic_cli.diagnosis.search import minimise
 from ilic_cli.diagnosis.select import Evaluation, SelectSettings
-from ilic_cli.diagnosis.stats import FTest, blocked_folds, diebold_mariano, heldout_errors, nested_f_test
+from ilic_cli.diagnosis.stats import FTest, blocked_folds, heldout_errors, heldout_fall_p, nested_f_test
 from ilic_cli.effects import Estimate
 from ilic_cli.lsq import finite_or_none, lstsq, relative_error_pct
 
@@ -345,7 +345,7 @@ def heldout_check(
     h0 = heldout_errors(W, y, blocks)
     W1 = np.c_[W, drift_columns(t, W, names, trends, start)]
     h1 = heldout_errors(W1, y, blocks)
-    return relative_error_pct(y, y - h0), relative_error_pct(y, y - h1), float(diebold_mariano(h0, h1))
+    return relative_error_pct(y, y - h0), relative_error_pct(y, y - h1), float(heldout_fall_p(h0, h1))
 
 
 def relative_error_with(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], trends: list[Trend], start: float) -> float:

@@ -35,7 +35,7 @@ from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
 from ilic_cli.diagnosis.replay_again import Heldout, judged_again
 from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, minimise, search_range
 from ilic_cli.diagnosis.sensor import recorded_sensor
-from ilic_cli.diagnosis.stats import blocked_folds, diebold_mariano
+from ilic_cli.diagnosis.stats import blocked_folds, heldout_fall_p
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
 from ilic_cli.diagnosis.system import Step, SystemFit, fit_system, system
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull, ReplayVerdict, Verdict
@@ -358,7 +358,7 @@ class _Folds:
         proposed_here = st.level is not None
         fb, fa = _rel(current[0], self.tau_dec, self.idx_tau), _rel(after[0], self.tau_dec, self.idx_tau)
         pb, pa = _rel(current[1], self.q, self.idx_q), _rel(after[1], self.q, self.idx_q)
-        p_dm = p = diebold_mariano(current[0], after[0])
+        p_dm = p = heldout_fall_p(current[0], after[0])
         mc, significant = None, p < alpha
         judged, searched = st, ""
         if proposed_here:

@@ -29,7 +29,7 @@ from ilic_cli.diagnosis.search import (
     minimise,
     search_range,
 )
-from ilic_cli.diagnosis.stats import FTest, blocked_folds, diebold_mariano, heldout_errors, nested_f_test
+from ilic_cli.diagnosis.stats import FTest, blocked_folds, heldout_errors, heldout_fall_p, nested_f_test
 from ilic_cli.diagnosis.system import Step, SystemFit, effect_columns, extended, fit_system, moving_rows, shifted_force, system
 from ilic_cli.diagnosis.verdicts import Selection
 from ilic_cli.effects import EFFECTS, Effect, applicable, catalogue_ids
@@ -349,7 +349,7 @@ def _heldout_judged(
     e_before = heldout_errors(W, y, folds)
     e_after = _heldout_candidate(searcher, eff, W, y, folds, ev.value, at)
     before, after = relative_error_pct(y, y - e_before), relative_error_pct(y, y - e_after)
-    p_cv = diebold_mariano(e_before, e_after)
+    p_cv = heldout_fall_p(e_before, e_after)
     vb = va = None
     if validation is not None:
         data, vdata, base, prior = validation

@@ -233,24 +233,70 @@ def heldout_errors(W: np.ndarray, y: np.ndarray, folds: list[tuple[np.ndarray, n
     return e
 
 
-def diebold_mariano(e_before: np.ndarray, e_after: np.ndarray) -> float:
+LOSSES = ("squared", "absolute")
+"""The losses of the held-out test (:func:`heldout_fall_p`)."""
+
+
+def _differentials(e_before: np.ndarray, e_after: np.ndarray, losses: tuple[str, ...]) -> np.ndarray:
+    """The loss differentials (one column per loss: ``e_before^2 - e_after^2``, ``|e_before| - |e_after|``) on the finite samples."""
+    cols = [e_before**2 - e_after**2 if loss == "squared" else np.abs(e_before) - np.abs(e_after) for loss in losses]
+    d = np.stack(cols, axis=1)
+    return d[np.isfinite(d).all(axis=1)]
+
+
+def _long_run_covariance(d: np.ndarray) -> np.ndarray:
+    """Newey-West (Bartlett) long-run covariance of the columns of ``d`` with ``floor(4 (n/100)^(2/9))`` lags."""
+    n = len(d)
+    dc = d - d.mean(axis=0)
+    lags = int(4 * (n / 100.0) ** (2.0 / 9.0))
+    S = dc.T @ dc / n
+    for k in range(1, lags + 1):
+        G = dc[k:].T @ dc[:-k] / n
+        S = S + (1.0 - k / (lags + 1)) * (G + G.T)
+    return S
+
+
+def diebold_mariano(e_before: np.ndarray, e_after: np.ndarray, loss: str = "squared") -> float:
     """One-sided p-value that the second model predicts better (Diebold-Mariano).
 
-    The loss differential ``d = e_before^2 - e_after^2`` is autocorrelated:
-    its mean's variance is the Newey-West (Bartlett) long-run variance with
+    The loss differential ``d = e_before^2 - e_after^2`` (``loss="absolute"``: ``|e_before| - |e_after|``) is
+    autocorrelated: its mean's variance is the Newey-West (Bartlett) long-run variance with
     ``floor(4 (n/100)^(2/9))`` lags.
     """
-    d = e_before**2 - e_after**2
-    d = d[np.isfinite(d)]
+    d = _differentials(e_before, e_after, (loss,))
     n = len(d)
     if n < 3:
         return 1.0
-    dc = d - d.mean()
-    lags = int(4 * (n / 100.0) ** (2.0 / 9.0))
-    lrv = float(dc @ dc) / n
-    for k in range(1, lags + 1):
-        lrv += 2.0 * (1.0 - k / (lags + 1)) * float(dc[k:] @ dc[:-k]) / n
+    lrv = float(_long_run_covariance(d)[0, 0])
+    mean = float(d[:, 0].mean())
     if lrv <= 0:
-        return 0.0 if d.mean() > 0 else 1.0
-    z = d.mean() / np.sqrt(lrv / n)
-    return float(normal_sf(z))
+        return 0.0 if mean > 0 else 1.0
+    return float(normal_sf(mean / np.sqrt(lrv / n)))
+
+
+def heldout_fall_p(e_before: np.ndarray, e_after: np.ndarray) -> float:
+    """The held-out test: one-sided p-value that ``e_after`` is smaller than ``e_before``, sample by sample.
+
+    The larger of the two Diebold-Mariano statistics, with the squared and with the absolute loss, against its own
+    null distribution: the two ``z`` are jointly normal with the correlation ``rho`` of their long-run covariance, so
+    ``P(max > a) = 1 - Phi_2(a, a; rho) = Q(a) + 2 T(a, sqrt((1 - rho)/(1 + rho)))`` (Owen's ``T``): one test at the
+    level asked, between one loss's p (``rho = 1``) and twice it (``rho = -1``).
+
+    The squared loss has the power where the fall is in a few large errors (an effect that acts at breakaways), the
+    absolute loss where a few large errors set the squared differential's long-run variance: corpus s440, gravity left
+    out of a chirp's replay, held-out force error 18.6 % -> 2.76 %, lower in every block, squared p = 0.019, absolute
+    p = 2.4e-6; s722, a flexibility on the inverse model, 0.299 -> 0.148, squared p = 0.026, absolute p = 2.8e-5.
+    """
+    from scipy.special import owens_t  # deferred: scipy.special is slow to import (ilic --help stays fast)
+
+    d = _differentials(e_before, e_after, LOSSES)
+    n = len(d)
+    if n < 3:
+        return 1.0
+    S = _long_run_covariance(d)
+    if not (S[0, 0] > 0 and S[1, 1] > 0):
+        return min(diebold_mariano(e_before, e_after, loss) for loss in LOSSES)  # a loss without variance: its own rule
+    z = d.mean(axis=0) / np.sqrt(np.diag(S) / n)
+    rho = float(np.clip(S[0, 1] / np.sqrt(S[0, 0] * S[1, 1]), -1.0, 1.0))
+    top = float(z.max())
+    return float(min(1.0, normal_sf(top) + 2.0 * owens_t(top, np.sqrt((1.0 - rho) / (1.0 + rho)) if rho > -1.0 else np.inf)))

@@ -104,7 +104,10 @@ class RefitOutcome(Enum):
         return self in (RefitOutcome.DIDIM, RefitOutcome.NOT_LOWERED, RefitOutcome.OUTPUT_ERROR, RefitOutcome.VALUE_SEARCH)
 
 
-DM_TEST = "Diebold-Mariano, one-sided, Newey-West variance, held-out replay force errors"
+DM_TEST = (
+    "Diebold-Mariano, one-sided, Newey-West variance, the larger of the squared- and absolute-loss statistics against its own null, "
+    "held-out replay force errors"
+)
 
 MC_TEST = "Monte-Carlo null: the kept model simulated in closed loop with the log's noise model, the candidate proposed again on each replicate"
 

@@ -125,9 +125,10 @@ def test_replay_rejects_a_spurious_effect(spurious_and_real: tuple[RunLog, RunLo
     clean, _ = spurious_and_real
     kept, (verdict,) = _decide(clean, Step(EFFECTS["stribeck"], 0.01))
     # noise-free replays: the error did not fall; with the recording's sensor noise, loop-corrected, it falls by 0.12 % of
-    # itself, p = 0.024 (0.03 %, p = 0.35, with the uncorrected estimate): not significant at the replay's level, 0.01
+    # itself, p = 0.024 by the squared loss alone (0.03 %, p = 0.35, with the uncorrected estimate), 0.017 with the absolute
+    # loss's statistic too (a fall that small, in most samples): not significant at the replay's level, 0.01
     assert kept == [] and not verdict.accepted and "rejected by the replay" in verdict.reason, verdict
-    assert verdict.force_after >= verdict.force_before or (verdict.p_value is not None and verdict.p_value > 0.02), verdict
+    assert verdict.force_after >= verdict.force_before or (verdict.p_value is not None and verdict.p_value > 0.015), verdict
 
 
 def test_replay_keeps_a_real_effect(spurious_and_real: tuple[RunLog, RunLog]) -> None:

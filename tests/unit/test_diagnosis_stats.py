@@ -18,6 +18,7 @@ from ilic_cli.diagnosis.stats import (
     f_sf,
     gls_covariance,
     heldout_errors,
+    heldout_fall_p,
     lag1_autocorrelation,
     nested_f_test,
     normal_isf,
@@ -209,6 +210,61 @@ def test_diebold_mariano() -> None:
         assert diebold_mariano(0.01 * e, 0.01 * after) == pytest.approx(p, rel=1e-9)  # scale-free
     with_nan = np.r_[np.nan, e]
     assert diebold_mariano(with_nan, np.r_[0.0, after]) == pytest.approx(diebold_mariano(e, after))
+
+
+def test_the_absolute_loss_sees_a_fall_that_a_few_large_errors_hide_from_the_squared_one() -> None:
+    """A threefold fall in all but 10 of 500 samples, whose errors 20 times the others the candidate moves either way (corpus
+    s440: the held-out error falls in every block, and a few large ones set the squared differential's long-run variance)."""
+    rng = np.random.default_rng(11)
+    n = 500
+    before = rng.standard_normal(n)
+    after = before / 3 + 0.05 * rng.standard_normal(n)
+    k = rng.choice(n, 10, replace=False)
+    before[k] = 20.0
+    after[k] = 20.0 * rng.uniform(0.6, 1.25, 10)
+    p_sq, p_abs = diebold_mariano(before, after), diebold_mariano(before, after, "absolute")
+    assert p_sq > 0.01 and p_abs < 1e-6
+    assert p_abs <= heldout_fall_p(before, after) <= 2 * p_abs  # the larger statistic against its own null: between one p and twice it
+    assert heldout_fall_p(after, before) > 0.9  # a rise: no fall by either loss
+    # either loss alone decides: the squared one where the fall is in a few large errors (a breakaway's)
+    spikes = 0.1 * rng.standard_normal(n)
+    spikes[::50] = 5.0
+    fixed = spikes.copy()
+    fixed[::50] = 0.0
+    least = min(diebold_mariano(spikes, fixed), diebold_mariano(spikes, fixed, "absolute"))
+    assert least <= heldout_fall_p(spikes, fixed) <= 2 * least < 0.01
+
+
+def test_the_held_out_tests_null_is_the_larger_of_two_correlated_normals() -> None:
+    """``P(max(Z1, Z2) > a)`` for ``Z1, Z2`` standard normal with correlation ``rho``: Owen's ``T`` form against numerical integration
+    of ``1 - P(Z1 <= a, Z2 <= a)``; ``rho`` from the long-run covariance of the two differentials."""
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal(800)
+    before, after = x + 0.3 * rng.standard_normal(800), x + 0.3 * rng.standard_normal(800)
+    after[:400] *= 0.9  # a small fall: both statistics near 2
+    d = np.c_[before**2 - after**2, np.abs(before) - np.abs(after)]
+    n, dc = len(d), d - d.mean(axis=0)
+    lags = int(4 * (n / 100) ** (2 / 9))
+    S = dc.T @ dc / n + sum((1 - k / (lags + 1)) * (dc[k:].T @ dc[:-k] + dc[:-k].T @ dc[k:]) / n for k in range(1, lags + 1))
+    z = d.mean(axis=0) / np.sqrt(np.diag(S) / n)
+    rho, a = S[0, 1] / math.sqrt(S[0, 0] * S[1, 1]), z.max()
+    assert 0.3 < rho < 0.99 and 1.0 < a < 4.0
+    inside = stats.multivariate_normal([0.0, 0.0], [[1.0, rho], [rho, 1.0]]).cdf([a, a])
+    assert heldout_fall_p(before, after) == pytest.approx(1.0 - inside, rel=1e-4)
+
+
+def test_the_held_out_test_keeps_its_level_on_equal_models() -> None:
+    """Two equally good predictions (independent AR(1) errors of one variance): p <= 0.05 in at most about 5 % of 400 draws."""
+    rng = np.random.default_rng(2)
+    hits = 0
+    for _ in range(400):
+        w = rng.standard_normal((2, 600))
+        e = np.empty_like(w)
+        e[:, 0] = w[:, 0]
+        for t in range(1, 600):
+            e[:, t] = 0.6 * e[:, t - 1] + w[:, t]
+        hits += heldout_fall_p(e[0], e[1]) <= 0.05
+    assert hits <= 30  # 20 expected at most (Bonferroni), 30 leaves sampling room
 
 
 def test_small_scale_inputs_give_the_same_statistics() -> None:
