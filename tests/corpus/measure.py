@@ -125,11 +125,18 @@ def _reasons(diag: dict[str, Any], eids: Iterable[str]) -> dict[str, str]:
         if verdicts:
             out[eid] = verdicts[-1]["reason"]
         elif eid == "friction_drift" and diag.get("drift"):
-            out[eid] = f"drift test: {diag['drift'].get('reason')}"
+            out[eid] = f"drift test: {diag['drift'].get('reason') or _drift_found(diag['drift'])}"
         else:
             tried = [ev for step in diag.get("selection", []) for ev in step if ev.get("effect") == eid]
             out[eid] = f"inverse model: {tried[-1].get('reason', 'not accepted')}" if tried else "never proposed"
     return out
+
+
+def _drift_found(drift: dict[str, Any]) -> str:
+    """What a drift finding rests on (its reason is empty when found): each trend's parameter, shape and p, and the held-out test."""
+    trends = ", ".join(f"{t.get('parameter')} {t.get('shape')} (p = {t.get('test', {}).get('p_adjusted', math.nan):.2g})" for t in drift.get("findings", []))
+    held = drift.get("heldout_relative_error_pct") or {}
+    return f"found {trends}; held-out {held.get('before', math.nan):.3g} % -> {held.get('after', math.nan):.3g} % (p = {held.get('p_value', math.nan):.2g})"
 
 
 def _indistinct_reasons(findings: list[tuple[str, Any, str | None]], effects: list[str]) -> dict[str, str]:
