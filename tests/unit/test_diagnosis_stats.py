@@ -235,6 +235,20 @@ def test_the_absolute_loss_sees_a_fall_that_a_few_large_errors_hide_from_the_squ
     assert least <= heldout_fall_p(spikes, fixed) <= 2 * least < 0.01
 
 
+def test_the_held_out_test_at_its_edges() -> None:
+    """Too few samples: no evidence (p = 1); three are enough (one lag). A differential without variance: each loss's own rule."""
+    assert heldout_fall_p(np.ones(2), np.zeros(2)) == 1.0
+    three = (np.array([1.0, 2.0, 3.0]), np.array([0.5, 0.9, 1.6]))
+    assert heldout_fall_p(*three) < 1.0
+    assert heldout_fall_p(np.ones(10), np.zeros(10)) == 0.0  # always better by the same amount: certain
+    assert heldout_fall_p(np.ones(10), np.ones(10)) == 1.0  # identical errors: no fall
+    flat_sq = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])  # squared differential constant (1 - 0.25), absolute one too
+    assert heldout_fall_p(flat_sq, 0.5 * flat_sq) == 0.0
+    after = np.tile([0.0, 0.75, -0.75, 0.0, 0.75], 10)
+    before = np.where(after == 0.0, 1.0, 1.25)  # 1.25^2 - 0.75^2 = 1 exactly: the squared differential constant, the absolute one not
+    assert heldout_fall_p(before, after) == 0.0
+
+
 def test_the_held_out_tests_null_is_the_larger_of_two_correlated_normals() -> None:
     """``P(max(Z1, Z2) > a)`` for ``Z1, Z2`` standard normal with correlation ``rho``: Owen's ``T`` form against numerical integration
     of ``1 - P(Z1 <= a, Z2 <= a)``; ``rho`` from the long-run covariance of the two differentials."""
