@@ -9,14 +9,15 @@ are assembled from their typed results.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation
-from ilic_cli.diagnosis.decide import Decision, ReplayVerdict, decide, without_last
-from ilic_cli.diagnosis.drift import DriftResult, detect_drift, with_drift
+from ilic_cli.diagnosis.decide import Decision, ReplayVerdict, decide, replay_drift, without_last
+from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, detect_drift, with_drift
 from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.model_values import effect_fit, model_parameters, model_std, steps_from_effects
@@ -242,7 +243,9 @@ def diagnose(
     res0 = with_std(res0, gls_covariance(base.W, base.y, res0.theta))
     findings = _findings(prop, decision, final, refit)  # 4. the findings, the model file and the figures the report renders
     doc = _model_file(prop, decision, final, refit)
-    diag = _assembled(prop, replace(base, res=res0), decision, final, refit, findings, doc, settings, timing)
+    kept = [*prop.known, *decision.kept]
+    judge = (lambda drift: replay_drift(log, prop, kept, drift, settings, decision.sensor)) if replayed else None
+    diag = _assembled(prop, replace(base, res=res0), decision, final, refit, findings, doc, settings, timing, judge)
     if settings.simulate or against is not None:
         _simulated(diag, log, prop, base, refit, against, settings)
     return diag
@@ -315,8 +318,12 @@ def _assembled(
     doc: dict[str, Any],
     settings: DiagnosisSettings,
     timing: ControlTiming | None,
+    judge_drift: Callable[[GivenDrift], tuple[ReplayVerdict, dict[str, Any] | None]] | None = None,
 ) -> Diagnosis:
-    """The :class:`Diagnosis`: the fit's figures before and after, where the rigid residual is structured, the drift, the weight."""
+    """The :class:`Diagnosis`: the fit's figures before and after, where the rigid residual is structured, the drift, the weight.
+
+    ``judge_drift``: the replay's word on a drift found on the rows (:func:`~ilic_cli.diagnosis.decide.replay_drift`), added to the
+    decisions; a drift it does not keep is no finding, its reason the replay's. ``None``: the log is not replayed."""
     data, rows, fs, sel = prop.data, prop.rows, prop.prepared.fs_hz, prop.select
     W0, y0, res0, W1, y1, res1 = base.W, base.y, base.res, final.W, final.y, final.res
     folds = blocked_folds(len(y0), sel.folds, sel.guard)
@@ -345,6 +352,11 @@ def _assembled(
     drift_found = detect_drift(
         td, W1, y1, final.names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change
     )
+    if drift_found.found and judge_drift is not None:
+        verdict, sensor = judge_drift(GivenDrift(list(drift_found.findings), origin))
+        decision = replace(decision, verdicts=[*decision.verdicts, verdict], sensor=sensor)
+        if not verdict.accepted:
+            drift_found = replace(drift_found, findings=[], reason=verdict.reason)
     if drift_found.found:
         findings.append(Finding(EFFECTS["friction_drift"], drift_found.estimates(), drift_found.plant_effect(), [], drift_evaluation(drift_found)))
         doc = with_drift(doc, drift_found)

@@ -15,14 +15,18 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.diagnosis.drift import GivenDrift
 from ilic_cli.diagnosis.heldout_replay import (
     FOLD_XATOL_STEPS,
     REPLAY_SEED,
+    HeldoutReplays,
     band_force_error,
     decision_sensor,
     fold_value,
+    heldout_pct,
     noisy_output_error,
     replay_decide,
+    replay_verdict,
 )
 from ilic_cli.diagnosis.materiality import MATERIAL_FORCE, MIN_DELAY_PERIODS, below_period, effect_force_rms, immaterial, materiality
 from ilic_cli.diagnosis.model_values import model_parameters
@@ -30,8 +34,9 @@ from ilic_cli.diagnosis.null import MonteCarloNull
 from ilic_cli.diagnosis.propose import Proposal, closed_loop_proposal, prepare_system
 from ilic_cli.diagnosis.select import SelectionResult
 from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
+from ilic_cli.diagnosis.stats import heldout_fall_p
 from ilic_cli.diagnosis.system import Step
-from ilic_cli.diagnosis.verdicts import DM_TEST, PROPOSED_BY_INVERSE, PlantOf, ReplayVerdict, Verdict
+from ilic_cli.diagnosis.verdicts import DM_TEST, PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, PlantOf, ReplayVerdict, Verdict
 from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
 from ilic_cli.usable import with_rest
@@ -41,6 +46,7 @@ __all__ = [  # the stage, and the names of its parts importable from here as bef
     "FOLD_XATOL_STEPS",
     "MATERIAL_FORCE",
     "MIN_DELAY_PERIODS",
+    "PROPOSED_BY_DRIFT",
     "PROPOSED_BY_INVERSE",
     "REPLAY_SEED",
     "Decision",
@@ -57,8 +63,11 @@ __all__ = [  # the stage, and the names of its parts importable from here as bef
     "materiality",
     "noisy_output_error",
     "replay_decide",
+    "replay_drift",
     "without_last",
 ]
+
+DRIFT = "friction_drift"
 
 
 @dataclass
@@ -104,10 +113,7 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: R
     if replayable and (on_loop := closed_loop_proposal(log, data, base, [*known, *selection.steps], rows, settings, selection)) is not None:
         material.append(on_loop)
     if replayable and material:
-
-        def plant_of(steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> tuple[dict[str, float], dict[str, Any]]:
-            return model_parameters(steps, names, theta, np.zeros((len(theta), len(theta))), prop.hold)
-
+        plant_of = proposal_plant(prop)
         v = (validate, settings.ls) if validate is not None and "q_ref" in validate else None
         ns = settings.null
         null = None
@@ -147,6 +153,39 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: R
     order = [s.effect.id for s in selection.steps] + [s.effect.id for s in material if s.level is not None]
     verdicts.sort(key=lambda v: order.index(v.effect))
     return Decision(kept, verdicts, sensor)
+
+
+def proposal_plant(prop: Proposal) -> PlantOf:
+    """The plant of a fit on ``prop``'s system (its hold in the plant): what every deciding replay simulates."""
+
+    def plant_of(steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> tuple[dict[str, float], dict[str, Any]]:
+        return model_parameters(steps, names, theta, np.zeros((len(theta), len(theta))), prop.hold)
+
+    return plant_of
+
+
+def replay_drift(
+    log: RunLog, prop: Proposal, kept: list[Step], drift: GivenDrift, settings: DiagnosisSettings, sensor: dict[str, Any] | None
+) -> tuple[ReplayVerdict, dict[str, Any] | None]:
+    """The replay's word on a friction drift found on the model of the effects ``kept`` (issue 29 item 5: the replay checks it as any
+    other effect): the held-out replays of that model without and with the drift's trends (each fold refitted with their columns,
+    its plant's friction drifting: :func:`~ilic_cli.diagnosis.heldout_replay.fitted_plant`), judged by the same test at the same
+    level, with the same sensor noise as every candidate (``sensor``, the decision's; ``None``: estimated here, or none when the settings
+    replay noise-free); and the sensor noise the replays carried."""
+    plant_of = proposal_plant(prop)
+    if sensor is None and settings.replay_noise:  # no candidate was replayed: the noise they would have carried
+        sensor = decision_sensor(log, settings.ls, prop.data, prop.base, prop.known, prop.rows, plant_of, prop.drift)
+    replays = HeldoutReplays(log, prop.data, prop.base, prop.rows, plant_of, settings.select.folds, sensor or {})
+    without = replays.heldout(kept)
+    replays.drift = drift
+    within = replays.heldout(kept)
+    if without is None or within is None:
+        return ReplayVerdict.unjudged(DRIFT, Verdict.NO_PLANT, "the fitted model is not a valid plant: no replay", PROPOSED_BY_DRIFT), sensor
+    fb, fa = heldout_pct(without[0], replays.tau_dec, replays.idx_tau), heldout_pct(within[0], replays.tau_dec, replays.idx_tau)
+    pb, pa = heldout_pct(without[1], replays.q, replays.idx_q), heldout_pct(within[1], replays.q, replays.idx_q)
+    p = heldout_fall_p(without[0], within[0])
+    verdict, why = replay_verdict((fb, fa), (pb, pa), (None, None), p < replay_alpha(settings), f"p = {p:.2g}", None)
+    return ReplayVerdict(DRIFT, fb, fa, pb, pa, p, None, None, verdict is Verdict.AGREES, why, proposed_by=PROPOSED_BY_DRIFT, verdict=verdict), sensor
 
 
 def _record(selection: SelectionResult, material: list[Step], verdicts: list[ReplayVerdict]) -> None:

@@ -200,7 +200,7 @@ def replay_decide(
     elif sensor is None:
         sensor = decision_sensor(log, data.settings, data, base, known, rows, plant_of, drift)
     vsensor = decision_sensor(*validate, data, base, known, rows, plant_of) if sensor_noise and validate is not None else {}
-    replays = _Folds(log, data, base, rows, plant_of, folds, sensor)
+    replays = HeldoutReplays(log, data, base, rows, plant_of, folds, sensor)
     replays.drift = drift
     replays.min_delay_periods, replays.fold_xatol_steps = min_delay_periods, fold_xatol_steps
     kept = list(known)
@@ -226,7 +226,7 @@ def replay_decide(
     return judged_again(replays, proposed, kept, verdicts, alpha, null, (validate, vsensor) if validate is not None else None)
 
 
-class _Folds:
+class HeldoutReplays:
     """The held-out replays of one recording: its ``k`` contiguous blocks, each judged by a model fitted without it.
 
     ``sensor``: the sensor noise every judged replay carries (:func:`decision_sensor`; ``{}``: noise-free).
@@ -356,8 +356,8 @@ class _Folds:
         """The verdict on ``st`` added to ``kept`` from the held-out errors without it (``current``) and with it (``after``), and the step
         judged (the folds' value for a searched one); ``None`` when a closed-loop proposal found too few estimates."""
         proposed_here = st.level is not None
-        fb, fa = _rel(current[0], self.tau_dec, self.idx_tau), _rel(after[0], self.tau_dec, self.idx_tau)
-        pb, pa = _rel(current[1], self.q, self.idx_q), _rel(after[1], self.q, self.idx_q)
+        fb, fa = heldout_pct(current[0], self.tau_dec, self.idx_tau), heldout_pct(after[0], self.tau_dec, self.idx_tau)
+        pb, pa = heldout_pct(current[1], self.q, self.idx_q), heldout_pct(after[1], self.q, self.idx_q)
         p_dm = p = heldout_fall_p(current[0], after[0])
         mc, significant = None, p < alpha
         judged, searched = st, ""
@@ -406,7 +406,7 @@ class _Folds:
             sims = [_replayed(vlog, self.plant_of, s, fit_system(self.data, self.base, s, self.rows), vsensor) for s in (kept, [*kept, judged])]
             if sims[0] is not None and sims[1] is not None:
                 vb, va = relative_errors(vlog, sims[0], vls)["force"], relative_errors(vlog, sims[1], vls)["force"]
-        verdict, why = _verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, below_period(judged, self.data.fs_hz, self.min_delay_periods))
+        verdict, why = replay_verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, below_period(judged, self.data.fs_hz, self.min_delay_periods))
         fold_values = (
             tuple(float(v) for v in after[2]) if search and not proposed_here else tuple(_strategy(st).fold_values(after[2])) if proposed_here else None
         )
@@ -421,11 +421,12 @@ def _strategy(step: Step) -> IdentificationStrategy:
     return strategy
 
 
-def _rel(e: np.ndarray, ref: np.ndarray, idx: np.ndarray) -> float:
+def heldout_pct(e: np.ndarray, ref: np.ndarray, idx: np.ndarray) -> float:
+    """The held-out relative error (%) of the simulated errors ``e`` against the recorded ``ref`` at the held-out samples ``idx``."""
     return relative_error_pct(ref[idx], ref[idx] + e)
 
 
-def _verdict(
+def replay_verdict(
     force: tuple[float, float],
     position: tuple[float, float],
     validation: tuple[float | None, float | None],

@@ -22,7 +22,7 @@ Heldout = tuple[np.ndarray, np.ndarray, list[Any]]
 
 
 class Replays(Protocol):
-    """The held-out replays of one recording (:class:`ilic_cli.diagnosis.heldout_replay._Folds`): what :func:`judged_again` asks of them."""
+    """The held-out replays of one recording (:class:`ilic_cli.diagnosis.heldout_replay.HeldoutReplays`): what :func:`judged_again` asks of them."""
 
     def heldout(self, steps: list[Step], search: bool = False) -> Heldout | None: ...
 

@@ -12,7 +12,7 @@ import ilic_cli.diagnosis.dwell as dwell
 import ilic_cli.diagnosis.segments as segments
 from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.locate import Region
-from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, Selection
+from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, Selection
 from ilic_cli.effects import Estimate
 from ilic_cli.parameters import PARAMETERS
 
@@ -91,8 +91,8 @@ def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], 
 
 
 def _on_loop(diag: Diagnosis, f: Finding) -> bool:
-    """Whether ``f`` was proposed on the closed loop (:mod:`ilic_cli.diagnosis.dwell`), not by the inverse model."""
-    return any(v.effect == f.effect.id and v.proposed_by != PROPOSED_BY_INVERSE for v in diag.decisions)
+    """Whether ``f`` was proposed on the closed loop (:mod:`ilic_cli.diagnosis.dwell`), not by the inverse model nor the drift test."""
+    return any(v.effect == f.effect.id and v.proposed_by not in (PROPOSED_BY_INVERSE, PROPOSED_BY_DRIFT) for v in diag.decisions)
 
 
 def _at_dwells(diag: Diagnosis, f: Finding) -> bool:

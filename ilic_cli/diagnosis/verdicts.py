@@ -114,6 +114,9 @@ MC_TEST = "Monte-Carlo null: the kept model simulated in closed loop with the lo
 PROPOSED_BY_INVERSE = "inverse model"
 """``ReplayVerdict.proposed_by`` of a candidate the inverse model proposed (:mod:`ilic_cli.diagnosis.select`)."""
 
+PROPOSED_BY_DRIFT = "drift test on every row"
+"""``ReplayVerdict.proposed_by`` of a friction drift (:mod:`ilic_cli.diagnosis.drift`: found on the rows after the other effects)."""
+
 PlantOf = Callable[[list[Any], tuple[str, ...], np.ndarray], tuple[dict[str, float], dict[str, Any]]]
 """``(steps, names, theta) -> (rigid parameters, plant effects)``."""
 

@@ -7,15 +7,21 @@ milliseconds), then ``ilic diagnose`` on plant logs (:func:`tests.corpus.simulat
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
+from ilic_cli.diagnosis.core import Diagnosis
+from ilic_cli.diagnosis.decide import PROPOSED_BY_DRIFT, replay_drift
 from ilic_cli.diagnosis.drift import ALPHA, MIN_CHANGE, GivenDrift, detect_drift
 from ilic_cli.diagnosis.drift_windows import MIN_WINDOWS
+from ilic_cli.diagnosis.propose import propose
 from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.diagnosis.select import SelectSettings
+from ilic_cli.diagnosis.settings import DiagnosisSettings
+from ilic_cli.diagnosis.verdicts import ReplayVerdict, Verdict
 from tests.corpus import CASES, Case, simulate_case
 
 TOLERANCE = 0.15
@@ -111,8 +117,13 @@ WEAR = {"dFv": 0.0, "Fc_rate": 0.2}
 """Coulomb friction grows by 0.2 N/s: +30 % over the 30 s log."""
 
 
-def test_diagnose_names_a_warm_up_exponential_with_its_size() -> None:
-    diag = diagnose(simulate_case(Case("warm-up", "paper", "sensor", 5), {"friction_drift": WARM_UP}))
+@pytest.fixture(scope="module")
+def warm_up() -> Diagnosis:
+    return diagnose(simulate_case(Case("warm-up", "paper", "sensor", 5), {"friction_drift": WARM_UP}))
+
+
+def test_diagnose_names_a_warm_up_exponential_with_its_size(warm_up: Diagnosis) -> None:
+    diag = warm_up
     assert [f.effect.id for f in diag.findings] == ["friction_drift"], diag.conclusion
     assert diag.drift is not None and diag.drift.shape == "exponential"
     tr = diag.drift.findings[0]
@@ -125,6 +136,41 @@ def test_diagnose_names_a_warm_up_exponential_with_its_size() -> None:
     ho = diag.fit["heldout_relative_error_pct"]
     assert ho["after"] < 0.5 * ho["before"]  # the trend's columns predict the blocks left out (measured 3.6 % -> 0.6 %)
     assert "Left out: friction drift (Fv -3" in to_markdown(diag) and "exponential, time constant" in to_markdown(diag)
+    (verdict,) = [v for v in diag.decisions if v.effect == "friction_drift"]  # the replay checks it as any other effect
+    assert verdict.accepted and verdict.verdict is Verdict.AGREES and verdict.proposed_by == PROPOSED_BY_DRIFT, verdict
+    assert verdict.force_before is not None and verdict.force_after is not None and verdict.force_after < 0.5 * verdict.force_before  # 3.47 % -> 0.77 %
+    md = to_markdown(diag)  # its verdict in the decisions' table; not worded as a proposal of the closed loop at the dwells
+    assert "| friction_drift | 3." in md and "proposed on the closed loop" not in md and "need not lower" not in md
+
+
+def test_the_replay_does_not_keep_a_drift_the_recording_has_not(warm_up: Diagnosis) -> None:
+    """The warm-up's trend judged on the clean log of the same run (the same reference, seed and noise; no drift): each fold fits
+    its coefficient, whose replay does not lower the held-out error significantly. On the drifting log the same judgement keeps it."""
+    assert warm_up.drift is not None
+    drift = GivenDrift(list(warm_up.drift.findings), 0.0)  # both logs start at t = 0
+    settings = DiagnosisSettings()
+    clean = simulate_case(Case("clean", "paper", "sensor", 5), {})
+    settings = replace(settings, ls=settings.ls.at_rate(clean.fs_hz))
+    assert clean.t[0] == 0.0
+    prop = propose(clean, settings, None, None)
+    verdict, sensor = replay_drift(prop.log, prop, [], drift, settings, None)
+    assert not verdict.accepted and verdict.verdict in (Verdict.NO_FALL, Verdict.NOT_SIGNIFICANT), verdict
+    assert sensor  # the candidates' sensor noise, estimated where no candidate was replayed
+    assert verdict.reason.startswith("rejected by the replay")
+
+
+def test_a_drift_the_replay_rejects_is_no_finding(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The diagnosis takes the replay's word: a drift it rejects is no finding, in no figure nor the model file, and says why."""
+    import ilic_cli.diagnosis.core as core
+
+    def rejected(*args: object) -> tuple[ReplayVerdict, dict]:
+        why = "rejected by the replay: the held-out simulated force error does not fall (1 % -> 1 %)"
+        return ReplayVerdict("friction_drift", 1.0, 1.0, 1.0, 1.0, 0.5, None, None, False, why, proposed_by=PROPOSED_BY_DRIFT, verdict=Verdict.NO_FALL), {}
+
+    monkeypatch.setattr(core, "replay_drift", rejected)
+    diag = diagnose(simulate_case(Case("warm-up", "paper", "sensor", 5), {"friction_drift": WARM_UP}))
+    assert diag.findings == [] and diag.drift is not None and not diag.drift.found and diag.drift.reason.startswith("rejected by the replay")
+    assert "friction_drift" not in diag.model_file["effects"] and [v.verdict for v in diag.decisions if v.effect == "friction_drift"] == [Verdict.NO_FALL]
 
 
 def test_diagnose_names_a_linear_wear() -> None:

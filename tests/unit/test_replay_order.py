@@ -32,7 +32,7 @@ class _Replays:
 
 
 def test_a_proposal_rejected_before_a_later_kept_one_is_judged_again_with_it(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(heldout_replay, "_Folds", _Replays)
+    monkeypatch.setattr(heldout_replay, "HeldoutReplays", _Replays)
     flex, stribeck = Step(EFFECTS["flexibility"], (30.0, 0.1)), Step(EFFECTS["stribeck"], 0.02)
     no_plant: Any = None
     kept, verdicts = heldout_replay.replay_decide(no_plant, no_plant, no_plant, [], [flex, stribeck], np.ones(3, bool), no_plant, sensor_noise=False)
@@ -42,7 +42,7 @@ def test_a_proposal_rejected_before_a_later_kept_one_is_judged_again_with_it(mon
 
 
 def test_nothing_is_judged_again_without_a_later_effect_kept(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(heldout_replay, "_Folds", _Replays)
+    monkeypatch.setattr(heldout_replay, "HeldoutReplays", _Replays)
     flex, stribeck = Step(EFFECTS["flexibility"], (30.0, 0.1)), Step(EFFECTS["stribeck"], 0.02)
     no_plant: Any = None
     kept, verdicts = heldout_replay.replay_decide(no_plant, no_plant, no_plant, [], [stribeck, flex], np.ones(3, bool), no_plant, sensor_noise=False)
