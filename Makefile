@@ -11,7 +11,7 @@ STAMP := $(VENV)/.installed
 .PHONY: demo test test-fast bench bench-large corpus mutation clean
 
 # the packages' bytecode compiled on every core, their own test suites left out: pip compiles one file at a time
-# (a fresh venv 46 s -> 39 s on 2 cores); the bytecode is needed, a PYTHONDONTWRITEBYTECODE=1 process compiles its imports anew
+# (a fresh venv 46 s -> 34 s on 2 cores); the bytecode is needed, a PYTHONDONTWRITEBYTECODE=1 process compiles its imports anew
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --no-compile -e '.[test]'

@@ -145,7 +145,7 @@ def test_diagnose_names_a_warm_up_exponential_with_its_size(warm_up: Diagnosis) 
 
 def test_the_replay_does_not_keep_a_drift_the_recording_has_not(warm_up: Diagnosis) -> None:
     """The warm-up's trend judged on the clean log of the same run (the same reference, seed and noise; no drift): each fold fits
-    its coefficient, whose replay does not lower the held-out error significantly. On the drifting log the same judgement keeps it."""
+    its coefficient, whose replay does not lower the held-out error significantly (on the drifting log the diagnosis keeps it: above)."""
     assert warm_up.drift is not None
     drift = GivenDrift(list(warm_up.drift.findings), 0.0)  # both logs start at t = 0
     settings = DiagnosisSettings()
@@ -161,7 +161,7 @@ def test_the_replay_does_not_keep_a_drift_the_recording_has_not(warm_up: Diagnos
 
 def test_a_drift_the_replay_rejects_is_no_finding(monkeypatch: pytest.MonkeyPatch) -> None:
     """The diagnosis takes the replay's word: a drift it rejects is no finding, in no figure nor the model file, and says why."""
-    import ilic_cli.diagnosis.core as core
+    import ilic_cli.diagnosis.core as core  # the module whose name for the replay's judge is patched
 
     def rejected(*args: object) -> tuple[ReplayVerdict, dict]:
         why = "rejected by the replay: the held-out simulated force error does not fall (1 % -> 1 %)"
