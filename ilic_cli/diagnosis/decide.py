@@ -23,7 +23,6 @@ from ilic_cli.diagnosis.heldout_replay import (
     band_force_error,
     decision_sensor,
     fold_value,
-    heldout_pct,
     noisy_output_error,
     replay_decide,
     replay_verdict,
@@ -37,6 +36,7 @@ from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
 from ilic_cli.diagnosis.stats import heldout_fall_p
 from ilic_cli.diagnosis.system import Step
 from ilic_cli.diagnosis.verdicts import DM_TEST, PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, PlantOf, ReplayVerdict, Verdict
+from ilic_cli.effects import EFFECTS
 from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
 from ilic_cli.usable import with_rest
@@ -67,7 +67,8 @@ __all__ = [  # the stage, and the names of its parts importable from here as bef
     "without_last",
 ]
 
-DRIFT = "friction_drift"
+DRIFT = EFFECTS["friction_drift"].id
+"""The catalogue's id of a friction drift, the effect :func:`replay_drift` judges."""
 
 
 @dataclass
@@ -181,8 +182,7 @@ def replay_drift(
     within = replays.heldout(kept)
     if without is None or within is None:
         return ReplayVerdict.unjudged(DRIFT, Verdict.NO_PLANT, "the fitted model is not a valid plant: no replay", PROPOSED_BY_DRIFT), sensor
-    fb, fa = heldout_pct(without[0], replays.tau_dec, replays.idx_tau), heldout_pct(within[0], replays.tau_dec, replays.idx_tau)
-    pb, pa = heldout_pct(without[1], replays.q, replays.idx_q), heldout_pct(within[1], replays.q, replays.idx_q)
+    (fb, pb), (fa, pa) = replays.percent(without), replays.percent(within)
     p = heldout_fall_p(without[0], within[0])
     verdict, why = replay_verdict((fb, fa), (pb, pa), (None, None), p < replay_alpha(settings), f"p = {p:.2g}", None)
     return ReplayVerdict(DRIFT, fb, fa, pb, pa, p, None, None, verdict is Verdict.AGREES, why, proposed_by=PROPOSED_BY_DRIFT, verdict=verdict), sensor

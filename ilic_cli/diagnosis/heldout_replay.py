@@ -272,6 +272,10 @@ class HeldoutReplays:
         """Simulated minus recorded force, decimated as the IDIM system is (all the log's decimated samples)."""
         return band_force_error(self.log, sim, self.step_dec)
 
+    def percent(self, held: Heldout) -> tuple[float, float]:
+        """The held-out simulated force and position errors of :meth:`heldout` as relative errors (%)."""
+        return _heldout_pct(held[0], self.tau_dec, self.idx_tau), _heldout_pct(held[1], self.q, self.idx_q)
+
     def fold_search(self, train: np.ndarray, fold: int, noise: dict[str, Any]) -> tuple[Callable[[list[Step]], RunLog | None], Callable[[list[Step]], float]]:
         """A fold's replay of a model fitted on ``train`` with the sensor ``noise`` (each model once), and its training error."""
         sims: dict[Any, RunLog | None] = {}
@@ -356,8 +360,7 @@ class HeldoutReplays:
         """The verdict on ``st`` added to ``kept`` from the held-out errors without it (``current``) and with it (``after``), and the step
         judged (the folds' value for a searched one); ``None`` when a closed-loop proposal found too few estimates."""
         proposed_here = st.level is not None
-        fb, fa = heldout_pct(current[0], self.tau_dec, self.idx_tau), heldout_pct(after[0], self.tau_dec, self.idx_tau)
-        pb, pa = heldout_pct(current[1], self.q, self.idx_q), heldout_pct(after[1], self.q, self.idx_q)
+        (fb, pb), (fa, pa) = self.percent(current), self.percent(after)
         p_dm = p = heldout_fall_p(current[0], after[0])
         mc, significant = None, p < alpha
         judged, searched = st, ""
@@ -421,7 +424,7 @@ def _strategy(step: Step) -> IdentificationStrategy:
     return strategy
 
 
-def heldout_pct(e: np.ndarray, ref: np.ndarray, idx: np.ndarray) -> float:
+def _heldout_pct(e: np.ndarray, ref: np.ndarray, idx: np.ndarray) -> float:
     """The held-out relative error (%) of the simulated errors ``e`` against the recorded ``ref`` at the held-out samples ``idx``."""
     return relative_error_pct(ref[idx], ref[idx] + e)
 
