@@ -17,7 +17,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation
 from ilic_cli.diagnosis.decide import Decision, ReplayVerdict, decide, replay_drift, without_last
-from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, detect_drift, with_drift
+from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, detect_drift, fitted_with, with_drift
 from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.model_values import effect_fit, model_parameters, model_std, steps_from_effects
@@ -341,7 +341,7 @@ def _assembled(
     dec, kin = data.decimate, data.kin
     assert kin.q is not None  # the residual's kinematics carry the position (located against it)
     td, qd_d, qdd_d, q_d = data.t_dec[rows], dec(kin.qd)[rows], dec(kin.qdd)[rows], dec(kin.q)[rows]
-    e0, e1 = y0 - W0 @ res0.theta, y1 - W1 @ res1.theta
+    e0, fitted = y0 - W0 @ res0.theta, W1 @ res1.theta
     q_unit = "rad" if prop.joint == "revolute" else "m"
     located = locate(e0, t=td, q=q_d, qd=qd_d, qdd=qdd_d, W=W0, fs_hz=fs / settings.ls.decimation, alpha=sel.alpha, q_unit=q_unit)
     located.append(force_lag(data.tau, np.asarray(prop.base.matrix(kin)) @ res0.theta[: len(prop.base.names)], fs))
@@ -357,7 +357,8 @@ def _assembled(
         decision = replace(decision, verdicts=[*decision.verdicts, verdict], sensor=sensor)
         if not verdict.accepted:
             drift_found = replace(drift_found, findings=[], reason=verdict.reason)
-    if drift_found.found:
+    if drift_found.found:  # the model after is the effects' and the drift's: its fitted force and residual too, as its figures
+        fitted = fitted_with(td, W1, y1, final.names, drift_found.findings, origin)
         findings.append(Finding(EFFECTS["friction_drift"], drift_found.estimates(), drift_found.plant_effect(), [], drift_evaluation(drift_found)))
         doc = with_drift(doc, drift_found)
         fit["relative_error_pct"]["after"], fit["heldout_relative_error_pct"]["after"] = drift_found.relative_error_after_pct, drift_found.heldout_after_pct
@@ -382,7 +383,7 @@ def _assembled(
         warnings=prop.warnings,
         usable=replace(usable_rows(prop.prepared, settings.ls), hold_s=prop.hold),
         joint=prop.joint,
-        residual={"t": td, "q": q_d, "qd": qd_d, "before": e0, "after": e1, "y": y0, "y_before": W0 @ res0.theta, "y_after": W1 @ res1.theta},
+        residual={"t": td, "q": q_d, "qd": qd_d, "before": e0, "after": y1 - fitted, "y": y0, "y_before": W0 @ res0.theta, "y_after": fitted},
     )
     _weighed(diag, prop, final)
     if timing is not None:  # a flexibility refused for its negative mass (its only impossibility) says what the drive lag is

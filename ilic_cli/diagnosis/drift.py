@@ -348,11 +348,16 @@ def heldout_check(
     return relative_error_pct(y, y - h0), relative_error_pct(y, y - h1), float(heldout_fall_p(h0, h1))
 
 
-def relative_error_with(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], trends: list[Trend], start: float) -> float:
-    """The relative error (%) of the least-squares fit of ``W`` with the trends' columns."""
+def fitted_with(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], trends: list[Trend], start: float) -> np.ndarray:
+    """The force of the least-squares fit of ``y`` on ``W`` with the trends' columns."""
     W1 = np.c_[W, drift_columns(t, W, names, trends, start)]
     theta, *_ = np.linalg.lstsq(W1, y, rcond=None)
-    return relative_error_pct(y, W1 @ theta)
+    return W1 @ theta
+
+
+def relative_error_with(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], trends: list[Trend], start: float) -> float:
+    """The relative error (%) of the least-squares fit of ``W`` with the trends' columns (:func:`fitted_with`)."""
+    return relative_error_pct(y, fitted_with(t, W, y, names, trends, start))
 
 
 def _physical(tr: Trend) -> bool:

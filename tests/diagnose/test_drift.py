@@ -139,6 +139,8 @@ def test_diagnose_names_a_warm_up_exponential_with_its_size(warm_up: Diagnosis) 
     (verdict,) = [v for v in diag.decisions if v.effect == "friction_drift"]  # the replay checks it as any other effect
     assert verdict.accepted and verdict.verdict is Verdict.AGREES and verdict.proposed_by == PROPOSED_BY_DRIFT, verdict
     assert verdict.force_before is not None and verdict.force_after is not None and verdict.force_after < 0.5 * verdict.force_before  # 3.47 % -> 0.77 %
+    before, after = (float(np.sqrt(np.mean(diag.residual[k] ** 2))) for k in ("before", "after"))
+    assert after < 0.5 * before  # the residual after, plotted as the augmented model's, has the drift taken out
     md = to_markdown(diag)  # its verdict in the decisions' table; not worded as a proposal of the closed loop at the dwells
     assert "| friction_drift | 3." in md and "proposed on the closed loop" not in md and "need not lower" not in md
 
