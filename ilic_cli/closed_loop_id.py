@@ -39,10 +39,11 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from ilic_cli.derivatives import derivative
 from ilic_cli.effects import EFFECTS, Fit
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.estimators.base import LoopSimulator
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.lsq import LSResult, finite_or_none, relative_error_pct, solve, solve_iv
 from ilic_cli.parameters import PARAMETERS
@@ -236,7 +237,7 @@ def relative_errors(rec: RunLog, sim: RunLog, ls: LSSettings) -> dict[str, float
     s = slice(ls.trim, n)
 
     def vel(q: np.ndarray) -> np.ndarray:
-        return central_difference(butter_lowpass_zero_phase(q[:n], ls.cutoff_hz, fs, ls.order, matlab=ls.matlab), 1.0 / fs)
+        return derivative(butter_lowpass_zero_phase(q[:n], ls.cutoff_hz, fs, ls.order, matlab=ls.matlab), 1.0 / fs, ls.at_rate(fs).stencil)
 
     return {
         "position": relative_error_pct(rec["q"][s], sim["q"][s]),

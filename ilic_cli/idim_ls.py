@@ -23,16 +23,17 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.derivatives import derivative
 from ilic_cli.estimators.columns import Derived
 from ilic_cli.filtering import (
     ROWS_BAND_HZ,
     butter_lowpass_zero_phase,
-    central_difference,
     decimate_matlab,
     decimated_band_hz,
     kept_indices,
     lowpass_decimate,
     rows_decimation,
+    rows_stencil,
 )
 from ilic_cli.lsq import LSResult, SigmaConvention, evaluate, finite_or_none, pinv, solve
 from ilic_cli.regressor import Kinematics, Model
@@ -66,6 +67,10 @@ class LSSettings:
         ``None``: ``decimation`` as given (``identify --decimation N``).
     at_hz : float or None
         The rate :meth:`at_rate` set ``decimation`` for (``None``: not yet set).
+    stencil : int
+        Points of the derivatives' central stencil (:func:`ilic_cli.derivatives.derivative`): 3, the benchmark's central
+        differences, or 5 where the rows' band is more than 0.04 of the rate (:func:`ilic_cli.filtering.rows_stencil`,
+        set with ``decimation`` by :meth:`at_rate`).
     """
 
     cutoff_hz: float = 100.0
@@ -76,12 +81,14 @@ class LSSettings:
     sigma: SigmaConvention = "sample_std"
     band_hz: float | None = ROWS_BAND_HZ
     at_hz: float | None = None
+    stencil: int = 3
 
     def at_rate(self, fs_hz: float) -> LSSettings:
-        """These settings for a log sampled at ``fs_hz``: the decimation by :func:`ilic_cli.filtering.rows_decimation` (every command's fits use it)."""
+        """These settings for a log sampled at ``fs_hz``: the decimation and the derivatives' stencil by
+        :func:`ilic_cli.filtering.rows_decimation` and :func:`~ilic_cli.filtering.rows_stencil` (every command's fits use them)."""
         if self.band_hz is None or self.at_hz == fs_hz:
             return self
-        return replace(self, decimation=rows_decimation(fs_hz, self.band_hz), at_hz=fs_hz)
+        return replace(self, decimation=rows_decimation(fs_hz, self.band_hz), stencil=rows_stencil(fs_hz, self.band_hz), at_hz=fs_hz)
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -338,8 +345,8 @@ def lsq_rows(
     settings = settings.at_rate(fs_hz)
     qf, W, y, rows = _system(t, q, tau, fs_hz, model, settings, valid, extra=extra)
     dt = 1.0 / fs_hz
-    qd = central_difference(qf, dt)
-    qdd = central_difference(qd, dt)
+    qd = derivative(qf, dt, settings.stencil)
+    qdd = derivative(qd, dt, settings.stencil)
     s = slice(settings.trim, None)
     kin = Kinematics(qd=qd[s], qdd=qdd[s], q=qf[s], t=np.asarray(t, dtype=np.float64)[s], extra=_trimmed(extra, s))
     return IDIMData(kin=kin, tau=np.asarray(tau, dtype=np.float64)[s], W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
@@ -384,7 +391,7 @@ def _system(
     extra_s = _trimmed(extra, s)
     columns = []
     for c in model.columns:  # the parallel decimation, one column at a time: the full-rate matrix is never held
-        col = np.broadcast_to(c.build(Derived(qf, 1.0 / fs_hz, settings.trim, tt, shift_s, extra_s)), tt.shape)
+        col = np.broadcast_to(c.build(Derived(qf, 1.0 / fs_hz, settings.trim, tt, shift_s, extra_s, settings.stencil)), tt.shape)
         columns.append(_decimate(np.asarray(col, dtype=np.float64), settings, fs_hz))
         del col
     Wy = np.column_stack([*columns, y])

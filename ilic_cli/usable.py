@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.derivatives import derivative
+from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.idim_ls import LSSettings, min_samples, valid_rows
 from ilic_cli.prepare import PreparedLog, RestSamples
 
@@ -40,8 +41,8 @@ REST_RULE = (
 def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(), segments: tuple[tuple[int, int], ...] | None = None) -> RestSamples:
     """The samples of ``q`` at rest, by :data:`REST_RULE`; each contiguous part of ``segments`` on its own.
 
-    The speed is that of the fit (``settings``' position filter, central
-    differences); the top speed is each part's beyond the trimmed edge. A
+    The speed is that of the fit (``settings``' position filter and
+    derivative); the top speed is each part's beyond the trimmed edge. A
     part shorter than :func:`min_samples` is left as it is (IDIM-LS leaves it out).
     """
     q = np.asarray(q, dtype=np.float64)
@@ -53,7 +54,7 @@ def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(
     for a, b in segments or ((0, len(q)),):
         if b - a < min_samples(settings):
             continue
-        speed = central_difference(butter_lowpass_zero_phase(q[a:b], settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab), 1.0 / fs_hz)
+        speed = derivative(butter_lowpass_zero_phase(q[a:b], settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab), 1.0 / fs_hz, settings.stencil)
         np.abs(speed, out=speed)  # in place: the filtered position is let go, one array of the part's length lives on
         below = STANDSTILL_FRACTION * float(np.percentile(speed[settings.trim :], 99.5))
         threshold = max(threshold, below)

@@ -9,9 +9,10 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.derivatives import central_difference
 from ilic_cli.effects import EffectParams, make_effects
 from ilic_cli.errors import ParameterError, SimulationError
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.regressor import get_model
 from ilic_cli.runlog import Controller, RunLog
 from plant.closed_loop import LoopResult, loop_log, simulate_loop

@@ -66,8 +66,8 @@ def delay_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
 
 RESONANCE_OF_FS = 0.1
 """The highest resonance searched is at most this share of the log's rate: below it the bilinear discretisation of the
-mode (:func:`flexible_acceleration`) keeps its frequency within 3 %, and the central differences of the position lose
-less than 7 % of its acceleration."""
+mode (:func:`flexible_acceleration`) keeps its frequency within 3 %, and the derivatives of the position lose less than
+1 % of its acceleration (five points below 1 kHz: :func:`ilic_cli.filtering.rows_stencil`)."""
 
 
 def resonance_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
@@ -75,8 +75,8 @@ def resonance_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
     (:data:`ilic_cli.filtering.ROWS_BAND_HZ`, 40 Hz), at most :data:`RESONANCE_OF_FS` of the log's rate.
 
     The same modes at every rate that sees them: not bounded by the band of the log's own rows
-    (:func:`ilic_cli.filtering.rows_band_hz`, 20 Hz at 500 Hz), which then do not reach the grid's top, and the resonance is
-    searched at the log's rate (:func:`resonance_at_log_rate`), where a 500 Hz log sees a 30 Hz mode; below the mode the rows
+    (:func:`ilic_cli.filtering.rows_band_hz`, 33 Hz at 500 Hz), which then do not reach the grid's top, and the resonance is
+    searched at the log's rate (:func:`resonance_at_log_rate`), where a 500 Hz log sees a 36 Hz mode; below the mode the rows
     still see its mass (``M_load (H - 1) qdd ~ -M_load qdd'' / w^2``) and fit it. From 1 kHz up the rows keep the grid's
     range and the search is on them, as before.
     """

@@ -9,26 +9,27 @@ from __future__ import annotations
 
 import numpy as np
 
-from ilic_cli.filtering import central_difference
+from ilic_cli.derivatives import derivative
 from ilic_cli.regressor import Kinematics
 
 
 class Derived(Kinematics):
     """The kinematics one column is built from: ``q``, ``qd``, ``qdd`` trimmed from the filtered position ``qf`` when
-    the column first reads them (``shift_s``: interpolated that much later, as :func:`ilic_cli.idim_ls.held`), let go with the column."""
+    the column first reads them (``shift_s``: interpolated that much later, as :func:`ilic_cli.idim_ls.held`), let go with the column;
+    ``points``: the derivatives' stencil (:func:`ilic_cli.derivatives.derivative`)."""
 
-    def __init__(self, qf: np.ndarray, dt_s: float, trim: int, t: np.ndarray, shift_s: float, extra: dict[str, np.ndarray]) -> None:
+    def __init__(self, qf: np.ndarray, dt_s: float, trim: int, t: np.ndarray, shift_s: float, extra: dict[str, np.ndarray], points: int = 3) -> None:
         later = shift_s != 0.0
         fields = {"t": t, "sign_qd": None, "extra": {k: np.interp(t + shift_s, t, v) for k, v in extra.items()} if later else extra}
-        for name, value in {**fields, "_source": (qf, dt_s, trim, t, shift_s), "_memo": {}}.items():
+        for name, value in {**fields, "_source": (qf, dt_s, trim, t, shift_s, points), "_memo": {}}.items():
             object.__setattr__(self, name, value)
 
     def _signal(self, order: int) -> np.ndarray:
         memo: dict[int, np.ndarray] = self.__dict__["_memo"]
         if order not in memo:
-            x, dt_s, trim, t, shift_s = self.__dict__["_source"]
+            x, dt_s, trim, t, shift_s, points = self.__dict__["_source"]
             for _ in range(order):
-                x = central_difference(x, dt_s)
+                x = derivative(x, dt_s, points)
             x = x[trim:]
             memo[order] = x if shift_s == 0.0 else np.interp(t + shift_s, t, x)
         return memo[order]

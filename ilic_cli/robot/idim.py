@@ -27,8 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.derivatives import derivative
 from ilic_cli.filter_design import cheby1_ba
-from ilic_cli.filtering import _polished_roots, butter_lowpass_zero_phase, central_difference, kept_indices
+from ilic_cli.filtering import _polished_roots, butter_lowpass_zero_phase, kept_indices
 from ilic_cli.idim_ilic import essential_mask
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
 from ilic_cli.jointlog import Parts
@@ -164,8 +165,8 @@ def prepare(
     if torque_held:
         tau = np.vstack([tau[:1], 0.5 * (tau[1:] + tau[:-1])])
     qf = butter_lowpass_zero_phase(q, settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab, axis=0)
-    qd = central_difference(qf, dt)
-    qdd = central_difference(qd, dt)
+    qd = derivative(qf, dt, settings.stencil)
+    qdd = derivative(qd, dt, settings.stencil)
     s = slice(settings.trim, None)
     qf, qd, qdd, tau = qf[s], qd[s], qdd[s], tau[s]
     active = active_columns(robot, base)

@@ -58,7 +58,10 @@ def test_the_rates_fail_where_the_issue_says() -> None:
     assert len(failures({**ok, "identify_within": 4})) == 1 and len(failures({**ok, "parameters_within": 9})) == 1
 
 
-SHORT_OF_THE_DONE_WHEN: dict[str, str] = {}
+SHORT_OF_THE_DONE_WHEN: dict[str, str] = {
+    # the 10 Hz force disturbance's spread: Fc -2.5 % where identify's own robust σ of Fc is 3.1 % (z = -0.8)
+    "rev0.01/s-curve/500Hz/disturbance/clean/s25": "identify",
+}
 """Subset logs on which the current code misses one part of the "Done when" (issue 29 stays open on them), by the part missed.
 Every other part is held on them; the part missed is asserted to be missed still, so a fix fails here until its entry goes."""
 

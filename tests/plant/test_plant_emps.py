@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference
+from ilic_cli.derivatives import central_difference
+from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.io import read_log
 from ilic_cli.simulation.scenarios import Overrides, run_scenario
 from plant.replay import simulate_replay

@@ -16,7 +16,8 @@ from tests.conftest import import_or_skip
 
 import_or_skip("pinocchio")
 
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference, rows_decimation  # noqa: E402
+from ilic_cli.derivatives import central_difference  # noqa: E402
+from ilic_cli.filtering import butter_lowpass_zero_phase, rows_decimation  # noqa: E402
 from ilic_cli.idim_ls import LSSettings, _decimate  # noqa: E402
 from ilic_cli.robot import model as rm  # noqa: E402
 from ilic_cli.robot.base import base_parameters  # noqa: E402

@@ -9,11 +9,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from ilic_cli.derivatives import derivative
 from ilic_cli.diagnosis.select import Evaluation, Searcher, SelectSettings, at_edge, forward_select, moving_rows, parsimonious_first, system, validation_error
 from ilic_cli.diagnosis.stats import nested_f_test
 from ilic_cli.effects import EFFECTS, catalogue_ids
 from ilic_cli.effects.grids import flexible_acceleration
-from ilic_cli.filtering import central_difference, kept_indices, rows_band_hz
+from ilic_cli.filtering import kept_indices, rows_band_hz
 from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.lsq import lstsq
 from ilic_cli.regressor import Kinematics, get_model
@@ -554,26 +555,27 @@ def test_gravity_and_a_spring_the_data_cannot_tell_apart_are_a_stated_ambiguity(
 
 
 def test_a_flexible_mode_above_the_rows_band_is_searched_at_the_log_s_rate() -> None:
-    """A 500 Hz log's rows keep 20 Hz, a 30 Hz mode is beyond them: searched at the log's rate (the rows' decimation spans), the
+    """A 300 Hz log's rows keep 20 Hz (fs/15), a 25 Hz mode is beyond them: searched at the log's rate (the rows' decimation spans), the
     resonance is found inside its grid and the rows then fit the mass behind it. Bounded by the rows' band, the search ended at
     20 Hz, "at the edge of its search range" (corpus s260, s340, s510)."""
-    fs, n, f_res, zeta, m_load = 500.0, 3000, 30.0, 0.1, 8.0
+    fs, n, f_res, zeta, m_load = 300.0, 1800, 25.0, 0.1, 8.0
     t, q, qd, qdd = motion(n, fs)
     for k, (f, a) in enumerate(((7.0, 2e-4), (13.0, 1e-4), (23.0, 5e-5), (31.0, 3e-5), (41.0, 2e-5))):  # a multisine up to 41 Hz, exact derivatives
         w = 2.0 * math.pi * f
         q, qd, qdd = q + a * np.sin(w * t + k), qd + a * w * np.cos(w * t + k), qdd - a * w * w * np.sin(w * t + k)
     eff = EFFECTS["flexibility"]
-    qd, qdd = central_difference(q, 1.0 / fs), central_difference(central_difference(q, 1.0 / fs), 1.0 / fs)  # as the log's rate sees them
+    qd = derivative(q, 1.0 / fs, 5)  # as the log's rate sees them: five points below 1 kHz
+    qdd = derivative(qd, 1.0 / fs, 5)
     tau = rigid_force(qd, qdd) + m_load * (flexible_acceleration(qdd, f_res, fs, zeta) - qdd)
     data = lsq_rows(t, q, tau, fs, BASE)
-    assert data.settings.decimation == 10 and rows_band_hz(fs) == pytest.approx(20.0)  # the rows keep 20 Hz
+    assert data.settings.decimation == 6 and rows_band_hz(fs) == pytest.approx(20.0)  # the rows keep 20 Hz
     rows = moving_rows(data)
     W, y, _ = system(data, BASE, [], rows)
     s = Searcher(data, fs, rows)
-    assert s.rate_factor(eff) == 5  # the 40 Hz the grid reaches, as a 1 kHz log's rows keep: every other sample of the spans
-    at = s.log_rate(BASE, [], factor=5)
+    assert s.rate_factor(eff) == 3  # the 30 Hz the grid reaches (0.1 fs): every third sample of the spans keeps 40 Hz
+    at = s.log_rate(BASE, [], factor=3)
     assert at.W.shape == (int(rows.sum()), 2, W.shape[1])
-    assert np.array_equal(data.kin.t[kept_indices(len(data.kin.t), 5)][at.at[:, 1]], data.t_dec[rows])  # each row's span holds the row
+    assert np.array_equal(data.kin.t[kept_indices(len(data.kin.t), 3)][at.at[:, 1]], data.t_dec[rows])  # each row's span holds the row
     value = s.scan(eff, W, y, at=at)
     value, _ = s.refine(eff, W, y, value, at=at)
     assert at_edge(eff, s.grid_values(eff), value) is None

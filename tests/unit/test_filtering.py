@@ -16,9 +16,9 @@ import pytest
 from scipy import signal
 
 from ilic_cli import filtering, spectra
+from ilic_cli.derivatives import central_difference, derivative
 from ilic_cli.filtering import (
     butter_lowpass_zero_phase,
-    central_difference,
     decimate_matlab,
     decimation_factor,
     filtfilt_matlab,
@@ -126,6 +126,28 @@ def test_central_difference_is_matlab_gradient() -> None:
     assert list(d) == [2.0, 4.0, 8.0, 12.0, 14.0]
     X = np.c_[x, -x]
     np.testing.assert_array_equal(central_difference(X, dt)[:, 1], -d)
+
+
+def test_the_five_point_derivative_is_exact_on_quartics_and_flat_in_the_band() -> None:
+    """Five points: exact on a polynomial of degree 4 inside, central differences next to the ends, one-sided at them;
+    its gain at 0.06 of the rate within 0.07 % where central differences lose 2.4 %; columns alike; 3 is central_difference."""
+    dt = 0.01
+    t = np.arange(12) * dt
+    x = 1.0 + 2.0 * t - 3.0 * t**2 + 0.5 * t**3 + 7.0 * t**4
+    d = derivative(x, dt, 5)
+    np.testing.assert_allclose(d[2:-2], (2.0 - 6.0 * t + 1.5 * t**2 + 28.0 * t**3)[2:-2], rtol=0, atol=1e-12)
+    c = central_difference(x, dt)
+    np.testing.assert_array_equal(d[[0, 1, -2, -1]], c[[0, 1, -2, -1]])
+    np.testing.assert_array_equal(derivative(x, dt, 3), c)
+    np.testing.assert_array_equal(derivative(np.c_[x, -x], dt, 5)[:, 1], -d)
+    w = 2 * np.pi * 0.06  # radians per sample at 0.06 fs
+    k = np.arange(400)
+    s = np.sin(w * k)
+    gain5 = np.max(np.abs(derivative(s, 1.0, 5)[5:-5])) / w
+    gain3 = np.max(np.abs(central_difference(s, 1.0)[5:-5])) / w
+    assert abs(gain5 - 1.0) < 1e-3 and 0.97 < gain3 < 0.98
+    with pytest.raises(ValueError, match="3 or 5"):
+        derivative(x, dt, 4)
 
 
 @pytest.mark.parametrize("n", [997, 1000, 1003])

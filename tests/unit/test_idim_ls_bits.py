@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from ilic_cli import idim_ilic
-from ilic_cli.filtering import butter_lowpass_zero_phase, central_difference, lowpass_decimate
+from ilic_cli.derivatives import central_difference
+from ilic_cli.filtering import butter_lowpass_zero_phase, lowpass_decimate
 from ilic_cli.idim_ilic import tracking_error_ratio
 from ilic_cli.idim_ls import LSSettings, _columns, _decimate, _systems, held, lsq_rows, valid_rows
 from ilic_cli.regressor import GRAVITY_COLUMNS, Column, Kinematics, Model, get_model

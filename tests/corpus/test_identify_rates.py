@@ -1,0 +1,35 @@
+"""``identify --method ls`` below 1 kHz on fresh draws of the robot corpus's clean dwell-and-move logs (issue 29: within
+2 % at every rate). The corpus itself has 8 such logs at 250 Hz; here 16 a rate, on seeds the corpus does not use, with
+sensor noise alone: the derivatives and the rows' band below 1 kHz (:func:`ilic_cli.filtering.rows_stencil`). Central
+differences keeping 0.04·fs left 24-28 of 40 such logs within 2 % at 250 Hz, M +0.30 % on average."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from ilic_cli.identify import identify
+from tests.corpus.robot import AXES, DWELL_TRAJECTORIES, Case, simulate
+
+SEED0 = 7000
+"""Seeds beyond the corpus's (1-999, and 3000 more with ``--reseed 1``)."""
+
+
+@pytest.mark.parametrize("fs", [250.0, 500.0])
+def test_identify_is_within_2_percent_below_1_khz(fs: float) -> None:
+    """At least 14 of 16 logs (4 axes x 2 trajectories x 2 seeds) within 2 % of M, Fv and Fc, and M within 0.25 % on average
+    (measured: 15 and 16 of 16, M +0.16 % and +0.08 %; central differences keeping 0.04·fs: 12 at 250 Hz)."""
+    errors = []
+    for k, (a, tr) in enumerate(itertools.product(AXES, DWELL_TRAJECTORIES)):
+        for s in range(2):
+            case = Case(a, tr, fs, "sensor", SEED0 + 97 * s + k)
+            fit = identify(simulate(case, {}), method="ls").ls
+            assert fit is not None
+            theta = dict(zip(fit.result.names, fit.result.theta, strict=True))
+            errors.append([theta[p] / AXES[a].truth[p] - 1.0 for p in ("M", "Fv", "Fc")])
+    e = np.array(errors)
+    within = int(np.count_nonzero(np.abs(e).max(axis=1) <= 0.02))
+    assert within >= 14, (within, np.round(100 * e, 2).tolist())
+    assert abs(float(e[:, 0].mean())) < 2.5e-3, np.round(100 * e[:, 0], 2).tolist()
