@@ -96,6 +96,18 @@ def tau_sensor(log: RunLog) -> str | None:
     return "command" if "vir" in log or declared_pd else None
 
 
+def drive_command(log: RunLog) -> np.ndarray | None:
+    """The drive command (V) of ``log``: its ``vir``, or, when its force is the drive's command (:func:`tau_sensor`), that
+    force over the drive gain (a PD loop declared with ``--drive-gain``); ``None`` otherwise. A drive that clips its
+    command shows as a plateau of it (:func:`ilic_cli.quality.saturation`) whether the log records ``vir`` or not."""
+    if "vir" in log:
+        return np.asarray(log["vir"], dtype=np.float64)
+    gain = log.sensor.drive_gain
+    if gain and tau_sensor(log) == "command" and "tau" in log:
+        return np.asarray(log["tau"], dtype=np.float64) / gain
+    return None
+
+
 def hold_of(sensor: str | None, fs_hz: float) -> float:
     """Half a sample period when the logged force is the held command (``sensor == "command"``), else 0."""
     return 0.5 / fs_hz if sensor == "command" else 0.0
@@ -281,11 +293,12 @@ def prepare_log(log: RunLog, prefix: str = "data quality") -> PreparedLog:
         log, jitter = restamped(log)
         if jitter:
             notes = (f"{prefix}: stamp jitter of a fixed-rate loop (up to {100 * jitter:.3g} % of a period): samples kept, restamped on its uniform grid",)
-    quality = assess_log(log)
+    command = drive_command(log)
+    quality = assess_log(log, command)
     warnings = notes + tuple(f"{prefix}: {message}" for message in quality.warnings())
     saturated = None
-    if quality.saturation_limit is not None and "vir" in log.channels:
-        mask = saturation_mask(log["vir"], quality.saturation_limit)
+    if quality.saturation_limit is not None and command is not None:
+        mask = saturation_mask(command, quality.saturation_limit)
         saturated = mask if mask.any() else None
     fs = log.fs_hz
     valid = None if saturated is None else ~saturated

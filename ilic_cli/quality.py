@@ -317,13 +317,16 @@ def assess(
     return report
 
 
-def assess_log(log: Any) -> QualityReport:
+def assess_log(log: Any, command: np.ndarray | None = None) -> QualityReport:
     """Run :func:`assess` on a :class:`~ilic_cli.runlog.RunLog`.
 
     Parameters
     ----------
     log : RunLog
         The log; ``q``, ``q_ref`` and ``vir`` are used when present.
+    command : ndarray, optional
+        The drive command (V) in place of ``vir`` (:func:`ilic_cli.prepare.drive_command`: a PD loop's force over
+        its declared drive gain).
 
     Returns
     -------
@@ -333,4 +336,4 @@ def assess_log(log: Any) -> QualityReport:
     rate = log.meta.get("sample_rate_hz")
     if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (math.isfinite(rate) and rate > 0):
         rate = None
-    return assess(ch["t"], q=ch.get("q"), q_ref=ch.get("q_ref"), vir=ch.get("vir"), rate_hz=rate)
+    return assess(ch["t"], q=ch.get("q"), q_ref=ch.get("q_ref"), vir=ch.get("vir") if command is None else command, rate_hz=rate)

@@ -39,7 +39,8 @@ def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
         ``scenario``, ``true_parameters``, ``joint``, ``meta`` (the rest) and
         ``quality`` (:meth:`QualityReport.to_dict`).
     """
-    from ilic_cli.quality import assess_log  # deferred: numpy; `ilic info --help` stays instant
+    from ilic_cli.prepare import drive_command  # deferred: numpy; `ilic info --help` stays instant
+    from ilic_cli.quality import assess_log  # deferred: numpy
     from ilic_cli.timebase import nominal_rate_hz  # deferred: numpy; `ilic info --help` stays instant
 
     meta = log.meta  # shown as recorded (the typed views normalise; a report quotes the file)
@@ -63,7 +64,7 @@ def summarize(log: RunLog, path: str | Path, fmt: str) -> dict[str, Any]:
         "true_parameters": meta.get("true_parameters"),
         "joint": meta.get("joint"),
         "meta": {k: v for k, v in meta.items() if k not in shown},
-        "quality": assess_log(log).to_dict(),
+        "quality": assess_log(log, drive_command(log)).to_dict(),
     }
 
 

@@ -239,6 +239,25 @@ def test_saturated_samples_are_masked_with_a_warning(tmp_path: Path) -> None:
     assert abs(biased_ilic.windows[0].result.theta[1] / TRUE["Fv"] - 1) > 0.05
 
 
+def test_a_declared_pd_loop_s_clipped_force_is_masked_without_a_vir_channel(tmp_path: Path) -> None:
+    """A log without ``vir`` whose PD loop and drive gain are declared (``--controller pd --drive-gain``): its force is the
+    drive's command, whose plateau at the limit is masked and said, as with ``vir`` (the same rows and estimates); ``info``
+    reports it too."""
+    from ilic_cli.identify import identify
+
+    sat = _saturated()
+    pd = {**sat.meta, "controller": {"kind": "pd", "kp": 10.0, "kv": 50.0}}
+    with_vir = RunLog(dict(sat.channels), dict(sat.units), pd)
+    without = RunLog({k: v for k, v in sat.channels.items() if k != "vir"}, {k: u for k, u in sat.units.items() if k != "vir"}, pd)
+    a, b = identify(without, method="ls"), identify(with_vir, method="ls")
+    assert a.ls is not None and b.ls is not None
+    assert np.array_equal(a.ls.result.theta, b.ls.result.theta) and a.ls.result.rows == b.ls.result.rows
+    assert any("saturated at +/-1.8" in w for w in a.warnings) and any("of the samples masked" in w for w in a.warnings), a.warnings
+    res = run_cli("info", str(write_log(without, tmp_path / "pd.mcap")), "--format", "json")  # the loop in the file's metadata
+    assert res.status == 0, res.stderr
+    assert json.loads(res.stdout)["quality"]["saturation_limit"] == pytest.approx(1.8)
+
+
 def test_saturated_validation_log_is_masked_too() -> None:
     """``--validate`` applies the estimates to the other log with its saturated samples masked (and says so)."""
     from ilic_cli.identify import identify
