@@ -24,7 +24,7 @@ def central_difference(x: np.ndarray, dt_s: float) -> np.ndarray:
 
 
 def derivative(x: np.ndarray, dt_s: float, points: int = 3) -> np.ndarray:
-    """Derivative along the first axis by a ``points``-point central stencil (:func:`rows_stencil` chooses it).
+    """Derivative along the first axis by a ``points``-point central stencil (:func:`ilic_cli.filtering.rows_stencil` chooses it).
 
     ``3``: :func:`central_difference` (the benchmark's; gain ``sin(ωT)/(ωT)``, 1 - (ωT)²/6). ``5``:
     ``(x[k-2] - 8 x[k-1] + 8 x[k+1] - x[k+2]) / 12T`` (gain ``(8 sin ωT - sin 2ωT)/(6ωT)``, 1 - (ωT)⁴/30), central
