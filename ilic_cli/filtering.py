@@ -388,13 +388,13 @@ FIVE_POINT_BAND_OF_FS = 1.0 / 15.0
 (:func:`ilic_cli.derivatives.derivative`; gains at this share 0.9990 and 0.9980) and the rows keep ``min(40 Hz, fs/15)``:
 a decimation by 6 below 600 Hz, whose divisors let the search at the log's rate run on every second or third sample.
 Measured with ``identify --method ls`` on fresh draws of the robot corpus's clean dwell-and-move logs (four axes, S-curves
-and trapezoids, sensor noise alone or with a 700 Hz current loop), within 2 % of M, Fv and Fc, central differences keeping
-0.04·fs against this: 250 Hz 54/72 against 55/64 and 56/64 (sensor noise alone 24-28/40 against 31/32 and 32/32), 500 Hz
-75/80 against 78/80 and 64/64. At 250 Hz the 10 Hz rows cut through the breakaways (the S-curves' 80-150 ms ramps): Fv
-and Fc spread ±1.5 % with no noise at all. Five points keeping 0.04·fs lean Fv +2.8 %; keeping 0.08·fs widens the
-current loop's lag into Fv −1.5 % at 250 Hz (20/32 within). On chirps and multisines at 250 Hz, which reverse often and never
-dwell, neither rule is within 2 % on more than 56 of 96 logs (this one 47; M's median error halved, Fv's 1.9 % against 1.4 %:
-docs/methods.md)."""
+and trapezoids), within 2 % of M, Fv and Fc, central differences keeping 0.04·fs against this, on the same seeds: 250 Hz
+with sensor noise 24-28/40 against 31/32, with a 700 Hz current loop 26/32 against 21/32 (its lag), with a 10 Hz force
+disturbance 12/32 against 18/32; 500 Hz 39/40, 36/40, 10/40 against 40/40, 36/40, 14/40. At 250 Hz the 10 Hz rows cut
+through the breakaways (the S-curves' 80-150 ms ramps): Fv and Fc spread ±1.5 % with no noise at all. Five points keeping
+0.04·fs lean Fv +2.8 %; keeping 0.08·fs widens the current loop's lag into Fv −1.5 % at 250 Hz (20/32 within). On chirps
+and multisines at 250 Hz, which reverse often and never dwell, neither rule is within 2 % on more than 56 of 96 logs (this
+one 47; M's median error halved, Fv's 1.9 % against 1.4 %: docs/methods.md)."""
 
 
 def rows_stencil(fs_hz: float, band_hz: float = ROWS_BAND_HZ) -> int:
