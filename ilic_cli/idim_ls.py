@@ -35,7 +35,7 @@ from ilic_cli.filtering import (
     rows_decimation,
     rows_stencil,
 )
-from ilic_cli.lsq import LSResult, SigmaConvention, evaluate, finite_or_none, pinv, solve
+from ilic_cli.lsq import LSResult, SigmaConvention, bartlett_sum, evaluate, finite_or_none, newey_west_lags, pinv, solve
 from ilic_cli.regressor import Kinematics, Model
 
 
@@ -210,12 +210,8 @@ def robust_std(W: np.ndarray, e: np.ndarray) -> RobustStd:
     weights ``1 - l/(L+1)``; a white residual gives eq. 9's covariance (to sampling error).
     """
     n, b = W.shape
-    L = min(int(4.0 * (n / 100.0) ** (2.0 / 9.0)), max(n - 1, 0))
-    g = W * e[:, None]
-    S = g.T @ g
-    for lag in range(1, L + 1):
-        G = g[lag:].T @ g[:-lag]
-        S += (1.0 - lag / (L + 1.0)) * (G + G.T)
+    L = newey_west_lags(n)
+    S = bartlett_sum(W * e[:, None], L)
     A = pinv(W.T @ W)
     var = np.diag(A @ S @ A) * n / max(n - b, 1)
     std = np.sqrt(np.maximum(var, 0.0))

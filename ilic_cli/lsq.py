@@ -129,6 +129,21 @@ def relative_std_pct(theta: np.ndarray, std: np.ndarray) -> np.ndarray:
         return np.where(theta != 0, 100.0 * std / np.abs(theta), np.inf)
 
 
+def newey_west_lags(n: int) -> int:
+    """The lags of a Newey-West long-run covariance of ``n`` samples: ``floor(4 (n/100)^(2/9))``, at most ``n - 1``."""
+    return min(int(4.0 * (n / 100.0) ** (2.0 / 9.0)), max(n - 1, 0))
+
+
+def bartlett_sum(g: np.ndarray, lags: int) -> np.ndarray:
+    """``g'g`` plus the autocovariances of the columns of ``g`` over ``lags`` lags with Bartlett weights ``1 - l/(lags+1)``,
+    not normalised: the Newey-West (HAC) long-run covariance is this over the number of rows."""
+    S = g.T @ g
+    for lag in range(1, lags + 1):
+        G = g[lag:].T @ g[:-lag]
+        S += (1.0 - lag / (lags + 1.0)) * (G + G.T)
+    return S
+
+
 def residual_sigma(e: np.ndarray, b: int, sigma: SigmaConvention) -> tuple[float, float]:
     """``||e||`` and the error's standard deviation by ``sigma``'s convention (:func:`solve_batch`) for ``b`` parameters."""
     err = float(np.linalg.norm(e))

@@ -361,7 +361,7 @@ def dm_z(p: float | None) -> float:
     Parameters
     ----------
     p : float or None
-        One-sided p-value (:func:`ilic_cli.diagnosis.stats.diebold_mariano`).
+        One-sided p-value (:func:`ilic_cli.diagnosis.stats.heldout_fall_p`).
     """
     return math.nan if p is None else float(normal_isf(p))
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.lsq import column_basis, lstsq, pinv
+from ilic_cli.lsq import bartlett_sum, column_basis, lstsq, newey_west_lags, pinv
 
 
 def lag1_autocorrelation(e: np.ndarray) -> float:
@@ -245,15 +245,10 @@ def _differentials(e_before: np.ndarray, e_after: np.ndarray, losses: tuple[str,
 
 
 def _long_run_covariance(d: np.ndarray) -> np.ndarray:
-    """Newey-West (Bartlett) long-run covariance of the columns of ``d`` with ``floor(4 (n/100)^(2/9))`` lags."""
+    """Newey-West (Bartlett) long-run covariance of the columns of ``d`` about their means (:func:`ilic_cli.lsq.bartlett_sum`
+    over :func:`ilic_cli.lsq.newey_west_lags`)."""
     n = len(d)
-    dc = d - d.mean(axis=0)
-    lags = int(4 * (n / 100.0) ** (2.0 / 9.0))
-    S = dc.T @ dc / n
-    for k in range(1, lags + 1):
-        G = dc[k:].T @ dc[:-k] / n
-        S = S + (1.0 - k / (lags + 1)) * (G + G.T)
-    return S
+    return bartlett_sum(d - d.mean(axis=0), newey_west_lags(n)) / n
 
 
 def diebold_mariano(e_before: np.ndarray, e_after: np.ndarray, loss: str = "squared") -> float:

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from ilic_cli.lsq import column_basis, evaluate, lstsq, solve, solve_batch
+from ilic_cli.lsq import bartlett_sum, column_basis, evaluate, lstsq, newey_west_lags, solve, solve_batch
 
 X = np.array([0.0, 1.0, 2.0, 3.0])
 W_LINE = np.c_[np.ones(4), X]
@@ -209,3 +209,17 @@ def test_lstsq_gives_the_estimate_and_its_residual_sum_of_squares() -> None:
     theta2, rss2 = lstsq(np.hstack([W[:, :1], W[:, :1]]), 2.0 * W[:, 0])
     np.testing.assert_allclose(theta2, [1.0, 1.0], rtol=1e-10)
     assert rss2 == pytest.approx(0.0, abs=1e-20)
+
+
+def test_the_newey_west_sum_is_the_bartlett_weighted_autocovariance() -> None:
+    """``bartlett_sum``: sum over |l| <= L of (1 - |l|/(L+1)) sum_t g_t g_(t-l)', term by term; the lags floor(4 (n/100)^(2/9)), below n."""
+    g = np.random.default_rng(7).standard_normal((50, 2))
+    L = 3
+    want = np.zeros((2, 2))
+    for lag in range(-L, L + 1):
+        w = 1.0 - abs(lag) / (L + 1.0)
+        for t in range(50):
+            if 0 <= t - lag < 50:
+                want += w * np.outer(g[t], g[t - lag])
+    np.testing.assert_allclose(bartlett_sum(g, L), want, rtol=1e-12)
+    assert [newey_west_lags(n) for n in (1, 2, 3, 100, 1000)] == [0, 1, 1, 4, 6]
