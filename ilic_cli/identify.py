@@ -31,7 +31,7 @@ from ilic_cli.output_error import OEResult, OESettings
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.loop import PLANT_LOOP
-from ilic_cli.usable import UsableRows, identification_hold_s, usable_rows, with_rest
+from ilic_cli.usable import UNKNOWN_FORCE_TIMING, UsableRows, force_timing_unknown, identification_hold_s, usable_rows, with_rest
 
 if TYPE_CHECKING:
     from ilic_cli.simulation.timing import ControlTiming
@@ -323,6 +323,8 @@ def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[Run
         method=settings.method,
         usable=usable_rows(prepared, settings.ls),
     )
+    if force_timing_unknown(prepared):
+        report.warnings.append(UNKNOWN_FORCE_TIMING)
     closed = [label(m) for m in runs if METHODS[m].closed_loop]
     if closed:  # refuse before any work
         require_closed_loop(log, prepared.source, " and ".join(closed))

@@ -17,7 +17,7 @@ import numpy as np
 from ilic_cli.derivatives import derivative
 from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.idim_ls import LSSettings, min_samples, valid_rows
-from ilic_cli.prepare import PreparedLog, RestSamples
+from ilic_cli.prepare import PreparedLog, RestSamples, tau_sensor
 
 STANDSTILL_FRACTION = 0.01
 """A sample may be at rest when its filtered speed is below this fraction of the top speed (the 99.5th percentile)."""
@@ -138,6 +138,21 @@ FORCE_TIMING_RULE = (
     "at the sample instants"
 )
 """When identification evaluates the regressor half a period later (:func:`identification_hold_s`), in words."""
+
+
+UNKNOWN_FORCE_TIMING = (
+    "the log does not say how its force samples the drive (no controller, no drive command): the regressor is evaluated at the "
+    "sample instants; if the force is a drive's command held over each period, Fv and Fc lean by a few per cent once rows at "
+    "rest are left out (up to 6 % measured): declare the loop that ran to have it evaluated half a period later"
+)
+"""The warning of :func:`force_timing_unknown`."""
+
+
+def force_timing_unknown(prepared: PreparedLog) -> bool:
+    """Whether ``prepared`` leaves rows at rest out while its force's timing is unknown (:func:`ilic_cli.prepare.tau_sensor`:
+    ``None``): its fit evaluates the regressor at the sample instants, which biases Fv and Fc if the force is a held command."""
+    rest = prepared.rest
+    return rest is not None and rest.count > 0 and tau_sensor(prepared.log) is None
 
 
 def identification_hold_s(prepared: PreparedLog) -> float:

@@ -208,6 +208,19 @@ def test_diagnose_on_the_issues_log_fits_identifys_rows_and_finds_nothing(folder
     assert f"{u['usable_rows']} of {u['decimated_rows']} decimated rows fitted: {u['rows_at_rest']} at rest left out ({u['dwells']} dwells: {REST_RULE})" in md
 
 
+def test_a_log_with_dwells_that_does_not_say_how_its_force_is_sampled_is_warned_of(folder: Path) -> None:
+    """Without the loop's flags a robot's CSV does not say its force is the drive's held command: fitted at the sample instants,
+    the rule and its cost said on stderr and in the JSON's warnings; with them, no word."""
+    path = csv_log("revolute", 500.0, folder)
+    bare = run_cli("identify", str(path), "--method", "ls", "--format", "json")
+    assert bare.status == 0, bare.stderr
+    warned = [w for w in json.loads(bare.stdout)["warnings"] if w.startswith("the log does not say how its force samples the drive")]
+    assert len(warned) == 1 and f"ilic: warning: {warned[0]}" in bare.stderr.splitlines()
+    assert json.loads(bare.stdout)["usable_rows"]["regressor_delay_s"] == 0.0
+    flagged = run_cli("identify", str(path), "--method", "ls", *user_options("revolute"), "--format", "json")
+    assert flagged.status == 0 and "how its force samples" not in flagged.stderr, flagged.stderr
+
+
 def test_a_log_without_standstill_keeps_every_row_and_the_published_procedure() -> None:
     """DATA_EMPS.mat: its reversals pass through zero speed in 9 ms (below the 30 ms of a dwell): no row at rest, no hold."""
     emps = require_shared()
