@@ -139,6 +139,10 @@ class IdentifyReport:
         f = self.model_fit()
         return f.method if f is not None else label("ilic")
 
+    def unit(self, name: str) -> str:
+        """The unit of parameter ``name`` on this log's joint (a revolute joint's N·m where a prismatic one has N)."""
+        return parameters.unit(name, self.joint_type) or unit_of(name)
+
     def to_dict(self) -> dict[str, Any]:
         first = self.fits[0].names if self.fits else ()
         return {
@@ -146,7 +150,7 @@ class IdentifyReport:
             "model": self.model,
             "joint": self.joint,
             "joint_type": self.joint_type,
-            "units": {n: parameters.unit(n, self.joint_type) or unit_of(n) for n in first},
+            "units": {n: self.unit(n) for n in first},
             "effects": {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.effects.items()},
             "sample_rate_hz": self.fs_hz,
             "samples": self.samples,

@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ilic_cli.closed_loop_id import RESIDUAL
-from ilic_cli.effects import unit_of
 from ilic_cli.io.atomic import atomic_path
+from ilic_cli.jointlog import UNITS
 
 if TYPE_CHECKING:
     from ilic_cli.identify import IdentifyReport
@@ -77,6 +77,7 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
     from matplotlib.ticker import MaxNLocator  # deferred: matplotlib (see _pyplot)
 
     written: list[Path] = []
+    pos, force = UNITS[report.joint_type]  # a revolute joint's rad and N·m, a prismatic one's m and N
     recorded = log.provenance.true_parameters
     true = dict(recorded) if isinstance(recorded, Mapping) else {}
     if report.ilic is not None and report.ilic.windows:
@@ -97,11 +98,13 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
                 ax.axhline(float(true[n]), color="tab:green", ls=":", lw=1.5, label="true (simulated)")
                 shown.append(np.array([float(true[n])]))
             scale_y(ax, np.concatenate(shown))
-            ax.set_ylabel(f"{n} ({unit_of(n)})")
+            ax.set_ylabel(f"{n} ({report.unit(n)})")
             ax.grid(alpha=0.3)
         axes[0, 0].legend(loc="best", fontsize=8)
         axes[-1, 0].set_xlabel("window k (-)")
         axes[-1, 0].xaxis.set_major_locator(MaxNLocator(integer=True))
+        if len(ks) == 1:  # one window: its number the one tick, not fractions of a window around it
+            axes[-1, 0].set_xticks(ks)
         fig.suptitle("Parameter estimates per window")
         written.append(_save(fig, outdir / f"parameters.{image_format}"))
     if report.ls is not None and report.ls.y is not None and report.ls.y_hat is not None:
@@ -114,13 +117,13 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         for (i, method, _), cl_hat in zip(models, cl_hats, strict=True):
             ax1.plot(t, cl_hat, lw=1.0, ls="--", color=f"C{i + 4}", label=f"{method} model")
         ax1.plot(t, y, lw=0.6, color="C0", label="measured (decimated)")
-        ax1.set_ylabel("force (N)")
+        ax1.set_ylabel(f"force ({force})")
         ax1.legend(fontsize=8)
         ax2.plot(t, error_b, lw=0.8, color="C3")
         edges = edge_rows(len(error))
         scale_y(ax2, error[scaled_rows(t_rows, edges)])
         mark_edges(ax2, t_rows, edges)
-        ax2.set_ylabel("error (N)")
+        ax2.set_ylabel(f"error ({force})")
         ax2.set_xlabel("t (s)")
         for ax in (ax1, ax2):
             ax.grid(alpha=0.3)
@@ -145,7 +148,7 @@ def plot_identify(report: IdentifyReport, log: RunLog, outdir: Path, image_forma
         fig, ax = plt.subplots(figsize=(9, 3))
         ax.plot(*broken_at_gaps(log.t, log["q_ref"] - log["q"]), lw=0.6)
         ax.set_xlabel("t (s)")
-        ax.set_ylabel("e_q = q_ref − q (m)")
+        ax.set_ylabel(f"e_q = q_ref − q ({pos})")
         ax.grid(alpha=0.3)
         if report.ilic is not None:
             for w in report.ilic.windows:

@@ -10,6 +10,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.io.atomic import atomic_path
+from ilic_cli.jointlog import UNITS
 from ilic_cli.plotting import edge_rows, mark_edges, scale_y, scaled_rows
 from ilic_cli.spectra import welch_psd
 
@@ -34,16 +35,17 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
         plt.close(fig)
         written.append(path)
 
+    pos, force = UNITS[diag.joint]  # a revolute joint's rad and N·m, a prismatic one's m and N
     sig = [g for g in diag.located if g.significant]
     fig, axes = plt.subplots(3, 1, figsize=(10, 10))
-    for ax, key, unit, kind in ((axes[0], "qd", "m/s", "velocity"), (axes[1], "q", "m", "position"), (axes[2], "t", "s", "time")):
+    for ax, key, unit, kind in ((axes[0], "qd", f"{pos}/s", "velocity"), (axes[1], "q", pos, "position"), (axes[2], "t", "s", "time")):
         ax.plot(r[key], r["before"], ".", ms=2, alpha=0.5, label="rigid model")
         ax.plot(r[key], r["after"], ".", ms=2, alpha=0.5, label="augmented model")
         for g in sig:
             if g.kind == kind or (kind == "time" and g.kind == "drift"):
                 ax.axvspan(g.bounds[0], g.bounds[1], color="tab:red", alpha=0.12)
         ax.set_xlabel(f"{kind} ({unit})")
-        ax.set_ylabel("force residual (N)")
+        ax.set_ylabel(f"force residual ({force})")
     axes[0].legend(loc="upper right")
     axes[0].set_title("IDIM residual; shaded: located regions (significant)")
     fig.tight_layout()
@@ -63,7 +65,7 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
                 f"{centre:.3g} Hz", (centre, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12), textcoords="offset points", color="tab:red", fontsize=8
             )
     ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("residual PSD (N^2/Hz)")
+    ax.set_ylabel(f"residual PSD (({force})^2/Hz)")
     ax.legend()
     fig.tight_layout()
     save(fig, "spectrum.png")
@@ -72,7 +74,7 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     axes[0].plot(r["t"], r["y_before"], lw=1.2, ls="--", label="rigid IDIM model")
     axes[0].plot(r["t"], r["y_after"], lw=1.2, ls=":", label="augmented IDIM model")
     axes[0].plot(r["t"], r["y"], lw=0.5, color="k", label="recorded (decimated)")
-    axes[0].set_ylabel("force (N)")
+    axes[0].set_ylabel(f"force ({force})")
     axes[0].legend(loc="upper right")
     sim = diag.simulation
     if sim is not None and "tau_before" in sim.signals:
@@ -82,12 +84,12 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
         if "tau_after" in s:
             diffs.append(s["tau_after"] - s["tau"])
             axes[1].plot(t, diffs[1], lw=0.4, label="simulation - recording, augmented")
-        axes[1].set_ylabel("force difference (N)")
+        axes[1].set_ylabel(f"force difference ({force})")
     else:
         t, diffs = r["t"], [r["before"], r["after"]]
         axes[1].plot(t, diffs[0], lw=0.5, label="rigid")
         axes[1].plot(t, diffs[1], lw=0.5, label="augmented")
-        axes[1].set_ylabel("IDIM residual (N)")
+        axes[1].set_ylabel(f"IDIM residual ({force})")
     edges = edge_rows(len(t))
     keep = scaled_rows(t, edges)
     scale_y(axes[1], np.concatenate([d[keep] for d in diffs]))

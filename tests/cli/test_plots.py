@@ -64,3 +64,19 @@ def test_diagnose_plots(emps_mat: Path, tmp_path: Path, saved: dict[str, Figure]
     force = next(f for n, f in saved.items() if "force_fit" in n)
     lo, hi = force.axes[1].get_ylim()
     assert hi - lo < 60  # the replay's start transient (about -89 N at t = 0) does not set the scale
+
+
+def test_a_revolute_joint_s_plots_are_in_its_units(tmp_path: Path, saved: dict[str, Figure]) -> None:
+    """A revolute joint's figures read rad, rad/s and N·m, never a linear axis's m or N (identify --out and diagnose --out)."""
+    from tests.corpus.measure import controller_flags, write_csv
+    from tests.corpus.robot import Case, build
+
+    case = Case("rev0.5", "trapezoid", 500.0, "sensor", 4242)
+    path = write_csv(build(case), tmp_path / "joint.csv")
+    for cmd in ("identify", "diagnose"):
+        res = run_cli(cmd, str(path), *controller_flags(case), "--out", str(tmp_path / cmd))
+        assert res.status == 0, res.stderr
+    _labels_have_units(saved)
+    labels = [label for fig in saved.values() for ax in fig.axes for label in (ax.get_xlabel(), ax.get_ylabel()) if label]
+    units = {UNIT.search(label).group(0) for label in labels if UNIT.search(label)}  # type: ignore[union-attr]
+    assert {"(N·m)", "(rad)", "(rad/s)"} <= units and not units & {"(N)", "(m)", "(m/s)"}, units
