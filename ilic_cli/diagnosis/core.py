@@ -28,9 +28,9 @@ from ilic_cli.diagnosis.refit import refit as refit_stage
 from ilic_cli.diagnosis.refit import segment_refit as _segment_refit
 from ilic_cli.diagnosis.select import Evaluation, Selection, validation_error
 from ilic_cli.diagnosis.settings import DiagnoseSettings, DiagnosisSettings, replay_alpha
-from ilic_cli.diagnosis.stats import blocked_folds, gls_covariance, heldout_errors
+from ilic_cli.diagnosis.stats import folds_either_side, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.strategies import strategy_of
-from ilic_cli.diagnosis.system import system
+from ilic_cli.diagnosis.system import change_time, system
 from ilic_cli.effects import EFFECTS, Effect, Estimate
 from ilic_cli.errors import ParameterError
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
@@ -326,7 +326,7 @@ def _assembled(
     decisions; a drift it does not keep is no finding, its reason the replay's. ``None``: the log is not replayed."""
     data, rows, fs, sel = prop.data, prop.rows, prop.prepared.fs_hz, prop.select
     W0, y0, res0, W1, y1, res1 = base.W, base.y, base.res, final.W, final.y, final.res
-    folds = blocked_folds(len(y0), sel.folds, sel.guard)
+    folds = folds_either_side(data.t_dec[rows], change_time([*prop.known, *decision.kept]), sel.folds, sel.guard)
     h0, h1 = heldout_errors(W0, y0, folds), heldout_errors(W1, y1, folds)
     fit: dict[str, dict[str, float | None]] = {
         "relative_error_pct": {"before": res0.relative_error_pct, "after": res1.relative_error_pct},

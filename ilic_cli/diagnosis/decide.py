@@ -34,7 +34,7 @@ from ilic_cli.diagnosis.propose import Proposal, closed_loop_proposal, prepare_s
 from ilic_cli.diagnosis.select import SelectionResult
 from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
 from ilic_cli.diagnosis.stats import heldout_fall_p
-from ilic_cli.diagnosis.system import Step
+from ilic_cli.diagnosis.system import Step, change_time
 from ilic_cli.diagnosis.verdicts import DM_TEST, PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, PlantOf, ReplayVerdict, Verdict
 from ilic_cli.effects import EFFECTS
 from ilic_cli.prepare import prepare_log
@@ -176,7 +176,7 @@ def replay_drift(
     plant_of = proposal_plant(prop)
     if sensor is None and settings.replay_noise:  # no candidate was replayed: the noise they would have carried
         sensor = decision_sensor(log, settings.ls, prop.data, prop.base, prop.known, prop.rows, plant_of, prop.drift)
-    replays = HeldoutReplays(log, prop.data, prop.base, prop.rows, plant_of, settings.select.folds, sensor or {})
+    replays = HeldoutReplays(log, prop.data, prop.base, prop.rows, plant_of, settings.select.folds, sensor or {}, change_time(kept))
     without = replays.heldout(kept)
     replays.drift = drift
     within = replays.heldout(kept)

@@ -35,9 +35,9 @@ from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
 from ilic_cli.diagnosis.replay_again import Heldout, judged_again
 from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, minimise, search_range
 from ilic_cli.diagnosis.sensor import recorded_sensor
-from ilic_cli.diagnosis.stats import blocked_folds, heldout_fall_p
+from ilic_cli.diagnosis.stats import contiguous_runs, folds_either_side, heldout_fall_p
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
-from ilic_cli.diagnosis.system import Step, SystemFit, fit_system, system
+from ilic_cli.diagnosis.system import Step, SystemFit, change_time, fit_system, system
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull, ReplayVerdict, Verdict
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
@@ -200,7 +200,7 @@ def replay_decide(
     elif sensor is None:
         sensor = decision_sensor(log, data.settings, data, base, known, rows, plant_of, drift)
     vsensor = decision_sensor(*validate, data, base, known, rows, plant_of) if sensor_noise and validate is not None else {}
-    replays = HeldoutReplays(log, data, base, rows, plant_of, folds, sensor)
+    replays = HeldoutReplays(log, data, base, rows, plant_of, folds, sensor, change_time([*known, *proposed]))
     replays.drift = drift
     replays.min_delay_periods, replays.fold_xatol_steps = min_delay_periods, fold_xatol_steps
     kept = list(known)
@@ -227,20 +227,24 @@ def replay_decide(
 
 
 class HeldoutReplays:
-    """The held-out replays of one recording: its ``k`` contiguous blocks, each judged by a model fitted without it.
+    """The held-out replays of one recording: its ``k`` contiguous blocks (laid on each side of a change at ``change_s``,
+    :func:`~ilic_cli.diagnosis.stats.folds_either_side`), each judged by a model fitted without it.
 
     ``sensor``: the sensor noise every judged replay carries (:func:`decision_sensor`; ``{}``: noise-free).
     """
 
-    def __init__(self, log: RunLog, data: IDIMData, base: Model, rows: np.ndarray, plant_of: PlantOf, folds: int, sensor: dict[str, Any]) -> None:
+    def __init__(
+        self, log: RunLog, data: IDIMData, base: Model, rows: np.ndarray, plant_of: PlantOf, folds: int, sensor: dict[str, Any], change_s: float | None = None
+    ) -> None:
         self.log, self.data, self.base, self.rows, self.plant_of, self.folds, self.sensor = log, data, base, rows, plant_of, folds, sensor
         t_rows = data.t_dec[rows]
-        n_rows = int(rows.sum())
         t = np.asarray(log.t)
+        # each fold's held-out samples: one span of the log, or one each side of a change (``change_s``, folds_either_side)
         self.blocks = [
-            (int(np.searchsorted(t, t_rows[test[0]])), int(np.searchsorted(t, t_rows[test[-1]], side="right"))) for _, test in blocked_folds(n_rows, folds, 0)
+            [(int(np.searchsorted(t, t_rows[run[0]])), int(np.searchsorted(t, t_rows[run[-1]], side="right"))) for run in contiguous_runs(test)]
+            for _, test in folds_either_side(t_rows, change_s, folds, 0)
         ]
-        self.trains = [train for train, _ in blocked_folds(n_rows, folds, 10)]
+        self.trains = [train for train, _ in folds_either_side(t_rows, change_s, folds, 10)]
         tau = np.asarray(log["tau"])
         self.q = np.asarray(log["q"])
         self.n = len(log)
@@ -250,11 +254,11 @@ class HeldoutReplays:
         # to position noise, which no noise-free replay reproduces and which would
         # otherwise hide any effect (measured: 22 % raw error on a clean PD log)
         at = kept_indices(self.n, self.step_dec)
-        self.in_block = [(at >= a) & (at < b) for a, b in self.blocks]
+        self.in_block = [np.any([(at >= a) & (at < b) for a, b in spans], axis=0) for spans in self.blocks]
         self.tau_dec = decimate_matlab(tau, self.step_dec)
         self.others_of = [np.any([sel for j, sel in enumerate(self.in_block) if j != fold], axis=0) for fold in range(len(self.in_block))]
         self.idx_tau = np.concatenate([np.flatnonzero(sel) for sel in self.in_block])
-        self.idx_q = np.concatenate([np.arange(a, b) for a, b in self.blocks])
+        self.idx_q = np.concatenate([np.arange(a, b) for spans in self.blocks for a, b in spans])
         self.min_delay_periods = MIN_DELAY_PERIODS
         """A judged delay shorter than this share of the sample period is not a finding (:func:`~ilic_cli.diagnosis.materiality.below_period`)."""
         self.fold_xatol_steps = FOLD_XATOL_STEPS
@@ -331,13 +335,13 @@ class HeldoutReplays:
         grid = given[-1].effect.scan.grid(self.data.kin, self.data.fs_hz) if search and not level and given[-1].effect.scan is not None else None
 
         def fold(i: int) -> tuple[np.ndarray, np.ndarray, Any] | None:
-            (a, b), train, sel = self.blocks[i], self.trains[i], self.in_block[i]
+            spans, train, sel = self.blocks[i], self.trains[i], self.in_block[i]
             if level:
                 fold_steps, sim, used = self.dwell_fold(given, train, i)
             else:
                 fold_steps, sim = self.searched_fold(given, grid, train, i) if grid is not None else (given, self.fold_replay(given, train))
                 used = fold_steps[-1].value if fold_steps else None
-            return None if sim is None else (self.force_error(sim)[sel], np.asarray(sim["q"][a:b]) - self.q[a:b], used)
+            return None if sim is None else (self.force_error(sim)[sel], np.concatenate([np.asarray(sim["q"][a:b]) - self.q[a:b] for a, b in spans]), used)
 
         out = ordered_map(fold, range(len(self.blocks)))  # the folds are independent: side by side
         if any(r is None for r in out):

@@ -29,8 +29,8 @@ from ilic_cli.diagnosis.search import (
     minimise,
     search_range,
 )
-from ilic_cli.diagnosis.stats import FTest, blocked_folds, heldout_errors, heldout_fall_p, nested_f_test
-from ilic_cli.diagnosis.system import Step, SystemFit, effect_columns, extended, fit_system, moving_rows, shifted_force, system
+from ilic_cli.diagnosis.stats import FTest, blocked_folds, folds_either_side, heldout_errors, heldout_fall_p, nested_f_test
+from ilic_cli.diagnosis.system import Step, SystemFit, change_time, effect_columns, extended, fit_system, moving_rows, shifted_force, system
 from ilic_cli.diagnosis.verdicts import Selection
 from ilic_cli.effects import EFFECTS, Effect, applicable, catalogue_ids
 from ilic_cli.idim_ls import IDIMData
@@ -286,8 +286,9 @@ def forward_select(
                 tried.append(ev.decided(Selection.NOT_SIGNIFICANT if ev.test.p_adjusted >= settings.alpha else Selection.ANOTHER_FIRST))
             else:
                 prior = [*known, *out.steps]
+                judged_on = _folds_for(searcher, eff, ev.value, folds, settings)
                 ev = _heldout_judged(
-                    ev, searcher, eff, W, y, folds, settings.alpha_heldout, (data, validation, base, prior) if validation is not None else None, at
+                    ev, searcher, eff, W, y, judged_on, settings.alpha_heldout, (data, validation, base, prior) if validation is not None else None, at
                 )
                 tried.append(ev)
                 if ev.accepted:
@@ -331,6 +332,15 @@ def _candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, n_
     elif eff.nonlinear and (edge := at_edge(eff, searcher.grid_values(eff), value)):
         ev = ev.decided(Selection.AT_SEARCH_EDGE, edge)
     return ev, eff, W1, y1
+
+
+def _folds_for(
+    searcher: Searcher, eff: Effect, value: Any, folds: list[tuple[np.ndarray, np.ndarray]], settings: SelectSettings
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The held-out folds that judge ``eff`` at ``value``: ``folds``, or for a time of the log (a payload's change) the same blocks
+    laid on each side of it (:func:`folds_either_side`)."""
+    change = change_time([Step(eff, value)])
+    return folds if change is None else folds_either_side(searcher.data.t_dec[searcher.keep], change, settings.folds, settings.guard)
 
 
 def _heldout_judged(

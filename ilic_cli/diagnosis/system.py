@@ -39,6 +39,16 @@ class Step:
     value_std: float | None = None
 
 
+def change_time(steps: list[Step] | tuple[Step, ...]) -> float | None:
+    """The log's time the first of ``steps`` whose value is one stands at (a payload's change,
+    :attr:`ilic_cli.effects.Scan.of_the_whole_log`), where the held-out folds are laid on each side
+    (:func:`ilic_cli.diagnosis.stats.folds_either_side`); ``None`` when none is."""
+    for st in steps:
+        if st.effect.scan is not None and st.effect.scan.of_the_whole_log and st.value is not None:
+            return float(st.value)
+    return None
+
+
 def moving_rows(data: IDIMData) -> np.ndarray:
     """Decimated rows used by the diagnosis (boolean mask over ``data``'s rows).
 

@@ -71,7 +71,10 @@ class Scan:
         The value is a time of the log (a payload's change time): the
         diagnosis's held-out check keeps the whole log's value and refits the
         rest on each fold's training blocks, since a fold whose held-out
-        block holds that time cannot place it from its training blocks.
+        block holds that time cannot place it from its training blocks; and
+        its folds are laid on each side of that time, so that each fold
+        trains on rows before and after it
+        (:func:`ilic_cli.diagnosis.stats.folds_either_side`).
     at_log_rate : callable, optional
         ``(kin, fs_hz) -> bool``: whether the value is searched at the log's rate (the full-rate samples of the rows'
         decimation spans), not on the decimated rows: where its signature lies above the band the rows keep (a flexible

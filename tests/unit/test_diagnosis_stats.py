@@ -16,6 +16,7 @@ from ilic_cli.diagnosis.stats import (
     diebold_mariano,
     effective_size,
     f_sf,
+    folds_either_side,
     gls_covariance,
     heldout_errors,
     heldout_fall_p,
@@ -152,6 +153,27 @@ def test_blocked_folds_partition_time_with_guards() -> None:
         want = [i for i in range(103) if i < a - 5 or i >= b + 5]
         np.testing.assert_array_equal(train, want)
     assert [len(te) for te in tests] == [25, 26, 26, 26]  # edges 0, 25, 51, 77, 103
+
+
+def test_folds_either_side_of_a_change_train_on_both_sides() -> None:
+    """Each fold holds out one block of each side of the change, trains on both, with the guard around each held-out block."""
+    t = np.arange(103) * 0.1
+    folds = folds_either_side(t, 8.0, 4, 3)  # the change at row 80: sides of 80 and 23 rows
+    tests = [te for _, te in folds]
+    np.testing.assert_array_equal(np.sort(np.concatenate(tests)), np.arange(103))
+    assert [te[te >= 80][[0, -1]].tolist() for te in tests] == [[80, 84], [85, 90], [91, 96], [97, 102]]  # blocked_folds(23, 4)
+    for train, test in folds:
+        before, after = test[test < 80], test[test >= 80]
+        assert len(before) == 20 and np.all(np.diff(before) == 1) and np.all(np.diff(after) == 1)
+        assert np.sum(train >= 80) >= 23 - len(after) - 6 > 0 and np.sum(train < 80) > 0
+        want = [i for i in range(103) if all(i < r[0] - 3 or i > r[-1] + 3 for r in (before, after))]
+        np.testing.assert_array_equal(train, want)
+    # blocked over the whole log, the last fold would train on no row after the change
+    assert not np.any(blocked_folds(103, 4, 3)[-1][0] >= 80)
+    for change in (None, 0.2, 10.1):  # no change, or fewer than k rows on a side: the plain blocks
+        assert all(
+            np.array_equal(a[1], b[1]) and np.array_equal(a[0], b[0]) for a, b in zip(folds_either_side(t, change, 4, 3), blocked_folds(103, 4, 3), strict=True)
+        )
 
 
 def test_batched_and_shifted_rss_match_single_fits() -> None:
