@@ -74,6 +74,7 @@ def to_markdown(report: IdentifyReport) -> str:
             "",
         ]
         out += _robust_lines(report.ls)
+        out += _correlated_lines(report.ls)
         u = report.usable
         if u is not None and u.at_rest and u.rest is not None:  # the rule for samples at rest, stated where it acted
             held = f"; the regressor evaluated {1e3 * u.hold_s:.4g} ms later (the drive's held command)" if u.hold_s else ""
@@ -246,6 +247,19 @@ def _default(obj: Any) -> Any:
 def to_csv(report: IdentifyReport) -> str:
     """Tidy CSV: one row per method, window and parameter."""
     return str(report.to_frame().to_csv(index=False, float_format="%.10g"))
+
+
+def _correlated_lines(ls: IDIMLSResult) -> list[str]:
+    """The two estimates whose errors lean together most (:meth:`ilic_cli.idim_ls.IDIMLSResult.most_correlated`)."""
+    pair = ls.most_correlated()
+    if pair is None:
+        return []
+    a, b, r = pair
+    return [
+        f"Most correlated estimates: {a} and {b}, r = {r:+.2f}: the rows determine a combination of the two better than either "
+        "alone (a trajectory that excites them differently separates them; for friction, moves at several speeds).",
+        "",
+    ]
 
 
 def _robust_lines(ls: IDIMLSResult) -> list[str]:

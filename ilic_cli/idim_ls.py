@@ -35,7 +35,7 @@ from ilic_cli.filtering import (
     rows_decimation,
     rows_stencil,
 )
-from ilic_cli.lsq import LSResult, SigmaConvention, bartlett_sum, evaluate, finite_or_none, newey_west_lags, pinv, solve
+from ilic_cli.lsq import LSResult, SigmaConvention, bartlett_sum, evaluate, finite_or_none, most_correlated, newey_west_lags, pinv, solve
 from ilic_cli.regressor import Kinematics, Model
 
 
@@ -155,7 +155,13 @@ class IDIMLSResult:
         d = {"method": "IDIM-LS", "model": self.model, **self.result.to_dict(), "settings": self.settings.to_dict()}
         if self.robust is not None:
             d["robust_std"] = self.robust.to_dict(self.result.names, self.result.std)
+        if (pair := self.most_correlated()) is not None:
+            d["most_correlated"] = {"parameters": [pair[0], pair[1]], "correlation": pair[2]}
         return d
+
+    def most_correlated(self) -> tuple[str, str, float] | None:
+        """The two estimates whose errors lean together most (:func:`ilic_cli.lsq.most_correlated`), with their correlation."""
+        return None if self.result.cov is None else most_correlated(self.result.names, self.result.cov)
 
     def to_frame(self) -> Any:
         import pandas as pd  # deferred: pandas costs ~0.3 s of import, paid only by a caller of to_frame()

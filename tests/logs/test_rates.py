@@ -280,3 +280,19 @@ def test_a_threefold_drop_of_the_heldout_error_is_not_rejected() -> None:
     (found,) = [f for f in diag.findings if f.effect.id == "spring"]
     assert found.plant_effect is not None and abs(found.plant_effect["k"] / 0.3 - 1) < 0.15
     assert {f.effect.id for f in diag.findings} <= {"spring", "offset"}
+
+
+def test_the_report_says_which_estimates_lean_together(folder: Path) -> None:
+    """The largest correlation between two estimates, in the JSON and the report: a dwell-and-move log's Fv and Fc lean together more
+    (-0.95 here) than DATA_EMPS.mat's, whose moves run at many speeds (-0.90)."""
+    path = csv_log("revolute", 500.0, folder)
+    res = run_cli("identify", str(path), "--method", "ls", *user_options("revolute"), "--format", "json")
+    assert res.status == 0, res.stderr
+    pair = json.loads(res.stdout)["ls"]["most_correlated"]
+    assert pair["parameters"] == ["Fv", "Fc"] and -0.99 < pair["correlation"] < -0.93, pair
+    md = run_cli("identify", str(path), "--method", "ls", *user_options("revolute"))
+    assert f"Most correlated estimates: Fv and Fc, r = {pair['correlation']:+.2f}" in md.stdout, md.stdout
+    emps = run_cli("identify", str(require_shared() / "DATA_EMPS.mat"), "--method", "ls", "--format", "json")
+    assert emps.status == 0, emps.stderr
+    other = json.loads(emps.stdout)["ls"]["most_correlated"]
+    assert other["parameters"] == ["Fv", "Fc"] and round(other["correlation"], 3) == -0.899 and other["correlation"] > pair["correlation"]

@@ -223,3 +223,25 @@ def test_the_newey_west_sum_is_the_bartlett_weighted_autocovariance() -> None:
                 want += w * np.outer(g[t], g[t - lag])
     np.testing.assert_allclose(bartlett_sum(g, L), want, rtol=1e-12)
     assert [newey_west_lags(n) for n in (1, 2, 3, 100, 1000)] == [0, 1, 1, 4, 6]
+
+
+def test_the_most_correlated_estimates_by_hand() -> None:
+    """The pair of largest |r|, with its sign; an estimate without variance (or a NaN) takes no part; fewer than two: none."""
+    from ilic_cli.lsq import most_correlated
+
+    s = np.array([1.0, 2.0, 0.5, 3.0])
+    r = np.eye(4)
+    r[1, 2] = r[2, 1] = -0.962  # the robot corpus's Fv and Fc on one cruise speed
+    r[0, 3] = r[3, 0] = 0.899  # smaller, positive
+    names = ("M", "Fv", "Fc", "offset")
+    assert most_correlated(names, r * np.outer(s, s)) == ("Fv", "Fc", pytest.approx(-0.962))
+    r[0, 3] = r[3, 0] = 0.97
+    assert most_correlated(names, r * np.outer(s, s)) == ("M", "offset", pytest.approx(0.97))
+    cov = r * np.outer(s, s)
+    cov[0, :] = cov[:, 0] = 0.0  # M without variance: the next pair
+    assert most_correlated(names, cov) == ("Fv", "Fc", pytest.approx(-0.962))
+    cov[1, 2] = cov[2, 1] = np.nan
+    assert most_correlated(names, cov)[:2] in {("Fv", "offset"), ("Fc", "offset")}
+    cov[3, 3] = np.inf  # an unidentifiable estimate (rank-deficient rows): no correlation either
+    assert most_correlated(names, cov) is None
+    assert most_correlated(("M",), np.eye(1)) is None
