@@ -141,7 +141,7 @@ class IdentifyReport:
 
     def unit(self, name: str) -> str:
         """The unit of parameter ``name`` on this log's joint (a revolute joint's N·m where a prismatic one has N)."""
-        return parameters.unit(name, self.joint_type) or unit_of(name)
+        return unit_of(name, self.joint_type)
 
     def to_dict(self) -> dict[str, Any]:
         first = self.fits[0].names if self.fits else ()

@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ilic_cli import parameters
 from ilic_cli.closed_loop_id import STD_SOURCE
 from ilic_cli.effects import unit_of
 from ilic_cli.filtering import DECIMATION_RULE
@@ -50,7 +49,7 @@ def _table(header: list[str], rows: list[list[str]]) -> list[str]:
 
 def _label(name: str, joint_type: str = "prismatic") -> str:
     """``name (unit)``: the unit on the report's joint (:mod:`ilic_cli.parameters`) or of an effect's column."""
-    unit = parameters.unit(name, joint_type) or unit_of(name)
+    unit = unit_of(name, joint_type)
     return f"{name} ({unit})" if unit else name
 
 

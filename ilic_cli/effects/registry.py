@@ -76,9 +76,10 @@ def effects_to_dict(effects: Mapping[str, EffectParams]) -> dict[str, dict[str, 
     return {eid: effects[eid].to_dict() for eid in EFFECTS if eid in effects}
 
 
-def unit_of(name: str) -> str:
-    """The unit of a regressor column: a rigid parameter's (:mod:`ilic_cli.parameters`) or an effect column's."""
-    unit = parameters.unit(name)
+def unit_of(name: str, joint: str = "prismatic") -> str:
+    """The unit of a regressor column on a ``joint`` (a revolute joint's N·m where a prismatic one has N): a rigid parameter's
+    (:mod:`ilic_cli.parameters`) or an effect column's."""
+    unit = parameters.unit(name, joint)
     if unit:
         return unit
     return next((c.unit for e in EFFECTS.values() for c in e.columns if c.name == name), "")
