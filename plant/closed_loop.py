@@ -19,6 +19,7 @@ import numpy as np
 
 from ilic_cli.effects import Effects, effects_to_dict
 from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.jointlog import channel_units
 from ilic_cli.prefault import populate_beside
 from ilic_cli.regressor import Model, get_model
 from ilic_cli.runlog import RunLog
@@ -351,8 +352,9 @@ def loop_log(
     qd_ref: np.ndarray,
     qdd_ref: np.ndarray,
     meta: dict[str, Any] | None = None,
+    joint: str = "prismatic",
 ) -> RunLog:
-    """Build the run log of a closed-loop result (with the controller, plant and settings it ran with).
+    """Build the run log of a closed-loop result (with the controller, plant and settings it ran with), in a ``joint``'s units.
 
     Channels: ``t, q`` (measured position: with the quantization and noise
     effects), ``q_ref, qd_ref, qdd_ref`` (the logged reference), ``tau`` (the
@@ -373,7 +375,8 @@ def loop_log(
         "qd_plant": res.qd_true,
         "qdd_plant": res.qdd_true,
     }
-    units: dict[str, str] = {"qd_plant": "m/s", "qdd_plant": "m/s^2"}
+    motion = channel_units(joint)
+    units: dict[str, str] = {n: motion[n] for n in ("q", "q_ref", "qd_ref", "qdd_ref", "tau")} | {"qd_plant": motion["qd"], "qdd_plant": motion["qdd_ref"]}
     controller, fs_hz, pulses = res.controller, res.fs_hz, res.pulses
     if isinstance(controller, PDSettings):
         chans["vir"] = res.vir

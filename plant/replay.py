@@ -14,7 +14,7 @@ from ilic_cli.effects import EffectParams, make_effects
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.regressor import get_model
-from ilic_cli.runlog import Controller, RunLog
+from ilic_cli.runlog import Controller, RunLog, joint_type
 from plant.closed_loop import LoopResult, loop_log, simulate_loop
 from plant.controllers import CTCSettings, OpenLoopSettings, PDSettings
 from plant.dynamics import RigidParameters, plant_model
@@ -148,7 +148,7 @@ def simulate_replay(
     meta: dict[str, Any] = {"replay_of": source, "scenario": {"name": "replay", "source": source}}
     if ref.grid is not None:
         meta["replay_clock_s"] = clock_s
-    return loop_log(res, q_ref=ref.q_ref, qd_ref=ref.qd_ref, qdd_ref=ref.qdd_ref, meta=meta)
+    return loop_log(res, q_ref=ref.q_ref, qd_ref=ref.qd_ref, qdd_ref=ref.qdd_ref, meta=meta, joint=joint_type(log.units.get("q")))
 
 
 @dataclass(frozen=True)
@@ -353,6 +353,7 @@ def simulate_open_loop(
     zero = np.zeros(len(q))
     rmse = float(np.sqrt(np.mean((res.q_true - q) ** 2)))
     figure = BenchmarkFigure(rmse_mm=1e3 * rmse, fit_pct=100.0 * (1.0 - rmse / float(np.std(q))), samples=len(q), init_samples=init_samples)
-    out = loop_log(res, q_ref=q, qd_ref=zero, qdd_ref=zero, meta={"replay_of": log.provenance.source, "benchmark": figure.to_dict()})
+    meta = {"replay_of": log.provenance.source, "benchmark": figure.to_dict()}
+    out = loop_log(res, q_ref=q, qd_ref=zero, qdd_ref=zero, meta=meta, joint=joint_type(log.units.get("q")))
     out.channels["q"] = res.q_true  # the simulated output (no sensor effects in the benchmark's comparison)
     return out, figure

@@ -66,6 +66,26 @@ def input_options(func: F) -> F:
     return func
 
 
+JOINTS = ["prismatic", "revolute"]
+"""Joint types (:data:`ilic_cli.jointlog.UNITS`), for the ``--load-joint`` choice."""
+
+JOINT_HELP = "The joint's type, i.e. its units (m, N or rad, N·m), for a log that does not say them (a ROS JointState, a CSV without units)."
+
+
+def joint_option(extra_help: str = "") -> Callable[[F], F]:
+    """Add ``--load-joint`` (:func:`declared_joint`): the same declaration in every command that reads a one-joint log."""
+    return click.option("--load-joint", "load_joint", type=click.Choice(JOINTS), default=None, help=JOINT_HELP + extra_help)
+
+
+def declared_joint(log: RunLog, load_joint: str | None) -> RunLog:
+    """``log`` with the units of a ``--load-joint`` joint (values unchanged), or as read when none is given."""
+    if load_joint is None:
+        return log
+    from ilic_cli.prepare import as_joint  # deferred: numpy (info and convert --help stay instant)
+
+    return as_joint(log, load_joint)
+
+
 def selection(topic: str | None, ref_topic: str | None, joint: str | None, columns: str | None = None, effort: str | None = None) -> Selection:
     """Build the reader's :class:`~ilic_cli.io.Selection` from the shared options (``--columns t=time,q=pos``, ``--effort``)."""
     mapping: dict[str, str] = {}

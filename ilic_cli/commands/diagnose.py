@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import STRUCTURES, controller_options, input_options, load, note, with_controller
+from ilic_cli.commands.common import STRUCTURES, controller_options, declared_joint, input_options, joint_option, load, note, with_controller
 from ilic_cli.diagnosis import DiagnosisSettings, SelectSettings, diagnose
 from ilic_cli.diagnosis.null import NULL_KINDS, NullSettings
 from ilic_cli.diagnosis.plots import write_plots
@@ -98,6 +98,7 @@ from ilic_cli.modelfile import load_model_file
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report.md, report.json, model.json and plots.")
 @controller_options
 @input_options
+@joint_option(" Gravity is tried on a revolute joint only.")
 def command(
     log: Path,
     model_path: Path | None,
@@ -125,6 +126,7 @@ def command(
     ref_topic: str | None,
     joint: str | None,
     columns: str | None,
+    load_joint: str | None,
 ) -> None:
     """Find and model the physics the rigid model leaves out of LOG.
 
@@ -156,11 +158,12 @@ def command(
         if unknown or not chosen:
             raise IlicError("--effects", f"unknown effect {', '.join(unknown) or '(none given)'} (catalogue: {', '.join(catalogue)})")
     model_doc = load_model_file(model_path) if model_path is not None else None
-    run = load(log, input_format, topic, ref_topic, joint, columns)
-    if not no_simulation and against is None:  # the replay needs the loop that ran
+    run = declared_joint(load(log, input_format, topic, ref_topic, joint, columns), load_joint)
+    given = controller is not None or any(v is not None for v in (kp, kv, drive_gain))
+    if (not no_simulation and against is None) or given:  # the replay needs the loop that ran; given, it says how the force was sampled
         run = with_controller(run, log, controller, kp, kv, drive_gain)
-    sim = load(against, None, topic, ref_topic, joint, columns) if against is not None else None
-    other = load(validate, None, topic, ref_topic, joint, columns) if validate is not None else None
+    sim = declared_joint(load(against, None, topic, ref_topic, joint, columns), load_joint) if against is not None else None
+    other = declared_joint(load(validate, None, topic, ref_topic, joint, columns), load_joint) if validate is not None else None
     settings = DiagnosisSettings(
         model=structure,
         select=SelectSettings(alpha=alpha, folds=folds, effects=chosen),

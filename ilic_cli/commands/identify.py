@@ -16,7 +16,9 @@ from ilic_cli.commands.common import (
     InputOptions,
     closed_loop_settings,
     controller_options,
+    declared_joint,
     input_options,
+    joint_option,
     note,
     options_named,
     parse_effect_option,
@@ -34,7 +36,7 @@ from ilic_cli.modelfile import load_model_file, model_document
 from ilic_cli.output_error import OESettings
 from ilic_cli.parameters import DEFAULTS
 from ilic_cli.plotting import plot_identify
-from ilic_cli.prepare import as_joint, to_load_side
+from ilic_cli.prepare import to_load_side
 from ilic_cli.runlog import RunLog
 
 
@@ -98,16 +100,7 @@ from ilic_cli.runlog import RunLog
     default=None,
     help="Motor-side log whose tau is the motor current (A): torque constant (N·m/A); needs --gear-ratio.",
 )
-@click.option(
-    "--load-joint",
-    "load_joint",
-    type=click.Choice(["prismatic", "revolute"]),
-    default=None,
-    help=(
-        "The joint's type, i.e. its units (m, N or rad, N·m): with --gear-ratio the load's [default: prismatic]; "
-        "without, it declares the log's units (a ROS JointState does not say)."
-    ),
-)
+@joint_option(" With --gear-ratio, the load's [default: prismatic].")
 @click.option(
     "--validate", "validate", multiple=True, type=click.Path(path_type=Path), help="Apply the estimates to this log too (cross-test validation); repeatable."
 )
@@ -310,9 +303,7 @@ class TransmissionOptions:
         if self.gear_ratio is not None:
             with options_named():
                 return [to_load_side(x, self.gear_ratio, self.torque_constant, self.load_joint or "prismatic") for x in runs]
-        if self.load_joint is not None:
-            return [as_joint(x, self.load_joint) for x in runs]
-        return runs
+        return [declared_joint(x, self.load_joint) for x in runs]
 
 
 def _refuse_overwriting_inputs(out_dir: Path, plot_format: str, inputs: tuple[Path, ...]) -> None:

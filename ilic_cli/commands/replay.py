@@ -6,7 +6,17 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import LOG_FORMATS, controller_options, input_options, load, note, plant_of_model_file, with_controller
+from ilic_cli.commands.common import (
+    LOG_FORMATS,
+    controller_options,
+    declared_joint,
+    input_options,
+    joint_option,
+    load,
+    note,
+    plant_of_model_file,
+    with_controller,
+)
 from ilic_cli.commands.robot_replay import replay_options
 from ilic_cli.errors import IlicError
 from ilic_cli.idim_ls import LSSettings
@@ -39,6 +49,7 @@ from plant.replay import simulate_open_loop, simulate_replay
 )
 @controller_options
 @input_options
+@joint_option()
 @replay_options
 def command(
     log: Path,
@@ -58,6 +69,7 @@ def command(
     ref_topic: str | None,
     joint: str | None,
     columns: str | None,
+    load_joint: str | None,
 ) -> None:
     """Replay LOG's reference (and pulses) through the plant under LOG's controller.
 
@@ -84,7 +96,7 @@ def command(
         raise IlicError(output, "output would overwrite the input; choose another output path")
     params, effects = plant_of_model_file(model_file)
     if open_loop:
-        prepared = prepare_log(load(log, input_format, topic, ref_topic, joint, columns))
+        prepared = prepare_log(declared_joint(load(log, input_format, topic, ref_topic, joint, columns), load_joint))
         prepared.require_contiguous("an open-loop simulation")
         run = prepared.log  # an irregularly sampled log is on a uniform grid now
         sim, figure = simulate_open_loop(run, params, effects, substeps=substeps)
@@ -95,7 +107,7 @@ def command(
         note(f"ilic: open loop (vir in, q out, after {figure.init_samples} samples): RMSE {figure.rmse_mm:.4g} mm, fit {figure.fit_pct:.4g} %{wrote}")
         return
     assert output is not None
-    run = with_controller(load(log, input_format, topic, ref_topic, joint, columns), log, controller, kp, kv, drive_gain)
+    run = with_controller(declared_joint(load(log, input_format, topic, ref_topic, joint, columns), load_joint), log, controller, kp, kv, drive_gain)
     prepared = prepare_log(run)
     prepared.require_contiguous("a replay")
     run = prepared.log  # an irregularly sampled log is on a uniform grid now

@@ -31,7 +31,7 @@ from ilic_cli.diagnosis.settings import DiagnoseSettings, DiagnosisSettings, rep
 from ilic_cli.diagnosis.stats import folds_either_side, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.strategies import strategy_of
 from ilic_cli.diagnosis.system import change_time, system
-from ilic_cli.effects import EFFECTS, Effect, Estimate
+from ilic_cli.effects import EFFECTS, Effect, Estimate, unit_of
 from ilic_cli.errors import ParameterError
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
 from ilic_cli.modelfile import model_document
@@ -147,6 +147,8 @@ class Diagnosis:
             "source": self.source,
             "model": self.model,
             "sample_rate_hz": self.fs_hz,
+            "joint_type": self.joint,
+            "units": {n: unit_of(n, self.joint) for n in dict.fromkeys((*self.base.names, *self.augmented.names))},
             "rows_used": self.rows_used,
             "rows_total": self.rows_total,
             "usable_rows": None if self.usable is None else self.usable.to_dict(),

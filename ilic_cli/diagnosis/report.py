@@ -14,6 +14,7 @@ from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.locate import Region
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, Selection
 from ilic_cli.effects import Estimate
+from ilic_cli.jointlog import UNITS
 from ilic_cli.parameters import PARAMETERS
 
 
@@ -264,7 +265,7 @@ def _decisions_table(diag: Diagnosis) -> list[str]:
             "",
         ]
     if diag.replay_sensor is not None:
-        noise = _sensor_words(diag.replay_sensor)
+        noise = _sensor_words(diag.replay_sensor, diag.joint)
         lines += [f"Every replay here carries the recording's sensor noise, estimated from its position (less what the loop adds to it): {noise}.", ""]
     lines += [
         "| effect | held-out simulated force | held-out simulated position | p | decision |",
@@ -278,7 +279,8 @@ def _decisions_table(diag: Diagnosis) -> list[str]:
             n = dv.null.noise
             p += (
                 f" (Monte-Carlo, B = {len(dv.null.t_null)}: T_obs {dv.null.t_obs:.3g}, null median {np.nanmedian(dv.null.t_null):.3g}, "
-                f"max {np.nanmax(dv.null.t_null):.3g}; noise: position {1e6 * n.q_std:.3g} um, disturbance {n.disturbance_std:.3g} N "
+                f"max {np.nanmax(dv.null.t_null):.3g}; noise: position {1e6 * n.q_std:.3g} {_micro(diag.joint)}, "
+                f"disturbance {n.disturbance_std:.3g} {PARAMETERS['Fc'].unit_for(diag.joint)} "
                 f"at {n.bandwidth_hz:.3g} Hz)"
             )
         lines.append(f"| {dv.effect} | {force} | {pos} | {p} | {dv.reason} |")
@@ -286,13 +288,18 @@ def _decisions_table(diag: Diagnosis) -> list[str]:
     return lines
 
 
-def _sensor_words(sensor: dict[str, Any]) -> str:
-    """The sensor noise of a replay in words (:func:`ilic_cli.diagnosis.sensor.sensor_effects`)."""
+def _micro(joint: str) -> str:
+    """A millionth of the ``joint``'s position unit, as the report writes it (um, urad)."""
+    return "u" + UNITS[joint][0]
+
+
+def _sensor_words(sensor: dict[str, Any], joint: str) -> str:
+    """The sensor noise of a replay in words (:func:`ilic_cli.diagnosis.sensor.sensor_effects`), in the ``joint``'s units."""
     parts = []
     if "noise" in sensor:
-        parts.append(f"white position noise {1e6 * sensor['noise']['q_std']:.3g} um")
+        parts.append(f"white position noise {1e6 * sensor['noise']['q_std']:.3g} {_micro(joint)}")
     if "quantization" in sensor:
-        parts.append(f"encoder step {1e6 * sensor['quantization']['resolution']:.3g} um")
+        parts.append(f"encoder step {1e6 * sensor['quantization']['resolution']:.3g} {_micro(joint)}")
     words = ", ".join(parts) or "none (no noise above the position filter's cut-off, no grid)"
     return f"{words} (one realisation, the same in every replay)"
 

@@ -296,3 +296,34 @@ def test_the_report_says_which_estimates_lean_together(folder: Path) -> None:
     assert emps.status == 0, emps.stderr
     other = json.loads(emps.stdout)["ls"]["most_correlated"]
     assert other["parameters"] == ["Fv", "Fc"] and round(other["correlation"], 3) == -0.899 and other["correlation"] > pair["correlation"]
+
+
+def test_diagnose_and_replay_take_the_joint_s_type_as_identify_does(folder: Path, tmp_path: Path) -> None:
+    """``--load-joint`` declares a unit-less CSV's joint in ``diagnose`` and ``replay`` as in ``identify``: its units, and on a revolute
+    joint the gravity candidate. Before, ``diagnose`` had no such option: a revolute joint was diagnosed as a prismatic one (m, N,
+    gravity never tried) and ``replay`` wrote its log in m and N."""
+    from ilic_cli.diagnosis.report import _sensor_words
+
+    path, options = csv_log("revolute", 1000.0, folder), user_options("revolute")
+    assert options[-2:] == ["--load-joint", "revolute"]
+    declared, as_logged = (run_cli("diagnose", str(path), *o, "--no-simulation", "--format", "json") for o in (options, options[:-2]))
+    assert declared.status == as_logged.status == 0, declared.stderr + as_logged.stderr
+    d, p = json.loads(declared.stdout), json.loads(as_logged.stdout)
+    assert d["joint_type"] == "revolute" and d["units"] == {"M": "kg·m²", "Fv": "N·m·s/rad", "Fc": "N·m", "offset": "N·m"}
+    assert p["joint_type"] == "prismatic" and p["units"]["M"] == "kg"
+    tried = [{e["effect"] for step in doc["selection"] for e in step} for doc in (d, p)]
+    assert "gravity" in tried[0] and "gravity" not in tried[1]
+    assert d["base"]["parameters"] == p["base"]["parameters"] and d["rows_total"] == p["rows_total"]  # values unchanged
+    # --controller given with --no-simulation still says how the force was sampled: the rows are identify's
+    ident = json.loads(run_cli("identify", str(path), "--method", "ls", *options, "--format", "json").stdout)
+    assert d["rows_total"] == ident["ls"]["rows"] and d["base"]["parameters"]["Fc"]["value"] == pytest.approx(
+        ident["ls"]["parameters"]["Fc"]["value"], rel=1e-9
+    )
+    assert "white position noise 20 urad, encoder step 10 urad" in _sensor_words({"noise": {"q_std": 2e-5}, "quantization": {"resolution": 1e-5}}, "revolute")
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps({p: v["value"] for p, v in ident["ls"]["parameters"].items()}))
+    replayed = tmp_path / "replayed.csv"
+    res = run_cli("replay", str(path), "--model", str(model), *options, "-o", str(replayed))
+    assert res.status == 0, res.stderr
+    units = read_log(replayed).units
+    assert (units["q"], units["tau"], units["qd_plant"]) == ("rad", "N·m", "rad/s")
