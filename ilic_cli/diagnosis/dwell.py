@@ -162,6 +162,8 @@ def search(step: Step, vs: np.ndarray, fs: np.ndarray, training_error: Callable[
         j = int(np.argmin(np.abs(np.log(fs / step.level[0]))))
     i = min(range(len(vs)), key=lambda k: at(k, j))
     j1 = min(range(len(fs)), key=lambda k: at(i, k))
+    if j1 in (0, len(fs) - 1):  # the level ends on the grid's edge whatever vs does there (below): no estimate, and no more replays
+        return None
     if j1 != j:
         j = j1
         i = min(range(len(vs)), key=lambda k: at(k, j))
