@@ -277,6 +277,7 @@ def _findings(prop: Proposal, decision: Decision, final: FinalFit, refit: Refit 
             std = refit.value_std.get(st.effect.id) if st_final.value != st.value else st.value_std if st.level is not None else ev.value_std
             params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold)
             method = refit.method
+        params, inverse = st.effect.on_joint(params, prop.joint), st.effect.on_joint(inverse, prop.joint)  # in the joint's units
         findings.append(Finding(st.effect, params, plant, [], ev, "; ".join(n for n in [note, *notes, _indistinct(st.effect, ev)] if n), method, inverse))
     return findings
 

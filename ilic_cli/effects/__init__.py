@@ -33,7 +33,7 @@ The package: :mod:`.definition` (the dataclasses), :mod:`.registry`
 """
 
 from ilic_cli.effects.catalogue import BUILT_IN
-from ilic_cli.effects.definition import Effect, EffectColumn, EffectParams, Effects, Estimate, EstimateResult, Fit, LinearForm, PlantParam, Scan, col
+from ilic_cli.effects.definition import Effect, EffectColumn, EffectParams, Effects, Estimate, EstimateResult, Fit, LinearForm, PlantParam, Scan, col, unit_on
 from ilic_cli.effects.drive import CURRENT_LOOP, DELAY, DISTURBANCE, FLEXIBILITY, MAX_DELAY_S, NOISE, QUANTIZATION, SATURATION
 from ilic_cli.effects.grids import FLEX_DAMPING, flexible_acceleration
 from ilic_cli.effects.mechanics import ASYMMETRIC_FRICTION, FRICTION_DRIFT, GRAVITY, OFFSET, PAYLOAD_CHANGE, POSITION_RIPPLE, SPRING, STRIBECK, drift_of
@@ -82,5 +82,6 @@ __all__ = [
     "plant_ids",
     "register",
     "unit_of",
+    "unit_on",
     "unregister",
 ]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -157,6 +158,20 @@ class EffectColumn:
     unit: str
     description: str = ""
     of: Callable[[Any, Any, Any, Any, Any], Any] | None = None
+
+
+REVOLUTE_TOKENS = {"m": "rad", "N": "N·m", "kg": "kg·m²"}
+"""A prismatic unit's factors on a revolute joint: metres turn to radians, newtons to newton-metres, kilograms to kg·m²."""
+
+
+def unit_on(unit: str, joint: str) -> str:
+    """The unit a catalogue quantity written for a prismatic axis has on a ``joint`` (N·s/m -> N·m·s/rad, m/s -> rad/s, kg -> kg·m²).
+
+    The catalogue writes its effects in a prismatic axis's units, as the EMPS; on a revolute joint each factor turns by
+    :data:`REVOLUTE_TOKENS`, and a unit without them (s, Hz, rad, none) stays."""
+    if joint != "revolute":
+        return unit
+    return "".join(REVOLUTE_TOKENS.get(part, part) for part in re.split(r"([·/])", unit))
 
 
 def col(name: str, description: str, unit: str = "", of: Callable[[Any, Any, Any, Any, Any], Any] | None = None) -> EffectColumn:
@@ -355,6 +370,13 @@ class Effect:
         if self.scan_value is not None:
             return self.scan_value(values, M)
         return float(values[self.scan.name])
+
+    def on_joint(self, estimates: Mapping[str, Estimate], joint: str) -> dict[str, Estimate]:
+        """``estimates`` with the units they have on a ``joint`` (:func:`unit_on`; an effect of a revolute joint only, gravity,
+        is written in its units already)."""
+        if "prismatic" not in self.joints:
+            return dict(estimates)
+        return {k: Estimate(e.value, e.std, unit_on(e.unit, joint)) for k, e in estimates.items()}
 
     def describe(self, estimates: Mapping[str, Estimate]) -> str:
         """``title (what was found)`` for reports."""

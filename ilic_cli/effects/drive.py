@@ -137,7 +137,7 @@ FLEXIBILITY = Effect(
     impossible=lambda th, v: None if th[0] > 0 else f"negative mass behind the flexibility ({th[0]:.3g} kg)",
     estimate=_flex_estimate,
     scan_value=_flex_scan_value,
-    sentence=lambda p: f"resonance {p['f_res'].value:.3g} Hz, {p['M_load'].value:.3g} kg behind the spring",
+    sentence=lambda p: f"resonance {p['f_res'].value:.3g} Hz, {p['M_load'].value:.3g} {p['M_load'].unit} behind the spring",
 )
 
 SATURATION = Effect(

@@ -49,7 +49,7 @@ def _stribeck_estimate(fit: Fit) -> EstimateResult:
 
 
 def _stribeck_sentence(p: Mapping[str, Estimate]) -> str:
-    what = f"extra friction Fs = {p['Fs'].value:.3g} N below vs = {p['vs'].value * 1e3:.3g} mm/s"
+    what = f"extra friction Fs = {p['Fs'].value:.3g} {p['Fs'].unit} below vs = {p['vs'].value * 1e3:.3g} m{p['vs'].unit}"
     if p["Fs"].value < 0:
         what += (
             "; negative: friction is lower at low speed than the Coulomb-viscous line, the opposite of the Stribeck effect, "
@@ -108,7 +108,7 @@ ASYMMETRIC_FRICTION = Effect(
     columns=(col("dFv_neg", "extra viscous friction at negative velocity", "N·s/m"),),
     build=lambda kin, value, fs_hz: np.c_[kin.qd * negative_side(kin)],
     estimate=_asym_estimate,
-    sentence=lambda p: f"viscous friction {p['Fv_pos'].value:.0f} N·s/m forward, {p['Fv_neg'].value:.0f} backward",
+    sentence=lambda p: f"viscous friction {p['Fv_pos'].value:.3g} {p['Fv_pos'].unit} forward, {p['Fv_neg'].value:.3g} backward",
 )
 
 STRIBECK = Effect(
@@ -155,7 +155,7 @@ POSITION_RIPPLE = Effect(
     build=_ripple_build,
     scan=Scan("L", "m", ripple_grid),
     estimate=_ripple_estimate,
-    sentence=lambda p: f"amplitude {p['A'].value:.3g} N, spatial period {p['L'].value * 1e3:.4g} mm",
+    sentence=lambda p: f"amplitude {p['A'].value:.3g} {p['A'].unit}, spatial period {p['L'].value * 1e3:.4g} m{p['L'].unit}",
 )
 
 SPRING = Effect(
@@ -170,7 +170,7 @@ SPRING = Effect(
     columns=(col("k_spring", "stiffness", "N/m"),),
     build=lambda kin, value, fs_hz: np.c_[kin.q],
     estimate=_spring_estimate,
-    sentence=lambda p: f"stiffness {p['k'].value:.4g} N/m",
+    sentence=lambda p: f"stiffness {p['k'].value:.4g} {p['k'].unit}",
     # a passive elastic element stores energy as it leaves its rest position: its stiffness is positive. A force that grows
     # away from rest is no spring (on a revolute joint it is what gravity about an upright position makes: corpus s530,
     # s732, gravity with MY > 0 fitted as k < 0 and stated as "spring or gravity")
@@ -216,7 +216,7 @@ PAYLOAD_CHANGE = Effect(
     columns=(col("dM", "mass added at the change time", "kg"),),
     build=lambda kin, tc, fs_hz: np.c_[kin.qdd * (kin.t >= tc)],
     scan=Scan("t_change", "s", change_time_grid, log=False, of_the_whole_log=True),
-    sentence=lambda p: f"{p['dM'].value:+.3g} kg from t = {p['t_change'].value:.3g} s",
+    sentence=lambda p: f"{p['dM'].value:+.3g} {p['dM'].unit} from t = {p['t_change'].value:.3g} s",
 )
 
 
@@ -278,5 +278,5 @@ OFFSET = Effect(
     signature_kinds=("velocity", "time"),
     columns=(col("offset", "constant force offset"),),
     build=lambda kin, value, fs_hz: np.ones((len(kin.qd), 1)),
-    sentence=lambda p: f"{p['offset'].value:+.3g} N",
+    sentence=lambda p: f"{p['offset'].value:+.3g} {p['offset'].unit}",
 )

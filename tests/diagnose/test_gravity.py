@@ -111,3 +111,17 @@ def test_a_vertical_axis_reports_its_constant_force_as_a_weight() -> None:
     assert diag.weight["weight"].value == pytest.approx(12.0 * g, rel=0.01) and diag.weight["implied_mass"].value == pytest.approx(12.0, rel=0.01)
     assert diag.to_dict()["weight"]["implied_mass"]["unit"] == "kg"
     assert "the constant force is the load's weight, 117.7 N" in to_markdown(diag)
+
+
+def test_a_catalogue_effect_on_a_revolute_joint_is_stated_in_its_units() -> None:
+    """The catalogue writes its effects in a prismatic axis's units (the EMPS's): on a revolute joint a finding's estimates, its
+    sentence and the JSON's units are the joint's (N·m·s/rad, N·m). Before, a 0.2 N·m·s/rad viscous friction read "0 N·s/m"."""
+    truth = {"Fv_pos": 0.2, "Fv_neg": 0.3, "Fc_pos": 0.3, "Fc_neg": 0.3}
+    diag = diagnose(revolute_log("small", {"asymmetric_friction": truth}, seed=1, duration_s=12.0), settings=DiagnoseSettings(simulate=False))
+    (f,) = diag.findings
+    assert f.effect.id == "asymmetric_friction" and _within({k: e.value for k, e in f.parameters.items()}, truth)
+    assert {k: e.unit for k, e in f.parameters.items()} == {"Fv_pos": "N·m·s/rad", "Fv_neg": "N·m·s/rad", "Fc_pos": "N·m", "Fc_neg": "N·m"}
+    assert "viscous friction 0.2 N·m·s/rad forward, 0.3 backward" in f.effect.describe(f.parameters)
+    doc = diag.to_dict()
+    assert doc["joint_type"] == "revolute" and doc["units"]["dFv_neg"] == "N·m·s/rad" and doc["units"]["M"] == "kg·m²"
+    assert doc["findings"][0]["parameters"]["Fc_pos"]["unit"] == "N·m"

@@ -156,7 +156,9 @@ def test_stribeck_to_plant() -> None:
     assert plant is None and "below 0" in note
     _, plant, _ = effect.fit_to_plant(_fit({"Fc_pos": 4.0, "Fc_neg": 9.0, "Fs": -5.0}, value=0.02))
     assert plant is None  # the lower side decides
-    assert effect.describe({"Fs": Estimate(3.0, None), "vs": Estimate(0.02, None)}) == "Stribeck friction (extra friction Fs = 3 N below vs = 20 mm/s)"
+    assert (
+        effect.describe({"Fs": Estimate(3.0, None, "N"), "vs": Estimate(0.02, None, "m/s")}) == "Stribeck friction (extra friction Fs = 3 N below vs = 20 mm/s)"
+    )
 
 
 def test_ripple_spring_payload_delay_to_plant() -> None:
@@ -342,9 +344,9 @@ def test_estimate_keys_units_and_boundaries() -> None:
     assert plant == {"Fs": 0.0, "vs": 0.02} and note == ""
     _, _, note = EFFECTS["stribeck"].fit_to_plant(_fit({"Fc": 0.5, "Fs": -0.75}, value=0.02))
     assert note == "Fs = -0.75 N would put the static friction level Fc + Fs below 0: not in the model file"
-    words = EFFECTS["stribeck"].describe({"Fs": Estimate(-2.0, None), "vs": Estimate(0.005, None)})
+    words = EFFECTS["stribeck"].describe({"Fs": Estimate(-2.0, None, "N"), "vs": Estimate(0.005, None, "m/s")})
     assert words.startswith("Stribeck friction (extra friction Fs = -2 N below vs = 5 mm/s; negative: friction is lower at low speed")
-    assert EFFECTS["spring"].describe({"k": Estimate(12.0, None)}) == "spring force (stiffness 12 N/m)"
+    assert EFFECTS["spring"].describe({"k": Estimate(12.0, None, "N/m")}) == "spring force (stiffness 12 N/m)"
     assert fx.Effect("x", "thing", "e.").describe({"a": Estimate(1.0, None), "b": Estimate(2.0, None)}) == "thing (a = 1, b = 2)"
     est, plant, _ = EFFECTS["position_ripple"].fit_to_plant(_fit({"ripple_sin": 0.0, "ripple_cos": 0.0}, value=0.01, std=1.0))
     assert plant["A"] == 0.0 and est["A"].std == 0.0 and est["phase"].std == 0.0 and {k: v.unit for k, v in est.items()} == {"A": "N", "L": "m", "phase": "rad"}
