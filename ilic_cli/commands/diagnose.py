@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ilic_cli.commands.common import STRUCTURES, controller_options, declared_joint, input_options, joint_option, load, note, with_controller
+from ilic_cli.commands.common import STRUCTURES, ControllerOptions, controller_options, declared_joint, input_options, joint_option, load, note, with_controller
 from ilic_cli.diagnosis import DiagnosisSettings, SelectSettings, diagnose
 from ilic_cli.diagnosis.null import NULL_KINDS, NullSettings
 from ilic_cli.diagnosis.plots import write_plots
@@ -159,8 +159,9 @@ def command(
             raise IlicError("--effects", f"unknown effect {', '.join(unknown) or '(none given)'} (catalogue: {', '.join(catalogue)})")
     model_doc = load_model_file(model_path) if model_path is not None else None
     run = declared_joint(load(log, input_format, topic, ref_topic, joint, columns), load_joint)
-    given = controller is not None or any(v is not None for v in (kp, kv, drive_gain))
-    if (not no_simulation and against is None) or given:  # the replay needs the loop that ran; given, it says how the force was sampled
+    if (not no_simulation and against is None) or ControllerOptions(
+        controller, kp, kv, drive_gain
+    ).given:  # the replay needs the loop that ran; given, it says how the force was sampled
         run = with_controller(run, log, controller, kp, kv, drive_gain)
     sim = declared_joint(load(against, None, topic, ref_topic, joint, columns), load_joint) if against is not None else None
     other = declared_joint(load(validate, None, topic, ref_topic, joint, columns), load_joint) if validate is not None else None

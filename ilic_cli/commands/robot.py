@@ -141,6 +141,17 @@ def convert_options(func: F) -> F:
     return urdf_option(cast(F, wrapper))
 
 
+JOINT_TYPE_OPTIONS = {"--load-joint": "load_joint", "--gear-ratio": "gear_ratio", "--torque-constant": "torque_constant"}
+"""``identify``'s and ``replay``'s options that declare a one-joint log's joint (refused with ``--urdf``, :func:`refuse_joint_type`)."""
+
+
+def refuse_joint_type(o: Mapping[str, Any]) -> None:
+    """Refuse a one-joint declaration given with ``--urdf`` (an arm's joints take their types and units from its URDF), never ignore it."""
+    given = [option for option, name in JOINT_TYPE_OPTIONS.items() if o.get(name) is not None]
+    if given:
+        raise IlicError(given[0], "declares a one-joint log's joint; an arm's joints take their types and units from its URDF (--urdf)")
+
+
 ONE_JOINT_OPTIONS = {"--joint": "joint", "--topic": "topic", "--ref-topic": "ref_topic", "--columns": "columns", "--resample": "resample_hz"}
 """``ilic convert``'s options that read or resample a one-joint log (an arm's log is converted whole, as recorded)."""
 

@@ -24,7 +24,7 @@ import click
 import numpy as np
 
 from ilic_cli.commands.common import closed_loop_settings
-from ilic_cli.commands.robot import joints_option, load_robot, read_log, recorded_controller, urdf_option
+from ilic_cli.commands.robot import joints_option, load_robot, read_log, recorded_controller, refuse_joint_type, urdf_option
 from ilic_cli.errors import IlicError
 from ilic_cli.idim_ilic import ILICSettings
 from ilic_cli.idim_ls import LSSettings
@@ -62,6 +62,7 @@ def identify_options(func: F) -> F:
             if joints is not None:
                 raise IlicError("--joints", "needs --urdf (an arm of n joints; --joint NAME picks one joint of a 1-joint log)")
             return func(log, **options)
+        refuse_joint_type(options)
         return identify(log, urdf, joints_option(joints), min_speed, options, _defaults(options))
 
     wrapper = click.option(

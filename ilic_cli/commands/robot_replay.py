@@ -19,7 +19,7 @@ from typing import Any, TypeVar, cast
 import numpy as np
 
 from ilic_cli.commands.common import note
-from ilic_cli.commands.robot import joints_option, load_robot, read_log, recorded_controller, urdf_option
+from ilic_cli.commands.robot import joints_option, load_robot, read_log, recorded_controller, refuse_joint_type, urdf_option
 from ilic_cli.errors import IlicError
 from ilic_cli.io.atomic import same_path
 
@@ -39,6 +39,7 @@ def replay_options(func: F) -> F:
             if joints is not None:
                 raise IlicError("--joints", "needs --urdf (an arm of n joints)")
             return func(log, **options)
+        refuse_joint_type(options)
         return replay(log, urdf, joints_option(joints), options)
 
     return urdf_option(cast(F, wrapper))

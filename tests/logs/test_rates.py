@@ -327,3 +327,14 @@ def test_diagnose_and_replay_take_the_joint_s_type_as_identify_does(folder: Path
     assert res.status == 0, res.stderr
     units = read_log(replayed).units
     assert (units["q"], units["tau"], units["qd_plant"]) == ("rad", "N·m", "rad/s")
+
+
+@pytest.mark.parametrize(
+    ("command", "option"), [("identify", ("--load-joint", "revolute")), ("identify", ("--gear-ratio", "10")), ("replay", ("--load-joint", "revolute"))]
+)
+def test_a_one_joint_declaration_with_an_arm_s_urdf_is_refused(command: str, option: tuple[str, str], tmp_path: Path) -> None:
+    """An arm's joints take their types from the URDF: --load-joint or --gear-ratio beside --urdf is refused in one line, not ignored."""
+    urdf = Path(__file__).parents[2] / "fixtures" / "arm2.urdf"
+    extra = ["--model", str(tmp_path / "model.json"), "-o", str(tmp_path / "out.csv")] if command == "replay" else []
+    res = run_cli(command, str(tmp_path / "arm.csv"), "--urdf", str(urdf), *option, *extra)
+    assert res.status == 2 and res.stderr.startswith(f"ilic: error: {option[0]}: declares a one-joint log's joint") and res.stderr.count("\n") == 1
