@@ -159,9 +159,8 @@ def command(
             raise IlicError("--effects", f"unknown effect {', '.join(unknown) or '(none given)'} (catalogue: {', '.join(catalogue)})")
     model_doc = load_model_file(model_path) if model_path is not None else None
     run = declared_joint(load(log, input_format, topic, ref_topic, joint, columns), load_joint)
-    if (not no_simulation and against is None) or ControllerOptions(
-        controller, kp, kv, drive_gain
-    ).given:  # the replay needs the loop that ran; given, it says how the force was sampled
+    replayed = not no_simulation and against is None  # the replay needs the loop that ran
+    if replayed or ControllerOptions(controller, kp, kv, drive_gain).given:  # given, it says how the force was sampled (as in identify)
         run = with_controller(run, log, controller, kp, kv, drive_gain)
     sim = declared_joint(load(against, None, topic, ref_topic, joint, columns), load_joint) if against is not None else None
     other = declared_joint(load(validate, None, topic, ref_topic, joint, columns), load_joint) if validate is not None else None
