@@ -35,8 +35,6 @@ def test_a_column_s_unit_by_the_joint_and_gravity_in_its_own() -> None:
 
 def test_a_finding_s_sentence_reads_the_joint_s_units() -> None:
     stribeck = EFFECTS["stribeck"]
-    est = stribeck.on_joint({"Fs": Estimate(0.3, None, "N"), "vs": Estimate(0.02, None, "m/s")}, "revolute")
-    assert stribeck.describe(est) == "Stribeck friction (extra friction Fs = 0.3 N·m below vs = 20 mrad/s)"
-    assert stribeck.describe(stribeck.on_joint(est | {"Fs": Estimate(0.3, None, "N"), "vs": Estimate(0.02, None, "m/s")}, "prismatic")).endswith(
-        "Fs = 0.3 N below vs = 20 mm/s)"
-    )
+    prismatic = {"Fs": Estimate(0.3, None, "N"), "vs": Estimate(0.02, None, "m/s")}
+    assert stribeck.describe(stribeck.on_joint(prismatic, "revolute")) == "Stribeck friction (extra friction Fs = 0.3 N·m below vs = 20 mrad/s)"
+    assert stribeck.on_joint(prismatic, "prismatic") == prismatic and stribeck.describe(prismatic).endswith("Fs = 0.3 N below vs = 20 mm/s)")
