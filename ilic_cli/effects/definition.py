@@ -371,12 +371,14 @@ class Effect:
             return self.scan_value(values, M)
         return float(values[self.scan.name])
 
+    def unit_on(self, unit: str, joint: str) -> str:
+        """One of this effect's units on a ``joint`` (:func:`unit_on`); an effect of a revolute joint only, gravity, is written
+        in its units already."""
+        return unit_on(unit, joint) if "prismatic" in self.joints else unit
+
     def on_joint(self, estimates: Mapping[str, Estimate], joint: str) -> dict[str, Estimate]:
-        """``estimates`` with the units they have on a ``joint`` (:func:`unit_on`; an effect of a revolute joint only, gravity,
-        is written in its units already)."""
-        if "prismatic" not in self.joints:
-            return dict(estimates)
-        return {k: Estimate(e.value, e.std, unit_on(e.unit, joint)) for k, e in estimates.items()}
+        """``estimates`` with the units they have on a ``joint`` (:meth:`unit_on`)."""
+        return {k: Estimate(e.value, e.std, self.unit_on(e.unit, joint)) for k, e in estimates.items()}
 
     def describe(self, estimates: Mapping[str, Estimate]) -> str:
         """``title (what was found)`` for reports."""

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ilic_cli import parameters
-from ilic_cli.effects.definition import Effect, EffectParams, Effects, unit_on
+from ilic_cli.effects.definition import Effect, EffectParams, Effects
 from ilic_cli.errors import ParameterError
 
 EFFECTS: dict[str, Effect] = {}
@@ -82,7 +82,7 @@ def unit_of(name: str, joint: str = "prismatic") -> str:
     unit = parameters.unit(name, joint)
     if unit:
         return unit
-    return next((c.unit if "prismatic" not in e.joints else unit_on(c.unit, joint) for e in EFFECTS.values() for c in e.columns if c.name == name), "")
+    return next((e.unit_on(c.unit, joint) for e in EFFECTS.values() for c in e.columns if c.name == name), "")
 
 
 def applicable(effect: Effect, base_names: tuple[str, ...]) -> bool:

@@ -38,3 +38,11 @@ def test_a_finding_s_sentence_reads_the_joint_s_units() -> None:
     prismatic = {"Fs": Estimate(0.3, None, "N"), "vs": Estimate(0.02, None, "m/s")}
     assert stribeck.describe(stribeck.on_joint(prismatic, "revolute")) == "Stribeck friction (extra friction Fs = 0.3 N·m below vs = 20 mrad/s)"
     assert stribeck.on_joint(prismatic, "prismatic") == prismatic and stribeck.describe(prismatic).endswith("Fs = 0.3 N below vs = 20 mm/s)")
+
+
+def test_the_joint_option_offers_the_joint_types() -> None:
+    """``--load-joint``'s choices are written out (the commands' module stays free of numpy); they are the joint types' units' keys."""
+    from ilic_cli.commands.common import JOINTS
+    from ilic_cli.jointlog import UNITS
+
+    assert sorted(JOINTS) == sorted(UNITS)
