@@ -37,11 +37,11 @@ explains the recording to its noise, its estimate replaces the search's, and
 a level it does not find above zero refutes the finding.
 
 Measured on the corpus (``tests/corpus/__init__.py``): the Stribeck trapezoid without a
-current loop, held-out replay force error 1.35 % -> 0.914 % (p = 5e-14, 5 of 5
-folds; Fs 2.55 +- 0.12 N, vs 9.9 +- 2.3 mm/s for 2.47 N, 8 mm/s; the open-loop
-segments then 2.473 +- 0.012 N, 7.972 +- 0.040 mm/s); the one with
-the loop and a force disturbance, 2.21 % -> 2.16 % (p = 0.0019, 3 of 5 folds;
-1.08 +- 0.46 N, 17.5 +- 15 mm/s for 1.14 N, 20 mm/s); no fold found an
+current loop, held-out replay force error 1.28 % -> 0.884 % (p = 5e-13, 5 of 5
+folds; Fs 2.50 to 2.58 N, vs 12.5 to 14.1 mm/s for 2.47 N, 8 mm/s; the open-loop
+segments then 2.473 N, 7.972 mm/s); the one with the loop and a force
+disturbance, 2.18 % -> 2.14 % (p = 0.0074, 4 of 5 folds; Fs 1.06 to 1.14 N, vs
+13.7 to 23.4 mm/s for 1.14 N, 20 mm/s); no fold found an
 estimate on any of the 8 clean trapezoids, once the current loop's lag is realised as the loop it is
 (:meth:`ilic_cli.effects.Effect.plant_entries`).
 """
@@ -55,7 +55,6 @@ import numpy as np
 
 from ilic_cli.diagnosis.select import Step
 from ilic_cli.effects import EFFECTS, Effect
-from ilic_cli.simulation.timing import vertex
 
 DWELL_MIN_S = 0.05
 """A rest of the reference at least this long (s) is a dwell."""
@@ -63,18 +62,23 @@ DWELL_MIN_S = 0.05
 DWELL_MIN_COUNT = 4
 """A log is searched for Stribeck friction at its dwells when its reference has at least this many."""
 
-LEVELS_OF_FC = (1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1, 2, 4, 8)
-"""Stribeck levels ``Fs`` searched, as fractions of the fitted Coulomb level (geometric, factor 2), up to eight times it:
-a static friction up to nine times the Coulomb level. Up to half of it first, a peak above that was on the grid's
-edge and never found (the robot corpus: Fs of 0.85 and 1.4 times Fc at 500 Hz, 0 of 5 folds; with the levels up to
-2 Fc, named within 1 % at 0.85 Fc). Up to 2 Fc then, the corpus's dwell logs whose peak is 3.4 to 6.8 Fc (a peak
-sized to change the rigid fit's error by 0.2-1.5 points on an S-curve or a trapezoid: s292, s371, s372, s461, s722)
-found it on the grid's top in 0 of 5 folds; up to 8 Fc s292 and s372 are named within 1 %, s371 and s461 (the 10 Hz
-disturbance) named with Fs 57 and 59 % low and vs 2.3 times too high, the two s722 (beside a flexibility the plant does
-not have yet) with Fs 29 and 50 % low."""
+LEVELS_OF_FC = (1 / 32, 1 / 16, 1 / 8, 1 / 4, 1 / 2, 1, 2, 4, 8, 16, 32)
+"""Stribeck impulses ``Fs·vs`` searched (:func:`grids`), as fractions of the fitted Coulomb level times the middle ``vs``
+(geometric, factor 2): at the middle ``vs``, a static friction up to 33 times the Coulomb level; at a ``vs`` ``k`` times
+smaller, ``k`` times more. Levels of ``Fs`` alone up to half of ``Fc`` first, a peak above that was on the grid's edge
+and never found (the robot corpus: Fs of 0.85 and 1.4 times Fc at 500 Hz, 0 of 5 folds); up to 8 Fc then, the corpus's
+dwell logs whose peak is 3.4 to 6.8 Fc (a peak sized to change the rigid fit's error by 0.2-1.5 points) were named,
+and on a grid of impulses up to 8 times, the disturbed s461's (Fs = 6.2 Fc at 1.26 times the middle ``vs``) would be
+its top point."""
 
 START_LEVEL_OF_FC = 1 / 8
-"""The level the search starts its ``vs`` profile at (:func:`proposal`, :func:`search`), as a fraction of ``|Fc|``."""
+"""The level the proposal holds until the search (:func:`proposal`), as a fraction of ``|Fc|``: a held level marks the step
+as one the folds search (:func:`search` starts from its ``vs`` and takes no level from it)."""
+
+HALVINGS = 3
+"""Halvings of the grid's step by which a fold's estimate is refined between the grid's points (:func:`refined`): the
+impulse's step (a factor 2) and ``vs``'s (1.61) to an eighth: each within a sixteenth of its step (a factor 1.044 and
+1.030), two replays a halving, twelve a fold."""
 
 VS_EVERY = 4
 """The ``vs`` searched: every this many values of the effect's own grid (1-40 % of the top speed, 32 values)."""
@@ -119,31 +123,40 @@ def proposal(vs_grid: np.ndarray, fc_N: float, effect: Effect = EFFECTS["stribec
 
 
 def grids(vs_grid: np.ndarray, fc_N: float) -> tuple[np.ndarray, np.ndarray]:
-    """The ``vs`` (m/s) and ``Fs`` (N) searched: :data:`VS_EVERY` of the effect's grid, :data:`LEVELS_OF_FC` of ``|Fc|``."""
-    return np.asarray(vs_grid, dtype=np.float64)[::VS_EVERY], abs(fc_N) * np.asarray(LEVELS_OF_FC)
+    """The ``vs`` (m/s) and the impulses ``Fs·vs`` (N·m/s) searched: :data:`VS_EVERY` of the effect's grid, and
+    :data:`LEVELS_OF_FC` of ``|Fc|`` times the grid's middle ``vs`` (the proposal's, :func:`proposal`)."""
+    grid = np.asarray(vs_grid, dtype=np.float64)
+    return grid[::VS_EVERY], abs(fc_N) * float(grid[len(grid) // 2]) * np.asarray(LEVELS_OF_FC)
 
 
-def search(step: Step, vs: np.ndarray, fs: np.ndarray, training_error: Callable[[Step], float], baseline_error: float) -> Step | None:
+def search(step: Step, vs: np.ndarray, impulse: np.ndarray, training_error: Callable[[Step], float], baseline_error: float) -> Step | None:
     """The ``(vs, Fs)`` of the grid with the least training error, or ``None`` when it is on an edge or does not beat the model without it.
 
+    The grid is of ``vs`` and of the impulse ``Fs·vs`` (the level is ``impulse / vs``): the loop feels
+    Stribeck friction as the impulse it gives each passage through the low-speed band, which lasts in
+    proportion to ``vs``, so the training error's valley runs along ``Fs·vs`` held, diagonal on a grid of
+    ``Fs`` and ``vs``. On such a grid, a coordinate search stalled part way along the valley, towards the
+    start's low level and high ``vs`` (eleven of the robot corpus's sixteen Stribeck logs at dwells, both seed
+    sets: ``Fs`` 0.31 to 0.80 of the truth, ``vs`` 1.2 to 2.8 times it, ``Fs·vs`` 0.79 to 1.28 times; s461
+    ``Fs`` 4.2 N, ``vs`` 279 mm/s for 10.2 N, 120 mm/s, where the whole grid's least was at 13 N, 95 mm/s with
+    a fifth of the error).
+
     A coordinate search (each replay with Stribeck friction costs the general
-    integration path, some 13 times the rigid one): the ``vs`` profile at the
-    proposal's level, the level's profile at the best ``vs``, and the ``vs``
-    profile again at the best level when that moved; every point is kept, so
-    the grid points visited are each replayed once. The estimate is then
-    refined between the grid's points, one coordinate at a time, by the vertex
-    of the parabola through the best point and its neighbours on log scales
-    (:func:`ilic_cli.simulation.timing.vertex`). ``vs`` is the less certain of
-    the two: on the Stribeck trapezoid the folds' ``vs`` spread over 8.6-11.6
-    mm/s (truth 8), their ``Fs`` over 2.45-2.61 N (truth 2.47); a bounded
-    search of ``vs`` between the grid points spread them wider (7.8-12.6), and
-    a refinement on the whole log moved both further off.
+    integration path, some 13 times the rigid one): the impulse's profile at
+    the proposal's ``vs`` (the middle of its grid) first, the quantity the
+    loop fixes best; the ``vs`` profile at the best impulse; and the impulse's
+    profile, then the ``vs`` profile, again while the best point moves; every
+    point is kept, so the grid points visited are each replayed once. An
+    impulse on the grid's edge at the middle ``vs`` is no estimate (the least
+    impulse tried: no Stribeck friction; a clean log's search ends there). The
+    estimate is then refined between the grid's points, the impulse then
+    ``vs``, by halving steps (:func:`refined`).
 
     Parameters
     ----------
     step : Step
         The candidate (:func:`proposal`).
-    vs, fs : ndarray
+    vs, impulse : ndarray
         The grids (:func:`grids`), increasing.
     training_error : callable
         ``Step -> error`` of the model with that step on the fold's training blocks.
@@ -154,27 +167,54 @@ def search(step: Step, vs: np.ndarray, fs: np.ndarray, training_error: Callable[
 
     def at(i: int, j: int) -> float:
         if (i, j) not in err:
-            err[i, j] = training_error(Step(step.effect, float(vs[i]), level=(float(fs[j]),)))
+            err[i, j] = training_error(Step(step.effect, float(vs[i]), level=(float(impulse[j] / vs[i]),)))
         return err[i, j]
 
-    j = len(fs) // 2
-    if step.level is not None and step.level[0] > 0 and fs[0] > 0:  # from the proposal's level
-        j = int(np.argmin(np.abs(np.log(fs / step.level[0]))))
-    i = min(range(len(vs)), key=lambda k: at(k, j))
-    j1 = min(range(len(fs)), key=lambda k: at(i, k))
-    if j1 in (0, len(fs) - 1):  # the level ends on the grid's edge whatever vs does there (below): no estimate, and no more replays
+    i = int(np.argmin(np.abs(np.log(vs / float(step.value)))))  # the proposal's vs
+    j = min(range(len(impulse)), key=lambda k: at(i, k))
+    if j in (0, len(impulse) - 1):  # on the grid's edge at the middle vs: no estimate, and no more replays
         return None
-    if j1 != j:
+    for _ in range(len(vs) + len(impulse)):  # alternate the profiles while the best point moves (each visits new points)
+        i1 = min(range(len(vs)), key=lambda k: at(k, j))
+        if i1 == i:
+            break
+        i = i1
+        j1 = min(range(len(impulse)), key=lambda k: at(i, k))
+        if j1 == j:
+            break
         j = j1
-        i = min(range(len(vs)), key=lambda k: at(k, j))
-    if not at(i, j) < baseline_error or i in (0, len(vs) - 1) or j in (0, len(fs) - 1):
+    if not at(i, j) < baseline_error or i in (0, len(vs) - 1) or j in (0, len(impulse) - 1):
         return None
-    # between the grid's points: the vertex of the parabola through the least point and its neighbours, on log scales
-    # (the level's grid steps by a factor 2: a level read off the grid is up to 41 % off)
-    lv, lf = np.log(vs[i - 1 : i + 2]), np.log(fs[j - 1 : j + 2])
-    v = vertex(lv, np.array([at(k, j) for k in (i - 1, i, i + 1)]), 1)
-    f = vertex(lf, np.array([at(i, k) for k in (j - 1, j, j + 1)]), 1)
-    return Step(step.effect, float(np.exp(v)), level=(float(np.exp(f)),))
+    # between the grid's points: the impulse, then vs, by halving steps on log scales (:func:`refined`)
+    error = lambda v, a: training_error(Step(step.effect, float(np.exp(v)), level=(float(np.exp(a - v)),)))  # noqa: E731
+    lv, la = float(np.log(vs[i])), float(np.log(impulse[j]))
+    la = refined(lambda a: error(lv, a), la, at(i, j), float(np.log(impulse[1] / impulse[0])))
+    lv = refined(lambda v: error(v, la), lv, error(lv, la), float(np.log(vs[1] / vs[0])))
+    return Step(step.effect, float(np.exp(lv)), level=(float(np.exp(la - lv)),))
+
+
+def refined(error: Callable[[float], float], x: float, y: float, h: float, halvings: int = HALVINGS) -> float:
+    """The least of ``error`` near ``x`` (its value ``y``; a grid's best point, its neighbours ``h`` away), within
+    ``h / 2**(halvings + 1)``: ``halvings`` times the least of the point and those half the step either side.
+
+    Not the vertex of a parabola: beside the Stribeck valley the error rises steeply on one side (a level the axis
+    sticks at) and gently on the other, and the parabola's vertex falls towards the gentle side, by up to half the
+    points' spacing (the robot corpus, through the grid's point and its neighbours: the impulse 0.62 to 0.88 of the
+    truth at ``vs`` 0.99 to 1.32 times it; on s372 the grid's least point was the truth's, the vertex half a step below).
+    """
+    fine = h / 2**halvings  # the points tried are x + k fine: each replayed once
+    seen: dict[int, float] = {0: y}
+
+    def at(k: int) -> float:
+        if k not in seen:
+            seen[k] = error(x + k * fine)
+        return seen[k]
+
+    k, step = 0, 2**halvings
+    for _ in range(halvings):
+        step //= 2
+        k = min((k - step, k, k + step), key=at)
+    return x + k * fine
 
 
 def jackknife_std(values: np.ndarray) -> float:

@@ -95,25 +95,24 @@ def test_a_spring_with_a_disturbance_is_refitted_within_its_tolerance() -> None:
 def test_the_refit_of_stribeck_and_a_flexibility_with_the_current_loop() -> None:
     """Stribeck + flexibility on the EMPS reference with the current loop, whose lag is kept with them (seed 1303).
 
-    The closed loop proposes the Stribeck friction (at the dwells), the inverse model the flexibility and the lag.
-    DIDIM lowers the closed-loop output error, and the values couple: the resonance, its damping and vs are searched
-    in 3 rounds of the coordinate search, moving in each (0.845 % -> 0.713 %): Fs 3.58 N for 3.53, vs 7.53 mm/s for 8
-    (5.9 %), the flexibility within 0.6 %; the lag's search does not lower the error and keeps 0.238 ms (the loop's
-    time constant: 0.227 ms). (The case's own seed takes the output-error route of the test below since the held-out
-    test has both losses: DIDIM raises its error, 0.826 % -> 0.991 %.)
+    The closed loop proposes the Stribeck friction (at the dwells), the inverse model the flexibility and the lag; the
+    refit ends with Fs 3.63 N for 3.53, vs 7.76 mm/s for 8, the flexibility within 2 % and the lag 0.224 ms (the loop's
+    time constant: 0.227 ms), closed-loop output error 0.827 % -> 0.71 %. Since the dwell search holds the impulse
+    ``Fs·vs`` (vs 5.9 mm/s from it), DIDIM's step no longer lowers the error on this seed (0.827 % -> 0.836 %) and the
+    output error itself is fitted, as on seed 2303 below (before, DIDIM took this seed, its rounds of the coordinate
+    search moving the values in each of 3; the rounds are tested in ``tests/unit/test_refit_search.py``). The route is
+    either: what is held is where it ends.
     """
     require_shared()  # the EMPS reference trajectory is DATA_EMPS.mat's
     name = "stribeck+flexibility-emps-current_loop-s303@s1303"
     diag = diagnosed(name)
     refit = diag.refit
-    assert refit is not None and refit.accepted and refit.method == METHOD, refit.reason if refit else None
+    assert refit is not None and refit.accepted and refit.method in (METHOD, OE_METHOD), refit.reason if refit else None
     errors = score(case_of(name), [(x.effect.id, x.plant_effect) for x in diag.findings])["parameter_error"]
     assert set(errors) == {"stribeck", "flexibility"} and errors["stribeck"] <= 0.1 and errors["flexibility"] <= 0.05, errors
-    by_effect = {s.effect: s for s in refit.searches if s.effect != "flexibility"}
-    lag, vs = by_effect["delay"], by_effect["stribeck"]
-    assert abs(-lag.value - 0.000227) < 0.02e-3, lag
-    assert vs.accepted and "3 rounds of the coordinate search, moved in 3" in vs.reason and abs(vs.value - 0.008) / 0.008 < 0.1, vs
-    assert len(refit.searches) == 4 and refit.error_pct is not None and refit.error_pct < 0.72  # one search per parameter
+    (lag,) = [s for s in refit.searches if s.effect == "delay"]
+    assert lag.accepted and abs(-lag.value - 0.000227) < 0.02e-3, lag
+    assert refit.error_inverse_pct is not None and refit.error_pct is not None and refit.error_pct < 0.72 < refit.error_inverse_pct
 
 
 def test_when_didim_raises_the_error_the_output_error_itself_is_fitted() -> None:

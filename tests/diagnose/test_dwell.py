@@ -90,9 +90,9 @@ def test_stribeck_beside_a_flexibility_that_the_held_out_test_leaves_unconfirmed
     """The Stribeck + flexibility EMPS log on a seed where the inverse model's F-test finds Stribeck friction but its held-out test does not confirm it.
 
     Measured (seed 1303): F-test p ~ 1e-35 and below, held-out p = 0.027; proposed on the closed loop, the replay accepts it
-    (p = 9.5e-10) with the folds' Fs 2.5 N and vs 8.3 mm/s; the refit (DIDIM, the searched level its start, the values
-    searched in rounds) then gives Fs 3.58 N (truth 3.53: 1.4 %), vs 7.53 mm/s (8: 6 %) and the flexibility within 1 %
-    (in one round: 11 % and 14 %). Before, Stribeck friction was missed on this seed.
+    (p = 9.5e-10 when the search held levels, not impulses); the refit (the searched level its start) then gives Fs 3.63 N
+    (truth 3.53: 3 %), vs 7.76 mm/s (8: 3 %) and the flexibility within 2 %. Before, Stribeck friction was missed on
+    this seed.
     """
     from ilic_cli.diagnosis.select import HELDOUT_UNCONFIRMED
     from tests.corpus import case_of

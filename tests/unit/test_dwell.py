@@ -12,6 +12,7 @@ from ilic_cli.diagnosis import dwell
 from ilic_cli.diagnosis.core import model_parameters
 from ilic_cli.diagnosis.select import Step
 from ilic_cli.effects import EFFECTS, Fit
+from ilic_cli.simulation.timing import vertex
 
 STRIBECK = EFFECTS["stribeck"]
 
@@ -29,79 +30,129 @@ def test_reference_dwells_counts_rests_of_the_reference() -> None:
 
 
 def _surface(v0: float, f0: float):  # type: ignore[no-untyped-def]
-    """A training error with its least at ``(v0, f0)``, quadratic in the logs."""
+    """A training error with its least at ``(v0, f0)``, quadratic in the logs of ``vs`` and of the impulse ``Fs·vs``."""
     calls: list[tuple[float, float]] = []
 
     def error(st: Step) -> float:
         assert st.level is not None
         calls.append((float(st.value), st.level[0]))
-        return 1.0 + (math.log(float(st.value) / v0)) ** 2 + (math.log(st.level[0] / f0)) ** 2
+        return 1.0 + (math.log(float(st.value) / v0)) ** 2 + (math.log(st.level[0] * float(st.value) / (f0 * v0))) ** 2
 
     return error, calls
 
 
-def test_search_finds_an_interior_optimum_between_the_grid_points() -> None:
-    vs = np.geomspace(0.002, 0.08, 8)
-    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
-    error, calls = _surface(0.011, 1.7)
-    found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0)
+def _near(found: Step | None, v0: float, f0: float) -> bool:
+    """``found`` within the search's resolution of ``(v0, f0)``: a sixteenth of each grid's step in ``vs`` and in the impulse."""
+    vs, impulse = _grids()
     assert found is not None and found.level is not None
-    assert found.value == pytest.approx(0.011, rel=1e-6) and found.level[0] == pytest.approx(1.7, rel=1e-6)  # exact on a log-quadratic
-    assert len(set(calls)) <= len(vs) + len(fs) + len(vs)  # a coordinate search, not the whole grid
+    dv, da = math.log(float(found.value) / v0), math.log(found.level[0] * float(found.value) / (f0 * v0))
+    tol_v, tol_a = math.log(vs[1] / vs[0]) / 2 ** (dwell.HALVINGS + 1), math.log(impulse[1] / impulse[0]) / 2 ** (dwell.HALVINGS + 1)
+    return abs(dv) <= tol_v * (1 + 1e-9) and abs(da) <= tol_a * (1 + 1e-9)
+
+
+def _grids() -> tuple[np.ndarray, np.ndarray]:
+    """The searched ``vs`` (8, the proposal's at the middle) and impulses, for a Coulomb level of 20 N."""
+    vs = np.geomspace(0.002, 0.08, 8)
+    return vs, 20.0 * float(vs[4]) * np.asarray(dwell.LEVELS_OF_FC)
+
+
+def test_search_finds_an_interior_optimum_between_the_grid_points() -> None:
+    vs, impulse = _grids()
+    error, calls = _surface(0.011, 1.7)
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=2.0)
+    assert _near(found, 0.011, 1.7)
+    refining = 2 * 2 * dwell.HALVINGS  # each coordinate: two replays a halving
+    assert len(set(calls)) <= len(impulse) + len(vs) + len(impulse) + refining < len(vs) * len(impulse)  # not the whole grid
 
 
 def test_search_finds_a_peak_above_half_the_coulomb_level() -> None:
-    """A static friction 1.7 times the Coulomb level (Fs = 0.7 Fc): inside the levels searched (up to 2 Fc), not on their edge."""
-    vs = np.geomspace(0.002, 0.08, 8)
-    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    """A static friction 1.7 times the Coulomb level (Fs = 0.7 Fc): inside the impulses searched, not on their edge."""
+    vs, impulse = _grids()
     error, calls = _surface(0.011, 14.0)
-    found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0)
-    assert found is not None and found.level is not None
-    assert found.value == pytest.approx(0.011, rel=1e-6) and found.level[0] == pytest.approx(14.0, rel=1e-6)
-    assert calls[0][1] == pytest.approx(20.0 * dwell.START_LEVEL_OF_FC)  # the vs profile first, at the proposal's level
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=2.0)
+    assert _near(found, 0.011, 14.0)
+    assert {v for v, _ in calls[: len(impulse)]} == {vs[4]}  # the impulse's profile first, at the proposal's vs
 
 
-def test_search_finds_a_peak_of_several_coulomb_levels() -> None:
-    """A static friction 5.8 times the Coulomb level (Fs = 4.8 Fc, the corpus's S-curve s371 and s722): inside the levels searched
-    (up to 8 Fc), where up to 2 Fc it was on their top edge in every fold."""
-    vs = np.geomspace(0.002, 0.08, 8)
-    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
-    error, _ = _surface(0.011, 96.0)
-    found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0)
-    assert found is not None and found.level is not None
-    assert found.value == pytest.approx(0.011, rel=1e-6) and found.level[0] == pytest.approx(96.0, rel=1e-6)
+@pytest.mark.parametrize(("v0", "f0"), [(0.011, 96.0), (0.005, 600.0), (0.04, 70.0)])
+def test_search_finds_a_peak_of_several_coulomb_levels(v0: float, f0: float) -> None:
+    """Static friction of 4.8 to 30 times the Coulomb level (the corpus's S-curves s371 and s722: 4.8 Fc; s461 6.2 Fc at a
+    vs above the middle one): inside the impulses searched, where levels up to 2 Fc were on their top edge in every fold."""
+    vs, impulse = _grids()
+    error, _ = _surface(v0, f0)
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=2.0)
+    assert _near(found, v0, f0)
+
+
+@pytest.mark.parametrize("x_min", [0.3, -0.45, 0.05])
+def test_refined_finds_a_least_beside_a_cliff(x_min: float) -> None:
+    """Gentle on one side, a hundred times steeper on the other (a level the axis sticks at): the least within a sixteenth
+    of the grid's step, where the parabola through the grid's point and its neighbours falls up to half a step off."""
+    h = 1.0
+
+    def error(x: float) -> float:
+        d = x - x_min
+        return 1.0 + (d * d if d < 0 else 100.0 * d * d)
+
+    calls: list[float] = []
+
+    def counted(x: float) -> float:
+        calls.append(x)
+        return error(x)
+
+    found = dwell.refined(counted, 0.0, error(0.0), h)
+    assert abs(found - x_min) <= h / 16
+    assert len(calls) == len(set(calls)) == 2 * dwell.HALVINGS  # each point replayed once
+    naive = vertex(np.array([-h, 0.0, h]), np.array([error(-h), error(0.0), error(h)]), 1)
+    assert abs(naive - x_min) > 2 * h / 16  # the grid's parabola: more than twice as far off
+
+
+def test_search_follows_the_valley_of_a_held_impulse() -> None:
+    """The loop feels the impulse ``Fs·vs``: the error's valley runs along it, and rises gently along the valley.
+
+    A search whose ``vs`` profiles held the level stalled part way along it (s461 of the robot corpus: Fs 4.2 N, vs
+    279 mm/s for 10.2 N, 120 mm/s)."""
+    vs, impulse = _grids()
+    v0, f0 = 0.006, 150.0
+
+    def error(st: Step) -> float:
+        assert st.level is not None
+        across = math.log(st.level[0] * float(st.value) / (f0 * v0))
+        along = math.log(float(st.value) / v0)
+        return 1.0 + 25.0 * across**2 + 0.05 * along**2
+
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=100.0)
+    assert _near(found, v0, f0)
 
 
 @pytest.mark.parametrize(
     ("v0", "f0", "baseline", "why"),
     [
-        (0.011, 0.2, 2.0, "the least level tried: no measured level"),
-        (0.011, 160.0, 2.0, "the largest level tried"),
+        (0.011, 0.2, 2.0, "the least impulse tried: no measured level"),
+        (0.011, 2000.0, 2.0, "the largest impulse tried"),
         (0.0005, 1.7, 2.0, "below the vs grid"),
         (0.5, 1.7, 2.0, "above the vs grid"),
         (0.011, 1.7, 0.5, "does not beat the model without it"),
     ],
 )
 def test_search_finds_nothing_on_an_edge_or_without_a_fall(v0: float, f0: float, baseline: float, why: str) -> None:
-    vs = np.geomspace(0.002, 0.08, 8)
-    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    vs, impulse = _grids()
     error, _ = _surface(v0, f0)
-    assert dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=baseline) is None, why
+    assert dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=baseline) is None, why
 
 
-@pytest.mark.parametrize(("f0", "edge"), [(0.2, 0), (160.0, -1)])
+@pytest.mark.parametrize(("f0", "edge"), [(0.2, 0), (2000.0, -1)])
 def test_a_level_on_the_grid_s_edge_ends_the_search_before_the_second_vs_profile(f0: float, edge: int) -> None:
-    """The least error's level on the edge gives no estimate whatever vs does there: the search stops, the answer the same.
+    """The least error's impulse on the edge gives no estimate whatever vs does there: the search stops, the answer the same.
 
-    Each point is a closed-loop replay of the log: on the clean trapezoid of the corpus 24 replays per fold became 17
-    (its diagnosis 13.9 -> 11.7 s of CPU, its JSON the same byte for byte)."""
-    vs = np.geomspace(0.002, 0.08, 8)
-    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
+    Each point is a closed-loop replay of the log: a clean log's search is the one profile (11 replays a fold; 17 when
+    the vs profile came first, 24 before that)."""
+    vs, impulse = _grids()
     error, calls = _surface(0.011, f0)
-    assert dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0) is None
-    assert len(set(calls)) == len(vs) + len(fs) - 1 and len({v for v, _ in calls[len(vs) :]}) == 1  # the vs profile, then the level's
-    best = min(set(calls), key=lambda c: math.log(c[0] / 0.011) ** 2 + math.log(c[1] / f0) ** 2)  # the surface's least point visited
-    assert best[1] == pytest.approx(fs[edge])
+    assert dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=2.0) is None
+    assert len(calls) == len(impulse) and {v for v, _ in calls} == {vs[4]}  # the impulse's profile at the proposal's vs, no more
+    best = min(calls, key=lambda c: math.log(c[0] / 0.011) ** 2 + math.log(c[0] * c[1] / (0.011 * f0)) ** 2)  # the least point visited
+    assert best[0] * best[1] == pytest.approx(impulse[edge])
 
 
 def test_judged_needs_a_majority_of_folds() -> None:
@@ -178,39 +229,41 @@ def test_the_coulomb_level_and_the_grids() -> None:
     assert dwell.coulomb_N(("M", "Fv_pos", "Fv_neg", "Fc_pos", "Fc_neg"), np.array([95.0, 200.0, 210.0, 19.0, 21.0])) == 20.0
     assert dwell.coulomb_N(("M", "Fv"), np.array([95.0, 200.0])) is None
     vs_grid = np.geomspace(0.001, 0.04, 32)
-    vs, fs = dwell.grids(vs_grid, -20.0)
+    vs, impulse = dwell.grids(vs_grid, -20.0)
     assert np.array_equal(vs, vs_grid[:: dwell.VS_EVERY]) and len(vs) == 8
-    assert fs.tolist() == pytest.approx([0.625, 1.25, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0])
+    levels_at_the_middle = [0.625, 1.25, 2.5, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0, 320.0, 640.0]  # Fc / 32 to 32 Fc
+    assert (impulse / vs_grid[16]).tolist() == pytest.approx(levels_at_the_middle)
     first = dwell.proposal(vs_grid, -20.0)
     assert first.effect is STRIBECK and first.value == vs_grid[16] and first.level == (2.5,)
 
 
-def test_search_follows_a_level_that_moves_the_best_vs() -> None:
-    """A surface whose best ``vs`` depends on the level: the ``vs`` profile is taken again at the best level."""
-    vs = np.geomspace(0.002, 0.08, 8)
-    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
-    v0, f0 = float(vs[3]), float(fs[1])
+def test_search_follows_a_best_point_that_moves() -> None:
+    """A valley oblique to both coordinates: the profiles alternate while the best point moves, and end on its least."""
+    vs, impulse = _grids()
+    v0, a0 = float(vs[2]), float(impulse[5])
+    calls: list[float] = []
 
     def error(st: Step) -> float:
         assert st.level is not None
-        dv, df = math.log(float(st.value) / v0), math.log(st.level[0] / f0)
-        return 1.0 + (dv + 0.5 * df) ** 2 + df**2  # at the middle level the best vs is vs[2]; at the best level, vs[3]
+        calls.append(float(st.value))
+        dv, da = math.log(float(st.value) / v0), math.log(st.level[0] * float(st.value) / a0)
+        return 1.0 + (dv - 0.5 * da) ** 2 + da**2
 
-    found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=5.0)
+    found = dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=50.0)
     assert found is not None and found.level is not None
-    assert found.value == pytest.approx(v0) and found.level == (pytest.approx(f0),)
+    assert found.value == pytest.approx(v0) and found.level == (pytest.approx(a0 / v0),)
+    assert len(set(calls)) > 2 and len(calls) > len(impulse) + len(vs)  # more than one profile of each coordinate
 
 
 @pytest.mark.parametrize("i", [1, 6])
 def test_search_takes_an_optimum_next_to_the_edges(i: int) -> None:
-    vs = np.geomspace(0.002, 0.08, 8)
-    fs = 20.0 * np.asarray(dwell.LEVELS_OF_FC)
-    for j in (1, 3):
-        error, _ = _surface(float(vs[i]), float(fs[j]))
-        found = dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=2.0)
-        assert found is not None and found.value == pytest.approx(vs[i]) and found.level == (pytest.approx(fs[j]),)
-    error, _ = _surface(float(vs[3]), float(fs[2]))
-    assert dwell.search(dwell.proposal(vs, 20.0), vs, fs, error, baseline_error=1.0) is None  # equal to the model without it: no fall
+    vs, impulse = _grids()
+    for j in (1, 3, 9):
+        error, _ = _surface(float(vs[i]), float(impulse[j] / vs[i]))
+        found = dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=2.0)
+        assert found is not None and found.value == pytest.approx(vs[i]) and found.level == (pytest.approx(impulse[j] / vs[i]),)
+    error, _ = _surface(float(vs[3]), float(impulse[2] / vs[3]))
+    assert dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=1.0) is None  # equal to the model without it: no fall
 
 
 def test_judged_text_gives_the_folds_ranges() -> None:

@@ -72,8 +72,8 @@ class DwellSegments:
     def scan(self, step: Step, rigid: SystemFit, grid: np.ndarray, training_error: Callable[[Step | None], float]) -> Step | None:
         """``Fs`` and ``vs`` searched on a fold's training error (:func:`ilic_cli.diagnosis.dwell.search`), the levels from its rigid Coulomb level."""
         fc = dwell.coulomb_N(rigid.names, rigid.theta) or 0.0
-        vs, fs = dwell.grids(grid, fc)
-        return dwell.search(step, vs, fs, lambda st: training_error(st), training_error(None))
+        vs, impulse = dwell.grids(grid, fc)
+        return dwell.search(step, vs, impulse, lambda st: training_error(st), training_error(None))
 
     def judged(self, found: list[Step | None]) -> tuple[Step | None, str]:
         """The folds' medians, and a sentence (:func:`ilic_cli.diagnosis.dwell.judged`)."""
