@@ -48,6 +48,7 @@ estimate on any of the 8 clean trapezoids, once the current loop's lag is realis
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -167,7 +168,7 @@ def search(step: Step, vs: np.ndarray, impulse: np.ndarray, training_error: Call
 
     def at(i: int, j: int) -> float:
         if (i, j) not in err:
-            err[i, j] = training_error(Step(step.effect, float(vs[i]), level=(float(impulse[j] / vs[i]),)))
+            err[i, j] = _finite(training_error(Step(step.effect, float(vs[i]), level=(float(impulse[j] / vs[i]),))))
         return err[i, j]
 
     i = int(np.argmin(np.abs(np.log(vs / float(step.value)))))  # the proposal's vs
@@ -193,6 +194,11 @@ def search(step: Step, vs: np.ndarray, impulse: np.ndarray, training_error: Call
     return Step(step.effect, float(np.exp(lv)), level=(float(np.exp(la - lv)),))
 
 
+def _finite(e: float) -> float:
+    """An error to compare: ``nan`` (a replay without a valid answer) as ``inf``, which ``min`` never prefers."""
+    return e if e == e else math.inf
+
+
 def refined(error: Callable[[float], float], x: float, y: float, h: float, halvings: int = HALVINGS) -> float:
     """The least of ``error`` near ``x`` (its value ``y``; a grid's best point, its neighbours ``h`` away), within
     ``h / 2**(halvings + 1)``: ``halvings`` times the least of the point and those half the step either side.
@@ -207,7 +213,7 @@ def refined(error: Callable[[float], float], x: float, y: float, h: float, halvi
 
     def at(k: int) -> float:
         if k not in seen:
-            seen[k] = error(x + k * fine)
+            seen[k] = _finite(error(x + k * fine))
         return seen[k]
 
     k, step = 0, 2**halvings

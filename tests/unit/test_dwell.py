@@ -107,6 +107,15 @@ def test_refined_finds_a_least_beside_a_cliff(x_min: float) -> None:
     assert abs(naive - x_min) > 2 * h / 16  # the grid's parabola: more than twice as far off
 
 
+def test_a_replay_without_an_answer_is_never_the_least() -> None:
+    """A point whose replay gives no number (``nan``) is passed over, in the grid and between its points."""
+    vs, impulse = _grids()
+    error, _ = _surface(0.011, 1.7)
+    holes = lambda st: math.nan if float(st.value) > 0.05 or st.level[0] * float(st.value) < 0.005 else error(st)  # noqa: E731
+    assert _near(dwell.search(dwell.proposal(vs, 20.0), vs, impulse, holes, baseline_error=2.0), 0.011, 1.7)
+    assert dwell.refined(lambda x: math.nan if x < 0 else (x - 0.3) ** 2, 0.0, 0.09, 1.0) == pytest.approx(0.25)
+
+
 def test_search_follows_the_valley_of_a_held_impulse() -> None:
     """The loop feels the impulse ``Fs·vs``: the error's valley runs along it, and rises gently along the valley.
 
