@@ -139,8 +139,8 @@ def test_search_follows_the_valley_of_a_held_impulse() -> None:
     [
         (0.011, 0.2, 2.0, "the least impulse tried: no measured level"),
         (0.011, 2000.0, 2.0, "the largest impulse tried"),
-        (0.0005, 1.7, 2.0, "below the vs grid"),
-        (0.5, 1.7, 2.0, "above the vs grid"),
+        (0.0005, 40.0, 100.0, "below the vs grid (the impulse inside its grid, any fall enough)"),
+        (0.5, 1.7, 100.0, "above the vs grid (the impulse inside its grid, any fall enough)"),
         (0.011, 1.7, 0.5, "does not beat the model without it"),
     ],
 )
@@ -148,6 +148,19 @@ def test_search_finds_nothing_on_an_edge_or_without_a_fall(v0: float, f0: float,
     vs, impulse = _grids()
     error, _ = _surface(v0, f0)
     assert dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=baseline) is None, why
+
+
+def test_an_impulse_that_reaches_the_grid_s_edge_after_vs_moved_is_no_estimate() -> None:
+    """Inside the impulse's grid at the middle vs, its top edge at the best vs: no estimate, whatever the fall."""
+    vs, impulse = _grids()
+    v0, a0 = float(vs[6]), 17.6  # the least beyond the top impulse (10.5), reached once vs has moved up
+
+    def error(st: Step) -> float:
+        assert st.level is not None
+        dv, da = math.log(float(st.value) / v0), math.log(st.level[0] * float(st.value) / a0)
+        return 1.0 + dv * dv + (da - dv) ** 2
+
+    assert dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=100.0) is None
 
 
 @pytest.mark.parametrize(("f0", "edge"), [(0.2, 0), (2000.0, -1)])
