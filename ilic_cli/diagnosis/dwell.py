@@ -189,8 +189,8 @@ def search(step: Step, vs: np.ndarray, impulse: np.ndarray, training_error: Call
     # between the grid's points: the impulse, then vs, by halving steps on log scales (:func:`refined`)
     error = lambda v, a: training_error(Step(step.effect, float(np.exp(v)), level=(float(np.exp(a - v)),)))  # noqa: E731
     lv, la = float(np.log(vs[i])), float(np.log(impulse[j]))
-    la = refined(lambda a: error(lv, a), la, at(i, j), float(np.log(impulse[1] / impulse[0])))
-    lv = refined(lambda v: error(v, la), lv, error(lv, la), float(np.log(vs[1] / vs[0])))
+    la, e = refined(lambda a: error(lv, a), la, at(i, j), float(np.log(impulse[1] / impulse[0])))
+    lv, _ = refined(lambda v: error(v, la), lv, e, float(np.log(vs[1] / vs[0])))
     return Step(step.effect, float(np.exp(lv)), level=(float(np.exp(la - lv)),))
 
 
@@ -199,9 +199,10 @@ def _finite(e: float) -> float:
     return e if e == e else math.inf
 
 
-def refined(error: Callable[[float], float], x: float, y: float, h: float, halvings: int = HALVINGS) -> float:
+def refined(error: Callable[[float], float], x: float, y: float, h: float, halvings: int = HALVINGS) -> tuple[float, float]:
     """The least of ``error`` near ``x`` (its value ``y``; a grid's best point, its neighbours ``h`` away), within
-    ``h / 2**(halvings + 1)``: ``halvings`` times the least of the point and those half the step either side.
+    ``h / 2**(halvings + 1)``, and its value: ``halvings`` times the least of the point and those half the step either
+    side.
 
     Not the vertex of a parabola: beside the Stribeck valley the error rises steeply on one side (a level the axis
     sticks at) and gently on the other, and the parabola's vertex falls towards the gentle side, by up to half the
@@ -220,7 +221,7 @@ def refined(error: Callable[[float], float], x: float, y: float, h: float, halvi
     for _ in range(halvings):
         step //= 2
         k = min((k - step, k, k + step), key=at)
-    return x + k * fine
+    return x + k * fine, at(k)
 
 
 def jackknife_std(values: np.ndarray) -> float:

@@ -100,7 +100,8 @@ def test_refined_finds_a_least_beside_a_cliff(x_min: float) -> None:
         calls.append(x)
         return error(x)
 
-    found = dwell.refined(counted, 0.0, error(0.0), h)
+    found, value = dwell.refined(counted, 0.0, error(0.0), h)
+    assert value == error(found)
     assert abs(found - x_min) <= h / 16
     assert len(calls) == len(set(calls)) == 2 * dwell.HALVINGS  # each point replayed once
     naive = vertex(np.array([-h, 0.0, h]), np.array([error(-h), error(0.0), error(h)]), 1)
@@ -113,7 +114,7 @@ def test_a_replay_without_an_answer_is_never_the_least() -> None:
     error, _ = _surface(0.011, 1.7)
     holes = lambda st: math.nan if float(st.value) > 0.05 or st.level[0] * float(st.value) < 0.005 else error(st)  # noqa: E731
     assert _near(dwell.search(dwell.proposal(vs, 20.0), vs, impulse, holes, baseline_error=2.0), 0.011, 1.7)
-    assert dwell.refined(lambda x: math.nan if x < 0 else (x - 0.3) ** 2, 0.0, 0.09, 1.0) == pytest.approx(0.25)
+    assert dwell.refined(lambda x: math.nan if x < 0 else (x - 0.3) ** 2, 0.0, 0.09, 1.0)[0] == pytest.approx(0.25)
 
 
 def test_search_follows_the_valley_of_a_held_impulse() -> None:
