@@ -114,6 +114,9 @@ class IDIMData:
     rows: np.ndarray | None = None
     memo: dict[Any, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
     """Decimated columns already computed on this data, by key (:meth:`decimate_once`)."""
+    shift_s: float = 0.0  # how much later than the samples the kinematics are evaluated (held)
+    position_noise_std: float = 0.0
+    """The measured position's noise (m or rad; 0: not known), realised in the columns by :mod:`ilic_cli.diagnosis.column_noise`."""
 
     @property
     def t_dec(self) -> np.ndarray:
@@ -306,7 +309,7 @@ def held(data: IDIMData, model: Model, shift_s: float) -> IDIMData:
         sign_qd=None if k.sign_qd is None else later(k.sign_qd),
         extra={n: later(v) for n, v in k.extra.items()},
     )
-    return rebuilt(data, model, kin)
+    return replace(rebuilt(data, model, kin), shift_s=data.shift_s + shift_s)
 
 
 def rebuilt(data: IDIMData, model: Model, kin: Kinematics) -> IDIMData:

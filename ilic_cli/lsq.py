@@ -117,6 +117,29 @@ def lstsq(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     return theta, float(np.sum(e * e))
 
 
+def noise_corrected_lstsq(W: np.ndarray, y: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least squares corrected for noise in the regressor's columns, and the residual sum of squares at that estimate.
+
+    ``theta = (W'W - Phi)^-1 W'y`` with ``Phi = mean_k N_k'N_k`` the covariance the columns' noise adds to ``W'W``
+    (``noise``: realisations ``N_k`` of that noise, shape ``(K, rows, columns)``): plain least squares divides by
+    ``W'W``, which that noise inflates, and so shrinks the coefficient of a noisy column towards zero (errors in the
+    variables; bias-compensated least squares: T. Söderström, *Errors-in-Variables Methods in System Identification*,
+    Springer, 2018). Plain least squares (:func:`lstsq`) where ``W'W - Phi`` is not positive definite: the noise is
+    then not resolved from the signal.
+    """
+    W = np.asarray(W, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    N = np.asarray(noise, dtype=np.float64)
+    A = W.T @ W - np.einsum("krb,krc->bc", N, N) / len(N)
+    try:
+        L = np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:
+        return lstsq(W, y)
+    theta = np.linalg.solve(L.T, np.linalg.solve(L, W.T @ y))
+    e = y - W @ theta
+    return theta, float(np.sum(e * e))
+
+
 def relative_error_pct(y: np.ndarray, y_hat: np.ndarray) -> float:
     """The one relative error: ``100 ||y - y_hat|| / ||y||`` (``inf`` for a zero ``y``)."""
     ny = float(np.linalg.norm(y))
@@ -187,6 +210,14 @@ def _result(
         rank=rank,
         cov=cov,
     )
+
+
+def with_theta(res: LSResult, W: np.ndarray, y: np.ndarray, theta: np.ndarray) -> LSResult:
+    """``res`` (a fit of ``y`` on ``W``) at another estimate ``theta``: its error and relative error at ``theta``, the standard
+    deviations and covariance of ``res`` (for a caller that replaces them)."""
+    err = float(np.linalg.norm(np.asarray(y) - np.asarray(W) @ theta))
+    sig = err / float(np.sqrt(max(len(y) - len(theta), 1)))
+    return _result(res.names, np.asarray(y), np.asarray(theta, dtype=np.float64), res.std, sig, err, res.condition_number, res.rank, res.cov)
 
 
 def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> list[LSResult]:

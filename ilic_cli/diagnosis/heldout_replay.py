@@ -37,12 +37,12 @@ from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, minimise, search_ra
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import contiguous_runs, folds_either_side, heldout_fall_p
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
-from ilic_cli.diagnosis.system import Step, SystemFit, change_time, fit_system, system
+from ilic_cli.diagnosis.system import Step, SystemFit, change_time, column_noise, fit_system, system
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull, ReplayVerdict, Verdict
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
-from ilic_cli.lsq import lstsq, relative_error_pct
+from ilic_cli.lsq import lstsq, noise_corrected_lstsq, relative_error_pct
 from ilic_cli.parallel import ordered_map
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
@@ -88,9 +88,11 @@ def fitted_plant(
         fit = fit_system(data, base, steps, rows, train)
         return plant_of(steps, fit.names, fit.theta)
     W, y, names = system(data, base, steps, rows)
-    W1 = np.hstack([W, drift.columns(data.t_dec[rows], W, names)])
-    sel = slice(None) if train is None else train
-    theta, _ = lstsq(W1[sel], y[sel])
+    trends, noise = drift.columns(data.t_dec[rows], W, names), column_noise(data, base, steps, rows)
+    W1, sel = np.hstack([W, trends]), (slice(None) if train is None else train)
+    # with noisy columns, their noise corrected for (the trends' own, a velocity's times a function of time, is small)
+    noise1 = None if noise is None else np.concatenate([noise, np.zeros((len(noise), *trends.shape))], axis=2)[:, sel]
+    theta, _ = lstsq(W1[sel], y[sel]) if noise1 is None else noise_corrected_lstsq(W1[sel], y[sel], noise1)
     rigid, effects = plant_of(steps, names, theta[: len(names)])
     return drift.plant(rigid, effects, theta[len(names) :])
 

@@ -17,6 +17,7 @@ from ilic_cli.diagnosis.baseline import held, hold_s
 from ilic_cli.diagnosis.drift import GivenDrift, detect_drift
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
+from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.strategies import strategy_of
 from ilic_cli.diagnosis.system import Step, moving_rows, system
@@ -87,7 +88,8 @@ def prepare_system(prepared: PreparedLog, model: Model, settings: LSSettings) ->
     except ValueError as exc:
         raise IdentificationError(prepared.source, str(exc)) from None
     data = held(data, model, hold_s(tau_sensor(log), prepared.fs_hz))
-    return data
+    noise = measurement_std(*position_noise(np.asarray(log["q"]), prepared.fs_hz, settings.at_rate(prepared.fs_hz)))
+    return replace(data, position_noise_std=noise)  # the noise a flexibility's columns carry (system.column_noise)
 
 
 def base_model(model_doc: dict[str, Any] | None, default: str) -> Model:

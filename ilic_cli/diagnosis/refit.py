@@ -38,11 +38,11 @@ from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.stats import gls_covariance
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
 from ilic_cli.diagnosis.strategies.stribeck import NOT_REFITTED, segment_refit
-from ilic_cli.diagnosis.system import Step, fit_system, system
+from ilic_cli.diagnosis.system import Step, column_noise, fit_system, system
 from ilic_cli.diagnosis.verdicts import RefitOutcome
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings
-from ilic_cli.lsq import LSResult, solve
+from ilic_cli.lsq import LSResult, noise_corrected_lstsq, solve, with_theta
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 
@@ -92,6 +92,9 @@ def final_fit(prop: Proposal, kept: list[Step], ls: LSSettings, n_rows: int) -> 
     if not n_rows > 4 * W1.shape[1]:
         raise IdentificationError(prop.prepared.source, f"only {n_rows} usable rows after leaving out standstill: too few to diagnose")
     res1 = solve(W1, y1, names1, sigma=ls.sigma)
+    noise = column_noise(prop.data, prop.base, [*prop.known, *kept], prop.rows)
+    if noise is not None:  # the estimate fit_system gives the replays (a flexibility's columns carry the position's noise)
+        res1 = with_theta(res1, W1, y1, noise_corrected_lstsq(W1, y1, noise)[0])
     cov1 = gls_covariance(W1, y1, res1.theta)
     return FinalFit(W1, y1, names1, with_std(res1, cov1), cov1)
 

@@ -13,11 +13,12 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.baseline import reversal_samples
+from ilic_cli.diagnosis.column_noise import noise_kinematics
 from ilic_cli.effects import Effect
 from ilic_cli.filtering import kept_indices
-from ilic_cli.idim_ls import IDIMData, valid_rows
-from ilic_cli.lsq import lstsq
-from ilic_cli.regressor import Model
+from ilic_cli.idim_ls import IDIMData, rebuilt, valid_rows
+from ilic_cli.lsq import lstsq, noise_corrected_lstsq
+from ilic_cli.regressor import Kinematics, Model
 
 
 @dataclass(frozen=True)
@@ -129,14 +130,48 @@ class SystemFit:
     y: np.ndarray
 
 
+NOISE_REALISATIONS = 6
+"""Realisations of the position's noise whose columns give their covariance (:func:`column_noise`)."""
+
+
+def column_noise(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], rows: np.ndarray | None = None) -> np.ndarray | None:
+    """The noise the measured position puts in the columns of ``base + steps`` (:func:`system`), realised
+    :data:`NOISE_REALISATIONS` times, shape ``(K, rows, columns)``; ``None`` when no step has noisy columns
+    (:attr:`ilic_cli.effects.Effect.noisy_columns`) or the position's noise is not known.
+
+    Each realisation is the system built on the kinematics plus those of white noise of the log's position noise
+    (:func:`ilic_cli.diagnosis.column_noise.noise_kinematics`), less the system itself: exact for the columns linear in the
+    kinematics, and for the others what the noise changes. Computed once per model on ``data``.
+    """
+    if not data.position_noise_std > 0 or not any(s.level is None and s.effect.noisy_columns for s in steps):
+        return None
+    keep = moving_rows(data) if rows is None else rows
+    # by the columns only: a shift or a held level changes the force, not the columns (a lag's values searched per fold)
+    key = ("column noise", base.name, tuple((s.effect.id, s.value) for s in steps if s.level is None and not s.effect.shift), keep.tobytes())
+    if key not in data.memo:
+        W, _, _ = system(data, base, steps, keep)
+        k = data.kin
+        out = []
+        for seed in range(NOISE_REALISATIONS):
+            n = noise_kinematics(data, seed)
+            q = None if k.q is None or n.q is None else k.q + n.q
+            noisy = Kinematics(qd=k.qd + n.qd, qdd=k.qdd + n.qdd, q=q, t=k.t, sign_qd=k.sign_qd, extra=k.extra)
+            out.append(system(rebuilt(data, base, noisy), base, steps, keep)[0] - W)
+        data.memo[key] = np.stack(out)
+    return data.memo[key]
+
+
 def fit_system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], rows: np.ndarray | None = None, train: np.ndarray | None = None) -> SystemFit:
     """Fit ``base + steps`` on ``data``'s ``rows`` (default :func:`moving_rows`) by least squares, on ``train`` of them when given.
 
     The one inverse-model fit of the diagnosis (the IDIM estimate, eq. (8) of the
     paper, with the effect columns beside the rigid ones); ``W`` and ``y`` are
-    the whole selected system, ``train`` or not.
+    the whole selected system, ``train`` or not. A model with columns that carry
+    the position's noise amplified (a flexibility) is fitted by least squares
+    corrected for it (:func:`column_noise`, :func:`ilic_cli.lsq.noise_corrected_lstsq`).
     """
     W, y, names = system(data, base, steps, rows)
     sel = slice(None) if train is None else train
-    theta, _ = lstsq(W[sel], y[sel])
+    noise = column_noise(data, base, steps, rows)
+    theta, _ = lstsq(W[sel], y[sel]) if noise is None else noise_corrected_lstsq(W[sel], y[sel], noise[:, sel])
     return SystemFit(names, theta, W, y)

@@ -233,6 +233,9 @@ class Effect:
         The nonlinear parameter, if any.
     shift : bool
         No column: the force is shifted in time by the scanned value.
+    noisy_columns : bool
+        Its columns carry the position's noise amplified (a flexibility's, four derivatives near its resonance): a
+        plant is fitted with least squares corrected for that noise (:func:`ilic_cli.lsq.noise_corrected_lstsq`).
     impossible : callable, optional
         ``(theta of its columns, value) -> reason or None``: estimates that
         cannot be this physics reject the candidate.
@@ -270,6 +273,7 @@ class Effect:
     build: Callable[[Kinematics, Any, float], np.ndarray] | None = None
     scan: Scan | None = None
     shift: bool = False
+    noisy_columns: bool = False
     impossible: Callable[[np.ndarray, Any], str | None] | None = None
     estimate: Callable[[Fit], EstimateResult] | None = None
     scan_value: Callable[[Mapping[str, float], float], Any] | None = None

@@ -133,6 +133,7 @@ FLEXIBILITY = Effect(
     signature_kinds=("frequency", "acceleration"),
     columns=(col("M_load", "mass behind the flexibility", "kg"),),
     build=_flex_build,
+    noisy_columns=True,
     scan=Scan("f_res", "Hz", resonance_grid, secondary=("damping_ratio", "", 0.005, 0.5, FLEX_DAMPING), at_log_rate=resonance_at_log_rate),
     impossible=lambda th, v: None if th[0] > 0 else f"negative mass behind the flexibility ({th[0]:.3g} kg)",
     estimate=_flex_estimate,

@@ -245,3 +245,22 @@ def test_the_most_correlated_estimates_by_hand() -> None:
     cov[3, 3] = np.inf  # an unidentifiable estimate (rank-deficient rows): no correlation either
     assert most_correlated(names, cov) is None
     assert most_correlated(("M",), np.eye(1)) is None
+
+
+def test_noise_corrected_least_squares_undoes_the_attenuation_of_a_noisy_column() -> None:
+    """Errors in the variables: a column measured with noise as large as its signal halves plain least squares'
+    coefficient; corrected for the noise's covariance (its realisations given), the coefficient is the truth's."""
+    from ilic_cli.lsq import lstsq, noise_corrected_lstsq
+
+    rng = np.random.default_rng(3)
+    n = 20000
+    x = rng.standard_normal(n)
+    noise = rng.standard_normal((8, n, 1))  # realisations of the column's noise, independent of the one it carries
+    W = np.c_[x + rng.standard_normal(n)]
+    y = 2.0 * x + 0.1 * rng.standard_normal(n)
+    plain, _ = lstsq(W, y)
+    corrected, rss = noise_corrected_lstsq(W, y, noise)
+    assert abs(plain[0] - 1.0) < 0.05 and abs(corrected[0] - 2.0) < 0.06
+    assert rss == pytest.approx(float(np.sum((y - W @ corrected) ** 2)))
+    too_much = noise_corrected_lstsq(W, y, 3.0 * noise)  # more noise than the column holds: not resolved, plain least squares
+    assert np.allclose(too_much[0], plain)
