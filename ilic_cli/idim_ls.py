@@ -294,22 +294,7 @@ def held(data: IDIMData, model: Model, shift_s: float) -> IDIMData:
     """
     if shift_s == 0.0:
         return data
-    k = data.kin
-    t = k.t
-    assert t is not None
-
-    def later(x: np.ndarray) -> np.ndarray:
-        return np.interp(t + shift_s, t, x)
-
-    kin = Kinematics(
-        qd=later(k.qd),
-        qdd=later(k.qdd),
-        q=None if k.q is None else later(k.q),
-        t=t,
-        sign_qd=None if k.sign_qd is None else later(k.sign_qd),
-        extra={n: later(v) for n, v in k.extra.items()},
-    )
-    return replace(rebuilt(data, model, kin), shift_s=data.shift_s + shift_s)
+    return replace(rebuilt(data, model, data.kin.later(shift_s)), shift_s=data.shift_s + shift_s)
 
 
 def rebuilt(data: IDIMData, model: Model, kin: Kinematics) -> IDIMData:
@@ -349,12 +334,22 @@ def lsq_rows(
     """
     settings = settings.at_rate(fs_hz)
     qf, W, y, rows = _system(t, q, tau, fs_hz, model, settings, valid, extra=extra)
-    dt = 1.0 / fs_hz
-    qd = derivative(qf, dt, settings.stencil)
-    qdd = derivative(qd, dt, settings.stencil)
     s = slice(settings.trim, None)
-    kin = Kinematics(qd=qd[s], qdd=qdd[s], q=qf[s], t=np.asarray(t, dtype=np.float64)[s], extra=_trimmed(extra, s))
+    kin = Kinematics(*differentiated(qf, fs_hz, settings), t=np.asarray(t, dtype=np.float64)[s], extra=_trimmed(extra, s))
     return IDIMData(kin=kin, tau=np.asarray(tau, dtype=np.float64)[s], W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
+
+
+def filtered_position(q: np.ndarray, fs_hz: float, settings: LSSettings) -> np.ndarray:
+    """The IDIM position filter (zero-phase Butterworth, ``settings``' cut-off and order) applied to ``q``."""
+    return butter_lowpass_zero_phase(np.asarray(q, dtype=np.float64), settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab)
+
+
+def differentiated(qf: np.ndarray, fs_hz: float, settings: LSSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(qd, qdd, q)`` of a filtered position by ``settings``' stencil, the first ``settings.trim`` samples left out."""
+    qd = derivative(qf, 1.0 / fs_hz, settings.stencil)
+    qdd = derivative(qd, 1.0 / fs_hz, settings.stencil)
+    s = slice(settings.trim, None)
+    return qd[s], qdd[s], qf[s]
 
 
 def _trimmed(extra: dict[str, np.ndarray] | None, s: slice) -> dict[str, np.ndarray]:
@@ -391,7 +386,7 @@ def _system(
                 f"only {left} decimated rows are left once the invalid (saturated) samples are masked; too few for {len(model.columns)} parameters"
             )
     y = _decimate(np.asarray(tau, dtype=np.float64)[s], settings, fs_hz)
-    qf = butter_lowpass_zero_phase(np.asarray(q, dtype=np.float64), settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab)
+    qf = filtered_position(q, fs_hz, settings)
     tt = np.asarray(t, dtype=np.float64)[s]
     extra_s = _trimmed(extra, s)
     columns = []

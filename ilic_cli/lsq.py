@@ -212,14 +212,6 @@ def _result(
     )
 
 
-def with_theta(res: LSResult, W: np.ndarray, y: np.ndarray, theta: np.ndarray) -> LSResult:
-    """``res`` (a fit of ``y`` on ``W``) at another estimate ``theta``: its error and relative error at ``theta``, the standard
-    deviations and covariance of ``res`` (for a caller that replaces them)."""
-    err = float(np.linalg.norm(np.asarray(y) - np.asarray(W) @ theta))
-    sig = err / float(np.sqrt(max(len(y) - len(theta), 1)))
-    return _result(res.names, np.asarray(y), np.asarray(theta, dtype=np.float64), res.std, sig, err, res.condition_number, res.rank, res.cov)
-
-
 def solve_batch(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> list[LSResult]:
     """Solve ``y[k] = W[k] @ theta[k]`` for every ``k`` in the stack.
 
@@ -274,14 +266,14 @@ def solve(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaC
     return solve_batch(W[None], y[None], names, sigma=sigma)[0]
 
 
-def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, ...]) -> LSResult:
-    """Apply fixed parameters ``theta`` to ``(W, y)``: errors of a cross-test validation.
+def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "sample_std") -> LSResult:
+    """Apply fixed parameters ``theta`` to ``(W, y)``: errors of a cross-test validation, or of an estimate made otherwise.
 
-    Standard deviations use the sample-std convention of the benchmark.
+    Standard deviations use the sample-std convention of the benchmark, or ``sigma`` (:func:`solve_batch`'s).
     """
     theta = np.asarray(theta, dtype=np.float64)
     e = y - W @ theta
-    sig = float(np.std(e, ddof=1))
+    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else float(np.linalg.norm(e)) / float(np.sqrt(max(len(y) - len(theta), 1)))
     s = np.linalg.svd(W, compute_uv=False)
     std = sig * np.sqrt(np.diag(pinv(W.T @ W)))
     rank = int((s > rank_tolerance(s[0], *W.shape)).sum())

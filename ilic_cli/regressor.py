@@ -36,6 +36,18 @@ class Kinematics:
     def sgn(self) -> np.ndarray:
         return np.sign(self.qd) if self.sign_qd is None else self.sign_qd
 
+    def later(self, shift_s: float) -> Kinematics:
+        """These kinematics linearly interpolated at ``t + shift_s`` (the last value held at the end)."""
+        t = self.t
+        assert t is not None
+
+        def at(x: np.ndarray) -> np.ndarray:
+            return np.interp(t + shift_s, t, x)
+
+        sign_qd = None if self.sign_qd is None else at(self.sign_qd)
+        q = None if self.q is None else at(self.q)
+        return Kinematics(qd=at(self.qd), qdd=at(self.qdd), q=q, t=t, sign_qd=sign_qd, extra={n: at(v) for n, v in self.extra.items()})
+
 
 @dataclass(frozen=True)
 class Column:

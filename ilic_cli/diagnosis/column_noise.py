@@ -12,25 +12,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ilic_cli.derivatives import derivative
-from ilic_cli.filtering import butter_lowpass_zero_phase
-from ilic_cli.idim_ls import IDIMData
+from ilic_cli.idim_ls import IDIMData, differentiated, filtered_position
 from ilic_cli.regressor import Kinematics
 
 
 def noise_kinematics(data: IDIMData, seed: int) -> Kinematics:
-    """Kinematics of white position noise of ``data.position_noise_std``, derived as ``data``'s were (the position filter,
-    the derivatives' stencil, the trim, the shift of :func:`ilic_cli.idim_ls.held`): one realisation of the noise the measured position
-    puts in the regressor's columns, drawn from ``seed``."""
-    st, dt = data.settings, 1.0 / data.fs_hz
+    """Kinematics of white position noise of ``data.position_noise_std``, derived as ``data``'s were (the position
+    filter, the derivatives, the trim: :func:`ilic_cli.idim_ls.filtered_position`, :func:`~ilic_cli.idim_ls.differentiated`;
+    the shift of :func:`~ilic_cli.idim_ls.held`): one realisation of the noise the measured position puts in the
+    regressor's columns, drawn from ``seed``."""
     t = data.kin.t
     assert t is not None
-    n = np.random.default_rng(seed).standard_normal(len(t) + st.trim) * data.position_noise_std
-    qf = butter_lowpass_zero_phase(n, st.cutoff_hz, data.fs_hz, st.order, matlab=st.matlab)
-    qd = derivative(qf, dt, st.stencil)
-    qdd = derivative(qd, dt, st.stencil)
-    s = slice(st.trim, None)
-    q, qd, qdd = qf[s], qd[s], qdd[s]
-    if data.shift_s:
-        q, qd, qdd = (np.interp(t + data.shift_s, t, x) for x in (q, qd, qdd))
-    return Kinematics(qd=qd, qdd=qdd, q=q, t=t)
+    n = np.random.default_rng(seed).standard_normal(len(t) + data.settings.trim) * data.position_noise_std
+    kin = Kinematics(*differentiated(filtered_position(n, data.fs_hz, data.settings), data.fs_hz, data.settings), t=t)
+    return kin.later(data.shift_s) if data.shift_s else kin

@@ -42,7 +42,7 @@ from ilic_cli.diagnosis.system import Step, column_noise, fit_system, system
 from ilic_cli.diagnosis.verdicts import RefitOutcome
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings
-from ilic_cli.lsq import LSResult, noise_corrected_lstsq, solve, with_theta
+from ilic_cli.lsq import LSResult, evaluate, noise_corrected_lstsq, solve
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 
@@ -94,7 +94,7 @@ def final_fit(prop: Proposal, kept: list[Step], ls: LSSettings, n_rows: int) -> 
     res1 = solve(W1, y1, names1, sigma=ls.sigma)
     noise = column_noise(prop.data, prop.base, [*prop.known, *kept], prop.rows)
     if noise is not None:  # the estimate fit_system gives the replays (a flexibility's columns carry the position's noise)
-        res1 = with_theta(res1, W1, y1, noise_corrected_lstsq(W1, y1, noise)[0])
+        res1 = evaluate(W1, y1, noise_corrected_lstsq(W1, y1, noise)[0], names1, sigma=ls.sigma)
     cov1 = gls_covariance(W1, y1, res1.theta)
     return FinalFit(W1, y1, names1, with_std(res1, cov1), cov1)
 

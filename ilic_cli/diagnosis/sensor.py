@@ -20,8 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.filtering import butter_lowpass_zero_phase
-from ilic_cli.idim_ls import LSSettings
+from ilic_cli.idim_ls import LSSettings, filtered_position
 from ilic_cli.runlog import RunLog
 
 GRID_TOLERANCE = 0.01
@@ -69,7 +68,7 @@ def highpass_gain(fs_hz: float, ls: LSSettings, n: int = 4001) -> float:
     """
     x = np.zeros(n)
     x[n // 2] = 1.0
-    h = x - butter_lowpass_zero_phase(x, ls.cutoff_hz, fs_hz, ls.order, matlab=ls.matlab)
+    h = x - filtered_position(x, fs_hz, ls)
     return float(h @ h)
 
 
@@ -98,7 +97,7 @@ def position_noise(q: np.ndarray, fs_hz: float, ls: LSSettings) -> tuple[float, 
         Noise std (m) and grid step (m, ``None`` off a grid).
     """
     q = np.asarray(q, dtype=np.float64)
-    r = q - butter_lowpass_zero_phase(q, ls.cutoff_hz, fs_hz, ls.order, matlab=ls.matlab)
+    r = q - filtered_position(q, fs_hz, ls)
     edge = max(ls.trim, 1)
     r = r[edge:-edge]
     var = float(np.mean((r - r.mean()) ** 2)) / highpass_gain(fs_hz, ls)
