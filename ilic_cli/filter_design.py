@@ -118,6 +118,12 @@ def cheby1_ba(order: int, ripple_db: float, wn: float) -> tuple[np.ndarray, np.n
     return zpk2tf(*cheby1_zpk(order, ripple_db, wn))
 
 
+@functools.lru_cache(maxsize=32)
+def cheby1_sos(order: int, ripple_db: float, wn: float) -> np.ndarray:
+    """Chebyshev type I low-pass in second-order sections (``scipy.signal.cheby1(order, ripple_db, wn, output="sos")``; cached)."""
+    return zpk2sos(*cheby1_zpk(order, ripple_db, wn))
+
+
 @functools.lru_cache(maxsize=64)
 def bilinear_ba(b_s: tuple[float, ...], a_s: tuple[float, ...], fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     """Digital ``(b, a)`` of the analog ``B(s)/A(s)`` by the bilinear transform (``scipy.signal.bilinear``; cached).

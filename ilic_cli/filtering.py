@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ilic_cli.filter_design import bilinear_ba, butter_ba, butter_sos, cheby1_ba
+from ilic_cli.filter_design import bilinear_ba, butter_ba, butter_sos, cheby1_ba, cheby1_sos
 from ilic_cli.parallel import ordered_map
 
 # ---------------------------------------------------------------------------
@@ -437,6 +437,23 @@ def kept_indices(n: int, r: int) -> np.ndarray:
     return np.arange(r - (r * nout - n) - 1, n, r)
 
 
+MATLAB_DECIMATE_MAX = 13
+"""The largest factor MATLAB's ``decimate`` is documented for in one stage; beyond it :func:`decimate_matlab` realises its
+filter from the poles and zeros.
+
+The transfer function's coefficients of an order-8 Chebyshev low-pass at ``0.8/r`` of Nyquist lose the design as ``r``
+grows: its poles cluster at ``z = 1`` and rounding the expanded polynomial moves them. The DC gain of the rounded filter,
+0.99426 by design, is 0.99426 up to r = 20, 0.99493 at r = 40, 0.922 at r = 80 (an 8 kHz log's rows) and -3.4 at r = 100.
+MATLAB's ``decimate`` then lowers the order until the response at the cut-off is within 1e-6 dB of the design (order 6 at
+r = 80, 4 at r = 100) and recommends decimating in stages. Here the order-8 design is kept and realised in second-order
+sections, as SciPy's ``cheby1(..., output="sos")``, with MATLAB's padding. Measured on the robot corpus's 8 kHz log
+s3931 (sensor noise only, the controller's answer to it 2.5 N·m RMS in the force): the rows' force came out 0.29 N·m
+high on average (the rounded filter passed part of that answer), the rigid replay's held-out force error was 10.3 %
+and a concealed asymmetric friction, fitted within 1 %, was rejected by the replay. At r <= 13 the transfer function's
+rounding is below 1e-7 dB at the cut-off and MATLAB's form is kept (the published digits).
+"""
+
+
 def decimate_matlab(x: np.ndarray, r: int, axis: int = 0) -> np.ndarray:
     """Parallel decimation as MATLAB ``decimate(x, r)`` (IIR mode).
 
@@ -444,12 +461,16 @@ def decimate_matlab(x: np.ndarray, r: int, axis: int = 0) -> np.ndarray:
     Nyquist, applied forward-backward; keeps one sample in ``r`` aligned on the
     end of the record (first kept sample, 1-based: ``r - (r*nout - nd)``).
     Applied column-wise to a 2-D array, this is the parallel decimation of
-    the observation matrix (paper section III).
+    the observation matrix (paper section III). Above :data:`MATLAB_DECIMATE_MAX`
+    the same filter in second-order sections.
     """
     if r == 1:
         return np.asarray(x)
-    b, a = cheby1_ba(8, 0.05, 0.8 / r)
     x = np.asarray(x)
+    if r > MATLAB_DECIMATE_MAX:
+        sos = cheby1_sos(8, 0.05, 0.8 / r)
+        return _in_threads(_filtfilt_rows(_sos_system(sos), 3 * 8), x, axis, kept_indices(x.shape[axis], r))
+    b, a = cheby1_ba(8, 0.05, 0.8 / r)
     return filtfilt_matlab(b, a, x, axis=axis, keep=kept_indices(x.shape[axis], r))
 
 

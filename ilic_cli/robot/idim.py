@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.derivatives import derivative
-from ilic_cli.filter_design import cheby1_ba
-from ilic_cli.filtering import _polished_roots, butter_lowpass_zero_phase, kept_indices
+from ilic_cli.filter_design import cheby1_ba, cheby1_sos
+from ilic_cli.filtering import MATLAB_DECIMATE_MAX, _polished_roots, butter_lowpass_zero_phase, kept_indices
 from ilic_cli.idim_ilic import essential_mask
 from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
 from ilic_cli.jointlog import Parts
@@ -292,12 +292,17 @@ def chebyshev_sections(r: int) -> tuple[np.ndarray, float, float]:
 
     The transfer function ``b/a`` of :func:`ilic_cli.filtering.decimate_matlab` (``b = k (1 + z^-1)^8``), its
     poles those :func:`ilic_cli.filtering.filtfilt_matlab` runs (the roots of ``a``, polished), one section per
-    conjugate pair or pair of real poles; ``gain`` its DC gain.
+    conjugate pair or pair of real poles; ``gain`` its DC gain. Above :data:`ilic_cli.filtering.MATLAB_DECIMATE_MAX` the
+    design's own poles (its second-order sections), as there.
     """
+    if r > MATLAB_DECIMATE_MAX:  # the poles of the design itself, as decimate_matlab's sections there
+        sos = cheby1_sos(8, 0.05, 0.8 / r)
+        gain = math.prod(math.fsum(row[:3]) / math.fsum(row[3:]) for row in sos)
+        return np.ascontiguousarray(sos[:, 4:6]), float(np.prod(sos[:, 0])), gain
     b, a = cheby1_ba(8, 0.05, 0.8 / r)
     b, a = b / a[0], a / a[0]
     poles = _polished_roots(a)
-    real = np.sort(poles[poles.imag == 0].real)  # where the roots of a are too ill-conditioned to stay complex (r = 80 and up)
+    real = np.sort(poles[poles.imag == 0].real)
     pairs = [[-2.0 * float(p.real), float(p.real**2 + p.imag**2)] for p in poles[poles.imag > 0]]
     pairs += [[-float(real[i] + real[i + 1]), float(real[i] * real[i + 1])] for i in range(0, len(real), 2)]
     return np.array(pairs), float(b[0]), math.fsum(b) / math.fsum(a)

@@ -167,6 +167,10 @@ def test_identify_ls_is_right_on_a_dwell_and_move_log_at_every_rate(name: str, f
     truth = AXES[name].truth
     errors = {n: doc["ls"]["parameters"][n]["value"] / truth[n] - 1 for n in ("M", "Fv", "Fc")}
     assert all(abs(e) <= TOLERANCE for e in errors.values()), errors
+    # no offset in the truth: none within 3 standard deviations (at 8 kHz the decimation's filter, rounded out of its design,
+    # passed part of the loop's answer to the sensor noise: 0.091 N·m on the revolute joint, 240 standard deviations)
+    offset = doc["ls"]["parameters"]["offset"]
+    assert abs(offset["value"]) <= 3 * offset["std"], offset
     rows = doc["usable_rows"]
     assert rows["rule"] == REST_RULE and rows["dwells"] >= len(AXES[name].moves)
     assert rows["rows_at_rest"] > 0 and rows["usable_rows"] == doc["ls"]["rows"] == rows["decimated_rows"] - rows["rows_at_rest"]

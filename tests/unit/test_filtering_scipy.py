@@ -97,6 +97,21 @@ def test_decimate_matlab_is_scipys_chebyshev_filtfilt(n: int, r: int) -> None:
     _assert_close(decimate_matlab(x, r), want, x, 2e-8)
 
 
+@pytest.mark.parametrize("r", [14, 20, 40, 80, 100, 160])
+def test_decimate_matlab_beyond_13_is_the_chebyshev_design_in_sections(r: int) -> None:
+    """Above MATLAB's one-stage limit the order-8 design itself (``cheby1(..., output="sos")``), MATLAB's padding.
+
+    The transfer function's rounded coefficients are another filter there: its DC gain 0.99493 at r = 40, 0.922 at 80,
+    -3.4 at 100, for the design's 0.99426 (the bottom of its 0.05 dB ripple)."""
+    x = _walk(20_003, r)
+    sos = signal.cheby1(8, 0.05, 0.8 / r, output="sos")
+    np.testing.assert_allclose(filter_design.cheby1_sos(8, 0.05, 0.8 / r), sos, rtol=1e-14, atol=1e-14)
+    want = signal.sosfiltfilt(sos, x, padtype="odd", padlen=24)[kept_indices(len(x), r)]
+    _assert_close(decimate_matlab(x, r), want, x, 1e-10)
+    flat = decimate_matlab(np.full(5000, 2.0), r)  # a constant: the steady-state starts, the design's DC gain each pass
+    np.testing.assert_allclose(flat, 2.0 * 10 ** (-0.05 / 10), rtol=1e-9)
+
+
 def _direct_form_extended(b: np.ndarray, a: np.ndarray, x: np.ndarray, zi: np.ndarray) -> np.ndarray:
     """``lfilter`` in extended precision (``np.longdouble``), sample by sample: the reference for an ill-conditioned direct form."""
     b, a = (np.asarray(v, dtype=np.longdouble) / np.longdouble(a[0]) for v in (b, a))
