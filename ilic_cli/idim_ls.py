@@ -117,6 +117,8 @@ class IDIMData:
     shift_s: float = 0.0  # how much later than the samples the kinematics are evaluated (held)
     position_noise_std: float = 0.0
     """The measured position's noise (m or rad; 0: not known), realised in the columns by :mod:`ilic_cli.diagnosis.column_noise`."""
+    joint: str = "prismatic"
+    """The joint's type (:func:`ilic_cli.runlog.joint_type`): the units the diagnosis's reasons write its values in."""
 
     @property
     def t_dec(self) -> np.ndarray:

@@ -96,7 +96,7 @@ from ilic_cli.idim_ls import LSSettings, lsq_rows
 from ilic_cli.lsq import lstsq
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.regressor import Model
-from ilic_cli.runlog import RunLog
+from ilic_cli.runlog import RunLog, joint_type
 from ilic_cli.simulation.replay import replay
 
 
@@ -194,6 +194,7 @@ class _Loop:
         self.y = self.recorded.y
         self.y_norm = float(np.linalg.norm(self.y))
         self.replays = [0]
+        self.joint = joint_type(log.units.get("q"))  # the units the searches' reasons write their values in
         self.round_gain, self.max_rounds = ROUND_GAIN, MAX_ROUNDS
         """The gain an output-error fit or a round of the value searches must make, and the most rounds (:data:`ROUND_GAIN`)."""
         """Replays made so far (a list: the searches count theirs in it)."""
@@ -286,7 +287,9 @@ def _without_didim(
     error_inverse, names0, y_norm = out.error_inverse_pct, out.names, loop.y_norm
     # 1b. every parameter at once on the output error itself, its sensitivities by finite differences of replays
     theta_0 = np.asarray(theta0, dtype=np.float64)
-    oe = output_error_refit(known, steps, names0, theta_0, grids, lambda s, th: loop.residual_of(s, names0, th), error_inverse, y_norm, loop.round_gain)
+    oe = output_error_refit(
+        known, steps, names0, theta_0, grids, lambda s, th: loop.residual_of(s, names0, th), error_inverse, y_norm, loop.round_gain, loop.joint
+    )
     if isinstance(oe, str):
         out.reason += f"; {oe}"
     elif (final := loop.replayed([*known, *oe.steps], names0, estimate(oe))) is None:
@@ -312,7 +315,9 @@ def _without_didim(
         return Point(e, theta, e, lag1_autocorrelation(r), theta)
 
     start0 = profile_inverse(steps, theta_0)
-    searches, found_steps, end = search_all(known, steps, biased, start0, profile_inverse, loop.replays, len(loop.y), round_gain=loop.round_gain)
+    searches, found_steps, end = search_all(
+        known, steps, biased, start0, profile_inverse, loop.replays, len(loop.y), round_gain=loop.round_gain, joint=loop.joint
+    )
     out.searches = searches
     if not any(s.accepted for s in searches) or not end.error < start0.error:
         out.reason += "; no closed-loop search of its nonlinear values lowers the output error: the inverse model's estimates are kept"
@@ -352,7 +357,17 @@ def _with_didim(
     inverse_steps = list(steps)
     start_point = loop.point(steps, res0.result.theta, sims0[-1])
     searches, steps, start = search_all(
-        known, steps, grids, start_point, loop.profile, loop.replays, len(loop.y), restart=True, max_rounds=loop.max_rounds, round_gain=loop.round_gain
+        known,
+        steps,
+        grids,
+        start_point,
+        loop.profile,
+        loop.replays,
+        len(loop.y),
+        restart=True,
+        max_rounds=loop.max_rounds,
+        round_gain=loop.round_gain,
+        joint=loop.joint,
     )
     chosen, error, sim = inverse_steps, error0, sims0[-1]
     if any(s.accepted for s in searches):

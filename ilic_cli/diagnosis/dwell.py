@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.select import Step
-from ilic_cli.effects import EFFECTS, Effect
+from ilic_cli.effects import EFFECTS, Effect, unit_on
 
 DWELL_MIN_S = 0.05
 """A rest of the reference at least this long (s) is a dwell."""
@@ -239,8 +239,9 @@ def jackknife_std(values: np.ndarray) -> float:
     return float(np.sqrt((k - 1) / k * np.sum((x - x.mean()) ** 2))) if k > 1 else float("nan")
 
 
-def judged(found: list[Step | None]) -> tuple[Step | None, str]:
-    """The step the folds' estimates give (medians; their :func:`jackknife_std` the standard deviations), and a sentence; ``None`` when too few."""
+def judged(found: list[Step | None], joint: str = "prismatic") -> tuple[Step | None, str]:
+    """The step the folds' estimates give (medians; their :func:`jackknife_std` the standard deviations), and a sentence in the
+    units of a ``joint``; ``None`` when too few."""
     ok = [s for s in found if s is not None and s.level is not None]
     if len(ok) < MIN_FOLDS:
         return None, f"its closed-loop search of Fs and vs finds an estimate inside its grid in {len(ok)} of {len(found)} folds (fewer than {MIN_FOLDS})"
@@ -249,7 +250,7 @@ def judged(found: list[Step | None]) -> tuple[Step | None, str]:
     step = Step(ok[0].effect, float(np.median(vs)), level=(float(np.median(fs)),), level_std=(jackknife_std(fs),), value_std=jackknife_std(vs))
     text = (
         f"Fs and vs searched on the closed loop of each fold's training blocks (noisy replays): estimates in {len(ok)} of {len(found)} folds, "
-        f"Fs {fs.min():.3g} to {fs.max():.3g} N, vs {vs.min() * 1e3:.3g} to {vs.max() * 1e3:.3g} mm/s"
+        f"Fs {fs.min():.3g} to {fs.max():.3g} {unit_on('N', joint)}, vs {vs.min() * 1e3:.3g} to {vs.max() * 1e3:.3g} m{unit_on('m/s', joint)}"
     )
     return step, text
 

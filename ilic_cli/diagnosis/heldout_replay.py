@@ -371,7 +371,7 @@ class HeldoutReplays:
         mc, significant = None, p < alpha
         judged, searched = st, ""
         if proposed_here:
-            judged_step, searched_text = _strategy(st).judged(after[2])
+            judged_step, searched_text = _strategy(st).judged(after[2], self.data.joint)
             if judged_step is None:
                 return ReplayVerdict(
                     st.effect.id,
@@ -403,11 +403,11 @@ class HeldoutReplays:
         elif search:
             scan = st.effect.scan
             assert scan is not None
-            values = np.asarray(after[2], dtype=np.float64)
+            values, unit = np.asarray(after[2], dtype=np.float64), st.effect.unit_on(scan.unit, self.data.joint)
             judged = Step(st.effect, float(np.median(values)))
             searched = (
                 f"; {scan.name} searched on the closed loop of each fold's training blocks: "
-                f"{_fmt(values.min(), scan.unit)} to {_fmt(values.max(), scan.unit)} (inverse model {_fmt(float(st.value), scan.unit)})"
+                f"{_fmt(values.min(), unit)} to {_fmt(values.max(), unit)} (inverse model {_fmt(float(st.value), unit)})"
             )
         vb = va = None
         if validate is not None:

@@ -28,6 +28,7 @@ def output_error_refit(
     error_inverse: float,
     y_norm: float,
     round_gain: float = ROUND_GAIN,
+    joint: str = "prismatic",
 ) -> Refit | str:
     """The refit by :func:`output_error_gauss_newton`: the linear parameters ``names`` and every searched value of the kept effects at once.
 
@@ -39,7 +40,7 @@ def output_error_refit(
     final Jacobian, the residual's autocorrelation accounted for
     (:func:`~ilic_cli.diagnosis.stats.gls_covariance`).
     """
-    slots = slots_of(known, steps, grids)
+    slots = slots_of(known, steps, grids, joint)
     v0 = np.array([slot_value(steps[j].value, k) for j, _, _, k in slots])
     n_lin = len(theta0)
 
@@ -57,7 +58,7 @@ def output_error_refit(
         return f"the {OE_METHOD} gives {error:.3g} %, not {round_gain:.0%} lower ({fit.stop})"
     ranges = [slot_range(steps[j], k, grids[steps[j].effect.id]) for j, _, _, k in slots]
     for (j, _, _, k), sub in zip(slots, ranges, strict=True):
-        if k == 0 and (edge := at_edge(found[j].effect, sub, found[j].value)):
+        if k == 0 and (edge := at_edge(found[j].effect, sub, found[j].value, joint)):
             return f"the {OE_METHOD} ends with {edge}"
     cov = gls_covariance(fit.sensitivity, fit.residual + fit.sensitivity @ fit.z, fit.z)
     std = np.abs(v0) * np.sqrt(np.clip(np.diag(cov)[n_lin:], 0.0, None))

@@ -89,7 +89,8 @@ def prepare_system(prepared: PreparedLog, model: Model, settings: LSSettings) ->
         raise IdentificationError(prepared.source, str(exc)) from None
     data = held(data, model, hold_s(tau_sensor(log), prepared.fs_hz))
     noise = measurement_std(*position_noise(np.asarray(log["q"]), prepared.fs_hz, settings.at_rate(prepared.fs_hz)))
-    return replace(data, position_noise_std=noise)  # the noise a flexibility's columns carry (system.column_noise)
+    # the noise a flexibility's columns carry (system.column_noise); the joint, whose units the reasons write
+    return replace(data, position_noise_std=noise, joint=joint_type(log.units.get("q")))
 
 
 def base_model(model_doc: dict[str, Any] | None, default: str) -> Model:

@@ -43,6 +43,7 @@ def search_all(
     restart: bool = False,
     max_rounds: int = MAX_ROUNDS,
     round_gain: float = ROUND_GAIN,
+    joint: str = "prismatic",
 ) -> tuple[list[ValueSearch], list[Step], Point]:
     """Each nonlinear parameter of ``steps`` (not ``known``'s) searched in turn on ``profile``: the searches, the steps at the values found, the last point.
 
@@ -59,7 +60,7 @@ def search_all(
     (:func:`_rounds`).
     """
     steps = list(steps)
-    slots = slots_of(known, steps, grids)
+    slots = slots_of(known, steps, grids, joint)
     rounds: list[list[ValueSearch]] = []
     point = start
     for _ in range(max_rounds if restart and len(slots) > 1 else 1):
@@ -69,7 +70,7 @@ def search_all(
             last = searches[-1] if searches else (rounds[-1][-1] if rounds else None)
             if restart and last is not None and last.accepted:
                 point = profile(steps, point.theta)
-            found, point = _search(steps, j, slot, pname, unit, grids[steps[j].effect.id], point, profile, replays, n_rows - len(point.theta))
+            found, point = _search(steps, j, slot, pname, unit, grids[steps[j].effect.id], point, profile, replays, n_rows - len(point.theta), joint)
             searches.append(found)
             if found.accepted:
                 st = steps[j]
@@ -80,7 +81,7 @@ def search_all(
     return _rounds(rounds), steps, point
 
 
-def slots_of(known: list[Step], steps: list[Step], grids: Mapping[str, np.ndarray]) -> list[tuple[int, str, str, int]]:
+def slots_of(known: list[Step], steps: list[Step], grids: Mapping[str, np.ndarray], joint: str = "prismatic") -> list[tuple[int, str, str, int]]:
     """The nonlinear values of ``steps`` (not ``known``'s) the closed loop searches: ``(index in steps, parameter, unit, slot)``.
 
     Slot 0 is an effect's value on its grid, slot 1 its secondary value (a resonance's damping ratio).
@@ -90,7 +91,7 @@ def slots_of(known: list[Step], steps: list[Step], grids: Mapping[str, np.ndarra
         scan = steps[j].effect.scan
         if scan is None or steps[j].effect.id not in grids:
             continue
-        slots.append((j, scan.name, scan.unit, 0))
+        slots.append((j, scan.name, steps[j].effect.unit_on(scan.unit, joint), 0))
         if scan.secondary is not None and isinstance(steps[j].value, tuple):
             slots.append((j, scan.secondary[0], scan.secondary[1], 1))
     return slots
@@ -149,6 +150,7 @@ def _search(
     profile: Callable[[list[Step], np.ndarray], Point],
     replays: list[int],
     dof: int,
+    joint: str = "prismatic",
 ) -> tuple[ValueSearch, Point]:
     """Bounded search of slot ``slot`` of ``steps[j]``'s value on the closed-loop output error; the search and the point to go on from.
 
@@ -193,9 +195,9 @@ def _search(
     best = inv(float(res.x))
     e_best = f(float(res.x))
     if slot == 0:
-        edge = at_edge(st.effect, sub, best)
+        edge = at_edge(st.effect, sub, best, joint)
     else:  # the primary value is inside its grid (the inverse model's own edge rule): only the secondary can be on an edge
-        edge = at_edge(st.effect, np.asarray(grid, dtype=np.float64), with_slot(value, slot, best))
+        edge = at_edge(st.effect, np.asarray(grid, dtype=np.float64), with_slot(value, slot, best), joint)
     span = f"{lo:.4g} to {hi:.4g} {unit}".strip()
     if not math.isfinite(e_best):
         why = "no value in the range searched gives a plant of the effect: the inverse model's value is kept"

@@ -269,8 +269,9 @@ SECONDARY_EDGE = 0.02
 """A secondary parameter within this share (on a log scale) of either bound is on the edge (e.g. damping 0.4998 of 0.5)."""
 
 
-def at_edge(effect: Effect, grid: np.ndarray, value: Any) -> str | None:
-    """Why ``value`` lies on the edge of ``effect``'s search (the grid's ends, the secondary parameter's bounds), else ``None``.
+def at_edge(effect: Effect, grid: np.ndarray, value: Any, joint: str = "prismatic") -> str | None:
+    """Why ``value`` lies on the edge of ``effect``'s search (the grid's ends, the secondary parameter's bounds), else ``None``;
+    the value in its units on a ``joint`` (:meth:`ilic_cli.effects.Effect.unit_on`).
 
     The optimum of a search is only an estimate when the search brackets it:
     on an edge, the data would have gone on beyond the range searched.
@@ -281,10 +282,10 @@ def at_edge(effect: Effect, grid: np.ndarray, value: Any) -> str | None:
     if len(grid) >= 2:
         f = np.log if scan.log and grid[0] > 0 else (lambda x: x)  # noqa: E731
         lo_step, hi_step = f(grid[1]) - f(grid[0]), f(grid[-1]) - f(grid[-2])
-        if f(first) <= f(grid[0]) + EDGE_STEPS * lo_step:
-            return f"{scan.name} = {first:.4g} {scan.unit} at the lower end of the range searched ({grid[0]:.4g} to {grid[-1]:.4g})".replace("  ", " ")
-        if f(first) >= f(grid[-1]) - EDGE_STEPS * hi_step:
-            return f"{scan.name} = {first:.4g} {scan.unit} at the upper end of the range searched ({grid[0]:.4g} to {grid[-1]:.4g})".replace("  ", " ")
+        end = "lower" if f(first) <= f(grid[0]) + EDGE_STEPS * lo_step else "upper" if f(first) >= f(grid[-1]) - EDGE_STEPS * hi_step else None
+        if end is not None:
+            unit = effect.unit_on(scan.unit, joint)
+            return f"{scan.name} = {first:.4g} {unit} at the {end} end of the range searched ({grid[0]:.4g} to {grid[-1]:.4g})".replace("  ", " ")
     if scan.secondary is not None and isinstance(value, tuple):
         name, _, low, high, _ = scan.secondary
         span = np.log(high) - np.log(low)

@@ -329,7 +329,7 @@ def _candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, n_
     why = eff.impossible(theta1[W.shape[1] :], value) if eff.impossible is not None else None
     if why:
         ev = ev.decided(Selection.IMPOSSIBLE, why)
-    elif eff.nonlinear and (edge := at_edge(eff, searcher.grid_values(eff), value)):
+    elif eff.nonlinear and (edge := at_edge(eff, searcher.grid_values(eff), value, searcher.data.joint)):
         ev = ev.decided(Selection.AT_SEARCH_EDGE, edge)
     return ev, eff, W1, y1
 

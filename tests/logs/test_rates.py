@@ -188,6 +188,7 @@ def test_identify_and_diagnose_fit_the_same_rows(name: str, fs_hz: float, folder
     data = _prepare(with_rest(prepare_log(log), ls), base_model(None, "rigid-offset"), ls)
     assert data.rows is not None and np.array_equal(data.rows, report.ls.kept)
     assert int(report.ls.kept.sum()) == report.ls.result.rows == report.usable.usable == len(data.y)
+    assert data.joint == AXES[name].joint  # the units the diagnosis's reasons write its values in
 
 
 def test_diagnose_on_the_issues_log_fits_identifys_rows_and_finds_nothing(folder: Path) -> None:

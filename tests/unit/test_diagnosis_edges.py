@@ -26,6 +26,10 @@ def test_log_grid_edges_at_half_a_step() -> None:
     assert at_edge(stribeck, grid, 0.1) == "vs = 0.1 m/s at the upper end of the range searched (0.001 to 0.1)"
     assert at_edge(stribeck, grid, 0.1 / half * 1.001) is not None and at_edge(stribeck, grid, 0.1 / half * 0.999) is None
     assert at_edge(stribeck, np.array([0.01]), 0.01) is None  # a one-point grid brackets nothing: no edge claimed
+    # in the units of the joint (corpus s3931 said "L = 1.442 m" of a revolute joint's ripple)
+    assert at_edge(stribeck, grid, 0.1, "revolute") == "vs = 0.1 rad/s at the upper end of the range searched (0.001 to 0.1)"
+    assert at_edge(EFFECTS["position_ripple"], grid, 0.1, "revolute") == "L = 0.1 rad at the upper end of the range searched (0.001 to 0.1)"
+    assert at_edge(EFFECTS["delay"], grid, 0.1, "revolute") == "delay = 0.1 s at the upper end of the range searched (0.001 to 0.1)"
 
 
 def test_linear_grid_edges_and_unitless_names() -> None:

@@ -297,6 +297,8 @@ def test_judged_text_gives_the_folds_ranges() -> None:
     )
     _, why = dwell.judged([None, None, None])
     assert why == "its closed-loop search of Fs and vs finds an estimate inside its grid in 0 of 3 folds (fewer than 3)"
+    _, text = dwell.judged(est, "revolute")  # in the joint's units (corpus s3041 said "vs 90.7 to 197 mm/s" of a revolute joint)
+    assert text.endswith("Fs 2.4 to 2.6 N·m, vs 8 to 12 mrad/s")
 
 
 def test_a_proposal_that_cannot_be_replayed_is_still_the_closed_loops(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -45,8 +45,8 @@ class IdentificationStrategy(Protocol):
         from the fold's rigid fit ``rigid`` and the effect's ``grid``."""
         ...
 
-    def judged(self, found: list[Step | None]) -> tuple[Step | None, str]:
-        """The step the folds' estimates give, and a sentence; ``None`` when too few folds found one."""
+    def judged(self, found: list[Step | None], joint: str) -> tuple[Step | None, str]:
+        """The step the folds' estimates give, and a sentence (in the units of a ``joint``); ``None`` when too few folds found one."""
         ...
 
     def fold_values(self, found: list[Step | None]) -> list[Any]:

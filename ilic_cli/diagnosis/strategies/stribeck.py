@@ -75,9 +75,9 @@ class DwellSegments:
         vs, impulse = dwell.grids(grid, fc)
         return dwell.search(step, vs, impulse, lambda st: training_error(st), training_error(None))
 
-    def judged(self, found: list[Step | None]) -> tuple[Step | None, str]:
+    def judged(self, found: list[Step | None], joint: str) -> tuple[Step | None, str]:
         """The folds' medians, and a sentence (:func:`ilic_cli.diagnosis.dwell.judged`)."""
-        return dwell.judged(found)
+        return dwell.judged(found, joint)
 
     def fold_values(self, found: list[Step | None]) -> list[Any]:
         """Each fold's ``(vs, Fs)`` (:func:`ilic_cli.diagnosis.dwell.fold_values`)."""
@@ -249,4 +249,4 @@ def _segments_judged(
 def _edge_of(step: Step, data: IDIMData, fs: float) -> str | None:
     """Why ``step``'s value is on the edge of its effect's grid (:func:`ilic_cli.diagnosis.search.at_edge`), else ``None``."""
     assert step.effect.scan is not None
-    return at_edge(step.effect, step.effect.scan.grid(data.kin, fs), step.value)
+    return at_edge(step.effect, step.effect.scan.grid(data.kin, fs), step.value, data.joint)
