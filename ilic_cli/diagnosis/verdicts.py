@@ -97,6 +97,9 @@ class RefitOutcome(Enum):
     """The open-loop segments' fit refutes the Stribeck friction found at the dwells."""
     DRIFT = "drift"
     """A friction drift given to the decisions is found on the final model too: the refit's plant has none; the inverse model's estimates stand."""
+    DRIFT_VALUES = "drift, the replays' values"
+    """As :attr:`DRIFT`, but a value the inverse model biases is the median of the decisions' replays' (which carry the drift), the
+    linear parameters the inverse model's there (:func:`ilic_cli.diagnosis.refit.at_the_replays_values`)."""
 
     @property
     def quotes_output_error(self) -> bool:
