@@ -11,8 +11,9 @@ import numpy as np
 import ilic_cli.diagnosis.dwell as dwell
 import ilic_cli.diagnosis.segments as segments
 from ilic_cli.diagnosis.core import Diagnosis, Finding
+from ilic_cli.diagnosis.fits import INVERSE_METHOD
 from ilic_cli.diagnosis.locate import Region
-from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, Selection
+from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, RefitOutcome, Selection
 from ilic_cli.effects import Estimate
 from ilic_cli.jointlog import UNITS
 from ilic_cli.parameters import PARAMETERS
@@ -182,6 +183,8 @@ def _estimates_and_simulation(diag: Diagnosis, at_dwells: bool) -> list[str]:
         how = "the closed-loop refit's" if diag.refit.accepted else "the inverse model's (IDIM-LS)"
         if diag.refit.accepted and diag.refit.method == segments.METHOD:
             how = f"the {segments.METHOD}'s"
+        if diag.refit.accepted and diag.refit.outcome is RefitOutcome.DRIFT_VALUES:
+            how = f"the {INVERSE_METHOD}'s"
         if not diag.refit.accepted and any(f.method == dwell.METHOD for f in diag.findings):
             how = f"Stribeck friction's from the {dwell.METHOD}, the rest the inverse model's (IDIM-LS)"
         meaning = (

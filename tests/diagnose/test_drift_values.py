@@ -14,6 +14,7 @@ import pytest
 
 from ilic_cli.diagnosis.core import diagnose
 from ilic_cli.diagnosis.fits import INVERSE_METHOD
+from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.diagnosis.verdicts import RefitOutcome
 from tests.corpus.robot import build, cases
 
@@ -33,3 +34,5 @@ def test_a_lag_beside_a_drift_is_the_replays_median_not_the_inverse_models() -> 
     fold = next(v for v in diag.decisions if v.effect == "delay").searched
     assert fold is not None and lag.parameters["delay"].value == pytest.approx(sorted(fold)[len(fold) // 2])
     assert lag.parameters["delay"].std is not None and lag.parameters["delay"].std > 0  # the folds' spread
+    words = to_markdown(diag)  # the report says whose estimates they are, not "the closed-loop refit's" of a refit that did not run
+    assert f"Estimates: the {INVERSE_METHOD}'s; no closed-loop refit: a friction drift is found" in words
