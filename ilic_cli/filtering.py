@@ -444,8 +444,8 @@ filter from the poles and zeros.
 The transfer function's coefficients of an order-8 Chebyshev low-pass at ``0.8/r`` of Nyquist lose the design as ``r``
 grows: its poles cluster at ``z = 1`` and rounding the expanded polynomial moves them. The DC gain of the rounded filter,
 0.99426 by design, is 0.99426 up to r = 20, 0.99493 at r = 40, 0.922 at r = 80 (an 8 kHz log's rows) and -3.4 at r = 100.
-MATLAB's ``decimate`` then lowers the order until the response at the cut-off is within 1e-6 dB of the design (order 6 at
-r = 80, 4 at r = 100) and recommends decimating in stages. Here the order-8 design is kept and realised in second-order
+MATLAB's ``decimate`` then lowers the order until the response at the cut-off is within 1e-6 dB of the design (with these
+coefficients, order 6 at r = 80, 4 at r = 100) and recommends decimating in stages. Here the order-8 design is kept and realised in second-order
 sections, as SciPy's ``cheby1(..., output="sos")``, with MATLAB's padding. Measured on the robot corpus's 8 kHz log
 s3931 (sensor noise only, the controller's answer to it 2.5 N·m RMS in the force): the rows' force came out 0.29 N·m
 high on average (the rounded filter passed part of that answer), the rigid replay's held-out force error was 10.3 %
