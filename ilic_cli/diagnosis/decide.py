@@ -170,7 +170,7 @@ def replay_drift(
 ) -> tuple[ReplayVerdict, dict[str, Any] | None]:
     """The replay's word on a friction drift found on the model of the effects ``kept`` (issue 29 item 5: the replay checks it as any
     other effect): the held-out replays of that model without and with the drift's trends (each fold refitted with their columns,
-    its plant's friction drifting: :func:`~ilic_cli.diagnosis.heldout_replay.fitted_plant`), judged by the same test at the same
+    its plant's friction drifting: :func:`~ilic_cli.diagnosis.fold_plant.fitted_plant`), judged by the same test at the same
     level, with the same sensor noise as every candidate (``sensor``, the decision's; ``None``: estimated here, or none when the settings
     replay noise-free); and the sensor noise the replays carried."""
     plant_of = proposal_plant(prop)
@@ -182,8 +182,10 @@ def replay_drift(
     within = replays.heldout(kept)
     if without is None or within is None:
         return ReplayVerdict.unjudged(DRIFT, Verdict.NO_PLANT, "the fitted model is not a valid plant: no replay", PROPOSED_BY_DRIFT), sensor
+    without, within, _ = replays.paired(without, within)
     (fb, pb), (fa, pa) = replays.percent(without), replays.percent(within)
-    p = heldout_fall_p(without[0], within[0])
+    both = np.isfinite(without[0]) & np.isfinite(within[0])
+    p = heldout_fall_p(without[0][both], within[0][both])
     verdict, why = replay_verdict((fb, fa), (pb, pa), (None, None), p < replay_alpha(settings), f"p = {p:.2g}", None)
     return ReplayVerdict(DRIFT, fb, fa, pb, pa, p, None, None, verdict is Verdict.AGREES, why, proposed_by=PROPOSED_BY_DRIFT, verdict=verdict), sensor
 

@@ -31,18 +31,19 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.drift import GivenDrift
+from ilic_cli.diagnosis.fold_plant import MIN_PLANT_FOLDS, fitted_plant, fold_fit, not_a_plant
 from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
 from ilic_cli.diagnosis.replay_again import Heldout, judged_again
 from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, minimise, search_range
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import contiguous_runs, folds_either_side, heldout_fall_p
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
-from ilic_cli.diagnosis.system import Step, SystemFit, change_time, column_noise, fit_system, system
+from ilic_cli.diagnosis.system import Step, SystemFit, change_time, fit_system
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull, ReplayVerdict, Verdict
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
-from ilic_cli.lsq import lstsq, noise_corrected_lstsq, relative_error_pct
+from ilic_cli.lsq import relative_error_pct
 from ilic_cli.parallel import ordered_map
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
@@ -66,35 +67,6 @@ def _replayed_plant(log: RunLog, plant: tuple[dict[str, float], dict[str, Any]],
         return replay(log, rigid, {**sensor, **effects}, seed=REPLAY_SEED)
     except ParameterError:
         return None
-
-
-def fitted_plant(
-    data: IDIMData,
-    base: Model,
-    steps: list[Step],
-    rows: np.ndarray,
-    plant_of: PlantOf,
-    train: np.ndarray | None = None,
-    drift: GivenDrift | None = None,
-) -> tuple[dict[str, float], dict[str, Any]]:
-    """The plant of ``base + steps`` fitted on ``data``'s ``rows`` (``train`` of them); with a ``drift`` found on the rigid model,
-    its trends' columns are in the fit and its ``friction_drift`` in the plant (:meth:`~ilic_cli.diagnosis.drift.GivenDrift.plant`).
-
-    The selection fitted every candidate with the drift's columns (:func:`~ilic_cli.diagnosis.propose.drift_given`); a replay
-    without it judged them against a plant whose friction does not change: on corpus s731 (gravity beside a warm-up of ``Fv``,
-    20 % over 2 s) the drift's error over time swamped gravity's fall (held-out simulated force 2.76 % -> 2.77 %).
-    """
-    if drift is None:
-        fit = fit_system(data, base, steps, rows, train)
-        return plant_of(steps, fit.names, fit.theta)
-    W, y, names = system(data, base, steps, rows)
-    trends, noise = drift.columns(data.t_dec[rows], W, names), column_noise(data, base, steps, rows)
-    W1, sel = np.hstack([W, trends]), (slice(None) if train is None else train)
-    # with noisy columns, their noise corrected for (the trends' own, a velocity's times a function of time, is small)
-    noise1 = None if noise is None else np.concatenate([noise, np.zeros((len(noise), *trends.shape))], axis=2)[:, sel]
-    theta, _ = lstsq(W1[sel], y[sel]) if noise1 is None else noise_corrected_lstsq(W1[sel], y[sel], noise1)
-    rigid, effects = plant_of(steps, names, theta[: len(names)])
-    return drift.plant(rigid, effects, theta[len(names) :])
 
 
 def band_force_error(rec: RunLog, sim: RunLog, decimation: int) -> np.ndarray:
@@ -279,8 +251,18 @@ class HeldoutReplays:
         return band_force_error(self.log, sim, self.step_dec)
 
     def percent(self, held: Heldout) -> tuple[float, float]:
-        """The held-out simulated force and position errors of :meth:`heldout` as relative errors (%)."""
+        """The held-out simulated force and position errors of :meth:`heldout` as relative errors (%), on the folds it has."""
         return _heldout_pct(held[0], self.tau_dec, self.idx_tau), _heldout_pct(held[1], self.q, self.idx_q)
+
+    @staticmethod
+    def paired(current: Heldout, after: Heldout) -> tuple[Heldout, Heldout, float]:
+        """``current`` and ``after`` on the folds both have (:meth:`heldout` leaves out, ``nan``, a fold whose fit is no plant of
+        an effect), and the share of the held-out force samples left out."""
+        force, position = np.isnan(current[0]) | np.isnan(after[0]), np.isnan(current[1]) | np.isnan(after[1])
+        if not (force.any() or position.any()):
+            return current, after, 0.0
+        out = [(np.where(force, np.nan, h[0]), np.where(position, np.nan, h[1]), h[2]) for h in (current, after)]
+        return out[0], out[1], float(force.mean())
 
     def fold_search(self, train: np.ndarray, fold: int, noise: dict[str, Any]) -> tuple[Callable[[list[Step]], RunLog | None], Callable[[list[Step]], float]]:
         """A fold's replay of a model fitted on ``train`` with the sensor ``noise`` (each model once), and its training error."""
@@ -343,10 +325,15 @@ class HeldoutReplays:
             else:
                 fold_steps, sim = self.searched_fold(given, grid, train, i) if grid is not None else (given, self.fold_replay(given, train))
                 used = fold_steps[-1].value if fold_steps else None
-            return None if sim is None else (self.force_error(sim)[sel], np.concatenate([np.asarray(sim["q"][a:b]) - self.q[a:b] for a, b in spans]), used)
+            if sim is None:
+                return None
+            if not_a_plant(fold_steps, *fold_fit(self.data, self.base, fold_steps, self.rows, train, self.drift)[:2]):
+                # the fold's fit is no plant of an effect: its replay would leave the effect out; the fold is left out (NaN)
+                return np.full(int(sel.sum()), np.nan), np.full(sum(b - a for a, b in spans), np.nan), None
+            return self.force_error(sim)[sel], np.concatenate([np.asarray(sim["q"][a:b]) - self.q[a:b] for a, b in spans]), used
 
         out = ordered_map(fold, range(len(self.blocks)))  # the folds are independent: side by side
-        if any(r is None for r in out):
+        if any(r is None for r in out) or sum(np.isfinite(r[0]).any() for r in out if r is not None) < MIN_PLANT_FOLDS:
             return None
         done = [r for r in out if r is not None]
         return np.concatenate([r[0] for r in done]), np.concatenate([r[1] for r in done]), [r[2] for r in done]
@@ -366,8 +353,10 @@ class HeldoutReplays:
         """The verdict on ``st`` added to ``kept`` from the held-out errors without it (``current``) and with it (``after``), and the step
         judged (the folds' value for a searched one); ``None`` when a closed-loop proposal found too few estimates."""
         proposed_here = st.level is not None
+        current, after, left_out = self.paired(current, after)
         (fb, pb), (fa, pa) = self.percent(current), self.percent(after)
-        p_dm = p = heldout_fall_p(current[0], after[0])
+        both = np.isfinite(current[0]) & np.isfinite(after[0])
+        p_dm = p = heldout_fall_p(current[0][both], after[0][both])
         mc, significant = None, p < alpha
         judged, searched = st, ""
         if proposed_here:
@@ -403,7 +392,8 @@ class HeldoutReplays:
         elif search:
             scan = st.effect.scan
             assert scan is not None
-            values, unit = np.asarray(after[2], dtype=np.float64), st.effect.unit_on(scan.unit, self.data.joint)
+            values = np.asarray([v for v in after[2] if v is not None], dtype=np.float64)
+            unit = st.effect.unit_on(scan.unit, self.data.joint)
             judged = Step(st.effect, float(np.median(values)))
             searched = (
                 f"; {scan.name} searched on the closed loop of each fold's training blocks: "
@@ -417,9 +407,15 @@ class HeldoutReplays:
                 vb, va = relative_errors(vlog, sims[0], vls)["force"], relative_errors(vlog, sims[1], vls)["force"]
         verdict, why = replay_verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, below_period(judged, self.data.fs_hz, self.min_delay_periods))
         fold_values = (
-            tuple(float(v) for v in after[2]) if search and not proposed_here else tuple(_strategy(st).fold_values(after[2])) if proposed_here else None
+            tuple(float(v) for v in after[2] if v is not None)
+            if search and not proposed_here
+            else tuple(_strategy(st).fold_values(after[2]))
+            if proposed_here
+            else None
         )
         ok = verdict is Verdict.AGREES
+        if left_out:
+            searched += f"; judged on the folds whose fit is a plant of every effect ({1.0 - left_out:.0%} of the held-out samples)"
         return ReplayVerdict(st.effect.id, fb, fa, pb, pa, p, vb, va, ok, why + searched, mc, fold_values, by, verdict), judged
 
 
@@ -431,8 +427,10 @@ def _strategy(step: Step) -> IdentificationStrategy:
 
 
 def _heldout_pct(e: np.ndarray, ref: np.ndarray, idx: np.ndarray) -> float:
-    """The held-out relative error (%) of the simulated errors ``e`` against the recorded ``ref`` at the held-out samples ``idx``."""
-    return relative_error_pct(ref[idx], ref[idx] + e)
+    """The held-out relative error (%) of the simulated errors ``e`` against the recorded ``ref`` at the held-out samples ``idx``
+    (those of a fold left out, ``nan``, are not counted)."""
+    ok = np.isfinite(e)
+    return relative_error_pct(ref[idx][ok], ref[idx][ok] + e[ok])
 
 
 def replay_verdict(

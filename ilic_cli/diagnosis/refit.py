@@ -150,7 +150,7 @@ def refit(
     if not (kept and replayed):
         return None
     if prop.drift is not None and _drift_found(prop, final, settings):
-        # the decisions replayed the drift (heldout_replay.fitted_plant); the refit's plants have none, and its closed-loop fit put the
+        # the decisions replayed the drift (fold_plant.fitted_plant); the refit's plants have none, and its closed-loop fit put the
         # drift's error over time into the kept effects (corpus s730: gravity's MX 2.4 % -> 15 % off, DIDIM accepted). Only when the
         # drift is still found on the final model: one the rigid model showed for a missing effect (s451: asymmetric friction) is not
         # a drift, and the refit still places the current loop's lag (skipped: -0.41 ms kept for 0.227, a false alarm)
@@ -191,7 +191,7 @@ def refit(
 def at_the_replays_values(prop: Proposal, decision: Decision, final: FinalFit, ls: LSSettings) -> Refit:
     """A friction drift is found: no closed-loop refit, whose plant carries none. The values the inverse model biases
     (:data:`~ilic_cli.diagnosis.search.SEARCH_STEPS`: a drive lag, Stribeck ``vs``) are the decisions' replays' instead, which
-    carried the drift (:func:`ilic_cli.diagnosis.heldout_replay.fitted_plant`): the median of the values each fold's training
+    carried the drift (:func:`ilic_cli.diagnosis.fold_plant.fitted_plant`): the median of the values each fold's training
     blocks gave (their :func:`~ilic_cli.diagnosis.dwell.jackknife_std` the spread), the linear parameters the inverse model's
     there (:data:`INVERSE_METHOD`). Measured on the robot corpus's s3520 (500 Hz, a 700 Hz current loop and a wear of Coulomb
     friction): the lag 0.369 ms from the inverse model, 0.218-0.265 ms on the folds, for the loop's 0.227 ms.

@@ -58,7 +58,7 @@ def test_an_exponential_warm_up_of_viscous_friction_is_named_with_its_size() -> 
 
 @pytest.mark.parametrize("shape", ["exponential", "linear"])
 def test_a_given_drift_s_plant_is_its_finding(shape: str) -> None:
-    """A drift found on the rigid model is in every deciding replay's plant (``GivenDrift.plant``, ``heldout_replay.fitted_plant``):
+    """A drift found on the rigid model is in every deciding replay's plant (``GivenDrift.plant``, ``fold_plant.fitted_plant``):
     fitted with its trends' columns, the plant's friction starts at the drift's start and changes as the finding says (corpus s731:
     the replays without it rejected gravity beside a warm-up)."""
     if shape == "exponential":
