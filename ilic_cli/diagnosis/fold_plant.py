@@ -43,7 +43,7 @@ def fitted_plant(
 
 MIN_PLANT_FOLDS = 3
 """Held-out folds at least whose fit must be a plant of every effect (a majority of the five) for a replay to judge
-(:meth:`HeldoutReplays.heldout`). A fold whose fit is not (a flexibility's load fraction outside (0, 1)) used to be replayed
+(:meth:`ilic_cli.diagnosis.heldout_replay.HeldoutReplays.heldout`). A fold whose fit is not (a flexibility's load fraction outside (0, 1)) used to be replayed
 without the effect, silently: 16 logs of the robot corpus's two seed sets had such replays, rev0.5 s721 in two of five folds
 (its flexibility's replay 3.70 % -> 4.54 %)."""
 
