@@ -272,12 +272,11 @@ def evaluate(W: np.ndarray, y: np.ndarray, theta: np.ndarray, names: tuple[str, 
     Standard deviations use the sample-std convention of the benchmark, or ``sigma`` (:func:`solve_batch`'s).
     """
     theta = np.asarray(theta, dtype=np.float64)
-    e = y - W @ theta
-    sig = float(np.std(e, ddof=1)) if sigma == "sample_std" else float(np.linalg.norm(e)) / float(np.sqrt(max(len(y) - len(theta), 1)))
+    err, sig = residual_sigma(y - W @ theta, len(theta), sigma)
     s = np.linalg.svd(W, compute_uv=False)
     std = sig * np.sqrt(np.diag(pinv(W.T @ W)))
     rank = int((s > rank_tolerance(s[0], *W.shape)).sum())
-    return _result(names, y, theta, std, sig, float(np.linalg.norm(e)), float(s[0] / s[-1]), rank, None)
+    return _result(names, y, theta, std, sig, err, float(s[0] / s[-1]), rank, None)
 
 
 def solve_tall(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], *, sigma: SigmaConvention = "eq8") -> LSResult:

@@ -25,7 +25,6 @@ from ilic_cli.diagnosis.heldout_replay import (
     fold_value,
     noisy_output_error,
     replay_decide,
-    replay_verdict,
 )
 from ilic_cli.diagnosis.materiality import MATERIAL_FORCE, MIN_DELAY_PERIODS, below_period, effect_force_rms, immaterial, materiality
 from ilic_cli.diagnosis.model_values import model_parameters
@@ -33,9 +32,8 @@ from ilic_cli.diagnosis.null import MonteCarloNull
 from ilic_cli.diagnosis.propose import Proposal, closed_loop_proposal, prepare_system
 from ilic_cli.diagnosis.select import SelectionResult
 from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
-from ilic_cli.diagnosis.stats import heldout_fall_p
 from ilic_cli.diagnosis.system import Step, change_time
-from ilic_cli.diagnosis.verdicts import DM_TEST, PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, PlantOf, ReplayVerdict, Verdict
+from ilic_cli.diagnosis.verdicts import DM_TEST, PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, PlantOf, ReplayVerdict, Verdict, replay_verdict
 from ilic_cli.effects import EFFECTS
 from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
@@ -182,10 +180,7 @@ def replay_drift(
     within = replays.heldout(kept)
     if without is None or within is None:
         return ReplayVerdict.unjudged(DRIFT, Verdict.NO_PLANT, "the fitted model is not a valid plant: no replay", PROPOSED_BY_DRIFT), sensor
-    without, within, _ = replays.paired(without, within)
-    (fb, pb), (fa, pa) = replays.percent(without), replays.percent(within)
-    both = np.isfinite(without[0]) & np.isfinite(within[0])
-    p = heldout_fall_p(without[0][both], within[0][both])
+    (fb, fa), (pb, pa), p, _ = replays.compared(without, within)
     verdict, why = replay_verdict((fb, fa), (pb, pa), (None, None), p < replay_alpha(settings), f"p = {p:.2g}", None)
     return ReplayVerdict(DRIFT, fb, fa, pb, pa, p, None, None, verdict is Verdict.AGREES, why, proposed_by=PROPOSED_BY_DRIFT, verdict=verdict), sensor
 

@@ -39,7 +39,7 @@ from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import contiguous_runs, folds_either_side, heldout_fall_p
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
 from ilic_cli.diagnosis.system import Step, SystemFit, change_time, fit_system
-from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull, ReplayVerdict, Verdict
+from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull, ReplayVerdict, Verdict, replay_verdict
 from ilic_cli.errors import ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
@@ -264,6 +264,15 @@ class HeldoutReplays:
         out = [(np.where(force, np.nan, h[0]), np.where(position, np.nan, h[1]), h[2]) for h in (current, after)]
         return out[0], out[1], float(force.mean())
 
+    def compared(self, current: Heldout, after: Heldout) -> tuple[tuple[float, float], tuple[float, float], float, float]:
+        """The held-out force and position errors (%) without and with (:meth:`percent`) on the folds both have
+        (:meth:`paired`), the held-out test's p that ``after``'s are the smaller (:func:`heldout_fall_p`), and the share of
+        the held-out force samples left out."""
+        current, after, left_out = self.paired(current, after)
+        (fb, pb), (fa, pa) = self.percent(current), self.percent(after)
+        both = np.isfinite(current[0]) & np.isfinite(after[0])
+        return (fb, fa), (pb, pa), heldout_fall_p(current[0][both], after[0][both]), left_out
+
     def fold_search(self, train: np.ndarray, fold: int, noise: dict[str, Any]) -> tuple[Callable[[list[Step]], RunLog | None], Callable[[list[Step]], float]]:
         """A fold's replay of a model fitted on ``train`` with the sensor ``noise`` (each model once), and its training error."""
         sims: dict[Any, RunLog | None] = {}
@@ -353,10 +362,8 @@ class HeldoutReplays:
         """The verdict on ``st`` added to ``kept`` from the held-out errors without it (``current``) and with it (``after``), and the step
         judged (the folds' value for a searched one); ``None`` when a closed-loop proposal found too few estimates."""
         proposed_here = st.level is not None
-        current, after, left_out = self.paired(current, after)
-        (fb, pb), (fa, pa) = self.percent(current), self.percent(after)
-        both = np.isfinite(current[0]) & np.isfinite(after[0])
-        p_dm = p = heldout_fall_p(current[0][both], after[0][both])
+        (fb, fa), (pb, pa), p, left_out = self.compared(current, after)
+        p_dm = p
         mc, significant = None, p < alpha
         judged, searched = st, ""
         if proposed_here:
@@ -431,33 +438,6 @@ def _heldout_pct(e: np.ndarray, ref: np.ndarray, idx: np.ndarray) -> float:
     (those of a fold left out, ``nan``, are not counted)."""
     ok = np.isfinite(e)
     return relative_error_pct(ref[idx][ok], ref[idx][ok] + e[ok])
-
-
-def replay_verdict(
-    force: tuple[float, float],
-    position: tuple[float, float],
-    validation: tuple[float | None, float | None],
-    significant: bool,
-    p_text: str,
-    short: str | None,
-) -> tuple[Verdict, str]:
-    """The replay's verdict from the held-out force and position errors (%, before and after), the validation log's, the test, and
-    :func:`~ilic_cli.diagnosis.materiality.below_period`'s objection; and its sentence."""
-    (fb, fa), (pb, pa), (vb, va) = force, position, validation
-    if not fa < fb:
-        return Verdict.NO_FALL, f"rejected by the replay: the held-out simulated force error does not fall ({fb:.3g} % -> {fa:.3g} %)"
-    if not significant:
-        return (
-            Verdict.NOT_SIGNIFICANT,
-            f"rejected by the replay: the held-out simulated force error falls ({fb:.3g} % -> {fa:.3g} %) but not significantly ({p_text})",
-        )
-    if pa > pb:
-        return Verdict.POSITION_RISES, f"rejected by the replay: the held-out simulated position error rises ({pb:.3g} % -> {pa:.3g} %)"
-    if va is not None and vb is not None and va > vb:
-        return Verdict.VALIDATION_RISES, f"rejected by the replay: the validation log's simulated force error rises ({vb:.3g} % -> {va:.3g} %)"
-    if short is not None:
-        return Verdict.BELOW_PERIOD, short
-    return Verdict.AGREES, f"the replay agrees: held-out simulated force error {fb:.3g} % -> {fa:.3g} % ({p_text}), position {pb:.3g} % -> {pa:.3g} %"
 
 
 def _fmt(value: float, unit: str) -> str:

@@ -122,7 +122,7 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
         if p is not None and p.saturation_note() is not None:
             warnings.append(f"{p.source}: {p.saturation_note()}")
     known = steps_from_effects(model_doc.get("effects", {}), float(model_doc["parameters"].get("M", 95.0))) if model_doc else []
-    joint = joint_type(log.units.get("q"))  # gravity is proposed on a revolute joint only (Effect.joints)
+    joint = data.joint  # gravity is proposed on a revolute joint only (Effect.joints)
     sel = replace(settings.select, effects=tuple(e for e in settings.select.effects if e not in EFFECTS or joint in EFFECTS[e].joints))
     if known:
         sel = replace(sel, effects=tuple(e for e in sel.effects if e not in {s.effect.id for s in known}))

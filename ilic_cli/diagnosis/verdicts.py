@@ -200,3 +200,30 @@ class ReplayVerdict:
                 "null_distribution": self.null.to_dict(),
             }
         return None if self.p_value is None else {"test": DM_TEST, "p_value": self.p_value}
+
+
+def replay_verdict(
+    force: tuple[float, float],
+    position: tuple[float, float],
+    validation: tuple[float | None, float | None],
+    significant: bool,
+    p_text: str,
+    short: str | None,
+) -> tuple[Verdict, str]:
+    """The replay's verdict from the held-out force and position errors (%, before and after), the validation log's, the test, and
+    :func:`~ilic_cli.diagnosis.materiality.below_period`'s objection; and its sentence."""
+    (fb, fa), (pb, pa), (vb, va) = force, position, validation
+    if not fa < fb:
+        return Verdict.NO_FALL, f"rejected by the replay: the held-out simulated force error does not fall ({fb:.3g} % -> {fa:.3g} %)"
+    if not significant:
+        return (
+            Verdict.NOT_SIGNIFICANT,
+            f"rejected by the replay: the held-out simulated force error falls ({fb:.3g} % -> {fa:.3g} %) but not significantly ({p_text})",
+        )
+    if pa > pb:
+        return Verdict.POSITION_RISES, f"rejected by the replay: the held-out simulated position error rises ({pb:.3g} % -> {pa:.3g} %)"
+    if va is not None and vb is not None and va > vb:
+        return Verdict.VALIDATION_RISES, f"rejected by the replay: the validation log's simulated force error rises ({vb:.3g} % -> {va:.3g} %)"
+    if short is not None:
+        return Verdict.BELOW_PERIOD, short
+    return Verdict.AGREES, f"the replay agrees: held-out simulated force error {fb:.3g} % -> {fa:.3g} % ({p_text}), position {pb:.3g} % -> {pa:.3g} %"
