@@ -15,6 +15,7 @@ from ilic_cli.closed_loop_id import STD_SOURCE
 from ilic_cli.effects import unit_of
 from ilic_cli.filtering import DECIMATION_RULE
 from ilic_cli.idim_ls import NOT_WHITE_WIDENING, IDIMLSResult
+from ilic_cli.jointlog import position_unit
 
 if TYPE_CHECKING:
     from ilic_cli.identify import IdentifyReport
@@ -129,7 +130,8 @@ def to_markdown(report: IdentifyReport) -> str:
     if report.validation:
         out += ["## Cross-test validation", ""]
         opened = any(v.open_loop is not None for v in report.validation)
-        header = ["log", "estimates", "relative error %", "error norm", "error std", "condition number"] + (["open-loop RMSE mm", "fit %"] if opened else [])
+        header = ["log", "estimates", "relative error %", "error norm", "error std", "condition number"]
+        header += [f"open-loop RMSE {position_unit(report.joint_type, 'm')}", "fit %"] if opened else []
         rows = []
         for v in report.validation:
             vr = v.result
@@ -198,6 +200,8 @@ def _closed_loop_markdown(report: IdentifyReport) -> list[str]:
 def _output_error_markdown(report: IdentifyReport) -> list[str]:
     """OE / CLOE: the estimate beside its IDIM-LS start, the criterion and the stopping rule."""
     out: list[str] = []
+    milli, micro = position_unit(report.joint_type, "m"), position_unit(report.joint_type, "µ")
+    force = unit_of("Fc", report.joint_type)
     for r in report.output_errors():
         what = "open loop, the recorded drive command in" if r.method == "OE" else "closed loop, the log's reference through its controller"
         out += [f"## {r.method} (output error, {what})", ""]
@@ -212,13 +216,13 @@ def _output_error_markdown(report: IdentifyReport) -> list[str]:
         if r.method == "OE":
             shots = "one shot" if len(r.starts) == 1 else f"{len(r.starts)} stretches of {r.length} samples (multiple shooting)"
             out.append(
-                f"Position RMSE {fmt(1e3 * r.rmse_start_m, 3)} mm at the start, {fmt(1e3 * r.rmse_m, 3)} mm at the estimate ({shots}, "
+                f"Position RMSE {fmt(1e3 * r.rmse_start_m, 3)} {milli} at the start, {fmt(1e3 * r.rmse_m, 3)} {milli} at the estimate ({shots}, "
                 f"from sample {r.starts[0]})."
             )
         else:
             out.append(
-                f"Closed-loop position RMSE {fmt(1e6 * r.rmse_start_m, 3)} µm at the start, {fmt(1e6 * r.rmse_m, 3)} µm at the estimate; "
-                f"force RMSE {fmt(r.extra.get('force_rmse_start'), 3)} → {fmt(r.extra.get('force_rmse'), 3)} N (criterion: {r.extra.get('output')})."
+                f"Closed-loop position RMSE {fmt(1e6 * r.rmse_start_m, 3)} {micro} at the start, {fmt(1e6 * r.rmse_m, 3)} {micro} at the estimate; "
+                f"force RMSE {fmt(r.extra.get('force_rmse_start'), 3)} → {fmt(r.extra.get('force_rmse'), 3)} {force} (criterion: {r.extra.get('output')})."
             )
         if r.force_error_pct is not None:
             out.append(f"Inverse-model force error with these parameters: {fmt(r.force_error_pct)} % (IDIM-LS's own criterion).")

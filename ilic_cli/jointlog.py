@@ -25,6 +25,13 @@ from ilic_cli.timebase import gap_starts, nominal_rate_hz, sampling_kind, segmen
 JOINT_TYPES = ("revolute", "prismatic")
 UNITS = {"revolute": ("rad", "N·m"), "prismatic": ("m", "N")}
 """Position and force units of a joint by its type (ROS REP 103: a JointState is in these units and says nothing of which)."""
+
+
+def position_unit(joint: str, prefix: str = "") -> str:
+    """The position unit of a ``joint`` type with a decimal ``prefix`` (``"u"``, ``"µ"``, ``"m"``): um or urad, mm or mrad."""
+    return prefix + UNITS[joint][0]
+
+
 MOTION_CHANNELS = {"q": "", "q_ref": "", "qd": "/s", "qd_ref": "/s", "qdd_ref": "/s^2"}
 """A one-joint log's channels in the joint's position unit (or its derivatives: the unit's suffix)."""
 

@@ -163,7 +163,7 @@ def closed_loop_refit(
     names0 = extended(base, steps, prepared.fs_hz).names
     loop = _Loop(log, prepared, base, ls, simulate or (lambda params, effects: replay(log, params, effects)), hold_s)
     loop.round_gain, loop.max_rounds = round_gain, max_rounds
-    if problem := plant_problem(steps, names0, theta0):
+    if problem := plant_problem(steps, names0, theta0, joint=loop.joint):
         return Refit(False, f"no closed-loop refit: the inverse model's estimate is no plant ({problem})", list(kept), names0, outcome=RefitOutcome.NO_PLANT)
     # 1. DIDIM at the inverse model's nonlinear values: the closed loop must do better than the inverse model at all
     run0 = loop.didim(steps, np.asarray(theta0, dtype=np.float64))
@@ -210,13 +210,13 @@ class _Loop:
         r = self.y - d.decimate(np.asarray(sim["tau"], dtype=np.float64)[self.ls.trim :])
         delta, rss = lstsq(d.W, r)
         at_anchor = 100.0 * float(np.linalg.norm(r)) / self.y_norm
-        if plant_problem(model_steps, names, anchor + delta):
+        if plant_problem(model_steps, names, anchor + delta, joint=self.joint):
             return Point(math.inf, anchor, at_anchor, 0.0, anchor)
         return Point(100.0 * math.sqrt(rss) / self.y_norm, anchor + delta, at_anchor, lag1_autocorrelation(r - d.W @ delta), anchor)
 
     def replayed(self, model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> RunLog | None:
         """The replay of the estimate (one replay), ``None`` when it is no plant or does not simulate the whole log."""
-        if plant_problem(model_steps, names, theta):
+        if plant_problem(model_steps, names, theta, joint=self.joint):
             return None
         try:
             sim = self.sim_of(*plant_of(names, theta, self.values_of(model_steps), self.hold_s))
@@ -266,7 +266,7 @@ class _Loop:
             return exc.problem
         if not (np.all(np.isfinite(res.result.theta)) and math.isfinite(res.result.error_norm)):
             return "DIDIM diverged"
-        if problem := plant_problem(model_steps, model.names, res.result.theta):
+        if problem := plant_problem(model_steps, model.names, res.result.theta, joint=self.joint):
             return f"its estimate is no plant of the effects named ({problem})"
         return res, sims
 

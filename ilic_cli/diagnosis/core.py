@@ -268,14 +268,14 @@ def _findings(prop: Proposal, decision: Decision, final: FinalFit, refit: Refit 
     for st, st_final in zip(kept, final_steps, strict=True):
         ev = accepted[st.effect.id]
         # a closed-loop proposal's vs is the folds' median, its spread theirs: the inverse model's standard deviation is not its own
-        params, plant, note = effect_fit(st, final.names, final.res.theta, final.cov, st.value_std if st.level is not None else ev.value_std, hold)
+        params, plant, note = effect_fit(st, final.names, final.res.theta, final.cov, st.value_std if st.level is not None else ev.value_std, hold, prop.joint)
         inverse = {} if st.level is not None else params  # a level held at a closed-loop estimate is no inverse-model estimate
         method = _proposer(st.effect) if st.level is not None else "IDIM-LS"
         notes = [s.reason for s in (refit.searches if refit is not None else []) if s.effect == st.effect.id]
         if refitted:
             assert refit is not None and refit.theta is not None and refit.cov is not None
             std = refit.value_std.get(st.effect.id) if st_final.value != st.value else st.value_std if st.level is not None else ev.value_std
-            params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold)
+            params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold, prop.joint)
             method = refit.method
         params, inverse = st.effect.on_joint(params, prop.joint), st.effect.on_joint(inverse, prop.joint)  # in the joint's units
         findings.append(Finding(st.effect, params, plant, [], ev, "; ".join(n for n in [note, *notes, _indistinct(st.effect, ev)] if n), method, inverse))

@@ -194,8 +194,9 @@ def estimate(fit: Refit) -> np.ndarray:
     return fit.theta
 
 
-def plant_problem(steps: list[Step] | tuple[Step, ...], names: tuple[str, ...], theta: np.ndarray) -> str | None:
-    """Why the estimate ``theta`` of the model with ``steps`` is not a plant of the effects it names, else ``None``.
+def plant_problem(steps: list[Step] | tuple[Step, ...], names: tuple[str, ...], theta: np.ndarray, *, joint: str) -> str | None:
+    """Why the estimate ``theta`` of the model with ``steps`` is not a plant of the effects it names, else ``None`` (the
+    reason in the units of a ``joint`` of that type).
 
     Each effect must give plant parameters (:meth:`~ilic_cli.effects.Effect.fit_to_plant`) that pass
     their checks (:meth:`~ilic_cli.effects.Effect.values`), and must not be outside its physics
@@ -208,12 +209,12 @@ def plant_problem(steps: list[Step] | tuple[Step, ...], names: tuple[str, ...], 
         cols = [start[c] for c in e.column_names if c in start]
         col += len(cols)
         if e.impossible is not None and cols:
-            why = e.impossible(np.asarray(theta)[cols], st.value)
+            why = e.impossible(np.asarray(theta)[cols], st.value, joint)
             if why:
                 return f"{e.id}: {why}"
         if not e.plant:
             continue
-        _, plant, note = e.fit_to_plant(Fit(names, np.asarray(theta), np.zeros((len(theta), len(theta))), st.value))
+        _, plant, note = e.fit_to_plant(Fit(names, np.asarray(theta), np.zeros((len(theta), len(theta))), st.value, joint=joint))
         if plant is None:
             return f"{e.id}: {note or 'no plant form'}"
         try:

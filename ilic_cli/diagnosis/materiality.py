@@ -12,6 +12,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.search import SEARCH_STEPS, search_range
 from ilic_cli.diagnosis.system import Step, fit_system, system
+from ilic_cli.effects import unit_on
 from ilic_cli.idim_ls import IDIMData
 from ilic_cli.regressor import Model
 
@@ -27,10 +28,11 @@ spurious effects it leaves measured 0.06-0.24 %; a concealed effect that
 raises the rigid error by 0.2 points from 1 % has about 0.66 %."""
 
 
-def immaterial(force_rms: float, total_rms: float, share: float = MATERIAL_FORCE) -> str | None:
-    """Why an effect adding ``force_rms`` to a force of ``total_rms`` (N RMS, rows used) is below ``share`` of it (:data:`MATERIAL_FORCE`), else ``None``."""
+def immaterial(force_rms: float, total_rms: float, share: float = MATERIAL_FORCE, unit: str = "N") -> str | None:
+    """Why an effect adding ``force_rms`` to a force of ``total_rms`` (RMS over the rows used, in ``unit``) is below ``share`` of
+    it (:data:`MATERIAL_FORCE`), else ``None``."""
     if total_rms > 0 and force_rms < share * total_rms:
-        return f"not material: its force ({force_rms:.3g} N RMS) is below {100 * share:g} % of the force ({total_rms:.3g} N RMS)"
+        return f"not material: its force ({force_rms:.3g} {unit} RMS) is below {100 * share:g} % of the force ({total_rms:.3g} {unit} RMS)"
     return None
 
 
@@ -69,7 +71,7 @@ def materiality(data: IDIMData, base: Model, kept: list[Step], step: Step, rows:
     if step.effect.id in SEARCH_STEPS and scan is not None and not isinstance(step.value, tuple):
         for v in search_range(step.effect, scan.grid(data.kin, data.fs_hz), float(step.value)):
             force = max(force, effect_force_rms(data, base, kept, Step(step.effect, float(v)), rows)[0])
-    return immaterial(force, total, share)
+    return immaterial(force, total, share, unit_on("N", data.joint))
 
 
 def effect_force_rms(data: IDIMData, base: Model, kept: list[Step], step: Step, rows: np.ndarray) -> tuple[float, float]:

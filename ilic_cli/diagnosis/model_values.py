@@ -17,7 +17,7 @@ from ilic_cli.parameters import PARAMETERS
 
 
 def effect_fit(
-    step: Step, names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray, value_std: float | None, hold_s: float = 0.0
+    step: Step, names: tuple[str, ...], theta: np.ndarray, cov: np.ndarray, value_std: float | None, hold_s: float = 0.0, joint: str = "prismatic"
 ) -> tuple[dict[str, Estimate], dict[str, float] | None, str]:
     """Reported estimates, plant parameters and a note of one accepted effect (:meth:`ilic_cli.effects.Effect.fit_to_plant`).
 
@@ -25,7 +25,7 @@ def effect_fit(
     command; the baseline already evaluates the regressor that much later
     (:mod:`ilic_cli.diagnosis.baseline`), so a found ``delay`` is a lag beyond
     the hold and is the plant's ``delay`` as it is (the plant holds its force
-    itself).
+    itself). ``joint``: the units the note writes its values in (the estimates keep the catalogue's, :meth:`Effect.on_joint`).
     """
     if step.level is not None:  # held at a closed-loop estimate: its coefficients join the fit's, with their own spread
         m = len(step.level)
@@ -33,7 +33,7 @@ def effect_fit(
         theta = np.r_[theta, step.level]
         cov = np.pad(cov, ((0, m), (0, m)))
         cov[-m:, -m:] = np.diag(np.square(step.level_std or (0.0,) * m))
-    return step.effect.fit_to_plant(Fit(names, theta, cov, step.value, value_std, hold_s))
+    return step.effect.fit_to_plant(Fit(names, theta, cov, step.value, value_std, hold_s, joint))
 
 
 def steps_from_effects(effects: dict[str, Any], M: float) -> list[Step]:

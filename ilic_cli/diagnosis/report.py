@@ -15,7 +15,7 @@ from ilic_cli.diagnosis.fits import INVERSE_METHOD
 from ilic_cli.diagnosis.locate import Region
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, RefitOutcome, Selection
 from ilic_cli.effects import Estimate
-from ilic_cli.jointlog import UNITS
+from ilic_cli.jointlog import position_unit
 from ilic_cli.parameters import PARAMETERS
 
 
@@ -293,7 +293,7 @@ def _decisions_table(diag: Diagnosis) -> list[str]:
 
 def _micro(joint: str) -> str:
     """A millionth of the ``joint``'s position unit, as the report writes it (um, urad)."""
-    return "u" + UNITS[joint][0]
+    return position_unit(joint, "u")
 
 
 def _sensor_words(sensor: dict[str, Any], joint: str) -> str:

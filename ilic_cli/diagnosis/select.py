@@ -326,7 +326,7 @@ def _candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, n_
     test = nested_f_test(W, y, W1, y1, q, trials)
     theta1, _ = lstsq(W1, y1)
     ev = Evaluation(eff.id, value, vstd, test, relative_error_pct(y1, W1 @ theta1))
-    why = eff.impossible(theta1[W.shape[1] :], value) if eff.impossible is not None else None
+    why = eff.impossible(theta1[W.shape[1] :], value, searcher.data.joint) if eff.impossible is not None else None
     if why:
         ev = ev.decided(Selection.IMPOSSIBLE, why)
     elif eff.nonlinear and (edge := at_edge(eff, searcher.grid_values(eff), value, searcher.data.joint)):

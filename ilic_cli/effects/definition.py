@@ -122,6 +122,8 @@ class Fit:
         Half a sample period when the logged force is the held drive
         command, which the fit's regressor already accounts for (a ``delay``
         found is beyond it), else 0.
+    joint : str
+        The joint's type (``prismatic`` or ``revolute``): the units the notes write their values in (:func:`unit_on`).
     """
 
     names: tuple[str, ...]
@@ -130,6 +132,7 @@ class Fit:
     value: Any = None
     value_std: float | None = None
     hold_s: float = 0.0
+    joint: str = "prismatic"
 
     def has(self, name: str) -> bool:
         return name in self.names
@@ -237,8 +240,8 @@ class Effect:
         Its columns carry the position's noise amplified (a flexibility's, four derivatives near its resonance): a
         plant is fitted with least squares corrected for that noise (:func:`ilic_cli.lsq.noise_corrected_lstsq`).
     impossible : callable, optional
-        ``(theta of its columns, value) -> reason or None``: estimates that
-        cannot be this physics reject the candidate.
+        ``(theta of its columns, value, joint) -> reason or None``: estimates that
+        cannot be this physics reject the candidate (the reason in the ``joint``'s units, :func:`unit_on`).
     estimate : callable, optional
         ``(Fit) -> (estimates, plant parameters or None, note)``; default: the
         columns are the plant parameters of the same names, the scan value
@@ -274,7 +277,7 @@ class Effect:
     scan: Scan | None = None
     shift: bool = False
     noisy_columns: bool = False
-    impossible: Callable[[np.ndarray, Any], str | None] | None = None
+    impossible: Callable[[np.ndarray, Any, str], str | None] | None = None
     estimate: Callable[[Fit], EstimateResult] | None = None
     scan_value: Callable[[Mapping[str, float], float], Any] | None = None
     sentence: Callable[[Mapping[str, Estimate]], str] | None = None

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.effects.definition import Effect, Estimate, EstimateResult, Fit, PlantParam, Scan, col
+from ilic_cli.effects.definition import Effect, Estimate, EstimateResult, Fit, PlantParam, Scan, col, unit_on
 from ilic_cli.effects.grids import FLEX_DAMPING, delay_grid, flexible_acceleration, resonance_at_log_rate, resonance_grid
 from ilic_cli.errors import ParameterError
 from ilic_cli.regressor import Kinematics
@@ -135,7 +135,7 @@ FLEXIBILITY = Effect(
     build=_flex_build,
     noisy_columns=True,
     scan=Scan("f_res", "Hz", resonance_grid, secondary=("damping_ratio", "", 0.005, 0.5, FLEX_DAMPING), at_log_rate=resonance_at_log_rate),
-    impossible=lambda th, v: None if th[0] > 0 else f"negative mass behind the flexibility ({th[0]:.3g} kg)",
+    impossible=lambda th, v, joint: None if th[0] > 0 else f"negative mass behind the flexibility ({th[0]:.3g} {unit_on('kg', joint)})",
     estimate=_flex_estimate,
     scan_value=_flex_scan_value,
     sentence=lambda p: f"resonance {p['f_res'].value:.3g} Hz, {p['M_load'].value:.3g} {p['M_load'].unit} behind the spring",

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli import parameters
-from ilic_cli.effects.definition import Effect, EffectColumn, Estimate, EstimateResult, Fit, LinearForm, PlantParam, Scan, col
+from ilic_cli.effects.definition import Effect, EffectColumn, Estimate, EstimateResult, Fit, LinearForm, PlantParam, Scan, col, unit_on
 from ilic_cli.effects.grids import change_time_grid, ripple_grid, stribeck_grid
 from ilic_cli.parameters import STANDARD_GRAVITY
 from ilic_cli.regressor import GRAVITY_COLUMNS, Kinematics, negative_side
@@ -42,9 +42,10 @@ def _stribeck_estimate(fit: Fit) -> EstimateResult:
         fc = min(fit.get("Fc_pos"), fit.get("Fc_neg"))
     else:
         fc = fit.get("Fc")
+    force = unit_on("N", fit.joint)
     if fc + level[0] < 0:
-        return est, None, f"Fs = {level[0]:.3g} N would put the static friction level Fc + Fs below 0: not in the model file"
-    note = f"negative Fs, kept in the model file: the plant's static friction level Fc + Fs is {fc + level[0]:.3g} N" if level[0] < 0 else ""
+        return est, None, f"Fs = {level[0]:.3g} {force} would put the static friction level Fc + Fs below 0: not in the model file"
+    note = f"negative Fs, kept in the model file: the plant's static friction level Fc + Fs is {fc + level[0]:.3g} {force}" if level[0] < 0 else ""
     return est, {"Fs": level[0], "vs": float(fit.value)}, note
 
 
@@ -131,10 +132,11 @@ STRIBECK = Effect(
     # Stribeck friction rises above Coulomb at low speed; a fit that falls below it
     # is another mechanism (pre-sliding, smoothed or stuck Coulomb friction at a
     # dwell), which the catalogue does not model, and is not named Stribeck
-    impossible=lambda th, v: (
+    impossible=lambda th, v, joint: (
         None
         if th[0] > 0
-        else f"static friction below Coulomb (Fs = {th[0]:.3g} N) is not Stribeck friction (pre-sliding or stuck Coulomb friction: outside the catalogue)"
+        else f"static friction below Coulomb (Fs = {th[0]:.3g} {unit_on('N', joint)}) is not Stribeck friction "
+        "(pre-sliding or stuck Coulomb friction: outside the catalogue)"
     ),
 )
 
@@ -174,7 +176,7 @@ SPRING = Effect(
     # a passive elastic element stores energy as it leaves its rest position: its stiffness is positive. A force that grows
     # away from rest is no spring (on a revolute joint it is what gravity about an upright position makes: corpus s530,
     # s732, gravity with MY > 0 fitted as k < 0 and stated as "spring or gravity")
-    impossible=lambda th, v: None if th[0] >= 0 else f"negative stiffness (k = {th[0]:.3g}) is not a spring: its force grows away from rest",
+    impossible=lambda th, v, joint: None if th[0] >= 0 else f"negative stiffness (k = {th[0]:.3g}) is not a spring: its force grows away from rest",
 )
 
 

@@ -201,12 +201,14 @@ def test_a_refit_that_cannot_be_simulated_keeps_the_inverse_estimate(lag_case: t
 
 
 def test_plant_problem_names_an_effect_outside_its_physics() -> None:
+    """A fit outside an effect's physics is no plant, the reason in the joint's units (a revolute joint's N·m, not N)."""
     base = get_model("rigid-offset")
     names = (*base.names, "M_load")
     flex = [Step(EFFECTS["flexibility"], (30.0, 0.1))]
-    assert plant_problem(flex, names, np.array([95.0, 200.0, 20.0, 0.0, 20.0])) is None
-    assert "load fraction" in (plant_problem(flex, names, np.array([95.0, 200.0, 20.0, 0.0, 120.0])) or "")
+    assert plant_problem(flex, names, np.array([95.0, 200.0, 20.0, 0.0, 20.0]), joint="prismatic") is None
+    assert "load fraction" in (plant_problem(flex, names, np.array([95.0, 200.0, 20.0, 0.0, 120.0]), joint="prismatic") or "")
     st = [Step(EFFECTS["stribeck"], 0.01)]
     names = (*base.names, "Fs")
-    assert plant_problem(st, names, np.array([95.0, 200.0, 20.0, 0.0, 3.0])) is None
-    assert "below Coulomb" in (plant_problem(st, names, np.array([95.0, 200.0, 20.0, 0.0, -3.0])) or "")
+    assert plant_problem(st, names, np.array([95.0, 200.0, 20.0, 0.0, 3.0]), joint="prismatic") is None
+    assert "below Coulomb (Fs = -3 N)" in (plant_problem(st, names, np.array([95.0, 200.0, 20.0, 0.0, -3.0]), joint="prismatic") or "")
+    assert "below Coulomb (Fs = -3 N·m)" in (plant_problem(st, names, np.array([0.5, 0.8, 1.5, 0.0, -3.0]), joint="revolute") or "")

@@ -56,6 +56,7 @@ def test_reversal_samples_mark_both_sides_of_a_sign_change() -> None:
 
 def test_materiality_rules() -> None:
     assert "not material" in (immaterial(0.99 * MATERIAL_FORCE * 50.0, 50.0) or "")
+    assert "(0.0495 N·m RMS) is below 0.3 % of the force (50 N·m RMS)" in (immaterial(0.33 * MATERIAL_FORCE * 50.0, 50.0, unit="N·m") or "")
     assert immaterial(1.01 * MATERIAL_FORCE * 50.0, 50.0) is None
     assert immaterial(0.0, 0.0) is None
 
@@ -69,7 +70,7 @@ def test_a_biased_value_is_material_where_the_replay_may_put_it(monkeypatch: pyt
     import ilic_cli.diagnosis.materiality as decide  # where materiality finds the force it weighs
 
     kin = lsq_rows(np.arange(2000) / 1000.0, 0.1 * np.sin(np.arange(2000) / 300.0), np.zeros(2000), 1000.0, get_model("rigid-offset"), LSSettings()).kin
-    data = type("Data", (), {"kin": kin, "fs_hz": 1000.0})()
+    data = type("Data", (), {"kin": kin, "fs_hz": 1000.0, "joint": "prismatic"})()
     grid = EFFECTS["stribeck"].scan.grid(kin, 1000.0)
     at = float(grid[16])
     small, large = 0.5 * MATERIAL_FORCE * 50.0, 2.0 * MATERIAL_FORCE * 50.0

@@ -8,10 +8,13 @@ protocol's state of the first 20 samples, not fitted, up to 1 % off (the state's
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from ilic_cli.identify import identify
+from ilic_cli.identify_report import to_markdown
 from ilic_cli.lm import levenberg_marquardt
 from ilic_cli.output_error import OESettings
 from ilic_cli.runlog import RunLog
@@ -42,6 +45,13 @@ def test_output_error_recovers_the_truth_within_half_a_percent(pd_log: RunLog, m
     ls = errors_pct(report.ls.result.names, report.ls.result.theta)  # type: ignore[union-attr]
     assert max(errs.values()) < max(ls.values())  # better than its IDIM-LS start (Fv -1.9 % there: the held command)
     assert report.model_method() == fit.method and report.model_parameters()["M"] == pytest.approx(fit.theta[0])
+    # the report's figures in the joint's units: this prismatic axis's, and a revolute joint's for the same figures
+    text, turned = to_markdown(report), to_markdown(replace(report, joint_type="revolute"))
+    if method == "oe":
+        assert " mm at the start, " in text and " mrad at the start, " in turned and " mm at " not in turned
+    else:
+        assert " µm at the start, " in text and " N (criterion: " in text
+        assert " µrad at the start, " in turned and " N·m (criterion: " in turned and " µm " not in turned
 
 
 def test_multiple_shooting_recovers_the_truth(pd_log: RunLog) -> None:

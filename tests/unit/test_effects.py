@@ -187,7 +187,9 @@ def test_flexibility_to_plant_and_back() -> None:
     assert back == pytest.approx((f_res, zeta))
     _, plant, note = effect.fit_to_plant(_fit({"M": M, "M_load": -1.0}, value=f_res))
     assert plant is None and "outside (0, 1)" in note
-    assert effect.impossible(np.array([-1.0]), f_res) is not None and effect.impossible(np.array([1.0]), f_res) is None
+    assert effect.impossible is not None and effect.impossible(np.array([1.0]), f_res, "prismatic") is None
+    assert effect.impossible(np.array([-1.0]), f_res, "prismatic") == "negative mass behind the flexibility (-1 kg)"
+    assert effect.impossible(np.array([-1.0]), f_res, "revolute") == "negative mass behind the flexibility (-1 kg·m²)"
 
 
 def test_value_from_plant_of_the_scanned_effects() -> None:

@@ -29,9 +29,10 @@ from ilic_cli.diagnosis.search import at_edge
 from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.system import Step, SystemFit, fit_system, system
 from ilic_cli.diagnosis.verdicts import RefitOutcome
-from ilic_cli.effects import Effect, applicable
+from ilic_cli.effects import Effect, applicable, unit_on
 from ilic_cli.errors import IlicError
 from ilic_cli.idim_ls import IDIMData, LSSettings
+from ilic_cli.jointlog import position_unit
 from ilic_cli.lsq import solve
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
@@ -201,9 +202,10 @@ def _segments_judged(
     segment_s, level_z = tuning
     assert st.level is not None
     n_lin = len(names_fit)
+    micro, force = position_unit(data.joint, "u"), unit_on("N", data.joint)
     what = (
-        f"{fit.segments} segments of {segment_s:g} s driven by the recorded force, residual {1e6 * fit.rms_m:.3g} um RMS "
-        f"for a sensor noise of {1e6 * noise:.3g} um (from {1e6 * fit.rms_start_m:.3g} um), {fit.iterations} iterations"
+        f"{fit.segments} segments of {segment_s:g} s driven by the recorded force, residual {1e6 * fit.rms_m:.3g} {micro} RMS "
+        f"for a sensor noise of {1e6 * noise:.3g} {micro} (from {1e6 * fit.rms_start_m:.3g} {micro}), {fit.iterations} iterations"
     )
     theta_fit = fit.values[:n_lin]
     at = names_fit.index(st.effect.column_names[0])
@@ -211,11 +213,11 @@ def _segments_judged(
     if fit.consistent and not level > level_z * level_std:
         refuted = (
             f"refuted by the {segments.METHOD} ({what}): the residual is the sensor's noise, "
-            f"and the level it gives Stribeck friction, {level:.3g} +- {level_std:.2g} N, "
-            f"is not {level_z:g} standard deviations above zero (the closed-loop search's {st.level[0]:.3g} N is not the recording's)"
+            f"and the level it gives Stribeck friction, {level:.3g} +- {level_std:.2g} {force}, "
+            f"is not {level_z:g} standard deviations above zero (the closed-loop search's {st.level[0]:.3g} {force} is not the recording's)"
         )
         return Refit(False, refuted, list(kept), names, segments=fit, outcome=RefitOutcome.SEGMENTS_REFUTED), refuted
-    problem = plant_problem(final[len(known) :], names_fit, theta_fit)
+    problem = plant_problem(final[len(known) :], names_fit, theta_fit, joint=data.joint)
     edges = [e for k in free if (e := _edge_of(final[len(known) + k], data, fs))]
     why = (
         "it did not converge"
