@@ -310,10 +310,21 @@ bring to 11.32 s. A wider range lets the search wander into the aliases of a per
 DEFAULT_STEPS = 3
 """Half-width of the search for the effects not in :data:`SEARCH_STEPS` (grid steps)."""
 
+SEARCH_SPAN: dict[str, float] = {"delay": 2e-3}
+"""The least half-width of the closed-loop search where the inverse model's bias is a quantity, not a number of grid
+steps (the effect's unit: s). A drive lag's bias is a time (0.3-0.7 ms, above); its grid steps by half a sample, so four
+steps were 2 ms at 1 kHz but 0.5 ms at 4 kHz, and the search ended on its edge and kept the inverse model's value
+(a 1.41 ms lag at 4 kHz on a 3 kg·m² joint: 1.71 ms in every fold, rejected, and Stribeck friction named in its place;
+searched over 2 ms, 0.82-1.22 ms and named). At 1 kHz and below :data:`SEARCH_STEPS` reach it already."""
+
 
 def search_range(effect: Effect, grid: np.ndarray, value: float) -> np.ndarray:
-    """The part of ``effect``'s grid the closed loop searches: :data:`SEARCH_STEPS` steps either side of ``value``."""
+    """The part of ``effect``'s grid the closed loop searches: :data:`SEARCH_STEPS` steps either side of ``value``, and at
+    least :data:`SEARCH_SPAN` (a grid of even steps)."""
     k = SEARCH_STEPS.get(effect.id, DEFAULT_STEPS)
+    span = SEARCH_SPAN.get(effect.id)
+    if span is not None and len(grid) > 1:
+        k = max(k, math.ceil(span / abs(float(grid[1] - grid[0])) - 1e-9))
     i = int(np.argmin(np.abs(grid - value)))
     return grid[max(i - k, 0) : i + k + 1]
 

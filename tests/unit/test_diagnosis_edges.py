@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
-from ilic_cli.diagnosis.select import EDGE_STEPS, SECONDARY_EDGE, Step, at_edge, effect_columns, extended, shifted_force
+from ilic_cli.diagnosis.select import EDGE_STEPS, SECONDARY_EDGE, Step, at_edge, effect_columns, extended, search_range, shifted_force
 from ilic_cli.effects import EFFECTS
+from ilic_cli.effects.grids import delay_grid
 from ilic_cli.idim_ls import lsq_rows
 from ilic_cli.regressor import get_model
 from tests.unit.synth import FS, motion, rigid_force
@@ -30,6 +32,19 @@ def test_log_grid_edges_at_half_a_step() -> None:
     assert at_edge(stribeck, grid, 0.1, "revolute") == "vs = 0.1 rad/s at the upper end of the range searched (0.001 to 0.1)"
     assert at_edge(EFFECTS["position_ripple"], grid, 0.1, "revolute") == "L = 0.1 rad at the upper end of the range searched (0.001 to 0.1)"
     assert at_edge(EFFECTS["delay"], grid, 0.1, "revolute") == "delay = 0.1 s at the upper end of the range searched (0.001 to 0.1)"
+
+
+def test_a_lags_closed_loop_search_spans_2_ms_at_every_rate_from_1_khz() -> None:
+    """The inverse model's bias of a drive lag is a time (0.3-0.7 ms), so its search reaches 2 ms either side at every rate;
+    in steps of its half-sample grid alone it was 0.5 ms at 4 kHz (a 3 kg·m² joint's 1.41 ms lag, 1.71 ms by the inverse
+    model, kept at 1.71 ms in every fold and rejected). Four steps at 1 kHz and below, where they reach 2 ms already."""
+    delay = EFFECTS["delay"]
+    for fs, steps in ((250.0, 4), (500.0, 4), (1000.0, 4), (2000.0, 8), (4000.0, 16), (8000.0, 32)):
+        grid = delay_grid(None, fs)  # type: ignore[arg-type]  # the lag's grid needs no kinematics
+        sub = search_range(delay, grid, -1.7e-3)
+        assert len(sub) == 2 * steps + 1, (fs, len(sub))
+        assert (sub[-1] - sub[0]) / 2 == pytest.approx(max(2e-3, 4 * 0.5 / fs)) and sub[0] < -1.7e-3 < sub[-1]
+    assert len(search_range(EFFECTS["stribeck"], np.geomspace(0.001, 0.1, 41), 0.01)) == 21  # a vs's bias is a factor: 10 steps
 
 
 def test_linear_grid_edges_and_unitless_names() -> None:

@@ -572,6 +572,7 @@ def test_a_flexible_mode_above_the_rows_band_is_searched_at_the_log_s_rate() -> 
     rows = moving_rows(data)
     W, y, _ = system(data, BASE, [], rows)
     s = Searcher(data, fs, rows)
+    assert s.at_log_rate(eff) and not s.at_log_rate(EFFECTS["stribeck"])  # the mode above the rows' band; a vs within it
     assert s.rate_factor(eff) == 3  # the 30 Hz the grid reaches (0.1 fs): every third sample of the spans keeps 40 Hz
     at = s.log_rate(BASE, [], factor=3)
     assert at.W.shape == (int(rows.sum()), 2, W.shape[1])
