@@ -14,7 +14,11 @@ Markdown. ``--check``: exit 1 when a rate of the "Done when" does not hold (:fun
 trajectory, noise model, effects and target): new noise, disturbance and draws, a check that the rates do not rest on
 the corpus's own seeds.
 
-Usage: python benchmarks/corpus_robot.py [--jobs 2] [--cases GLOB] [--json FILE] [--rows FILE] [--check] [--reseed K]
+``--beyond``: the logs beyond the design instead (:func:`tests.corpus.robot.beyond_cases`: other axes from 0.002 kg·m²
+to 50 kg, rates of 400 Hz, 1.5 and 4 kHz, PD loops of 6 to 15 Hz), a check that the rates do not rest on its axes,
+rates and loop.
+
+Usage: python benchmarks/corpus_robot.py [--jobs 2] [--cases GLOB] [--json FILE] [--rows FILE] [--check] [--reseed K] [--beyond]
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from tests.corpus.measure import BY, breakdown, failures, run_case, summary  # noqa: E402
-from tests.corpus.robot import cases  # noqa: E402
+from tests.corpus.robot import beyond_cases, cases  # noqa: E402
 
 RESEED_STEP = 3000
 """``--reseed K`` adds ``K`` times this to every seed: a multiple of 3, so each case keeps its variant (``Case.variant``)."""
@@ -151,9 +155,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, default=None, help="also write every row and the summary as JSON")
     ap.add_argument("--check", action="store_true", help="exit 1 when a rate of issue 29's 'Done when' does not hold")
     ap.add_argument("--rows", type=Path, default=None, help="keep each row in FILE as it is done, and reuse the rows already there")
+    ap.add_argument("--beyond", action="store_true", help="the logs beyond the design (other axes, rates and loops) instead")
     ap.add_argument("--reseed", type=int, default=0, metavar="K", help="every case with its seed plus K x %d (default 0: the corpus's own)" % RESEED_STEP)
     args = ap.parse_args(argv)
-    chosen = [c for c in cases() if fnmatch.fnmatch(c.name, args.cases)]
+    chosen = [c for c in (beyond_cases() if args.beyond else cases()) if fnmatch.fnmatch(c.name, args.cases)]
     if args.reseed:
         chosen = [dataclasses.replace(c, seed=c.seed + args.reseed * RESEED_STEP) for c in chosen]
     if not chosen:

@@ -21,7 +21,7 @@ import numpy as np
 
 from ilic_cli.errors import IlicError
 from tests.clirun import run_cli
-from tests.corpus.robot import AXES, DWELL_TRAJECTORIES, TOLERANCE, Built, Case, build, score
+from tests.corpus.robot import ALL_AXES, DWELL_TRAJECTORIES, TOLERANCE, Built, Case, build, score
 
 IDENTIFY_TOLERANCE = 0.02
 """``identify --method ls`` on clean dwell-and-move logs: M, Fv, Fc within 2 % (the issue's)."""
@@ -38,7 +38,7 @@ def write_csv(built: Built, path: Path) -> Path:
     log = built.log
     frame = pd.DataFrame({"time": log.t, "position": log["q"], "effort": log["tau"], "reference": log["q_ref"]})
     with path.open("w", encoding="utf-8") as fh:
-        if AXES[built.case.axis].joint == "revolute":
+        if ALL_AXES[built.case.axis].joint == "revolute":
             fh.write("# units: time=s, position=rad, effort=N·m, reference=rad\n")
         frame.to_csv(fh, index=False)
     return path
@@ -79,7 +79,7 @@ def write_ros2(built: Built, path: Path) -> Path:
 
 def controller_flags(case: Case) -> list[str]:
     """The flags a user gives for the loop that ran."""
-    axis = AXES[case.axis]
+    axis = ALL_AXES[case.axis]
     kp, kv = axis.gains()
     return ["--controller", "pd", "--kp", repr(kp), "--kv", repr(kv), "--drive-gain", repr(axis.drive_gain)]
 
@@ -164,7 +164,7 @@ def run_case(case: Case) -> dict[str, Any]:
     t2 = time.perf_counter()
     findings = [(f["effect"], f.get("plant_effect"), f.get("indistinct_from")) for f in diag["findings"]]
     s = score(built, findings)
-    axis = AXES[case.axis]
+    axis = ALL_AXES[case.axis]
     base = {k: diag["base"]["parameters"][k]["value"] for k in ("M", "Fv", "Fc")}
     row: dict[str, Any] = {
         "case": case.name,

@@ -58,14 +58,16 @@ class Axis:
     """Half the range of positions the moves visit (m, rad)."""
     noise: float
     resolution: float
+    bandwidth_hz: float = BANDWIDTH_HZ
+    """The PD loop's bandwidth (damping 0.7)."""
 
     @property
     def units(self) -> tuple[str, str]:
         return ("m", "N") if self.joint == "prismatic" else ("rad", "N·m")
 
     def gains(self) -> tuple[float, float]:
-        """``kp, kv`` of a PD loop of :data:`BANDWIDTH_HZ`, damping 0.7: ``gtau kv = 2 xi w M``, ``gtau kv kp = M w^2``."""
-        w = 2 * math.pi * BANDWIDTH_HZ
+        """``kp, kv`` of a PD loop of :attr:`bandwidth_hz`, damping 0.7: ``gtau kv = 2 xi w M``, ``gtau kv kp = M w^2``."""
+        w = 2 * math.pi * self.bandwidth_hz
         kv = 2 * 0.7 * w * self.truth["M"] / self.drive_gain
         return self.truth["M"] * w * w / (self.drive_gain * kv), kv
 
@@ -78,12 +80,23 @@ AXES: dict[str, Axis] = {
 }
 """The axes: 3+ scales (12 and 200 kg linear, 0.01 and 0.5 kg·m² revolute), both joint types."""
 
+BEYOND_AXES: dict[str, Axis] = {
+    "lin2": Axis("lin2", "prismatic", {"M": 2.0, "Fv": 8.0, "Fc": 1.5}, 4.0, 0.5, 0.1, 2e-7, 1e-7, bandwidth_hz=14.0),
+    "lin50": Axis("lin50", "prismatic", {"M": 50.0, "Fv": 120.0, "Fc": 15.0}, 60.0, 0.4, 0.3, 1e-6, 5e-7, bandwidth_hz=6.0),
+    "rev0.002": Axis("rev0.002", "revolute", {"M": 0.002, "Fv": 0.004, "Fc": 0.01}, 0.03, 4.0, 2.0, 2e-5, 2e-5, bandwidth_hz=15.0),
+    "rev3": Axis("rev3", "revolute", {"M": 3.0, "Fv": 2.0, "Fc": 6.0}, 10.0, 1.0, 1.0, 1e-5, 1.2e-5, bandwidth_hz=8.0),
+}
+"""Axes beyond the design (:func:`beyond_cases`): other masses, friction ratios, encoders and loop bandwidths (6 to 15 Hz)."""
+ALL_AXES: dict[str, Axis] = {**AXES, **BEYOND_AXES}
+
 TRAJECTORIES = ("s-curve", "trapezoid", "chirp", "multisine")
 """Point-to-point moves with dwells (raised-cosine or linear speed ramps), a chirp, a multisine."""
 DWELL_TRAJECTORIES = ("s-curve", "trapezoid")
 
 RATES_HZ = (500.0, 1000.0, 2000.0)
 EDGE_RATES_HZ = (250.0, 8000.0)
+BEYOND_RATES_HZ = (400.0, 1500.0, 4000.0)
+"""Rates of :func:`beyond_cases`: none a power of two times 1 kHz's, nor the design's."""
 
 
 def noise_effects(axis: Axis, kind: str) -> dict[str, dict[str, float]]:
@@ -298,10 +311,36 @@ def cases() -> list[Case]:
     return out
 
 
+def beyond_cases() -> list[Case]:
+    """Logs beyond the design, to check that its rates do not rest on its own axes, rates and loop (``--beyond``).
+
+    :data:`BEYOND_AXES` (2 and 50 kg linear, 0.002 and 3 kg·m² revolute; PD loops of 6 to 15 Hz) at
+    :data:`BEYOND_RATES_HZ`: clean, every axis x rate x dwell trajectory and each axis's chirp and multisine (32 logs);
+    every effect each axis can have, once, the rate, trajectory, noise model and size (0.5 or 1 point) rotating (34 logs).
+    """
+    out: list[Case] = []
+    seed = 5000
+    for ai, a in enumerate(BEYOND_AXES):
+        for ri, fs in enumerate(BEYOND_RATES_HZ):
+            for ti, tr in enumerate(DWELL_TRAJECTORIES):
+                seed += 1
+                out.append(Case(a, tr, fs, NOISE[(ai + ri + ti) % 3], seed, writer=("csv", "library")[(ai + ri + ti) % 2]))
+        for ti, tr in enumerate(TRAJECTORIES[2:]):
+            seed += 1
+            out.append(Case(a, tr, BEYOND_RATES_HZ[(ai + ti) % 3], NOISE[(ai + ti + 1) % 3], seed, writer=_writer(a, ai + ti)))
+    for ai, a in enumerate(BEYOND_AXES):
+        effects = REVOLUTE_EFFECTS if BEYOND_AXES[a].joint == "revolute" else PRISMATIC_EFFECTS
+        for ei, eid in enumerate(effects):
+            seed += 1
+            k = ai + ei
+            out.append(Case(a, TRAJECTORIES[k % 4], BEYOND_RATES_HZ[k % 3], NOISE[k % 3], seed, (eid,), (0.5, 1.0)[k % 2], writer=_writer(a, k)))
+    return out
+
+
 def _writer(axis: str, i: int) -> str:
     if i % 3 == 0:
         return "csv"
-    if i % 6 == 1 and AXES[axis].joint == "prismatic":
+    if i % 6 == 1 and ALL_AXES[axis].joint == "prismatic":
         return "ros2"
     return "library"
 
@@ -320,7 +359,7 @@ def simulate(case: Case, effects: dict[str, dict[str, float]]) -> RunLog:
     from plant.controllers import PDSettings  # deferred: the plant's compiled loop (numba)
     from plant.replay import simulate_replay
 
-    axis = AXES[case.axis]
+    axis = ALL_AXES[case.axis]
     t, q_ref = reference(axis, case.trajectory, case.fs_hz, case.seed, case.duration_s)
     pos, force = axis.units
     units = {"t": "s", "q": pos, "q_ref": pos, "tau": force}
@@ -352,7 +391,7 @@ def calibrate(case: Case, eid: str, target: float, base: float) -> tuple[float, 
     ends outside :data:`BAND_PTS`, the size tried whose change was inside the band and nearest the target is taken
     (none inside: the bisection's, and the case's ``size_pts`` says so).
     """
-    axis = AXES[case.axis]
+    axis = ALL_AXES[case.axis]
 
     def change(s: float) -> float:
         return relative_error_pct(simulate(case, {eid: effect_of_size(eid, s, axis, case.variant, case.duration_s)})) - base
@@ -398,7 +437,7 @@ class Built:
 
 def build(case: Case) -> Built:
     """Simulate ``case``: calibrate each effect's size on this log (its clean twin gives the base error), then the log with all."""
-    axis = AXES[case.axis]
+    axis = ALL_AXES[case.axis]
     base = relative_error_pct(simulate(case, {}))
     effects: dict[str, dict[str, float]] = {}
     for eid in case.effects:

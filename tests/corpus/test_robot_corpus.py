@@ -18,7 +18,21 @@ import pytest
 
 from ilic_cli.effects import catalogue_ids
 from tests.corpus.measure import IDENTIFY_TOLERANCE, failures, run_case, summary
-from tests.corpus.robot import AXES, BAND_PTS, DWELL_TRAJECTORIES, EDGE_RATES_HZ, RATES_HZ, TOLERANCE, TRAJECTORIES, build, cases, ci_subset
+from tests.corpus.robot import (
+    AXES,
+    BAND_PTS,
+    BEYOND_AXES,
+    BEYOND_RATES_HZ,
+    DWELL_TRAJECTORIES,
+    EDGE_RATES_HZ,
+    RATES_HZ,
+    TOLERANCE,
+    TRAJECTORIES,
+    beyond_cases,
+    build,
+    cases,
+    ci_subset,
+)
 
 SUBSET = ci_subset()
 
@@ -39,6 +53,21 @@ def test_the_design_covers_the_issues_axes() -> None:
     pairs = Counter(c.effects for c in all_cases if len(c.effects) == 2)
     assert len(pairs) >= 4 and all(n >= 3 for n in pairs.values())
     assert {(c.fs_hz, AXES[c.axis].joint) for c in SUBSET} == {(f, j) for f in (*RATES_HZ, *EDGE_RATES_HZ) for j in ("prismatic", "revolute")}
+
+
+def test_the_logs_beyond_the_design_share_none_of_its_axes_rates_or_loop() -> None:
+    """``--beyond``: other masses (2 and 50 kg, 0.002 and 3 kg·m²), rates (400 Hz, 1.5 and 4 kHz) and PD loops; every effect
+    each axis can have, clean logs on every axis x rate x dwell trajectory, all four trajectories, both writers."""
+    beyond = beyond_cases()
+    assert len({c.name for c in beyond}) == len(beyond) and not {c.name for c in beyond} & {c.name for c in cases()}
+    assert {c.axis for c in beyond} == set(BEYOND_AXES) and not set(BEYOND_AXES) & set(AXES)
+    assert {c.fs_hz for c in beyond} == set(BEYOND_RATES_HZ) and not set(BEYOND_RATES_HZ) & {*RATES_HZ, *EDGE_RATES_HZ}
+    assert {a.bandwidth_hz for a in BEYOND_AXES.values()} & {a.bandwidth_hz for a in AXES.values()} == set()
+    assert {c.trajectory for c in beyond} == set(TRAJECTORIES) and {"csv", "library"} <= {c.writer for c in beyond}
+    for name, axis in BEYOND_AXES.items():
+        wanted = (set(catalogue_ids(axis.joint)) - {"offset"}) | {"friction_drift"}
+        assert {c.effects[0] for c in beyond if c.axis == name and not c.clean} == wanted, name
+        assert {(c.fs_hz, c.trajectory) for c in beyond if c.axis == name and c.clean} >= {(f, t) for f in BEYOND_RATES_HZ for t in DWELL_TRAJECTORIES}
 
 
 def test_a_case_is_deterministic_and_sized_in_the_band() -> None:
