@@ -10,11 +10,32 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.locate import Region, locate
+from ilic_cli.filtering import decimate_matlab
 from ilic_cli.idim_ls import IDIMData, LSSettings
+from ilic_cli.lsq import relative_error_pct
 from ilic_cli.runlog import RunLog, joint_type
 from ilic_cli.simulation.replay import relative_errors, replay
 
-__all__ = ["SimulationComparison", "compare_simulation"]
+__all__ = ["SimulationComparison", "band_force_error", "band_force_error_pct", "compare_simulation"]
+
+
+def band_force_error(rec: RunLog, sim: RunLog, decimation: int) -> np.ndarray:
+    """Simulated minus recorded force, decimated as the IDIM system is (every decimated sample of the log)."""
+    return decimate_matlab(np.asarray(sim["tau"]) - np.asarray(rec["tau"]), max(decimation, 1))
+
+
+def band_force_error_pct(rec: RunLog, sim: RunLog, ls: LSSettings) -> float:
+    """The replayed force against the recorded one in the inverse model's band (:func:`band_force_error`), the filters'
+    edges (``ls.trim`` samples each side) left out (%): what the model can explain, where the full-band figure also
+    counts the loop's answer to the sensor noise, which a noise-free replay does not have (a 3 kg·m² joint at 4 kHz,
+    clean: 59.7 % in full, 2 % in the band)."""
+    n = min(len(rec), len(sim))
+    if n < len(rec) or n < len(sim):  # a simulated log of another length: compared on the common part
+        rec, sim = rec.slice(0, n), sim.slice(0, n)
+    r = max(ls.at_rate(rec.fs_hz).decimation, 1)
+    edge = slice(ls.trim // r, n // r - ls.trim // r)
+    tau = decimate_matlab(np.asarray(rec["tau"]), r)[edge]
+    return relative_error_pct(tau, tau + band_force_error(rec, sim, r)[edge])
 
 
 @dataclass
@@ -59,12 +80,12 @@ def compare_simulation(
         if "q_ref" not in log:
             return SimulationComparison({}, None, "replay", note="no simulation comparison: the log has no reference position (q_ref)")
         sim0, source = replay(log, before_params, before_effects), "replay through the plant"
-    before = relative_errors(log, sim0, ls)
+    before = relative_errors(log, sim0, ls) | {"force_in_band": band_force_error_pct(log, sim0, ls)}
     after = None
     sim1 = None
     if after_effects is not None and "q_ref" in log:
         sim1 = after_sim if after_sim is not None else replay(log, after_params, after_effects)
-        after = relative_errors(log, sim1, ls)
+        after = relative_errors(log, sim1, ls) | {"force_in_band": band_force_error_pct(log, sim1, ls)}
     n = min(len(log), len(sim0))
     tau_s = np.asarray(sim0["tau"][:n])
     tau_r = np.asarray(log["tau"][:n])

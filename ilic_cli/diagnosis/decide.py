@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.diagnosis.compare import band_force_error
 from ilic_cli.diagnosis.drift import GivenDrift
 from ilic_cli.diagnosis.heldout_replay import (
     FOLD_XATOL_STEPS,
     REPLAY_SEED,
     HeldoutReplays,
-    band_force_error,
     decision_sensor,
     fold_value,
     noisy_output_error,

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.diagnosis.compare import band_force_error, band_force_error_pct
 from ilic_cli.diagnosis.drift import GivenDrift
 from ilic_cli.diagnosis.fold_plant import MIN_PLANT_FOLDS, fitted_plant, fold_fit, not_a_plant
 from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
@@ -69,11 +70,6 @@ def _replayed_plant(log: RunLog, plant: tuple[dict[str, float], dict[str, Any]],
         return None
 
 
-def band_force_error(rec: RunLog, sim: RunLog, decimation: int) -> np.ndarray:
-    """Simulated minus recorded force, decimated as the IDIM system is (every decimated sample of the log)."""
-    return decimate_matlab(np.asarray(sim["tau"]) - np.asarray(rec["tau"]), max(decimation, 1))
-
-
 def noisy_output_error(log: RunLog, ls: LSSettings, rigid: dict[str, float], effects: dict[str, Any], sensor: dict[str, Any]) -> float:
     """The closed-loop output error (%) of a plant replayed with the deciding replays' ``sensor`` noise (seed :data:`REPLAY_SEED`).
 
@@ -84,10 +80,7 @@ def noisy_output_error(log: RunLog, ls: LSSettings, rigid: dict[str, float], eff
         sim = replay(log, rigid, {**sensor, **effects}, seed=REPLAY_SEED)
     except ParameterError:
         return float("inf")
-    r = max(ls.at_rate(log.fs_hz).decimation, 1)
-    edge = slice(ls.trim // r, len(log) // r - ls.trim // r)
-    tau = decimate_matlab(np.asarray(log["tau"]), r)[edge]
-    return relative_error_pct(tau, tau + band_force_error(log, sim, r)[edge])
+    return band_force_error_pct(log, sim, ls)
 
 
 def decision_sensor(

@@ -47,7 +47,8 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.heldout_replay import band_force_error, replay_decide
+from ilic_cli.diagnosis.compare import band_force_error
+from ilic_cli.diagnosis.heldout_replay import replay_decide
 from ilic_cli.diagnosis.select import Searcher, Step, fit_system, moving_rows, system
 from ilic_cli.diagnosis.sensor import loop_corrected, position_noise, sensor_effects
 from ilic_cli.diagnosis.stats import normal_isf

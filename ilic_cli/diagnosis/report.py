@@ -10,6 +10,7 @@ import numpy as np
 
 import ilic_cli.diagnosis.dwell as dwell
 import ilic_cli.diagnosis.segments as segments
+from ilic_cli.diagnosis.compare import SimulationComparison
 from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.fits import INVERSE_METHOD
 from ilic_cli.diagnosis.locate import Region
@@ -195,10 +196,8 @@ def _estimates_and_simulation(diag: Diagnosis, at_dwells: bool) -> list[str]:
         lines += [f"Estimates: {how}; {diag.refit.reason}.{meaning}", ""]
     sim = diag.simulation
     if sim is not None and sim.before:
-        after = f" -> {_pct(sim.after['force'])}" if sim.after else ""
         lines += [
-            f"Simulation against recording ({sim.source}): force error {_pct(sim.before['force'])}{after}, "
-            f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}."
+            simulation_sentence(sim)
             + (
                 " This replay is noise-free, and Stribeck friction at the dwells shows in the creep the sensor noise drives there: "
                 "the replays that decided carry that noise (their figures below)."
@@ -289,6 +288,30 @@ def _decisions_table(diag: Diagnosis) -> list[str]:
         lines.append(f"| {dv.effect} | {force} | {pos} | {p} | {dv.reason} |")
     lines.append("")
     return lines
+
+
+NOISE_BAND_RATIO = 2.0
+"""A replay's full-band force error above this multiple of its error in the inverse model's band is said to be the sensor
+noise's (the loop's answer to it): on the clean logs beyond the corpus's design, 59.7 % in full for 2 % in band at 4 kHz."""
+
+
+def simulation_sentence(sim: SimulationComparison) -> str:
+    """The replay against the recording in words: the force error in full and in the inverse model's band (and, when the
+    full-band figure is over :data:`NOISE_BAND_RATIO` times the band's, whose it is), position and velocity."""
+    after = f" -> {_pct(sim.after['force'])}" if sim.after else ""
+    band, noise_words = "", ""
+    if "force_in_band" in sim.before:
+        band_after = f" -> {_pct(sim.after['force_in_band'])}" if sim.after and "force_in_band" in sim.after else ""
+        band = f" (in the inverse model's band {_pct(sim.before['force_in_band'])}{band_after})"
+        if sim.before["force"] > NOISE_BAND_RATIO * sim.before["force_in_band"]:
+            noise_words = (
+                " The full-band figure is mostly the loop's answer to the sensor noise above that band, which a noise-free"
+                " replay does not have; the band's is what the model explains."
+            )
+    return (
+        f"Simulation against recording ({sim.source}): force error {_pct(sim.before['force'])}{after}{band}, "
+        f"position {_pct(sim.before['position'])}, velocity {_pct(sim.before['velocity'])}.{noise_words}"
+    )
 
 
 def _micro(joint: str) -> str:

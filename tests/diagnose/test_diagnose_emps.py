@@ -66,6 +66,10 @@ def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> 
     assert timing["documented"]["force"] == pytest.approx(5.86, abs=0.005)  # the documented loop: published 5.848 % (variable-step solver)
     assert sim["before"] == pytest.approx(4.55, abs=0.005) and sim["before"] == timing["refined"]["force"]
     assert sim["after"] == pytest.approx(3.42, abs=0.005)
+    # the same replays in the inverse model's band: the rigid one's is the closed-loop output error the refit starts from
+    band = doc["simulation"]["before"]["force_in_band"], doc["simulation"]["after"]["force_in_band"]
+    assert band == (pytest.approx(4.50, abs=0.005), pytest.approx(3.38, abs=0.005))
+    assert "force error 4.55 % -> 3.42 % (in the inverse model's band 4.50 % -> 3.38 %), position" in (tmp_path / "diag" / "report.md").read_text()
     effects = doc["model_file"]["effects"]
     # friction below Coulomb at low speed (Fs = -6.3 N) is seen and not named Stribeck
     assert "stribeck" not in effects and "static friction below Coulomb (Fs = -6.3" in r.stdout and "is not Stribeck friction" in r.stdout
