@@ -28,7 +28,7 @@ def band_force_error_pct(rec: RunLog, sim: RunLog, ls: LSSettings) -> float:
     """The replayed force against the recorded one in the inverse model's band (:func:`band_force_error`), the filters'
     edges (``ls.trim`` samples each side) left out (%): what the model can explain, where the full-band figure also
     counts the loop's answer to the sensor noise, which a noise-free replay does not have (a 3 kg·m² joint at 4 kHz,
-    clean: 59.7 % in full, 2 % in the band)."""
+    clean: 59.7 % in full, 4.3 % in the band)."""
     n = min(len(rec), len(sim))
     if n < len(rec) or n < len(sim):  # a simulated log of another length: compared on the common part
         rec, sim = rec.slice(0, n), sim.slice(0, n)

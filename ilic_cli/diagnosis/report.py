@@ -292,7 +292,7 @@ def _decisions_table(diag: Diagnosis) -> list[str]:
 
 NOISE_BAND_RATIO = 2.0
 """A replay's full-band force error above this multiple of its error in the inverse model's band is said to be the sensor
-noise's (the loop's answer to it): on the clean logs beyond the corpus's design, 59.7 % in full for 2 % in band at 4 kHz."""
+noise's (the loop's answer to it): on the clean logs beyond the corpus's design, 59.7 % in full for 4.3 % in band at 4 kHz."""
 
 
 def simulation_sentence(sim: SimulationComparison) -> str:
