@@ -96,7 +96,7 @@ DWELL_TRAJECTORIES = ("s-curve", "trapezoid")
 RATES_HZ = (500.0, 1000.0, 2000.0)
 EDGE_RATES_HZ = (250.0, 8000.0)
 BEYOND_RATES_HZ = (400.0, 1500.0, 4000.0)
-"""Rates of :func:`beyond_cases`: none a power of two times 1 kHz's, nor the design's."""
+"""Rates of :func:`beyond_cases`: none of the design's (400 Hz and 1.5 kHz between its rates, 4 kHz between 2 and 8 kHz)."""
 
 
 def noise_effects(axis: Axis, kind: str) -> dict[str, dict[str, float]]:
