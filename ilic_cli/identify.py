@@ -396,10 +396,9 @@ def _validate(report: IdentifyReport, model: Any, others: list[RunLog], settings
         report.warnings.extend(op.warnings)
         if op.saturated is not None:
             report.warnings.append(f"validation log {osrc}: {op.saturation_note()}")
+        hold = identification_hold_s(op) + settings.model.lag_s  # the hold, and the drive lag the model states
         for lbl, theta in estimates:
-            res = cross_validate(
-                theta, vlog.t, vlog["q"], vlog["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments, hold_s=identification_hold_s(op)
-            )
+            res = cross_validate(theta, vlog.t, vlog["q"], vlog["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments, hold_s=hold)
             report.validation.append(Validation(osrc, lbl, res, _open_loop_figure(vlog, plants.get(lbl), settings.oe, report.warnings)))
         for oe in report.output_errors():
             oe_res = inverse_model_error(oe, vlog, op, effects, ls_settings)

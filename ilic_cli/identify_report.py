@@ -13,6 +13,7 @@ import numpy as np
 
 from ilic_cli.closed_loop_id import STD_SOURCE
 from ilic_cli.effects import unit_of
+from ilic_cli.estimators.base import stated_lag_s
 from ilic_cli.filtering import DECIMATION_RULE
 from ilic_cli.idim_ls import NOT_WHITE_WIDENING, IDIMLSResult
 from ilic_cli.jointlog import position_unit
@@ -75,12 +76,7 @@ def to_markdown(report: IdentifyReport) -> str:
         ]
         out += _robust_lines(report.ls)
         out += _correlated_lines(report.ls)
-        u = report.usable
-        if u is not None and u.at_rest and u.rest is not None:  # the rule for samples at rest, stated where it acted
-            held = f"; the regressor evaluated {1e3 * u.hold_s:.4g} ms later (the drive's held command)" if u.hold_s else ""
-            ls = report.ls.settings
-            rule = f"; rows decimated by {ls.decimation} ({DECIMATION_RULE if ls.band_hz is not None else 'as given'})"
-            out += [f"{u.usable} of {u.decimated} decimated rows fitted: {u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){held}{rule}.", ""]
+        out += _rows_lines(report, report.ls)
     out += _closed_loop_markdown(report)
     out += _output_error_markdown(report)
     if report.ilic is not None:
@@ -195,6 +191,34 @@ def _closed_loop_markdown(report: IdentifyReport) -> list[str]:
         )
         out.append("")
     return out
+
+
+def _rows_lines(report: IdentifyReport, ls_result: IDIMLSResult) -> list[str]:
+    """The rows IDIM-LS fitted (the rule for samples at rest, stated where it acted) and when it evaluated its regressor."""
+    u = report.usable
+    held = _regressor_timing(ls_result.hold_s, stated_lag_s(report.effects))
+    if u is not None and u.at_rest and u.rest is not None:
+        ls = ls_result.settings
+        rule = f"; rows decimated by {ls.decimation} ({DECIMATION_RULE if ls.band_hz is not None else 'as given'})"
+        timing = f"; {held}" if held else ""
+        return [f"{u.usable} of {u.decimated} decimated rows fitted: {u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){timing}{rule}.", ""]
+    return [f"{held[0].upper()}{held[1:]}.", ""] if held else []
+
+
+def _regressor_timing(shift_s: float, lag_s: float) -> str:
+    """When IDIM-LS evaluated its regressor (``shift_s`` after each sample: the hold, and the model's stated drive ``lag_s``);
+    ``""`` at the samples themselves."""
+    if shift_s == 0.0:
+        return ""
+    hold = shift_s - lag_s
+    why = (
+        "the drive's held command"
+        if lag_s == 0.0
+        else f"the stated drive lag of {1e3 * lag_s:.4g} ms"
+        if abs(hold) < 1e-12
+        else (f"the drive's held command and the stated drive lag of {1e3 * lag_s:.4g} ms")
+    )
+    return f"the regressor evaluated {1e3 * shift_s:.4g} ms later ({why})"
 
 
 def _output_error_markdown(report: IdentifyReport) -> list[str]:

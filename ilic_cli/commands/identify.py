@@ -25,6 +25,7 @@ from ilic_cli.commands.common import (
     structure_or_model_file,
 )
 from ilic_cli.commands.robot_identify import identify_options
+from ilic_cli.effects import get as get_effect
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.estimators.base import ModelSpec, regressor_effects
 from ilic_cli.identify import IdentifyReport, IdentifySettings, identify_with
@@ -84,7 +85,10 @@ from ilic_cli.runlog import RunLog
     "effects",
     multiple=True,
     metavar="ID[:k=v,...]",
-    help="Identify this effect's regressor columns too (IDIM-LS; nonlinear parameters fixed at the given or default values); repeatable.",
+    help=(
+        "Identify this effect's regressor columns too (IDIM-LS; nonlinear parameters fixed at the given or default values); repeatable. "
+        "A drive lag, delay:delay=-SECONDS, evaluates the regressor that much later and goes into the closed-loop methods' plant."
+    ),
 )
 @click.option(
     "--gear-ratio",
@@ -230,6 +234,8 @@ def _model_spec(o: Mapping[str, Any]) -> ModelSpec:
     try:
         for text in o["effects"]:
             eid, values = parse_effect_option(text)
+            if get_effect(eid).shift and not values:  # a lag has no default a fit could start from: it is the log's, stated
+                raise IlicError("--effect", f"'{text}': a drive lag is stated with its value, e.g. {eid}:{eid}=-0.00023 (s; negative: the force acts later)")
             chosen.update(regressor_effects({eid: values}, mass, keep_all=True)[0])
     except ParameterError as exc:
         raise exc.at("--effect") from None

@@ -57,7 +57,7 @@ class IDIMLS:
                 settings,
                 valid=prepared.valid,
                 segments=prepared.segments,
-                hold_s=identification_hold_s(prepared),
+                hold_s=identification_hold_s(prepared) + model.lag_s,
             )
         except ValueError as exc:
             raise IdentificationError(prepared.source, str(exc)) from None

@@ -15,7 +15,7 @@ from ilic_cli import parameters
 from ilic_cli.closed_loop_id import plant_of
 from ilic_cli.effects import get
 from ilic_cli.errors import IlicError
-from ilic_cli.estimators.base import Fit, LoopSimulator, ModelSpec, with_effects
+from ilic_cli.estimators.base import Fit, LoopSimulator, ModelSpec, stated_lag_s, with_effects
 from ilic_cli.estimators.inverse import IDIMLS
 from ilic_cli.idim_ls import LSSettings, cross_validate
 from ilic_cli.lsq import LSResult
@@ -85,5 +85,5 @@ def inverse_model_error(oe: OEResult, log: RunLog, prepared: PreparedLog, effect
         theta = np.array([values[n] for n in m.names], dtype=np.float64)
     except (KeyError, IlicError):
         return None  # the fitted plant has no inverse model of this form
-    hold = identification_hold_s(prepared)
+    hold = identification_hold_s(prepared) + stated_lag_s(effects)
     return cross_validate(theta, log.t, log["q"], log["tau"], prepared.fs_hz, m, ls_settings, valid=prepared.valid, segments=prepared.segments, hold_s=hold)
