@@ -210,14 +210,12 @@ def _regressor_timing(shift_s: float, lag_s: float) -> str:
     ``""`` at the samples themselves."""
     if shift_s == 0.0:
         return ""
-    hold = shift_s - lag_s
-    why = (
-        "the drive's held command"
-        if lag_s == 0.0
-        else f"the stated drive lag of {1e3 * lag_s:.4g} ms"
-        if abs(hold) < 1e-12
-        else (f"the drive's held command and the stated drive lag of {1e3 * lag_s:.4g} ms")
-    )
+    if lag_s == 0.0:
+        why = "the drive's held command"
+    elif abs(shift_s - lag_s) < 1e-12:  # no hold (no rows at rest, or a force that is no held command): the lag alone
+        why = f"the stated drive lag of {1e3 * lag_s:.4g} ms"
+    else:
+        why = f"the drive's held command and the stated drive lag of {1e3 * lag_s:.4g} ms"
     return f"the regressor evaluated {1e3 * shift_s:.4g} ms later ({why})"
 
 

@@ -157,7 +157,7 @@ class IDIMLSResult:
     """The standard deviations widened for the residual's autocorrelation, beside eq. 9's (:func:`robust_std`)."""
 
     def to_dict(self) -> dict[str, Any]:
-        d = {"method": "IDIM-LS", "model": self.model, **self.result.to_dict(), "settings": self.settings.to_dict()}
+        d = {"method": "IDIM-LS", "model": self.model, **self.result.to_dict(), "settings": self.settings.to_dict(), "regressor_delay_s": self.hold_s}
         if self.robust is not None:
             d["robust_std"] = self.robust.to_dict(self.result.names, self.result.std)
         if (pair := self.most_correlated()) is not None:

@@ -63,7 +63,9 @@ def test_the_command_takes_the_lag_and_its_model_file_keeps_it(tmp_path: Path) -
     flags = controller_flags(CASE)
     r = run_cli("identify", str(path), "--method", "ls", *flags, "--effect", f"delay:delay={-LOOP_LAG_S!r}", "--format", "json", "--out", str(tmp_path / "d"))
     assert r.status == 0, r.stderr
-    fc = json.loads(r.stdout)["ls"]["parameters"]["Fc"]["value"]
+    ls = json.loads(r.stdout)["ls"]
+    fc = ls["parameters"]["Fc"]["value"]
+    assert ls["regressor_delay_s"] == pytest.approx(1.25e-3 + LOOP_LAG_S)  # the hold and the lag (usable_rows: the hold's rule alone)
     model = json.loads((tmp_path / "d" / "model.json").read_text())
     assert model["effects"] == {"delay": {"delay": pytest.approx(-LOOP_LAG_S)}}
     again = run_cli("identify", str(path), "--method", "ls", *flags, "--model", str(tmp_path / "d" / "model.json"), "--format", "json")
