@@ -12,8 +12,9 @@ import numpy as np
 from ilic_cli.diagnosis.locate import Region, locate
 from ilic_cli.filtering import decimate_matlab
 from ilic_cli.idim_ls import IDIMData, LSSettings
+from ilic_cli.jointlog import position_unit
 from ilic_cli.lsq import relative_error_pct
-from ilic_cli.runlog import RunLog, joint_type
+from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.replay import relative_errors, replay
 
 __all__ = ["SimulationComparison", "band_force_error", "band_force_error_pct", "compare_simulation"]
@@ -89,11 +90,15 @@ def compare_simulation(
     n = min(len(log), len(sim0))
     tau_s = np.asarray(sim0["tau"][:n])
     tau_r = np.asarray(log["tau"][:n])
-    s = slice(ls.trim, n)
-    e_full = np.zeros(len(data.kin.qd))
-    m = min(len(e_full), n - ls.trim)
-    e_full[:m] = (tau_s[s] - tau_r[s])[:m]
-    e_dec = data.decimate(e_full)[rows]
+
+    def on_rows(tau_sim: np.ndarray) -> np.ndarray:
+        """The replay's force minus the recorded one, decimated as the IDIM rows are, on the rows used."""
+        e_full = np.zeros(len(data.kin.qd))
+        m = min(len(e_full), n - ls.trim)
+        e_full[:m] = (tau_sim[ls.trim : n] - tau_r[ls.trim : n])[:m]
+        return data.decimate(e_full)[rows]
+
+    e_dec = on_rows(tau_s)
     dec = data.decimate
     assert data.kin.q is not None  # the residual's kinematics carry the position (located against it)
     located = locate(
@@ -105,9 +110,11 @@ def compare_simulation(
         W=data.W[rows],
         fs_hz=log.fs_hz / ls.at_rate(log.fs_hz).decimation,
         alpha=alpha,
-        q_unit="rad" if joint_type(log.units.get("q")) == "revolute" else "m",
+        q_unit=position_unit(data.joint),
     )
-    signals = {"t": log.t[:n], "tau": tau_r, "tau_before": tau_s}
+    # in full, and in the inverse model's band on the rows (what the model explains: force_in_band)
+    signals = {"t": log.t[:n], "tau": tau_r, "tau_before": tau_s, "t_band": data.t_dec[rows], "before_band": e_dec}
     if sim1 is not None:
         signals["tau_after"] = np.asarray(sim1["tau"][:n])
+        signals["after_band"] = on_rows(signals["tau_after"])
     return SimulationComparison(before, after, source, located, note, signals)

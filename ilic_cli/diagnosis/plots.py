@@ -18,6 +18,13 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
+def _broken_at_gaps(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``t, y`` with a NaN where the rows skip time (the rows at rest left out), so that a line is not drawn across them."""
+    step = np.diff(t)
+    gaps = np.flatnonzero(step > 1.5 * np.median(step)) + 1 if len(step) else np.zeros(0, dtype=int)
+    return np.insert(np.asarray(t, dtype=np.float64), gaps, np.nan), np.insert(np.asarray(y, dtype=np.float64), gaps, np.nan)
+
+
 def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     """Write the PNG figures into ``out_dir`` atomically; return their paths."""
     import matplotlib  # deferred: matplotlib is slow to import, and only --out draws
@@ -80,10 +87,14 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
     if sim is not None and "tau_before" in sim.signals:
         s = sim.signals
         t, diffs = s["t"], [s["tau_before"] - s["tau"]]
-        axes[1].plot(t, diffs[0], lw=0.4, label="simulation - recording, rigid")
+        axes[1].plot(t, diffs[0], lw=0.4, alpha=0.5, label="simulation - recording, rigid")
         if "tau_after" in s:
             diffs.append(s["tau_after"] - s["tau"])
-            axes[1].plot(t, diffs[1], lw=0.4, label="simulation - recording, augmented")
+            axes[1].plot(t, diffs[1], lw=0.4, alpha=0.5, label="simulation - recording, augmented")
+        # the same in the inverse model's band (decimated as the rows): at a high rate the full band is mostly the loop's answer to the sensor noise
+        for key, color, who in (("before_band", "k", "rigid"), ("after_band", "tab:red", "augmented")):
+            if key in s:
+                axes[1].plot(*_broken_at_gaps(s["t_band"], s[key]), lw=1.2, color=color, label=f"{who}, in the inverse model's band")
         axes[1].set_ylabel(f"force difference ({force})")
     else:
         t, diffs = r["t"], [r["before"], r["after"]]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
@@ -114,3 +115,25 @@ def test_emps_every_kept_effect_lowers_the_replay_error_on_pulses(emps_mat: Path
     # its own loop-corrected sensor noise (the pulse run: 0.07 um of white noise before the correction, off a grid);
     # noise-free the figures were 5.24 % -> 4.52 %, with the uncorrected noise 5.32 % -> 4.62 %
     assert kept[0].validation_before == pytest.approx(5.27, abs=0.005) and kept[-1].validation_after == pytest.approx(4.57, abs=0.005)
+
+
+def test_the_replays_force_difference_is_kept_in_the_models_band_too() -> None:
+    """The plot's in-band traces: the replay minus the recording decimated as the IDIM rows, on the rows used (compare.py);
+    on a corpus log with a concealed payload change (diagnosed once for the session: test_corpus_rates has it too)."""
+    from tests.diagnose.corpus_cache import diagnosed
+
+    diag = diagnosed("payload_change-trapezoid-current_loop-s242")
+    assert diag.simulation is not None
+    s = diag.simulation.signals
+    assert len(s["t_band"]) == len(s["before_band"]) == len(s["after_band"]) == diag.rows_used
+    assert np.all(np.diff(s["t_band"]) > 0) and np.all(np.isfinite(s["before_band"])) and np.all(np.isfinite(s["after_band"]))
+    full, band = np.sqrt(np.mean((s["tau_before"] - s["tau"]) ** 2)), np.sqrt(np.mean(s["before_band"] ** 2))
+    assert 0 < band < full  # here 2.6 N RMS of 14.2: the rest is the loop's answer to the sensor noise
+    assert np.sqrt(np.mean(s["after_band"] ** 2)) < band  # the augmented replay lower there too
+
+
+def test_a_line_is_broken_where_the_rows_skip_time() -> None:
+    from ilic_cli.diagnosis.plots import _broken_at_gaps
+
+    t, y = _broken_at_gaps(np.array([0.0, 0.01, 0.02, 0.5, 0.51]), np.arange(5.0))
+    assert np.array_equal(np.isnan(t), [False, False, False, True, False, False]) and np.isnan(y[3]) and y[4] == 3.0
