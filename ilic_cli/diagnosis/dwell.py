@@ -81,6 +81,12 @@ HALVINGS = 3
 impulse's step (a factor 2) and ``vs``'s (1.61) to an eighth: each within a sixteenth of its step (a factor 1.044 and
 1.030), two replays a halving, twelve a fold."""
 
+PROFILE_RISES = 3
+"""A profile of the search (:func:`least_along`) is left once the training error has risen at this many consecutive
+points past its least so far: along each profile the Stribeck valley has one minimum (a level beyond it sticks the axis
+longer at every stop, a ``vs`` beyond it lengthens the impulse of every passage), so three rises (a factor 8 of the
+impulse, 4.2 of ``vs``) end it. On a clean log the impulse's profile rises from its least level: 4 replays a fold, not 11."""
+
 VS_EVERY = 4
 """The ``vs`` searched: every this many values of the effect's own grid (1-40 % of the top speed, 32 values)."""
 
@@ -147,7 +153,10 @@ def search(step: Step, vs: np.ndarray, impulse: np.ndarray, training_error: Call
     the proposal's ``vs`` (the middle of its grid) first, the quantity the
     loop fixes best; the ``vs`` profile at the best impulse; and the impulse's
     profile, then the ``vs`` profile, again while the best point moves; every
-    point is kept, so the grid points visited are each replayed once. An
+    point is kept, so the grid points visited are each replayed once, and each
+    profile is walked upwards and left three rises past its least
+    (:func:`least_along`: the same point as the whole profile's least, with
+    fewer replays). An
     impulse on the grid's edge at the middle ``vs`` is no estimate (the least
     impulse tried: no Stribeck friction; a clean log's search ends there). The
     estimate is then refined between the grid's points, the impulse then
@@ -171,16 +180,23 @@ def search(step: Step, vs: np.ndarray, impulse: np.ndarray, training_error: Call
             err[i, j] = _finite(training_error(Step(step.effect, float(vs[i]), level=(float(impulse[j] / vs[i]),))))
         return err[i, j]
 
+    def along_vs(j: int) -> int:  # the least vs at impulse j
+        return least_along(len(vs), lambda k: at(k, j))
+
+    def along_impulse(i: int) -> int:  # the least impulse at vs i
+        return least_along(len(impulse), lambda k: at(i, k))
+
     i = int(np.argmin(np.abs(np.log(vs / float(step.value)))))  # the proposal's vs
-    j = min(range(len(impulse)), key=lambda k: at(i, k))
+
+    j = along_impulse(i)
     if j in (0, len(impulse) - 1):  # on the grid's edge at the middle vs: no estimate, and no more replays
         return None
     for _ in range(len(vs) + len(impulse)):  # alternate the profiles while the best point moves (each visits new points)
-        i1 = min(range(len(vs)), key=lambda k: at(k, j))
+        i1 = along_vs(j)
         if i1 == i:
             break
         i = i1
-        j1 = min(range(len(impulse)), key=lambda k: at(i, k))
+        j1 = along_impulse(i)
         if j1 == j:
             break
         j = j1
@@ -192,6 +208,24 @@ def search(step: Step, vs: np.ndarray, impulse: np.ndarray, training_error: Call
     la, e = refined(lambda a: error(lv, a), la, at(i, j), float(np.log(impulse[1] / impulse[0])))
     lv, _ = refined(lambda v: error(v, la), lv, e, float(np.log(vs[1] / vs[0])))
     return Step(step.effect, float(np.exp(lv)), level=(float(np.exp(la - lv)),))
+
+
+def least_along(n: int, error: Callable[[int], float], rises: int = PROFILE_RISES) -> int:
+    """The first index of the least ``error`` over ``0 .. n-1``, walked upwards and left once it has risen ``rises``
+    consecutive times past the least so far (:data:`PROFILE_RISES`): ``min(range(n), key=error)`` on a profile with one
+    minimum, without replaying the points beyond it."""
+    best, up = 0, 0
+    e_best = e_prev = error(0)
+    for k in range(1, n):
+        e = error(k)
+        if e < e_best:
+            best, e_best, up = k, e, 0
+        else:
+            up = up + 1 if e > e_prev else 0
+            if up >= rises:
+                break
+        e_prev = e
+    return best
 
 
 def _finite(e: float) -> float:

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ilic_cli.closed_loop_id import plant_of
 from ilic_cli.diagnosis import dwell
@@ -71,7 +73,8 @@ def test_search_finds_a_peak_above_half_the_coulomb_level() -> None:
     error, calls = _surface(0.011, 14.0)
     found = dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=2.0)
     assert _near(found, 0.011, 14.0)
-    assert {v for v, _ in calls[: len(impulse)]} == {vs[4]}  # the impulse's profile first, at the proposal's vs
+    first = next(k for k, (v, _) in enumerate(calls) if v != vs[4])  # the impulse's profile first, at the proposal's vs,
+    assert first == 4 + 1 + dwell.PROFILE_RISES < len(impulse)  # to its least (index 4, half Fc) and the rises past it
 
 
 @pytest.mark.parametrize(("v0", "f0"), [(0.011, 96.0), (0.005, 600.0), (0.04, 70.0)])
@@ -168,12 +171,14 @@ def test_an_impulse_that_reaches_the_grid_s_edge_after_vs_moved_is_no_estimate()
 def test_a_level_on_the_grid_s_edge_ends_the_search_before_the_second_vs_profile(f0: float, edge: int) -> None:
     """The least error's impulse on the edge gives no estimate whatever vs does there: the search stops, the answer the same.
 
-    Each point is a closed-loop replay of the log: a clean log's search is the one profile (11 replays a fold; 17 when
-    the vs profile came first, 24 before that)."""
+    Each point is a closed-loop replay of the log: a clean log's search is the one profile, left once it has risen
+    three times past its least level (4 replays a fold; 11 when the whole profile was walked, 17 when the vs profile
+    came first, 24 before that)."""
     vs, impulse = _grids()
     error, calls = _surface(0.011, f0)
     assert dwell.search(dwell.proposal(vs, 20.0), vs, impulse, error, baseline_error=2.0) is None
-    assert len(calls) == len(impulse) and {v for v, _ in calls} == {vs[4]}  # the impulse's profile at the proposal's vs, no more
+    walked = 1 + dwell.PROFILE_RISES if edge == 0 else len(impulse)
+    assert len(calls) == walked and {v for v, _ in calls} == {vs[4]}  # the impulse's profile at the proposal's vs, no more
     best = min(calls, key=lambda c: math.log(c[0] / 0.011) ** 2 + math.log(c[0] * c[1] / (0.011 * f0)) ** 2)  # the least point visited
     assert best[0] * best[1] == pytest.approx(impulse[edge])
 
@@ -319,3 +324,33 @@ def test_a_proposal_that_cannot_be_replayed_is_still_the_closed_loops(monkeypatc
     plant = lambda steps, names, theta: model_parameters(steps, names, theta, np.zeros((len(theta),) * 2))  # noqa: E731
     _, (verdict,) = decide.replay_decide(log, data, base, [], [step], moving_rows(data), plant, sensor_noise=False)
     assert not verdict.accepted and "no replay" in verdict.reason and verdict.proposed_by == dwell.METHOD
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(0.0, 10.0), min_size=1, max_size=12), st.integers(0, 11), st.sampled_from([0.0, math.inf]))
+def test_least_along_is_the_first_least_of_a_profile_with_one_minimum(drops: list[float], m: int, cliff: float) -> None:
+    """Falling to a minimum then rising (plateaus and unreplayable points, ``inf``, on the way up): the index
+    ``min(range(n), key=error)`` gives, with no point beyond the third rise past it replayed."""
+    n = len(drops)
+    m = min(m, n - 1)
+    down = np.cumsum(drops[: m + 1][::-1])[::-1]  # non-increasing to index m
+    up = down[m] + np.cumsum(drops[m + 1 :])  # non-decreasing after it
+    e = np.concatenate([down, up]) if m + 1 < n else down
+    if cliff and n > m + 2:
+        e[-1] = cliff  # a replay without an answer at the far end
+    seen: list[int] = []
+    found = dwell.least_along(n, lambda k: seen.append(k) or float(e[k]))
+    assert found == min(range(n), key=lambda k: e[k])
+    assert seen == list(range(len(seen)))  # each point once, in order
+    rises = np.flatnonzero(np.diff(e[found:]) > 0)
+    if len(rises) >= dwell.PROFILE_RISES and np.all(np.diff(rises[: dwell.PROFILE_RISES]) == 1) and rises[0] == 0:
+        assert len(seen) == found + 1 + dwell.PROFILE_RISES  # left at the third rise
+
+
+def test_least_along_counts_consecutive_rises_only() -> None:
+    """A fall (even one above the least so far) starts the count again: the later least is found; three rises in a row
+    past it end the walk."""
+    e = [5.0, 4.0, 4.5, 4.2, 4.6, 4.7, 3.0, 3.5, 3.6, 3.7, 9.0, 0.0]
+    seen: list[int] = []
+    assert dwell.least_along(len(e), lambda k: seen.append(k) or e[k]) == 6
+    assert seen == list(range(10))  # left at the third rise past index 6: index 11's 0.0 is beyond it
