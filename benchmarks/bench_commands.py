@@ -4,7 +4,9 @@
 of the start-up budget, issue 33: at most 2.5x ``python -c 'import numpy'``)
 run in turn with ``python -c 'import numpy'`` -- A B A B ... after one warm-up
 pair -- and the ratio is taken pair by pair (a machine whose speed drifts moves
-both); ``ilic diagnose DATA_EMPS.mat`` (replays included) likewise. Prints the
+both); ``ilic diagnose DATA_EMPS.mat`` (replays included) likewise, and ``ilic diagnose`` of a
+robot-like log (the robot corpus's clean 200 kg trapezoid at 1 kHz, written as CSV,
+its PD loop given by flags: dwells, so the closed loop's Stribeck search runs). Prints the
 medians, the median ratio and its range. Never asserted by tests: run it with
 ``make bench``.
 """
@@ -17,11 +19,14 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 EMPS = ROOT.parent / "shared" / "emps" / "DATA_EMPS.mat"
+ROBOT_LOG = "lin200/trapezoid/1000Hz/sensor/clean/s17"
+"""The robot corpus's case timed by ``ilic diagnose`` (``tests/corpus/robot.py``): dwells and moves, no concealed effect."""
 NUMPY = [sys.executable, "-c", "import numpy"]
 """The yardstick of start-up: an interpreter that imports NumPy and does nothing."""
 
@@ -77,6 +82,16 @@ def describe(label: str, res: dict[str, list[float]], b_label: str) -> str:
     )
 
 
+def robot_log(folder: Path) -> list[str]:
+    """:data:`ROBOT_LOG` written as CSV in ``folder``: the path and its controller's flags."""
+    sys.path.insert(0, str(ROOT))
+    from tests.corpus.measure import controller_flags, write_csv  # the corpus's own writer
+    from tests.corpus.robot import build, cases
+
+    (case,) = [c for c in cases() if c.name == ROBOT_LOG]
+    return [str(write_csv(build(case), folder / "trapezoid.csv")), *controller_flags(case)]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeat", type=int, default=7)
@@ -92,8 +107,10 @@ def main() -> None:
         ]
     else:
         print("  ../shared/emps absent: the DATA_EMPS.mat jobs are skipped")
-    for label, args, runs in jobs:
-        print(describe(label, paired(args, NUMPY, runs), "python -c 'import numpy'"), flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs.append(("ilic diagnose, robot corpus 1 kHz trapezoid", [*ilic, "diagnose", *robot_log(Path(tmp))], 3))
+        for label, args, runs in jobs:
+            print(describe(label, paired(args, NUMPY, runs), "python -c 'import numpy'"), flush=True)
 
 
 if __name__ == "__main__":
