@@ -17,6 +17,12 @@ import numpy as np
 from ilic_cli import parameters
 
 
+def evaluated_later(t: np.ndarray, x: np.ndarray, shift_s: float) -> np.ndarray:
+    """``x``, sampled at ``t``, linearly interpolated at ``t + shift_s`` (the last value held at the end): the one
+    definition of a signal evaluated later (the regressor beyond the drive's hold, a force shifted by a delay)."""
+    return np.interp(t + shift_s, t, x)
+
+
 @dataclass(frozen=True)
 class Kinematics:
     """Signals a column may use (arrays of equal length).
@@ -42,7 +48,7 @@ class Kinematics:
         assert t is not None
 
         def at(x: np.ndarray) -> np.ndarray:
-            return np.interp(t + shift_s, t, x)
+            return evaluated_later(t, x, shift_s)
 
         sign_qd = None if self.sign_qd is None else at(self.sign_qd)
         q = None if self.q is None else at(self.q)

@@ -19,7 +19,7 @@ from ilic_cli.effects import Effect
 from ilic_cli.filtering import decimated_band_hz, kept_indices
 from ilic_cli.idim_ls import IDIMData
 from ilic_cli.lsq import lstsq
-from ilic_cli.regressor import Kinematics, Model
+from ilic_cli.regressor import Kinematics, Model, evaluated_later
 
 EXACT_GRID_MAX = 64
 """Grids up to this size are scanned with exactly decimated columns; larger
@@ -115,7 +115,7 @@ class Searcher:
         cols = [np.asarray(base.matrix(k))]
         for s in steps:
             if s.effect.shift:
-                y = np.interp(t + float(s.value or 0.0), t, data.tau)
+                y = evaluated_later(t, data.tau, float(s.value or 0.0))
         for s in steps:
             if s.level is not None:
                 y = y - s.effect.matrix(k, s.value, self.fs) @ np.asarray(s.level, dtype=np.float64)
@@ -149,7 +149,7 @@ class Searcher:
         if effect.shift:
             t = self.data.kin.t
             assert t is not None
-            Y = np.stack([np.interp(t + v, t, self.data.tau) for v in values], axis=1)
+            Y = np.stack([evaluated_later(t, self.data.tau, v) for v in values], axis=1)
             out = (values, self.data.decimate(Y)[self.keep], True)
         elif len(values) <= EXACT_GRID_MAX:
             full = np.concatenate([effect.matrix(self.data.kin, v, self.fs) for v in values], axis=1)

@@ -18,7 +18,7 @@ from ilic_cli.effects import Effect
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ls import IDIMData, rebuilt, valid_rows
 from ilic_cli.lsq import lstsq, noise_corrected_lstsq
-from ilic_cli.regressor import Kinematics, Model
+from ilic_cli.regressor import Kinematics, Model, evaluated_later
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,7 @@ def shifted_force(data: IDIMData, delay_s: float, *, remember: bool = True) -> n
     """Decimated force ``tau(t + delay)``: the plant's ``delay`` (logged force = applied force ``delay`` earlier)."""
     t = data.kin.t
     assert t is not None
-    full = lambda: np.interp(t + delay_s, t, data.tau)  # noqa: E731
+    full = lambda: evaluated_later(t, data.tau, delay_s)  # noqa: E731
     return data.decimate_once(("shift", delay_s), full) if remember else data.decimate(full())
 
 

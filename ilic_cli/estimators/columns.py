@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ilic_cli.derivatives import derivative
-from ilic_cli.regressor import Kinematics
+from ilic_cli.regressor import Kinematics, evaluated_later
 
 
 class Derived(Kinematics):
@@ -20,7 +20,7 @@ class Derived(Kinematics):
 
     def __init__(self, qf: np.ndarray, dt_s: float, trim: int, t: np.ndarray, shift_s: float, extra: dict[str, np.ndarray], points: int = 3) -> None:
         later = shift_s != 0.0
-        fields = {"t": t, "sign_qd": None, "extra": {k: np.interp(t + shift_s, t, v) for k, v in extra.items()} if later else extra}
+        fields = {"t": t, "sign_qd": None, "extra": {k: evaluated_later(t, v, shift_s) for k, v in extra.items()} if later else extra}
         for name, value in {**fields, "_source": (qf, dt_s, trim, t, shift_s, points), "_memo": {}}.items():
             object.__setattr__(self, name, value)
 
@@ -31,7 +31,7 @@ class Derived(Kinematics):
             for _ in range(order):
                 x = derivative(x, dt_s, points)
             x = x[trim:]
-            memo[order] = x if shift_s == 0.0 else np.interp(t + shift_s, t, x)
+            memo[order] = x if shift_s == 0.0 else evaluated_later(t, x, shift_s)
         return memo[order]
 
     @property
