@@ -187,7 +187,6 @@ def search(step: Step, vs: np.ndarray, impulse: np.ndarray, training_error: Call
         return least_along(len(impulse), lambda k: at(i, k))
 
     i = int(np.argmin(np.abs(np.log(vs / float(step.value)))))  # the proposal's vs
-
     j = along_impulse(i)
     if j in (0, len(impulse) - 1):  # on the grid's edge at the middle vs: no estimate, and no more replays
         return None
