@@ -50,7 +50,7 @@ from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
-from ilic_cli.usable import with_rest
+from ilic_cli.usable import identification_speed_noise, with_rest
 
 METHODS = {"didim": "DIDIM", "iv": "IDIM-IV"}
 """Closed-loop methods: option value -> the name reports use."""
@@ -329,7 +329,7 @@ def closed_loop_identify(
     prepared.require_contiguous(name)
     simulate = _simulator_of(log, simulate, loop)
     t, tau, fs, names = log.t, log["tau"], prepared.fs_hz, model.names
-    measured = lsq_rows(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid)
+    measured = lsq_rows(t, log["q"], tau, fs, model, ls_settings, valid=prepared.valid, speed_noise=identification_speed_noise(prepared))  # IV's regressor
     y = measured.y
     y_norm = float(np.linalg.norm(y))
 

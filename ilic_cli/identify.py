@@ -31,7 +31,7 @@ from ilic_cli.output_error import OEResult, OESettings
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.loop import PLANT_LOOP
-from ilic_cli.usable import UNKNOWN_FORCE_TIMING, UsableRows, force_timing_unknown, identification_hold_s, usable_rows, with_rest
+from ilic_cli.usable import UNKNOWN_FORCE_TIMING, UsableRows, force_timing_unknown, identification_hold_s, identification_speed_noise, usable_rows, with_rest
 
 if TYPE_CHECKING:
     from ilic_cli.simulation.timing import ControlTiming
@@ -397,8 +397,11 @@ def _validate(report: IdentifyReport, model: Any, others: list[RunLog], settings
         if op.saturated is not None:
             report.warnings.append(f"validation log {osrc}: {op.saturation_note()}")
         hold = identification_hold_s(op) + settings.model.lag_s  # the hold, and the drive lag the model states
+        noise = identification_speed_noise(op)  # the validation log's own
         for lbl, theta in estimates:
-            res = cross_validate(theta, vlog.t, vlog["q"], vlog["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments, hold_s=hold)
+            res = cross_validate(
+                theta, vlog.t, vlog["q"], vlog["tau"], op.fs_hz, model, ls_settings, valid=op.valid, segments=op.segments, hold_s=hold, speed_noise=noise
+            )
             report.validation.append(Validation(osrc, lbl, res, _open_loop_figure(vlog, plants.get(lbl), settings.oe, report.warnings)))
         for oe in report.output_errors():
             oe_res = inverse_model_error(oe, vlog, op, effects, ls_settings)

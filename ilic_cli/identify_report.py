@@ -15,8 +15,9 @@ from ilic_cli.closed_loop_id import STD_SOURCE
 from ilic_cli.effects import unit_of
 from ilic_cli.estimators.base import stated_lag_s
 from ilic_cli.filtering import DECIMATION_RULE
-from ilic_cli.idim_ls import NOT_WHITE_WIDENING, IDIMLSResult
+from ilic_cli.idim_ls import IDIMLSResult
 from ilic_cli.jointlog import position_unit
+from ilic_cli.lsq import NOT_WHITE_WIDENING
 
 if TYPE_CHECKING:
     from ilic_cli.identify import IdentifyReport
@@ -201,7 +202,9 @@ def _rows_lines(report: IdentifyReport, ls_result: IDIMLSResult) -> list[str]:
         ls = ls_result.settings
         rule = f"; rows decimated by {ls.decimation} ({DECIMATION_RULE if ls.band_hz is not None else 'as given'})"
         timing = f"; {held}" if held else ""
-        return [f"{u.usable} of {u.decimated} decimated rows fitted: {u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){timing}{rule}.", ""]
+        sign = f"; {words}" if (words := u.sign_words(position_unit(report.joint_type))) else ""
+        rest = f"{u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule})"
+        return [f"{u.usable} of {u.decimated} decimated rows fitted: {rest}{timing}{sign}{rule}.", ""]
     return [f"{held[0].upper()}{held[1:]}.", ""] if held else []
 
 
@@ -288,7 +291,7 @@ def _correlated_lines(ls: IDIMLSResult) -> list[str]:
 
 
 def _robust_lines(ls: IDIMLSResult) -> list[str]:
-    """The autocorrelation-robust standard deviations beside eq. 9's (:data:`ilic_cli.idim_ls.ROBUST_RULE`), when they differ by half."""
+    """The autocorrelation-robust standard deviations beside eq. 9's (:data:`ilic_cli.lsq.ROBUST_RULE`), when they differ by half."""
     rob, r = ls.robust, ls.result
     if rob is None or rob.widening(r.std) <= NOT_WHITE_WIDENING:
         return []

@@ -35,7 +35,7 @@ from ilic_cli.filtering import (
     rows_decimation,
     rows_stencil,
 )
-from ilic_cli.lsq import LSResult, SigmaConvention, bartlett_sum, evaluate, finite_or_none, most_correlated, newey_west_lags, pinv, solve
+from ilic_cli.lsq import LSResult, RobustStd, SigmaConvention, evaluate, most_correlated, robust_std, solve
 from ilic_cli.regressor import Kinematics, Model
 
 
@@ -155,9 +155,12 @@ class IDIMLSResult:
     """How much later than its sample the regressor was evaluated (:func:`held`; 0: at the sample instants)."""
     robust: RobustStd | None = None
     """The standard deviations widened for the residual's autocorrelation, beside eq. 9's (:func:`robust_std`)."""
+    speed_noise: float = 0.0
+    """The velocity's noise whose expected sign the Coulomb column is (:func:`lsq_rows`; 0: the sign)."""
 
     def to_dict(self) -> dict[str, Any]:
         d = {"method": "IDIM-LS", "model": self.model, **self.result.to_dict(), "settings": self.settings.to_dict(), "regressor_delay_s": self.hold_s}
+        d["sign_speed_noise"] = self.speed_noise
         if self.robust is not None:
             d["robust_std"] = self.robust.to_dict(self.result.names, self.result.std)
         if (pair := self.most_correlated()) is not None:
@@ -173,62 +176,6 @@ class IDIMLSResult:
 
         r = self.result
         return pd.DataFrame({"parameter": r.names, "value": r.theta, "std": r.std, "rel_std_pct": r.rel_std_pct})
-
-
-ROBUST_RULE = (
-    "eq. 9 assumes a white residual; the robust standard deviations are Newey-West's (the sandwich covariance with the residual's "
-    "autocovariance over floor(4 (n/100)^(2/9)) lags of the n rows, Bartlett weights): beside eq. 9's, which the published tables use"
-)
-"""The autocorrelation-robust standard deviation, in words (the reports state it)."""
-
-NOT_WHITE_WIDENING = 1.5
-"""A report says the residual is not white, with the robust standard deviations, when one exceeds eq. 9's by this factor
-(half again: a statement about the numbers, not a test). Measured: DATA_EMPS.mat 2.6 (lag-1 autocorrelation 0.67); the robot
-corpus's 1-2 kHz clean logs 0.56-2.0 with sensor noise or a current loop (median 1.0), 1.6-2.1 with a 10 Hz force disturbance,
-where 8 seeds of one log (lin12 S-curve, 2 kHz) spread as the robust one says (Fc: 2.4 %; robust 2.8 %; eq. 9 1.6 %)."""
-
-
-@dataclass(frozen=True)
-class RobustStd:
-    """Newey-West standard deviations of an IDIM-LS estimate (:data:`ROBUST_RULE`)."""
-
-    std: np.ndarray
-    lags: int
-    lag1: float
-    """Lag-1 autocorrelation of the residual (0 for a white one)."""
-
-    def widening(self, eq9: np.ndarray) -> float:
-        """The largest ratio of the robust standard deviation to eq. 9's over the identifiable parameters (1 when none)."""
-        ok = np.isfinite(eq9) & (eq9 > 0) & np.isfinite(self.std)
-        return float(np.max(self.std[ok] / eq9[ok])) if ok.any() else 1.0
-
-    def to_dict(self, names: tuple[str, ...], eq9: np.ndarray) -> dict[str, Any]:
-        widening = self.widening(eq9)
-        return {
-            "std": {n: finite_or_none(v) for n, v in zip(names, self.std, strict=True)},
-            "lags": self.lags,
-            "residual_lag1_autocorrelation": finite_or_none(self.lag1),
-            "widening": finite_or_none(widening),
-            "residual_white": bool(widening <= NOT_WHITE_WIDENING),
-            "rule": ROBUST_RULE,
-        }
-
-
-def robust_std(W: np.ndarray, e: np.ndarray) -> RobustStd:
-    """Newey-West (HAC) standard deviations of the least-squares estimate on ``W`` whose residual is ``e`` (:data:`ROBUST_RULE`).
-
-    ``(W'W)^-1 S (W'W)^-1 n/(n-b)`` with ``S`` the residual-weighted columns' autocovariance summed over ``L`` lags with
-    weights ``1 - l/(L+1)``; a white residual gives eq. 9's covariance (to sampling error).
-    """
-    n, b = W.shape
-    L = newey_west_lags(n)
-    S = bartlett_sum(W * e[:, None], L)
-    A = pinv(W.T @ W)
-    var = np.diag(A @ S @ A) * n / max(n - b, 1)
-    std = np.sqrt(np.maximum(var, 0.0))
-    c = e - e.mean()
-    lag1 = float(c[1:] @ c[:-1] / (c @ c)) if n > 1 and c @ c > 0 else 0.0
-    return RobustStd(std=std, lags=L, lag1=lag1)
 
 
 def _decimate(x: np.ndarray, settings: LSSettings, fs_hz: float) -> np.ndarray:
@@ -314,6 +261,7 @@ def lsq_rows(
     *,
     extra: dict[str, np.ndarray] | None = None,
     valid: np.ndarray | None = None,
+    speed_noise: float = 0.0,
 ) -> IDIMData:
     """Filter, differentiate, trim, build and decimate the IDIM system (eqs. 5-6).
 
@@ -333,11 +281,13 @@ def lsq_rows(
         Full-rate samples that may be used; the decimated rows whose span
         touches an invalid sample are dropped (:func:`valid_rows`). ``None``
         (or all True) keeps every row.
+    speed_noise : float
+        The velocity's noise (RMS): the Coulomb column is its expected sign (:func:`ilic_cli.regressor.expected_sign`); 0: ``sign``.
     """
     settings = settings.at_rate(fs_hz)
-    qf, W, y, rows = _system(t, q, tau, fs_hz, model, settings, valid, extra=extra)
+    qf, W, y, rows = _system(t, q, tau, fs_hz, model, settings, valid, extra=extra, speed_noise=speed_noise)
     s = slice(settings.trim, None)
-    kin = Kinematics(*differentiated(qf, fs_hz, settings), t=np.asarray(t, dtype=np.float64)[s], extra=_trimmed(extra, s))
+    kin = Kinematics(*differentiated(qf, fs_hz, settings), t=np.asarray(t, dtype=np.float64)[s], extra=_trimmed(extra, s), speed_noise=speed_noise)
     return IDIMData(kin=kin, tau=np.asarray(tau, dtype=np.float64)[s], W=W, y=y, fs_hz=fs_hz, settings=settings, rows=rows)
 
 
@@ -368,12 +318,13 @@ def _system(
     valid: np.ndarray | None,
     shift_s: float = 0.0,
     extra: dict[str, np.ndarray] | None = None,
+    speed_noise: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """``(qf, W, y, rows)`` of :func:`lsq_rows` (``settings`` at the log's rate; ``qf`` the filtered position, untrimmed).
 
     Each column is built, decimated and let go in turn from kinematics differentiated for it alone
     (:class:`ilic_cli.estimators.columns.Derived`): beside the log, the filtered position and at most two more full-rate arrays live at once.
-    ``shift_s``: the columns evaluated that much later (:func:`held`'s, bit for bit).
+    ``shift_s``: the columns evaluated that much later (:func:`held`'s, bit for bit); ``speed_noise``: :func:`lsq_rows`'.
     """
     if len(q) < min_samples(settings):
         raise ValueError(f"too few samples ({len(q)}) for IDIM-LS with trim {settings.trim} and decimation {settings.decimation}")
@@ -393,7 +344,7 @@ def _system(
     extra_s = _trimmed(extra, s)
     columns = []
     for c in model.columns:  # the parallel decimation, one column at a time: the full-rate matrix is never held
-        col = np.broadcast_to(c.build(Derived(qf, 1.0 / fs_hz, settings.trim, tt, shift_s, extra_s, settings.stencil)), tt.shape)
+        col = np.broadcast_to(c.build(Derived(qf, 1.0 / fs_hz, settings.trim, tt, shift_s, extra_s, settings.stencil, speed_noise)), tt.shape)
         columns.append(_decimate(np.asarray(col, dtype=np.float64), settings, fs_hz))
         del col
     Wy = np.column_stack([*columns, y])
@@ -425,11 +376,13 @@ def _systems(
     valid: np.ndarray | None,
     segments: tuple[tuple[int, int], ...] | None,
     hold_s: float = 0.0,
+    speed_noise: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """``(W, y, t_dec, kept)`` of the contiguous ``segments`` (default: the whole log), each filtered and decimated on its own, stacked.
 
     Segments shorter than :func:`min_samples` are left out; none left is an error. ``hold_s``: the regressor is
-    evaluated that much later (:func:`held`). ``kept``: the rows fitted among all decimated rows of the parts (``None``: all).
+    evaluated that much later (:func:`held`); ``speed_noise``: :func:`lsq_rows`'. ``kept``: the rows fitted among all
+    decimated rows of the parts (``None``: all).
     """
     settings = settings.at_rate(fs_hz)
     spans = segments or ((0, len(q)),)
@@ -437,7 +390,7 @@ def _systems(
     for a, b in spans:
         if b - a < min_samples(settings) and len(spans) > 1:
             continue
-        _, W, y, rows = _system(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, None if valid is None else valid[a:b], hold_s)
+        _, W, y, rows = _system(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, None if valid is None else valid[a:b], hold_s, speed_noise=speed_noise)
         td = t[a:b][settings.trim :][kept_indices(b - a - settings.trim, settings.decimation)]
         parts.append((W, y, td if rows is None else td[rows], np.ones(len(td), dtype=bool) if rows is None else rows))
     if not parts:
@@ -457,6 +410,7 @@ def idim_ls(
     valid: np.ndarray | None = None,
     segments: tuple[tuple[int, int], ...] | None = None,
     hold_s: float = 0.0,
+    speed_noise: float = 0.0,
 ) -> IDIMLSResult:
     """IDIM-LS estimate of ``model`` from measured position and force.
 
@@ -466,16 +420,19 @@ def idim_ls(
     stamps): each is filtered, differentiated and decimated on its own, never
     across a gap, and their rows are solved together; the estimate equals that
     of the segments' rows stacked by hand. ``hold_s``: the regressor is evaluated that much later than each
-    sample (:func:`held`; the published procedure: 0).
+    sample (:func:`held`; the published procedure: 0). ``speed_noise``: the Coulomb column is the expected sign of the
+    velocity given that noise (:func:`lsq_rows`; the published procedure: 0, the sign).
     """
     t, q, tau = (np.asarray(a, dtype=np.float64) for a in (t, q, tau))
     settings = settings.at_rate(fs_hz)
-    W, y, t_dec, kept = _systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s)
+    W, y, t_dec, kept = _systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s, speed_noise)
     result = solve(W, y, model.names, sigma=settings.sigma)
     y_hat = W @ result.theta
     robust = robust_std(W, y - y_hat)
     robust = replace(robust, std=np.where(np.isfinite(result.std), robust.std, np.inf))  # not identifiable: as eq. 9 says
-    return IDIMLSResult(model=model.name, result=result, settings=settings, t=t_dec, y=y, y_hat=y_hat, kept=kept, hold_s=hold_s, robust=robust)
+    return IDIMLSResult(
+        model=model.name, result=result, settings=settings, t=t_dec, y=y, y_hat=y_hat, kept=kept, hold_s=hold_s, robust=robust, speed_noise=speed_noise
+    )
 
 
 def cross_validate(
@@ -490,8 +447,10 @@ def cross_validate(
     valid: np.ndarray | None = None,
     segments: tuple[tuple[int, int], ...] | None = None,
     hold_s: float = 0.0,
+    speed_noise: float = 0.0,
 ) -> LSResult:
-    """Apply estimates ``theta`` to another log with the same processing (cross-test validation; ``valid``, ``segments``, ``hold_s`` as :func:`idim_ls`)."""
+    """Apply estimates ``theta`` to another log with the same processing (cross-test validation; ``valid``, ``segments``,
+    ``hold_s``, ``speed_noise`` as :func:`idim_ls`: the other log's own)."""
     t, q, tau = (np.asarray(a, dtype=np.float64) for a in (t, q, tau))
-    W, y, _, _ = _systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s)
+    W, y, _, _ = _systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s, speed_noise)
     return evaluate(W, y, np.asarray(theta, dtype=np.float64), model.names)

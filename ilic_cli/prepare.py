@@ -60,12 +60,16 @@ class RestSamples:
         The filtered speed below which a sample may be at rest (position unit per second).
     rule : str
         The rule, in words (:data:`ilic_cli.usable.REST_RULE`).
+    speed_noise : float
+        RMS of the filtered velocity over the dwells (position unit per second; 0: none): the velocity's noise, whose
+        expected sign the Coulomb column is once rows at rest are left out (:data:`ilic_cli.usable.SIGN_RULE`).
     """
 
     mask: np.ndarray
     dwells: int
     speed_threshold: float
     rule: str
+    speed_noise: float = 0.0
 
     @property
     def count(self) -> int:
@@ -73,7 +77,13 @@ class RestSamples:
         return int(np.count_nonzero(self.mask))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"rule": self.rule, "dwells": self.dwells, "samples_at_rest": self.count, "speed_threshold": self.speed_threshold}
+        return {
+            "rule": self.rule,
+            "dwells": self.dwells,
+            "samples_at_rest": self.count,
+            "speed_threshold": self.speed_threshold,
+            "speed_noise": self.speed_noise,
+        }
 
 
 def tau_sensor(log: RunLog) -> str | None:

@@ -23,12 +23,22 @@ def evaluated_later(t: np.ndarray, x: np.ndarray, shift_s: float) -> np.ndarray:
     return np.interp(t + shift_s, t, x)
 
 
+def expected_sign(qd: np.ndarray, noise: float) -> np.ndarray:
+    """The expected sign of a velocity measured as ``qd`` with Gaussian noise of RMS ``noise``: ``erf(qd / (sqrt(2) noise))``;
+    ``sign(qd)`` when ``noise`` is 0 (:data:`ilic_cli.usable.SIGN_RULE`)."""
+    if noise <= 0.0:
+        return np.sign(qd)
+    from scipy.special import erf  # deferred: a scipy submodule, for the logs with rows at rest only
+
+    return np.asarray(erf(np.asarray(qd, dtype=np.float64) / (np.sqrt(2.0) * noise)), dtype=np.float64)
+
+
 @dataclass(frozen=True)
 class Kinematics:
     """Signals a column may use (arrays of equal length).
 
-    ``sign_qd`` defaults to ``sign(qd)``; the CTC law replaces it with
-    ``(2/pi)*atan(alpha*qd)`` (paper section IV).
+    ``sign_qd`` defaults to ``sign(qd)``, or to :func:`expected_sign` when ``speed_noise`` (the RMS of the
+    velocity's noise) is given; the CTC law replaces it with ``(2/pi)*atan(alpha*qd)`` (paper section IV).
     """
 
     qd: np.ndarray
@@ -37,10 +47,11 @@ class Kinematics:
     t: np.ndarray | None = None
     sign_qd: np.ndarray | None = None
     extra: Mapping[str, np.ndarray] = field(default_factory=dict)
+    speed_noise: float = 0.0
 
     @property
     def sgn(self) -> np.ndarray:
-        return np.sign(self.qd) if self.sign_qd is None else self.sign_qd
+        return expected_sign(self.qd, self.speed_noise) if self.sign_qd is None else self.sign_qd
 
     def later(self, shift_s: float) -> Kinematics:
         """These kinematics linearly interpolated at ``t + shift_s`` (the last value held at the end)."""
@@ -52,7 +63,8 @@ class Kinematics:
 
         sign_qd = None if self.sign_qd is None else at(self.sign_qd)
         q = None if self.q is None else at(self.q)
-        return Kinematics(qd=at(self.qd), qdd=at(self.qdd), q=q, t=t, sign_qd=sign_qd, extra={n: at(v) for n, v in self.extra.items()})
+        extra = {n: at(v) for n, v in self.extra.items()}
+        return Kinematics(qd=at(self.qd), qdd=at(self.qdd), q=q, t=t, sign_qd=sign_qd, extra=extra, speed_noise=self.speed_noise)
 
 
 @dataclass(frozen=True)

@@ -109,8 +109,10 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: R
         else:
             material.append(st)
             kept_so_far.append(st)
-    if replayable and (on_loop := closed_loop_proposal(log, data, base, [*known, *selection.steps], rows, settings, selection)) is not None:
-        material.append(on_loop)
+    material_ids = {s.effect.id for s in material}
+    immaterial = [s for s in selection.steps if s.effect.id not in material_ids]
+    if replayable and (on_loop := closed_loop_proposal(log, data, base, [*known, *immaterial], rows, settings, selection)) is not None:
+        material = [s for s in material if s.effect.id != on_loop.effect.id] + [on_loop]  # at the dwells, the strategy values it
     if replayable and material:
         plant_of = proposal_plant(prop)
         v = (validate, settings.ls) if validate is not None and "q_ref" in validate else None
@@ -189,18 +191,17 @@ def _record(selection: SelectionResult, material: list[Step], verdicts: list[Rep
     """Every evaluation the inverse model accepted gets the verdict as its decision (in place); a closed-loop proposal's verdict is
     written beside the inverse model's last word on it."""
     by_effect = {v.effect: v for v in verdicts}
+    on_loop = {st.effect.id for st in material if st.level is not None and st.effect.id in by_effect}
     for step in selection.tried:
         for i, ev in enumerate(step):
-            if ev.accepted and ev.effect in by_effect and not by_effect[ev.effect].accepted:
-                step[i] = replace(ev, accepted=False, reason=f"{ev.reason}; {by_effect[ev.effect].reason}")
-            elif ev.accepted and ev.effect in by_effect:
-                step[i] = replace(ev, reason=f"{ev.reason}; {by_effect[ev.effect].reason}")
-    for st in material:
-        if st.level is not None and st.effect.id in by_effect:  # the closed loop's proposal: its verdict beside the inverse model's last word on it
-            if (at := selection.last_at(st.effect.id)) is not None:
-                k, i = at
-                ev = selection.tried[k][i]
-                selection.tried[k][i] = replace(ev, reason=f"{ev.reason}; proposed on the closed loop instead: {by_effect[st.effect.id].reason}")
+            if ev.accepted and ev.effect in by_effect and ev.effect not in on_loop:
+                step[i] = replace(ev, accepted=by_effect[ev.effect].accepted, reason=f"{ev.reason}; {by_effect[ev.effect].reason}")
+    for eid in on_loop:  # the closed loop's proposal: its verdict beside the inverse model's last word on it
+        if (at := selection.last_at(eid)) is not None:
+            k, i = at
+            ev = selection.tried[k][i]
+            how = "valued on the closed loop at the dwells instead" if ev.accepted else "proposed on the closed loop instead"
+            selection.tried[k][i] = replace(ev, accepted=ev.accepted and by_effect[eid].accepted, reason=f"{ev.reason}; {how}: {by_effect[eid].reason}")
 
 
 def without_last(kept: list[Step], verdicts: list[ReplayVerdict], why: str) -> tuple[list[Step], list[ReplayVerdict]]:

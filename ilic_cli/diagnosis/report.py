@@ -336,6 +336,8 @@ def _rows_sentence(diag: Any) -> str:
     if u is None:
         return f"{diag.rows_used} of {diag.rows_total} decimated rows used (velocity reversals and the filter's edge left out)."
     rest = f"{u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule})" if u.rest is not None and u.at_rest else "none at rest"
+    if words := u.sign_words(position_unit(diag.joint)):
+        rest += f"; {words}"
     saturated = f", {u.saturated} of a saturated drive" if u.saturated else ""
     return (
         f"{diag.rows_used} of {u.decimated} decimated rows used: {rest}{saturated}; of the {u.usable} rows every fit uses "

@@ -77,7 +77,7 @@ class Searcher:
         self.keep = rows
         k = data.kin
         dec = data.decimate
-        self.kin_dec = Kinematics(qd=dec(k.qd), qdd=dec(k.qdd), q=None if k.q is None else dec(k.q), t=data.t_dec)
+        self.kin_dec = Kinematics(qd=dec(k.qd), qdd=dec(k.qdd), q=None if k.q is None else dec(k.q), t=data.t_dec, speed_noise=k.speed_noise)
         self._cache: dict[str, tuple[np.ndarray, np.ndarray, bool]] = {}
         self._rate_cache: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 

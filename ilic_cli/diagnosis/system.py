@@ -155,7 +155,7 @@ def column_noise(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ..
         for seed in range(NOISE_REALISATIONS):
             n = noise_kinematics(data, seed)
             q = None if k.q is None or n.q is None else k.q + n.q
-            noisy = Kinematics(qd=k.qd + n.qd, qdd=k.qdd + n.qdd, q=q, t=k.t, sign_qd=k.sign_qd, extra=k.extra)
+            noisy = Kinematics(qd=k.qd + n.qd, qdd=k.qdd + n.qdd, q=q, t=k.t, sign_qd=k.sign_qd, extra=k.extra, speed_noise=k.speed_noise)
             out.append(system(rebuilt(data, base, noisy), base, steps, keep)[0] - W)
         data.memo[key] = np.stack(out)
     return data.memo[key]

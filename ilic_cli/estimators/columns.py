@@ -16,11 +16,18 @@ from ilic_cli.regressor import Kinematics, evaluated_later
 class Derived(Kinematics):
     """The kinematics one column is built from: ``q``, ``qd``, ``qdd`` trimmed from the filtered position ``qf`` when
     the column first reads them (``shift_s``: interpolated that much later, as :func:`ilic_cli.idim_ls.held`), let go with the column;
-    ``points``: the derivatives' stencil (:func:`ilic_cli.derivatives.derivative`)."""
+    ``points``: the derivatives' stencil (:func:`ilic_cli.derivatives.derivative`); ``speed_noise``: as :class:`Kinematics`'."""
 
-    def __init__(self, qf: np.ndarray, dt_s: float, trim: int, t: np.ndarray, shift_s: float, extra: dict[str, np.ndarray], points: int = 3) -> None:
+    def __init__(
+        self, qf: np.ndarray, dt_s: float, trim: int, t: np.ndarray, shift_s: float, extra: dict[str, np.ndarray], points: int = 3, speed_noise: float = 0.0
+    ) -> None:
         later = shift_s != 0.0
-        fields = {"t": t, "sign_qd": None, "extra": {k: evaluated_later(t, v, shift_s) for k, v in extra.items()} if later else extra}
+        fields = {
+            "t": t,
+            "sign_qd": None,
+            "speed_noise": speed_noise,
+            "extra": {k: evaluated_later(t, v, shift_s) for k, v in extra.items()} if later else extra,
+        }
         for name, value in {**fields, "_source": (qf, dt_s, trim, t, shift_s, points), "_memo": {}}.items():
             object.__setattr__(self, name, value)
 

@@ -19,7 +19,7 @@ from ilic_cli.idim_ls import IDIMLSResult, LSSettings, idim_ls
 from ilic_cli.lsq import LSResult
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.runlog import RunLog
-from ilic_cli.usable import identification_hold_s
+from ilic_cli.usable import identification_hold_s, identification_speed_noise
 
 Plant = tuple[dict[str, float], dict[str, dict[str, float]]]
 """Rigid parameters and effects, as a model file holds them."""
@@ -58,6 +58,7 @@ class IDIMLS:
                 valid=prepared.valid,
                 segments=prepared.segments,
                 hold_s=identification_hold_s(prepared) + model.lag_s,
+                speed_noise=identification_speed_noise(prepared),
             )
         except ValueError as exc:
             raise IdentificationError(prepared.source, str(exc)) from None

@@ -22,7 +22,7 @@ from ilic_cli.lsq import LSResult
 from ilic_cli.output_error import METHODS, OEResult, OESettings, closed_loop_oe, open_loop_oe
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.runlog import RunLog
-from ilic_cli.usable import identification_hold_s
+from ilic_cli.usable import identification_hold_s, identification_speed_noise
 
 
 @dataclass(frozen=True)
@@ -85,5 +85,6 @@ def inverse_model_error(oe: OEResult, log: RunLog, prepared: PreparedLog, effect
         theta = np.array([values[n] for n in m.names], dtype=np.float64)
     except (KeyError, IlicError):
         return None  # the fitted plant has no inverse model of this form
-    hold = identification_hold_s(prepared) + stated_lag_s(effects)
-    return cross_validate(theta, log.t, log["q"], log["tau"], prepared.fs_hz, m, ls_settings, valid=prepared.valid, segments=prepared.segments, hold_s=hold)
+    hold, noise = identification_hold_s(prepared) + stated_lag_s(effects), identification_speed_noise(prepared)
+    v, seg = prepared.valid, prepared.segments
+    return cross_validate(theta, log.t, log["q"], log["tau"], prepared.fs_hz, m, ls_settings, valid=v, segments=seg, hold_s=hold, speed_noise=noise)

@@ -48,14 +48,16 @@ def test_the_pairs_leave_out_the_same_samples_on_both_sides() -> None:
 
 
 def test_rev05_s721_s_flexibility_is_judged_on_its_plant_folds() -> None:
-    """The corpus's 1 kHz flexible elbow: at the selection's resonance two of the five folds put the load above the axis."""
+    """The corpus's 1 kHz flexible elbow: at a resonance of 42 Hz, lightly damped, two of the five folds put the load above
+    the axis. (Before the Coulomb column was the expected sign of the noisy velocity, the selection's 33.34 Hz did; now every
+    fold's fit there is a plant, and the mechanism is held on a value where some are not.)"""
     case = next(c for c in robot.cases() if c.name == "rev0.5/multisine/1000Hz/sensor/stribeck+flexibility/s721")
     built = robot.build(case)
     ls = DiagnosisSettings().ls.at_rate(built.log.fs_hz)
     base = get_model("rigid-offset")
     data = prepare_system(with_rest(prepare_log(built.log), ls), base, ls)
     rows = moving_rows(data)
-    step = Step(FLEX, (33.34, 0.1297))
+    step = Step(FLEX, (42.0, 0.05))
 
     def plant_of(steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> tuple[dict[str, float], dict[str, object]]:
         return model_parameters(steps, names, theta, np.zeros((len(theta), len(theta))))

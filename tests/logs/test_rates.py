@@ -30,7 +30,7 @@ from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import read_log
 from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
-from ilic_cli.usable import REST_RULE, with_rest
+from ilic_cli.usable import REST_RULE, SIGN_RULE, with_rest
 from plant.controllers import PDSettings
 from plant.replay import simulate_replay
 from plant.trajectories import Move, Trajectory
@@ -175,6 +175,7 @@ def test_identify_ls_is_right_on_a_dwell_and_move_log_at_every_rate(name: str, f
     assert rows["rule"] == REST_RULE and rows["dwells"] >= len(AXES[name].moves)
     assert rows["rows_at_rest"] > 0 and rows["usable_rows"] == doc["ls"]["rows"] == rows["decimated_rows"] - rows["rows_at_rest"]
     assert rows["regressor_delay_s"] == pytest.approx(0.5 / fs_hz)  # the drive's held command
+    assert rows["coulomb_sign"] == SIGN_RULE and rows["sign_speed_noise"] == doc["ls"]["sign_speed_noise"] > 0  # the expected sign
 
 
 @pytest.mark.parametrize("fs_hz", RATES_HZ, ids=lambda f: f"{f:g}Hz")
@@ -187,6 +188,7 @@ def test_identify_and_diagnose_fit_the_same_rows(name: str, fs_hz: float, folder
     ls = LSSettings()
     data = _prepare(with_rest(prepare_log(log), ls), base_model(None, "rigid-offset"), ls)
     assert data.rows is not None and np.array_equal(data.rows, report.ls.kept)
+    assert data.kin.speed_noise == report.ls.speed_noise > 0  # one Coulomb column (SIGN_RULE)
     assert int(report.ls.kept.sum()) == report.ls.result.rows == report.usable.usable == len(data.y)
     assert data.joint == AXES[name].joint  # the units the diagnosis's reasons write its values in
 
@@ -208,9 +210,11 @@ def test_diagnose_on_the_issues_log_fits_identifys_rows_and_finds_nothing(folder
         assert d["base"]["parameters"][n]["value"] == pytest.approx(i["ls"]["parameters"][n]["value"], rel=1e-9)
     assert {f["effect"] for f in d["findings"]} <= {"offset"}, d["findings"]
     assert f"{d['usable_rows']['rows_at_rest']} at rest left out" in (out / "report.md").read_text()
+    assert SIGN_RULE in (out / "report.md").read_text() and d["usable_rows"]["sign_speed_noise"] == i["usable_rows"]["sign_speed_noise"] > 0
     u = i["usable_rows"]
     md = run_cli("identify", str(path), "--method", "ls", *user_options("linear")).stdout  # the text states the rule too
     assert f"{u['usable_rows']} of {u['decimated_rows']} decimated rows fitted: {u['rows_at_rest']} at rest left out ({u['dwells']} dwells: {REST_RULE})" in md
+    assert f"the Coulomb column the expected sign of the velocity, its noise {u['sign_speed_noise']:.3g} m/s over the dwells ({SIGN_RULE})" in md
 
 
 def test_a_log_with_dwells_that_does_not_say_how_its_force_is_sampled_is_warned_of(folder: Path) -> None:

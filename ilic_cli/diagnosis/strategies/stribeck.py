@@ -1,11 +1,13 @@
 """Stribeck friction's identification strategy (``dwell_segments``): proposed by the closed loop at a reference's dwells, refitted on
 open-loop segments driven by the recorded force.
 
-At a trapezoid's dwells the inverse model fits friction below Coulomb (outside the effect's physics) and never
-proposes Stribeck friction; the closed loop sees it (:mod:`ilic_cli.diagnosis.dwell`). So:
+At a trapezoid's dwells the inverse model's filtered kinematics do not resolve the stick and break-away: it fits
+friction below Coulomb (outside the effect's physics), or a level above it that is no estimate; the closed loop sees
+it (:mod:`ilic_cli.diagnosis.dwell`). So:
 
-- which rows: a reference that dwells (:func:`ilic_cli.diagnosis.dwell.dwells`), or a log whose inverse model found the
-  effect by its F-test and not by its held-out test (:meth:`ilic_cli.diagnosis.select.SelectionResult.unconfirmed`);
+- which rows: a reference that dwells (:func:`ilic_cli.diagnosis.dwell.dwells`; in place of the inverse model's proposal,
+  :func:`ilic_cli.diagnosis.propose.closed_loop_proposal`), or a log whose inverse model found the effect by its F-test
+  and not by its held-out test (:meth:`ilic_cli.diagnosis.select.SelectionResult.unconfirmed`);
 - which scan: the candidate at the middle of the grids, its level held (:meth:`DwellSegments.propose`); on each fold's
   training blocks ``Fs`` and ``vs`` searched by noisy closed-loop replays (:meth:`DwellSegments.scan`), the folds'
   medians judged by the replay (:meth:`DwellSegments.judged`);

@@ -1,0 +1,60 @@
+"""Which effect an identification strategy proposes on the closed loop (:func:`ilic_cli.diagnosis.propose.closed_loop_proposal`):
+where the reference dwells the strategy values its effect, in place of the inverse model's material proposal; elsewhere
+only what the held-out test left unconfirmed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pytest
+
+import ilic_cli.diagnosis.propose as propose
+from ilic_cli.diagnosis.settings import DiagnosisSettings
+from ilic_cli.diagnosis.system import Step
+from ilic_cli.effects import EFFECTS
+
+STRIBECK = EFFECTS["stribeck"]
+
+
+@dataclass
+class Strategy:
+    dwelling: bool
+
+    def applies(self, log: Any, min_s: float, min_count: int) -> bool:
+        return self.dwelling
+
+    def propose(self, effect: Any, data: Any, base: Any, rows: Any) -> Step:
+        return Step(effect, 0.01, level=(1.0,))
+
+
+@dataclass
+class Selection:
+    unconfirmed_ids: tuple[str, ...] = ()
+
+    def unconfirmed(self, effect_id: str) -> bool:
+        return effect_id in self.unconfirmed_ids
+
+
+def proposal(monkeypatch: pytest.MonkeyPatch, dwelling: bool, proposed: list[Step], unconfirmed: tuple[str, ...] = ()) -> Step | None:
+    """``proposed``: the model file's effects and the inverse model's immaterial ones (an accepted one's last word is no
+    unconfirmed test: off the dwells it is never proposed again)."""
+    strategy = Strategy(dwelling)
+    monkeypatch.setattr(propose, "strategy_of", lambda effect: strategy if effect is STRIBECK else None)
+    return propose.closed_loop_proposal(None, None, None, proposed, np.ones(3, dtype=bool), DiagnosisSettings(), Selection(unconfirmed))  # type: ignore[arg-type]
+
+
+def test_at_the_dwells_the_strategy_values_what_the_inverse_model_proposed(monkeypatch: pytest.MonkeyPatch) -> None:
+    step = proposal(monkeypatch, True, [])  # proposed by the inverse model and material, or not proposed at all: the dwells suffice
+    assert step is not None and step.effect is STRIBECK and step.level == (1.0,)
+
+
+def test_without_dwells_only_what_the_held_out_test_left_unconfirmed(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert proposal(monkeypatch, False, []) is None  # the inverse model's material proposal stands, or nothing to judge
+    assert proposal(monkeypatch, False, [], ("stribeck",)) is not None  # an F-test passed, the held-out test not
+
+
+def test_neither_a_model_file_s_effect_nor_one_found_immaterial_is_proposed_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert proposal(monkeypatch, True, [Step(STRIBECK, 0.01)]) is None
+    assert proposal(monkeypatch, False, [Step(STRIBECK, 0.01)], ("stribeck",)) is None
