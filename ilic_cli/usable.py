@@ -133,10 +133,13 @@ class UsableRows:
     speed_noise: float = 0.0
 
     def sign_words(self, position_unit: str) -> str:
-        """The Coulomb column's sign in words (:data:`SIGN_RULE`, with the velocity's noise in ``position_unit`` per second); ``""``: the sign."""
+        """The Coulomb column's sign in a phrase (the JSON and docs/methods.md state :data:`SIGN_RULE` whole), with the velocity's
+        noise in ``position_unit`` per second; ``""``: the plain sign."""
         if not self.speed_noise:
             return ""
-        return f"the Coulomb column the expected sign of the velocity, its noise {self.speed_noise:.3g} {position_unit}/s over the dwells ({SIGN_RULE})"
+        return (
+            f"the Coulomb column erf(v / (√2 σv)), the expected sign of a velocity whose noise σv is {self.speed_noise:.3g} {position_unit}/s over the dwells"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -210,11 +210,12 @@ def test_diagnose_on_the_issues_log_fits_identifys_rows_and_finds_nothing(folder
         assert d["base"]["parameters"][n]["value"] == pytest.approx(i["ls"]["parameters"][n]["value"], rel=1e-9)
     assert {f["effect"] for f in d["findings"]} <= {"offset"}, d["findings"]
     assert f"{d['usable_rows']['rows_at_rest']} at rest left out" in (out / "report.md").read_text()
-    assert SIGN_RULE in (out / "report.md").read_text() and d["usable_rows"]["sign_speed_noise"] == i["usable_rows"]["sign_speed_noise"] > 0
+    sign = f"the Coulomb column erf(v / (√2 σv)), the expected sign of a velocity whose noise σv is {d['usable_rows']['sign_speed_noise']:.3g} m/s"
+    assert sign in (out / "report.md").read_text() and d["usable_rows"]["sign_speed_noise"] == i["usable_rows"]["sign_speed_noise"] > 0
     u = i["usable_rows"]
     md = run_cli("identify", str(path), "--method", "ls", *user_options("linear")).stdout  # the text states the rule too
     assert f"{u['usable_rows']} of {u['decimated_rows']} decimated rows fitted: {u['rows_at_rest']} at rest left out ({u['dwells']} dwells: {REST_RULE})" in md
-    assert f"the Coulomb column the expected sign of the velocity, its noise {u['sign_speed_noise']:.3g} m/s over the dwells ({SIGN_RULE})" in md
+    assert f"the Coulomb column erf(v / (√2 σv)), the expected sign of a velocity whose noise σv is {u['sign_speed_noise']:.3g} m/s over the dwells" in md
 
 
 def test_a_log_with_dwells_that_does_not_say_how_its_force_is_sampled_is_warned_of(folder: Path) -> None:
