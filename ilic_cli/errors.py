@@ -53,6 +53,14 @@ class SimulationError(IlicError):
     """A simulation request is inconsistent (bad parameter, unknown scenario)."""
 
 
+class DivergedError(SimulationError):
+    """A simulation's state became non-finite: the plant is unstable in its loop (or on its open-loop segment).
+
+    A candidate plant of the diagnosis whose replay diverges where the recording did not is refuted by it
+    (:func:`ilic_cli.diagnosis.heldout_replay.fold_replay`); a replay the user asked for is an error.
+    """
+
+
 class ParameterError(IlicError):
     """A value breaks the rule of a parameter: the parameter, the value and the rule.
 

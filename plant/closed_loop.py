@@ -18,7 +18,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ilic_cli.effects import Effects, effects_to_dict
-from ilic_cli.errors import ParameterError, SimulationError
+from ilic_cli.errors import DivergedError, ParameterError
 from ilic_cli.jointlog import channel_units
 from ilic_cli.prefault import populate_beside
 from ilic_cli.regressor import Model, get_model
@@ -96,7 +96,7 @@ def simulate_segments(
         a, b = int(i), int(i) + length
         bad = run_periods(a, b, x, cs, zero, zero, zero, u, zero, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd, None)
         if bad >= 0:
-            raise SimulationError(None, f"the open-loop segment from t = {i * T:.6g} s diverged at t = {bad * T:.6g} s (non-finite state)")
+            raise DivergedError(None, f"the open-loop segment from t = {i * T:.6g} s diverged at t = {bad * T:.6g} s (non-finite state)")
     return np.concatenate([out_qt[i : i + length] for i in starts]) if len(starts) else np.zeros(0)
 
 
@@ -183,7 +183,7 @@ class _Loop:
         args = (self.x, self.cs, self.q_r, self.qd_r, self.qdd_r, self.pulses, self.noise_q, self.p, self.c, chi8, self.substeps, self.T)
         bad = self.run_periods(a, b, *args, *self.out, self.dist)
         if bad >= 0:
-            raise SimulationError(None, f"the closed loop diverged at t = {bad * self.T:.6g} s (non-finite state); check the parameters and gains")
+            raise DivergedError(None, f"the closed loop diverged at t = {bad * self.T:.6g} s (non-finite state); check the parameters and gains")
 
 
 def _scheduled(loop: _Loop, sched: np.ndarray, chi_hist: np.ndarray) -> None:

@@ -69,3 +69,21 @@ def test_rev05_s721_s_flexibility_is_judged_on_its_plant_folds() -> None:
     assert rigid is not None and flexible is not None
     assert np.isfinite(rigid[0]).all() and np.isnan(flexible[0]).mean() == pytest.approx(0.4, abs=0.05)
     assert [u is None for u in flexible[2]] == [i in bad for i in range(5)]
+
+
+def test_a_candidate_that_diverges_in_the_recordings_loop_is_no_plant_and_a_users_replay_is_an_error() -> None:
+    """A fold's candidate plant whose replay diverges (here a 12 kg axis modelled as 1 g under its 10 Hz loop) is refuted by it:
+    no replay (``None``, an infinite training error), where it stopped the diagnosis with an error (corpus s9722). A replay asked
+    for, and any other simulation error, still raise."""
+    from ilic_cli.diagnosis.heldout_replay import _replayed_plant
+    from ilic_cli.errors import DivergedError, SimulationError
+    from ilic_cli.simulation.replay import replay
+
+    log = robot.simulate(robot.Case("lin12", "s-curve", 1000.0, "sensor", 1), {})
+    unstable = {"M": 1e-3, "Fv": 35.0, "Fc": 4.0}
+    assert _replayed_plant(log, (unstable, {}), {}) is None
+    with pytest.raises(DivergedError, match="the closed loop diverged"):
+        replay(log, unstable, {}, seed=0)
+    assert issubclass(DivergedError, SimulationError)  # a command's replay: one line, exit 2, as before
+    stable = _replayed_plant(log, ({"M": 12.0, "Fv": 35.0, "Fc": 4.0}, {}), {})
+    assert stable is not None and np.isfinite(stable["tau"]).all()
