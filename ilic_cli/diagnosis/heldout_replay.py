@@ -81,7 +81,7 @@ def noisy_output_error(log: RunLog, ls: LSSettings, rigid: dict[str, float], eff
     """
     try:
         sim = replay(log, rigid, {**sensor, **effects}, seed=REPLAY_SEED)
-    except ParameterError:
+    except (ParameterError, DivergedError):  # no plant, or one the recording's loop does not hold (:func:`_replayed_plant`)
         return float("inf")
     return band_force_error_pct(log, sim, ls)
 
