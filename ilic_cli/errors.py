@@ -57,7 +57,7 @@ class DivergedError(SimulationError):
     """A simulation's state became non-finite: the plant is unstable in its loop (or on its open-loop segment).
 
     A candidate plant of the diagnosis whose replay diverges where the recording did not is refuted by it
-    (:func:`ilic_cli.diagnosis.heldout_replay.fold_replay`); a replay the user asked for is an error.
+    (:meth:`ilic_cli.diagnosis.heldout_replay.HeldoutReplays.fold_replay`); a replay the user asked for is an error.
     """
 
 
