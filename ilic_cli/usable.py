@@ -174,11 +174,17 @@ UNKNOWN_FORCE_TIMING = (
 """The warning of :func:`force_timing_unknown`."""
 
 
+def rest_left_out(prepared: PreparedLog) -> RestSamples | None:
+    """The samples at rest of ``prepared`` when its fits leave rows at rest out (some sample is at rest), else ``None``: the
+    condition of the rules a log without standstill does not take (the hold, the expected sign; the published procedure)."""
+    rest = prepared.rest
+    return rest if rest is not None and rest.count else None
+
+
 def force_timing_unknown(prepared: PreparedLog) -> bool:
     """Whether ``prepared`` leaves rows at rest out while its force's timing is unknown (:func:`ilic_cli.prepare.tau_sensor`:
     ``None``): its fit evaluates the regressor at the sample instants, which biases Fv and Fc if the force is a held command."""
-    rest = prepared.rest
-    return rest is not None and rest.count > 0 and tau_sensor(prepared.log) is None
+    return rest_left_out(prepared) is not None and tau_sensor(prepared.log) is None
 
 
 def identification_hold_s(prepared: PreparedLog) -> float:
@@ -190,15 +196,13 @@ def identification_hold_s(prepared: PreparedLog) -> float:
     rest starts and ends with a jerk of the same sign, so once its rows at rest are left out the term biases Fv and
     Fc (measured on PD dwell-and-move logs at 250 Hz-8 kHz: up to 6 % at 1 kHz without it, within 1 % with it).
     """
-    rest = prepared.rest
-    return prepared.hold_s if rest is not None and rest.count else 0.0
+    return prepared.hold_s if rest_left_out(prepared) is not None else 0.0
 
 
 def identification_speed_noise(prepared: PreparedLog) -> float:
     """The velocity's noise whose expected sign the Coulomb column of every fit of ``prepared`` is (:data:`SIGN_RULE`):
     the RMS of the filtered velocity over its dwells when rows at rest are left out, else 0 (the sign)."""
-    rest = prepared.rest
-    return rest.speed_noise if rest is not None and rest.count else 0.0
+    return rest.speed_noise if (rest := rest_left_out(prepared)) is not None else 0.0
 
 
 def usable_rows(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> UsableRows:

@@ -79,11 +79,8 @@ def noisy_output_error(log: RunLog, ls: LSSettings, rigid: dict[str, float], eff
     The replayed force against the recorded one in the inverse model's band (:func:`band_force_error`), the
     filters' edges (``ls.trim`` samples each side) left out; ``inf`` when the plant does not simulate.
     """
-    try:
-        sim = replay(log, rigid, {**sensor, **effects}, seed=REPLAY_SEED)
-    except (ParameterError, DivergedError):  # no plant, or one the recording's loop does not hold (:func:`_replayed_plant`)
-        return float("inf")
-    return band_force_error_pct(log, sim, ls)
+    sim = _replayed_plant(log, (rigid, effects), sensor)  # None: no plant, or one the recording's loop does not hold
+    return float("inf") if sim is None else band_force_error_pct(log, sim, ls)
 
 
 def decision_sensor(

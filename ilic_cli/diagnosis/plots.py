@@ -11,18 +11,11 @@ import numpy as np
 from ilic_cli.diagnosis.core import Diagnosis
 from ilic_cli.io.atomic import atomic_path
 from ilic_cli.jointlog import UNITS
-from ilic_cli.plotting import edge_rows, mark_edges, scale_y, scaled_rows
+from ilic_cli.plotting import broken_at_gaps, edge_rows, mark_edges, scale_y, scaled_rows
 from ilic_cli.spectra import welch_psd
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
-
-
-def _broken_at_gaps(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``t, y`` with a NaN where the rows skip time (the rows at rest left out), so that a line is not drawn across them."""
-    step = np.diff(t)
-    gaps = np.flatnonzero(step > 1.5 * np.median(step)) + 1 if len(step) else np.zeros(0, dtype=int)
-    return np.insert(np.asarray(t, dtype=np.float64), gaps, np.nan), np.insert(np.asarray(y, dtype=np.float64), gaps, np.nan)
 
 
 def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
@@ -91,10 +84,11 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
         if "tau_after" in s:
             diffs.append(s["tau_after"] - s["tau"])
             axes[1].plot(t, diffs[1], lw=0.4, alpha=0.5, label="simulation - recording, augmented")
-        # the same in the inverse model's band (decimated as the rows): at a high rate the full band is mostly the loop's answer to the sensor noise
+        # the same in the inverse model's band (decimated as the rows, broken where the rows skip the dwells): at a high rate
+        # the full band is mostly the loop's answer to the sensor noise
         for key, color, who in (("before_band", "k", "rigid"), ("after_band", "tab:red", "augmented")):
             if key in s:
-                axes[1].plot(*_broken_at_gaps(s["t_band"], s[key]), lw=1.2, color=color, label=f"{who}, in the inverse model's band")
+                axes[1].plot(*broken_at_gaps(s["t_band"], s[key]), lw=1.2, color=color, label=f"{who}, in the inverse model's band")
         axes[1].set_ylabel(f"force difference ({force})")
     else:
         t, diffs = r["t"], [r["before"], r["after"]]

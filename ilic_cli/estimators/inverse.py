@@ -19,7 +19,7 @@ from ilic_cli.idim_ls import IDIMLSResult, LSSettings, idim_ls
 from ilic_cli.lsq import LSResult
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.runlog import RunLog
-from ilic_cli.usable import identification_hold_s, identification_speed_noise
+from ilic_cli.usable import identification_hold_s, identification_speed_noise, rest_left_out
 
 Plant = tuple[dict[str, float], dict[str, dict[str, float]]]
 """Rigid parameters and effects, as a model file holds them."""
@@ -116,7 +116,7 @@ class IDIMILIC:
             raise IdentificationError(prepared.source, str(exc)) from None
         warnings: list[str] = []
         res = _without_cut_windows(res, prepared.gap_samples, fs, warnings)
-        if prepared.rest is not None and prepared.rest.count:  # the windows' masked rows: at rest too, not only a saturated drive
+        if rest_left_out(prepared) is not None:  # the windows' masked rows: at rest too, not only a saturated drive
             why = "(saturated drive, or at rest)" if prepared.saturated is not None else "(at rest)"
             res = replace(res, windows=[replace(w, note=w.note.replace("(saturated drive)", why)) for w in res.windows])
         warnings += _window_warnings(res)

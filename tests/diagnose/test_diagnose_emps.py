@@ -133,7 +133,9 @@ def test_the_replays_force_difference_is_kept_in_the_models_band_too() -> None:
 
 
 def test_a_line_is_broken_where_the_rows_skip_time() -> None:
-    from ilic_cli.diagnosis.plots import _broken_at_gaps
+    """The band's traces are drawn through the project's one gap rule (:func:`ilic_cli.plotting.broken_at_gaps`): rows that skip a
+    dwell get a break, not a line across it."""
+    from ilic_cli.plotting import broken_at_gaps
 
-    t, y = _broken_at_gaps(np.array([0.0, 0.01, 0.02, 0.5, 0.51]), np.arange(5.0))
-    assert np.array_equal(np.isnan(t), [False, False, False, True, False, False]) and np.isnan(y[3]) and y[4] == 3.0
+    t, y = broken_at_gaps(np.array([0.0, 0.01, 0.02, 0.5, 0.51]), np.arange(5.0))
+    assert np.array_equal(np.isnan(y), [False, False, False, True, False, False]) and y[4] == 3.0 and 0.02 < t[3] < 0.5
