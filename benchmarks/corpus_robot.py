@@ -39,8 +39,8 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.corpus.measure import BY, breakdown, failures, run_case, summary  # noqa: E402
-from tests.corpus.robot import beyond_cases, cases  # noqa: E402
+from tests.corpus.measure import BY, below_band, breakdown, failures, run_case, summary  # noqa: E402
+from tests.corpus.robot import BAND_PTS, beyond_cases, cases  # noqa: E402
 
 RESEED_STEP = 3000
 """``--reseed K`` adds ``K`` times this to every seed: a multiple of 3, so each case keeps its variant (``Case.variant``)."""
@@ -83,6 +83,10 @@ def failure_list(rows: list[dict[str, Any]]) -> str:
         if r.get("refused"):
             lines.append(f"| {r['case']} | {r['size_pts']} | refused | {r['refused']} |")
             continue
+        if below_band(r):
+            said = ", ".join(f["effect"] for f in r["findings"]) or "no finding"
+            lines.append(f"| {r['case']} | {r['size_pts']} | below the band, in no rate: {'+'.join(r['effects'])} | {said} |")
+            continue
         for f, v in zip(r["findings"], r["verdicts"], strict=True):
             if v == "false alarm":
                 reason = r["false_alarm_reasons"].get(f["effect"], "")
@@ -105,7 +109,8 @@ def report(rows: list[dict[str, Any]], wall_s: float, jobs: int) -> str:
     s = summary(rows)
     cpu = sum(r["cpu_s"] for r in rows)
     out = [
-        f"{len(rows)} logs ({s['clean']} clean, {s['effect_logs']} with effects); {wall_s:.0f} s wall on {jobs} worker(s); "
+        f"{len(rows)} logs ({s['clean']} clean, {s['effect_logs']} with effects, {s['below_band']} whose effects change the rigid fit by less "
+        f"than the band's {BAND_PTS[0]} points: in no rate); {wall_s:.0f} s wall on {jobs} worker(s); "
         f"{cpu:.0f} s of CPU summed over the logs",
         "",
         f"- clean logs with a finding other than `offset` (or a current loop's lag): {_pct(s['clean_with_false_alarm'], s['clean'])}",

@@ -21,7 +21,7 @@ import numpy as np
 
 from ilic_cli.errors import IlicError
 from tests.clirun import run_cli
-from tests.corpus.robot import ALL_AXES, DWELL_TRAJECTORIES, TOLERANCE, Built, Case, build, score
+from tests.corpus.robot import ALL_AXES, BAND_PTS, DWELL_TRAJECTORIES, TOLERANCE, Built, Case, build, score
 
 IDENTIFY_TOLERANCE = 0.02
 """``identify --method ls`` on clean dwell-and-move logs: M, Fv, Fc within 2 % (the issue's)."""
@@ -206,15 +206,19 @@ def run_case(case: Case) -> dict[str, Any]:
 # the rates
 # ---------------------------------------------------------------------------
 def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """The rates of issue 29's "Done when" over ``rows``."""
+    """The rates of issue 29's "Done when" over ``rows``.
+
+    An effect log counts where its concealed effects are material on it (:func:`below_band`: else ``below_band``, listed
+    apart and in no rate)."""
     clean = [r for r in rows if r["clean"]]
-    eff = [r for r in rows if not r["clean"]]
+    eff = [r for r in rows if not r["clean"] and not below_band(r)]
     errs = [e for r in eff for e in r["parameter_error"].values()]
     ident = [r for r in rows if r["identify"] is not None]
     return {
         "clean": len(clean),
         "clean_with_false_alarm": sum(r["false_alarms"] > 0 for r in clean),
         "effect_logs": len(eff),
+        "below_band": sum(below_band(r) for r in rows),
         "named_exactly": sum(r["exact"] for r in eff),
         "effects_named": sum(len(r["truth"]) - len(r["missed"]) for r in eff),
         "effects_total": sum(len(r["truth"]) for r in eff),
@@ -226,6 +230,15 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "identify_same_rows": sum(r["identify"]["same_rows"] for r in ident),
         "refused": sum(bool(r.get("refused")) for r in rows),
     }
+
+
+def below_band(row: dict[str, Any]) -> bool:
+    """Whether an effect log's concealed effects change the rigid fit's relative error by less than the design's band
+    (:data:`tests.corpus.robot.BAND_PTS`, the issue's 0.2 points) on it: its calibration found no size in the band (a
+    35 Hz flexibility on the 12 kg axis's S-curves under the 10 Hz disturbance, 0.8 of the load behind it, moves it by
+    -0.01 to 0.09 points) or a pair's effects cancel in the rigid fit. By the issue's design no effect log, and by the
+    tool's rule an immaterial effect is no finding: counted in no rate, listed apart with what the diagnosis said."""
+    return not row["clean"] and row["size_pts"] < BAND_PTS[0]
 
 
 def _rate(k: int, n: int) -> float | None:

@@ -87,6 +87,18 @@ def test_the_rates_fail_where_the_issue_says() -> None:
     assert len(failures({**ok, "identify_within": 4})) == 1 and len(failures({**ok, "parameters_within": 9})) == 1
 
 
+def test_an_effect_log_below_the_band_counts_in_no_rate() -> None:
+    """A log whose concealed effect moves the rigid fit by less than the band's 0.2 points (its effect immaterial on it) is
+    counted apart, neither named nor missed; at the band's edge it counts."""
+
+    def row(size: float, exact: bool) -> dict[str, object]:
+        return {"clean": False, "size_pts": size, "exact": exact, "truth": {"spring": {}}, "missed": [] if exact else ["spring"]}
+
+    base = {"parameter_error": {}, "identify": None, "false_alarms": 0}
+    s = summary([{**base, **row(0.5, True)}, {**base, **row(0.09, False)}, {**base, **row(BAND_PTS[0], False)}])
+    assert (s["effect_logs"], s["named_exactly"], s["below_band"], s["effects_total"], s["effects_named"]) == (2, 1, 1, 2, 1)
+
+
 SHORT_OF_THE_DONE_WHEN: dict[str, str] = {
     # the 10 Hz force disturbance's spread: Fc -2.5 % where identify's own robust σ of Fc is 3.1 % (z = -0.8)
     "rev0.01/s-curve/500Hz/disturbance/clean/s25": "identify",
