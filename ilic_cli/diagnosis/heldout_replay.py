@@ -32,6 +32,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.compare import band_force_error, band_force_error_pct
 from ilic_cli.diagnosis.drift import GivenDrift
+from ilic_cli.diagnosis.dwell import IN_MOTION_ALPHA, reference_moving
 from ilic_cli.diagnosis.fold_plant import MIN_PLANT_FOLDS, fitted_plant, fold_fit, not_a_plant
 from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
 from ilic_cli.diagnosis.replay_again import Heldout, judged_again
@@ -226,6 +227,8 @@ class HeldoutReplays:
         self.others_of = [np.any([sel for j, sel in enumerate(self.in_block) if j != fold], axis=0) for fold in range(len(self.in_block))]
         self.idx_tau = np.concatenate([np.flatnonzero(sel) for sel in self.in_block])
         self.idx_q = np.concatenate([np.arange(a, b) for spans in self.blocks for a, b in spans])
+        self.moving_tau = reference_moving(np.asarray(log["q_ref"]), at[self.idx_tau], self.step_dec)
+        """Whether the reference moves at each held-out force sample (:func:`~ilic_cli.diagnosis.dwell.reference_moving`)."""
         self.min_delay_periods = MIN_DELAY_PERIODS
         """A judged delay shorter than this share of the sample period is not a finding (:func:`~ilic_cli.diagnosis.materiality.below_period`)."""
         self.fold_xatol_steps = FOLD_XATOL_STEPS
@@ -265,6 +268,21 @@ class HeldoutReplays:
         (fb, pb), (fa, pa) = self.percent(current), self.percent(after)
         both = np.isfinite(current[0]) & np.isfinite(after[0])
         return (fb, fa), (pb, pa), heldout_fall_p(current[0][both], after[0][both]), left_out
+
+    def in_motion(self, current: Heldout, after: Heldout, agrees: str) -> tuple[Verdict, str]:
+        """The verdict on a friction at low speed found at the dwells whose replay agrees (sentence ``agrees``): kept where the
+        held-out force error falls where the reference moves too, at :data:`~ilic_cli.diagnosis.dwell.IN_MOTION_ALPHA`."""
+        cur, aft, _ = self.paired(current, after)
+        moving = np.isfinite(cur[0]) & np.isfinite(aft[0]) & self.moving_tau
+        p = heldout_fall_p(cur[0][moving], aft[0][moving]) if moving.sum() > 1 else 1.0
+        if p <= IN_MOTION_ALPHA:
+            return Verdict.AGREES, f"{agrees}; where the reference moves p = {p:.2g}"
+        (rb, ra), (mb, ma) = [[_heldout_pct(e[sel], self.tau_dec, self.idx_tau[sel]) for e in (cur[0], aft[0])] for sel in (~self.moving_tau, self.moving_tau)]
+        return Verdict.AT_REST_ONLY, (
+            f"rejected by the replay: the held-out simulated force error falls where the reference rests ({rb:.3g} % -> {ra:.3g} %) and not "
+            f"significantly where it moves ({mb:.3g} % -> {ma:.3g} %, p = {p:.2g}, against {IN_MOTION_ALPHA:g}): a friction at low speed acts "
+            "as the axis leaves and nears rest, and a fall at the dwells alone is a model that stops the axis elsewhere"
+        )
 
     def fold_search(self, train: np.ndarray, fold: int, noise: dict[str, Any]) -> tuple[Callable[[list[Step]], RunLog | None], Callable[[list[Step]], float]]:
         """A fold's replay of a model fitted on ``train`` with the sensor ``noise`` (each model once), and its training error."""
@@ -406,6 +424,8 @@ class HeldoutReplays:
             if sims[0] is not None and sims[1] is not None:
                 vb, va = relative_errors(vlog, sims[0], vls)["force"], relative_errors(vlog, sims[1], vls)["force"]
         verdict, why = replay_verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, below_period(judged, self.data.fs_hz, self.min_delay_periods))
+        if proposed_here and verdict is Verdict.AGREES:
+            verdict, why = self.in_motion(current, after, why)
         fold_values = (
             tuple(float(v) for v in after[2] if v is not None)
             if search and not proposed_here

@@ -68,6 +68,8 @@ class Verdict(Enum):
     """The held-out simulated position error rises."""
     VALIDATION_RISES = "validation rises"
     """The validation log's simulated force error rises."""
+    AT_REST_ONLY = "at rest only"
+    """A friction at low speed found at the dwells whose held-out fall is at rest only, not where the reference moves."""
     AGREES = "the replay agrees"
     """Kept: a finding."""
     REFUTED = "refuted"

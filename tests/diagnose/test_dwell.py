@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import dwell, segments
+from ilic_cli.diagnosis.heldout_replay import HeldoutReplays
 from ilic_cli.diagnosis.report import to_markdown
+from ilic_cli.diagnosis.verdicts import Verdict
 from tests.conftest import require_shared
 from tests.corpus import CASES, score
 from tests.diagnose.corpus_cache import diagnosed
@@ -115,3 +118,37 @@ def test_stribeck_beside_a_flexibility_that_the_held_out_test_leaves_unconfirmed
     text = to_markdown(diag)
     assert "proposed on the closed loop, since the inverse model's F-test finds it" in text
     assert "This replay is noise-free" not in text and "do not resolve the stick and break-away there" not in text
+
+
+def test_the_rows_in_motion_are_those_whose_span_touches_a_step_of_the_reference() -> None:
+    """A dwell from sample 10 to 29 (the reference still there): with a span of 3 the rows up to 3 samples into it count as in
+    motion, the rest of it not; at a span of 0 only the samples that step."""
+    q = np.r_[np.linspace(0.0, 1.0, 11), np.ones(19), np.linspace(1.0, 0.0, 11)[1:]]
+    at = np.arange(len(q))
+    moving = dwell.reference_moving(q, at, 3)
+    assert moving[:13].all() and not moving[13:27].any() and moving[27:].all()
+    assert not dwell.reference_moving(q, at, 0).any()
+    assert dwell.reference_moving(q, np.array([12]), 1).tolist() == [False]
+
+
+def _replays(moving: np.ndarray) -> HeldoutReplays:
+    """A held-out replay's bookkeeping without a log: every sample held out, the recorded force 1 N."""
+    hr = object.__new__(HeldoutReplays)
+    hr.moving_tau, hr.tau_dec, hr.idx_tau = moving, np.ones(len(moving)), np.arange(len(moving))
+    return hr
+
+
+def test_a_friction_at_low_speed_whose_replay_falls_at_rest_only_is_rejected() -> None:
+    """The held-out test on the rows in motion: a fall at the dwells alone is rejected with the two errors in its sentence; the
+    same fall with one where the reference moves too is kept."""
+    rng = np.random.default_rng(4)
+    n = 400
+    moving = np.arange(n) % 4 != 0
+    before = 0.05 * rng.standard_normal(n)
+    at_rest_only = np.where(moving, before + 1e-4 * rng.standard_normal(n), 0.2 * before)
+    hr = _replays(moving)
+    verdict, why = hr.in_motion((before, before, None), (at_rest_only, at_rest_only, None), "agrees")
+    assert verdict is Verdict.AT_REST_ONLY and "where the reference rests" in why and f"against {dwell.IN_MOTION_ALPHA:g}" in why
+    both = 0.5 * before
+    verdict, why = hr.in_motion((before, before, None), (both, both, None), "agrees")
+    assert verdict is Verdict.AGREES and why.startswith("agrees; where the reference moves p = ")
