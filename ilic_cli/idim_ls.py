@@ -159,8 +159,8 @@ class IDIMLSResult:
     """The velocity's noise whose expected sign the Coulomb column is (:func:`lsq_rows`; 0: the sign)."""
 
     def to_dict(self) -> dict[str, Any]:
-        d = {"method": "IDIM-LS", "model": self.model, **self.result.to_dict(), "settings": self.settings.to_dict(), "regressor_delay_s": self.hold_s}
-        d["sign_speed_noise"] = self.speed_noise
+        d = {"method": "IDIM-LS", "model": self.model, **self.result.to_dict(), "settings": self.settings.to_dict()}
+        d |= {"regressor_delay_s": self.hold_s, "sign_speed_noise": self.speed_noise}
         if self.robust is not None:
             d["robust_std"] = self.robust.to_dict(self.result.names, self.result.std)
         if (pair := self.most_correlated()) is not None:

@@ -56,6 +56,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.select import Step
 from ilic_cli.effects import EFFECTS, Effect, unit_on
+from ilic_cli.idim_ls import valid_rows
 
 DWELL_MIN_S = 0.05
 """A rest of the reference at least this long (s) is a dwell."""
@@ -114,16 +115,15 @@ def _still(q: np.ndarray) -> np.ndarray:
     return np.abs(np.diff(q)) <= 1e-9 * max(float(np.ptp(q)), 1e-12)
 
 
-def reference_moving(q_ref: np.ndarray, at: np.ndarray, span: int = 1) -> np.ndarray:
-    """Whether the reference moves within ``span`` samples of each sample ``at`` (a decimated row's span touches a step of it):
-    where a friction at low speed acts as the axis leaves and nears rest, beside where it holds it (:data:`IN_MOTION_ALPHA`)."""
+def reference_moving(q_ref: np.ndarray, r: int) -> np.ndarray:
+    """Whether each row of ``q_ref`` decimated by ``r`` (:func:`ilic_cli.filtering.kept_indices`) has a span that touches a
+    sample where the reference moves, into or out of it (the span of :func:`ilic_cli.idim_ls.valid_rows`): where a friction
+    at low speed acts as the axis leaves and nears rest, beside where it holds it (:data:`IN_MOTION_ALPHA`)."""
     q = np.asarray(q_ref, dtype=np.float64)
-    at = np.asarray(at, dtype=np.int64)
-    if len(q) < 2:
-        return np.zeros(len(at), dtype=bool)
-    steps = np.r_[0, np.cumsum(~_still(q))]  # steps[i]: the reference's steps before sample i
-    lo, hi = np.clip(at - span, 0, len(q) - 1), np.clip(at + span, 0, len(q) - 1)
-    return np.asarray(steps[hi] > steps[lo], dtype=bool)
+    if len(q) == 0:
+        return np.zeros(0, dtype=bool)
+    moves = ~_still(q)
+    return ~valid_rows(~(np.r_[False, moves] | np.r_[moves, False]), r)
 
 
 def reference_dwells(q_ref: np.ndarray, fs_hz: float, min_s: float = DWELL_MIN_S) -> int:

@@ -227,7 +227,7 @@ class HeldoutReplays:
         self.others_of = [np.any([sel for j, sel in enumerate(self.in_block) if j != fold], axis=0) for fold in range(len(self.in_block))]
         self.idx_tau = np.concatenate([np.flatnonzero(sel) for sel in self.in_block])
         self.idx_q = np.concatenate([np.arange(a, b) for spans in self.blocks for a, b in spans])
-        self.moving_tau = reference_moving(np.asarray(log["q_ref"]), at[self.idx_tau], self.step_dec)
+        self.moving_tau = reference_moving(np.asarray(log["q_ref"]), self.step_dec)[self.idx_tau]
         """Whether the reference moves at each held-out force sample (:func:`~ilic_cli.diagnosis.dwell.reference_moving`)."""
         self.min_delay_periods = MIN_DELAY_PERIODS
         """A judged delay shorter than this share of the sample period is not a finding (:func:`~ilic_cli.diagnosis.materiality.below_period`)."""

@@ -9,6 +9,7 @@ from ilic_cli.diagnosis import dwell, segments
 from ilic_cli.diagnosis.heldout_replay import HeldoutReplays
 from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.diagnosis.verdicts import Verdict
+from ilic_cli.filtering import kept_indices
 from tests.conftest import require_shared
 from tests.corpus import CASES, score
 from tests.diagnose.corpus_cache import diagnosed
@@ -121,14 +122,17 @@ def test_stribeck_beside_a_flexibility_that_the_held_out_test_leaves_unconfirmed
 
 
 def test_the_rows_in_motion_are_those_whose_span_touches_a_step_of_the_reference() -> None:
-    """A dwell from sample 10 to 29 (the reference still there): with a span of 3 the rows up to 3 samples into it count as in
-    motion, the rest of it not; at a span of 0 only the samples that step."""
+    """A dwell from sample 10 to 29 (the reference still there): undecimated, the samples that step in or out of it are in
+    motion, the rest of it not; decimated by 4, a row is in motion where its span (3 samples either side of its kept
+    sample, as ``valid_rows``) touches such a sample."""
     q = np.r_[np.linspace(0.0, 1.0, 11), np.ones(19), np.linspace(1.0, 0.0, 11)[1:]]
-    at = np.arange(len(q))
-    moving = dwell.reference_moving(q, at, 3)
-    assert moving[:13].all() and not moving[13:27].any() and moving[27:].all()
-    assert not dwell.reference_moving(q, at, 0).any()
-    assert dwell.reference_moving(q, np.array([12]), 1).tolist() == [False]
+    every = dwell.reference_moving(q, 1)
+    assert every[:11].all() and not every[11:29].any() and every[29:].all()
+    rows = dwell.reference_moving(q, 4)
+    kept = kept_indices(len(q), 4)
+    assert rows.tolist() == [bool(every[max(k - 3, 0) : k + 4].any()) for k in kept]
+    assert rows.any() and not rows.all()
+    assert len(dwell.reference_moving(np.zeros(0), 4)) == 0 and not dwell.reference_moving(np.ones(7), 2).any()
 
 
 def _replays(moving: np.ndarray) -> HeldoutReplays:
