@@ -200,7 +200,8 @@ def _record(selection: SelectionResult, material: list[Step], verdicts: list[Rep
         if (at := selection.last_at(eid)) is not None:
             k, i = at
             ev = selection.tried[k][i]
-            how = "valued on the closed loop at the dwells instead" if ev.accepted else "proposed on the closed loop instead"
+            # accepted: at the dwells, or confirmed held out as a proposal but not at the replay's level; else rejected by the inverse model
+            how = "valued on the closed loop instead" if ev.accepted else "proposed on the closed loop instead"
             selection.tried[k][i] = replace(ev, accepted=ev.accepted and by_effect[eid].accepted, reason=f"{ev.reason}; {how}: {by_effect[eid].reason}")
 
 

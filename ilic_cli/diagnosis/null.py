@@ -64,6 +64,10 @@ from ilic_cli.simulation.replay import replay
 NULL_KINDS = ("dm", "montecarlo")
 """``dm``: the asymptotic Diebold-Mariano test (default); ``montecarlo``: this module's null."""
 
+REPLAY_ALPHA = 0.01
+"""Level of the replay's test, the decision (``--replay-alpha``): the inverse model's held-out test only proposes, at the
+usual 0.05 (:attr:`ilic_cli.diagnosis.select.SelectSettings.alpha_heldout`)."""
+
 BANDWIDTH_RANGE = (0.5, 0.4)
 """The disturbance's corner frequency is kept within [0.5 Hz, 0.4 times the decimated rate]."""
 
@@ -120,7 +124,7 @@ class NullSettings:
     seed : int
         Seed of the replicates (:func:`replicate_seed`).
     alpha : float or None
-        Level of the replay's test; ``None``: the selection's ``alpha_heldout``.
+        Level of the replay's test; ``None``: :data:`REPLAY_ALPHA`.
     """
 
     kind: str = "dm"
@@ -146,7 +150,8 @@ class NullSettings:
             )
 
     def to_dict(self) -> dict[str, Any]:
-        return {"null": self.kind, "replicates": self.replicates if self.kind == "montecarlo" else None, "seed": self.seed, "alpha": self.alpha}
+        alpha = self.alpha if self.alpha is not None else REPLAY_ALPHA  # the level the replay ran at
+        return {"null": self.kind, "replicates": self.replicates if self.kind == "montecarlo" else None, "seed": self.seed, "alpha": alpha}
 
 
 # ---------------------------------------------------------------------------

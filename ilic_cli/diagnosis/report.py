@@ -14,7 +14,8 @@ from ilic_cli.diagnosis.compare import SimulationComparison
 from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.fits import INVERSE_METHOD
 from ilic_cli.diagnosis.locate import Region
-from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, RefitOutcome, Selection
+from ilic_cli.diagnosis.settings import replay_alpha
+from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, RefitOutcome
 from ilic_cli.effects import Estimate
 from ilic_cli.jointlog import position_unit
 from ilic_cli.parameters import PARAMETERS
@@ -99,8 +100,9 @@ def _on_loop(diag: Diagnosis, f: Finding) -> bool:
 
 
 def _at_dwells(diag: Diagnosis, f: Finding) -> bool:
-    """Whether ``f`` was proposed on the closed loop at the reference's dwells (not for want of the inverse model's held-out test)."""
-    return _on_loop(diag, f) and f.evidence.outcome is not Selection.HELDOUT_UNCONFIRMED
+    """Whether ``f`` was proposed on the closed loop at the reference's dwells (not for want of the inverse model's held-out test at
+    the replay's level: :func:`ilic_cli.diagnosis.propose.closed_loop_proposal`)."""
+    return _on_loop(diag, f) and not f.evidence.unconfirmed_at(replay_alpha(diag.settings))
 
 
 def to_markdown(diag: Diagnosis) -> str:
@@ -235,7 +237,7 @@ def _finding_section(diag: Diagnosis, i: int, f: Finding, force_unit: str) -> li
             if _at_dwells(diag, f)
             else (
                 f"proposed on the closed loop, since the inverse model's F-test finds it (p = {ev.test.p_adjusted:.2g}) but its held-out test "
-                f"does not confirm it (p = {ev.heldout_p_value:.2g}): on closed-loop data the command answers the noise its filtered "
+                f"does not confirm it at the replay's level (p = {ev.heldout_p_value:.2g}): on closed-loop data the command answers the noise its filtered "
                 "kinematics carry, so its estimate there is biased"
             )
         )

@@ -77,7 +77,8 @@ class SelectSettings:
         Family-wise level of each step's F-test (after Bonferroni).
     alpha_heldout : float
         Level of the one-sided Diebold-Mariano test that the held-out
-        errors drop.
+        errors drop: a proposal's confirmation, at the usual 0.05 (the
+        closed-loop replay decides, at :data:`ilic_cli.diagnosis.null.REPLAY_ALPHA`).
     folds : int
         Contiguous cross-validation blocks over time.
     guard : int
@@ -89,7 +90,7 @@ class SelectSettings:
     """
 
     alpha: float = 0.001
-    alpha_heldout: float = 0.01
+    alpha_heldout: float = 0.05
     folds: int = 5
     guard: int = 10
     max_effects: int = 4
@@ -127,6 +128,13 @@ class Evaluation:
     indistinct_from: str | None = None
     """An effect the data cannot tell from this one (:func:`parsimonious_first`): neither's fitted force adds significantly to the
     model with the other's, over the range the log visits; ``None``: none. A typed ambiguity, stated with the finding."""
+
+    def unconfirmed_at(self, level: float | None = None) -> bool:
+        """Whether its F-test passed but its held-out test did not confirm it (:attr:`Selection.HELDOUT_UNCONFIRMED`), or, given a
+        ``level``, confirmed it on a p-value not below that level (a proposal, not confirmed at the level that decides)."""
+        if self.outcome is Selection.HELDOUT_UNCONFIRMED:
+            return True
+        return level is not None and self.outcome is Selection.ACCEPTED and self.heldout_p_value is not None and self.heldout_p_value >= level
 
     def decided(self, outcome: Selection, detail: str | None = None, **figures: Any) -> Evaluation:
         """This evaluation decided: ``outcome``, its sentence (:meth:`~ilic_cli.diagnosis.verdicts.Selection.sentence`) as the reason."""
@@ -174,10 +182,11 @@ class SelectionResult:
         at = self.last_at(effect_id)
         return None if at is None else self.tried[at[0]][at[1]]
 
-    def unconfirmed(self, effect_id: str) -> bool:
-        """Whether the last evaluation of ``effect_id`` passed its F-test but not its held-out test (:attr:`Selection.HELDOUT_UNCONFIRMED`)."""
+    def unconfirmed(self, effect_id: str, level: float | None = None) -> bool:
+        """Whether the last evaluation of ``effect_id`` passed its F-test but its held-out test did not confirm it (at ``level``:
+        :meth:`Evaluation.unconfirmed_at`)."""
         ev = self.last_word(effect_id)
-        return ev is not None and ev.outcome is Selection.HELDOUT_UNCONFIRMED
+        return ev is not None and ev.unconfirmed_at(level)
 
 
 def parsimonious_first(evals: list[Candidate], W: np.ndarray, y: np.ndarray, alpha: float) -> list[Candidate]:

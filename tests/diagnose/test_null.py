@@ -225,6 +225,7 @@ def test_cli_montecarlo_names_the_test_and_its_null(ripple_csv: Path) -> None:
     assert r.status == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["decisions"][0]["test"]["test"].startswith("Diebold-Mariano") and doc["settings"]["replay_test"]["null"] == "dm"
+    assert doc["settings"]["replay_test"]["alpha"] == 0.01  # the level it ran at, not the held-out test's 0.05
 
 
 def test_cli_refuses_too_few_replicates(ripple_csv: Path) -> None:

@@ -4,13 +4,14 @@ only what the held-out test left unconfirmed."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import pytest
 
 import ilic_cli.diagnosis.propose as propose
+from ilic_cli.diagnosis.null import REPLAY_ALPHA
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.system import Step
 from ilic_cli.effects import EFFECTS
@@ -32,8 +33,10 @@ class Strategy:
 @dataclass
 class Selection:
     unconfirmed_ids: tuple[str, ...] = ()
+    levels: list[float | None] = field(default_factory=list)
 
-    def unconfirmed(self, effect_id: str) -> bool:
+    def unconfirmed(self, effect_id: str, level: float | None = None) -> bool:
+        self.levels.append(level)
         return effect_id in self.unconfirmed_ids
 
 
@@ -53,6 +56,15 @@ def test_at_the_dwells_the_strategy_values_what_the_inverse_model_proposed(monke
 def test_without_dwells_only_what_the_held_out_test_left_unconfirmed(monkeypatch: pytest.MonkeyPatch) -> None:
     assert proposal(monkeypatch, False, []) is None  # the inverse model's material proposal stands, or nothing to judge
     assert proposal(monkeypatch, False, [], ("stribeck",)) is not None  # an F-test passed, the held-out test not
+
+
+def test_unconfirmed_means_at_the_replay_s_level(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A proposal the held-out test confirms at 0.05 but not at the replay's 0.01 is the closed loop's to value (EMPS s1303)."""
+    strategy = Strategy(False)
+    monkeypatch.setattr(propose, "strategy_of", lambda effect: strategy if effect is STRIBECK else None)
+    selection = Selection()
+    propose.closed_loop_proposal(None, None, None, [], np.ones(3, dtype=bool), DiagnosisSettings(), selection)  # type: ignore[arg-type]
+    assert selection.levels == [REPLAY_ALPHA]
 
 
 def test_neither_a_model_file_s_effect_nor_one_found_immaterial_is_proposed_again(monkeypatch: pytest.MonkeyPatch) -> None:

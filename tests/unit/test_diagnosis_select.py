@@ -275,7 +275,7 @@ def test_known_effects_are_kept_not_tried_and_validation_is_reported() -> None:
 
 def test_settings_record() -> None:
     s = SelectSettings(effects=("delay",))
-    assert s.to_dict() == {"alpha": 0.001, "alpha_heldout": 0.01, "folds": 5, "guard_rows": 10, "max_effects": 4, "effects": ["delay"]}
+    assert s.to_dict() == {"alpha": 0.001, "alpha_heldout": 0.05, "folds": 5, "guard_rows": 10, "max_effects": 4, "effects": ["delay"]}
     assert SelectSettings().effects == catalogue_ids()
 
 
@@ -583,3 +583,22 @@ def test_a_flexible_mode_above_the_rows_band_is_searched_at_the_log_s_rate() -> 
     assert value[0] == pytest.approx(f_res, rel=0.01) and value[1] == pytest.approx(zeta, rel=0.25)  # one round of the refinement of each
     theta, _ = lstsq(np.hstack([W, s.exact(eff, value)]), y)  # the mass behind the spring: on the rows
     assert theta[-1] == pytest.approx(m_load, rel=0.05)
+
+
+def test_a_proposal_confirmed_held_out_below_the_replay_s_level_only_is_unconfirmed_at_it() -> None:
+    """The held-out test confirms a proposal at 0.05; an effect whose inverse-model value is biased on closed-loop data (Stribeck
+    friction) is the closed loop's to value unless confirmed at the replay's level, 0.01 (``SelectionResult.unconfirmed``)."""
+    from ilic_cli.diagnosis.null import REPLAY_ALPHA
+    from ilic_cli.diagnosis.select import Evaluation, SelectionResult
+    from ilic_cli.diagnosis.stats import nested_f_test
+    from ilic_cli.diagnosis.verdicts import Selection
+
+    t = np.linspace(0, 1, 40)
+    ev = Evaluation("stribeck", 0.01, None, nested_f_test(np.c_[np.ones(40)], t, np.c_[np.ones(40), t], t, q=1, max_order=0))
+    weak, strong, unconfirmed = (
+        ev.decided(o, heldout_p_value=p) for o, p in ((Selection.ACCEPTED, 0.027), (Selection.ACCEPTED, 0.004), (Selection.HELDOUT_UNCONFIRMED, 0.3))
+    )
+    assert [e.unconfirmed_at(None) for e in (weak, strong, unconfirmed)] == [False, False, True]
+    assert [e.unconfirmed_at(REPLAY_ALPHA) for e in (weak, strong, unconfirmed)] == [True, False, True]
+    assert [SelectionResult(tried=[[e]]).unconfirmed("stribeck", REPLAY_ALPHA) for e in (weak, strong)] == [True, False]
+    assert not SelectionResult(tried=[[weak]]).unconfirmed("delay", REPLAY_ALPHA)
