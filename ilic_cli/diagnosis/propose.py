@@ -20,7 +20,7 @@ from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_s
 from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
 from ilic_cli.diagnosis.strategies import strategy_of
-from ilic_cli.diagnosis.system import Step, moving_rows, system
+from ilic_cli.diagnosis.system import Step, effect_columns, extended, moving_rows, system
 from ilic_cli.effects import EFFECTS, applicable
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
@@ -169,23 +169,21 @@ def static_linear(data: IDIMData, base: Model, known: list[Step], rows: np.ndarr
     gravity's columns at 1e-231; the drift not given, gravity's own held-out test then failed (p = 0.053), the drift's trend
     in every block over time. The columns only answer "is there a trend beyond any static effect": the effects themselves
     are proposed by the selection, with the drift given."""
-    _, _, names = system(data, base, known, rows)
-    joint = data.joint
-    steps = [
-        Step(e, None)
+    names = extended(base, known, data.fs_hz).names
+    static = [
+        e
         for i, e in EFFECTS.items()
         if i in effects
         and e.identifiable
         and not e.nonlinear
         and not e.shift
-        and joint in e.joints
+        and data.joint in e.joints
         and applicable(e, names)
         and not any(s.effect.id == i for s in known)
     ]
-    if not steps:
+    if not static:
         return np.empty((int(np.count_nonzero(rows)), 0))
-    W, _, _ = system(data, base, [*known, *steps], rows)
-    return W[:, len(names) :]
+    return np.hstack([effect_columns(data, e) for e in static])[rows]
 
 
 def closed_loop_proposal(
