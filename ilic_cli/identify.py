@@ -16,15 +16,16 @@ import numpy as np
 
 from ilic_cli import parameters
 from ilic_cli.closed_loop_id import ClosedLoopResult, ClosedLoopSettings, plant_of, require_closed_loop
+from ilic_cli.drive_lag import DriveLag, drive_lag
 from ilic_cli.effects import unit_of
 from ilic_cli.errors import IlicError, ParameterError
-from ilic_cli.estimators.base import Fit, LoopSimulator, ModelSpec, with_effects
+from ilic_cli.estimators.base import Fit, LoopSimulator, ModelSpec, states_lag, with_effects
 from ilic_cli.estimators.closed_loop import ClosedLoopFitSettings
 from ilic_cli.estimators.inverse import TRACKING_LIMIT, ilic_unusable
 from ilic_cli.estimators.output import OutputErrorFitSettings, inverse_model_error
 from ilic_cli.filtering import kept_indices
 from ilic_cli.idim_ilic import ILICResult, ILICSettings
-from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate
+from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, decimated_systems
 from ilic_cli.lsq import LSResult
 from ilic_cli.methods import CHOICES, METHODS, effect_methods, label, methods_of, model_method
 from ilic_cli.output_error import OEResult, OESettings
@@ -82,6 +83,8 @@ class IdentifyReport:
     """The PD loop's timing read from the recording for the closed-loop methods, if read."""
     usable: UsableRows | None = None
     """The rows every method fits and the rule for samples at rest (:func:`ilic_cli.usable.with_rest`)."""
+    drive_lag: DriveLag | None = None
+    """The drive's lag estimated on the log (:func:`ilic_cli.drive_lag.drive_lag`; ``None``: not sought, :func:`_drive_lag`)."""
 
     def fit(self, name: str) -> Fit | None:
         """The fit of method ``name`` (``ls``, ``ilic``, ...), if run."""
@@ -158,6 +161,7 @@ class IdentifyReport:
             "validation": [v.to_dict() for v in self.validation],
             "loop_timing": None if self.timing is None else self.timing.to_dict(),
             "usable_rows": None if self.usable is None else self.usable.to_dict(),
+            "drive_lag": None if self.drive_lag is None else self.drive_lag.to_dict(),
             "warnings": list(self.warnings),
         }
 
@@ -330,6 +334,9 @@ def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[Run
     if force_timing_unknown(prepared):
         report.warnings.append(UNKNOWN_FORCE_TIMING)
     closed = [label(m) for m in runs if METHODS[m].closed_loop]
+    report.drive_lag = _drive_lag(prepared, spec, settings.ls) if "ls" in runs else None
+    if report.drive_lag is not None and report.drive_lag.applied:  # every fit and validation evaluates the regressor after it
+        settings = replace(settings, model=replace(spec, estimated_lag_s=report.drive_lag.value_s))
     if closed:  # refuse before any work
         require_closed_loop(log, prepared.source, " and ".join(closed))
     for m in runs:
@@ -341,6 +348,19 @@ def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[Run
         report.warnings.append(_masked_summary(report, prepared.saturated, str(prepared.saturation_note())))
     _validate(report, model, validate or [], settings)
     return report
+
+
+def _drive_lag(prepared: PreparedLog, spec: ModelSpec, ls: LSSettings) -> DriveLag | None:
+    """The drive's lag estimated on ``prepared`` (:data:`ilic_cli.drive_lag.LAG_RULE`) where IDIM-LS's regressor is evaluated half
+    a period late for the drive's held command (rows at rest left out: :func:`identification_hold_s`) and the model states no lag
+    (:func:`states_lag`); ``None`` elsewhere: a log without standstill keeps the published procedure."""
+    hold = identification_hold_s(prepared)
+    if hold == 0.0 or states_lag(spec.effects):
+        return None
+    log, fs = prepared.log, prepared.fs_hz
+    model = spec.regressor(fs)
+    v, seg, noise = prepared.valid, prepared.segments, identification_speed_noise(prepared)
+    return drive_lag(lambda lag: decimated_systems(log.t, log["q"], log["tau"], fs, model, ls, v, seg, hold + lag, noise)[:2], 1.0 / fs)
 
 
 def _run_fits(report: IdentifyReport, prepared: PreparedLog, runs: tuple[str, ...], settings: IdentifySettings, loop: LoopSimulator) -> None:

@@ -197,7 +197,8 @@ def _closed_loop_markdown(report: IdentifyReport) -> list[str]:
 def _rows_lines(report: IdentifyReport, ls_result: IDIMLSResult) -> list[str]:
     """The rows IDIM-LS fitted (the rule for samples at rest, stated where it acted) and when it evaluated its regressor."""
     u = report.usable
-    held = _regressor_timing(ls_result.hold_s, stated_lag_s(report.effects))
+    lag = report.drive_lag
+    held = _regressor_timing(ls_result.hold_s, stated_lag_s(report.effects), lag.words() if lag is not None and lag.applied else "")
     if u is not None and u.at_rest and u.rest is not None:
         ls = ls_result.settings
         rule = f"; rows decimated by {ls.decimation} ({DECIMATION_RULE if ls.band_hz is not None else 'as given'})"
@@ -208,12 +209,14 @@ def _rows_lines(report: IdentifyReport, ls_result: IDIMLSResult) -> list[str]:
     return [f"{held[0].upper()}{held[1:]}.", ""] if held else []
 
 
-def _regressor_timing(shift_s: float, lag_s: float) -> str:
-    """When IDIM-LS evaluated its regressor (``shift_s`` after each sample: the hold, and the model's stated drive ``lag_s``);
-    ``""`` at the samples themselves."""
+def _regressor_timing(shift_s: float, lag_s: float, estimated: str = "") -> str:
+    """When IDIM-LS evaluated its regressor (``shift_s`` after each sample: the hold, and the model's stated drive ``lag_s`` or
+    the drive lag ``estimated`` on the log, in words); ``""`` at the samples themselves."""
     if shift_s == 0.0:
         return ""
-    if lag_s == 0.0:
+    if estimated:
+        why = f"the drive's held command and the drive's lag, {estimated}, estimated on the log"
+    elif lag_s == 0.0:
         why = "the drive's held command"
     elif abs(shift_s - lag_s) < 1e-12:  # no hold (no rows at rest, or a force that is no held command): the lag alone
         why = f"the stated drive lag of {1e3 * lag_s:.4g} ms"

@@ -366,7 +366,7 @@ def min_samples(settings: LSSettings) -> int:
     return settings.trim + 3 * settings.decimation * 9 + 1
 
 
-def _systems(
+def decimated_systems(
     t: np.ndarray,
     q: np.ndarray,
     tau: np.ndarray,
@@ -425,7 +425,7 @@ def idim_ls(
     """
     t, q, tau = (np.asarray(a, dtype=np.float64) for a in (t, q, tau))
     settings = settings.at_rate(fs_hz)
-    W, y, t_dec, kept = _systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s, speed_noise)
+    W, y, t_dec, kept = decimated_systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s, speed_noise)
     result = solve(W, y, model.names, sigma=settings.sigma)
     y_hat = W @ result.theta
     robust = robust_std(W, y - y_hat)
@@ -452,5 +452,5 @@ def cross_validate(
     """Apply estimates ``theta`` to another log with the same processing (cross-test validation; ``valid``, ``segments``,
     ``hold_s``, ``speed_noise`` as :func:`idim_ls`: the other log's own)."""
     t, q, tau = (np.asarray(a, dtype=np.float64) for a in (t, q, tau))
-    W, y, _, _ = _systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s, speed_noise)
+    W, y, _, _ = decimated_systems(t, q, tau, fs_hz, model, settings, valid, segments, hold_s, speed_noise)
     return evaluate(W, y, np.asarray(theta, dtype=np.float64), model.names)

@@ -1,4 +1,5 @@
-"""Levenberg-Marquardt on a simulated output, its sensitivities by forward differences (the output-error fits).
+"""Levenberg-Marquardt on a simulated output, its sensitivities by forward differences (the output-error fits); and
+:func:`minimise`, the bounded one-dimensional minimisation every search of one value refines with.
 
 The unknowns are parameters ``p`` and, for multiple shooting, each stretch's initial state ``(q, qd)``; each
 stretch's output depends on its own state only, so the states of all stretches are perturbed at once and a
@@ -12,6 +13,7 @@ Pure numerics: the residual is passed in. (The open-loop segments' fit of the di
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -193,3 +195,14 @@ def _failed_evaluations(lam: float) -> int:
 def fd_steps(theta: np.ndarray, rel_step: float) -> np.ndarray:
     """Finite-difference steps of the parameters (:data:`FLOOR`)."""
     return rel_step * np.maximum(np.abs(theta), FLOOR)
+
+
+def minimise(f: Any, lo: float, hi: float, use_log: bool, rel_tol: float = 1e-4) -> float:
+    """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``), to ``rel_tol`` of the range on that scale."""
+    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import
+
+    fwd = math.log if use_log else (lambda v: v)
+    inv = math.exp if use_log else (lambda u: u)
+    a, b = fwd(lo), fwd(hi)
+    res = minimize_scalar(lambda u: f(inv(u)), bounds=(a, b), method="bounded", options={"xatol": rel_tol * abs(b - a) + 1e-12})
+    return float(inv(res.x))

@@ -88,7 +88,8 @@ def with_rest(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> Pre
 
 
 def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[int, int], ...] | None = None) -> tuple[int, int]:
-    """``(decimated rows, rows whose span touches a True sample of mask)`` over the parts IDIM-LS fits (:func:`_systems`; ``settings`` at the log's rate)."""
+    """``(decimated rows, rows whose span touches a True sample of mask)`` over the parts IDIM-LS fits
+    (:func:`ilic_cli.idim_ls.decimated_systems`; ``settings`` at the log's rate)."""
     spans = segments or ((0, len(mask)),)
     total = touched = 0
     for a, b in spans:

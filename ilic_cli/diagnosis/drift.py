@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.drift_windows import WINDOWS, WindowEstimates, estimable_windows
-from ilic_cli.diagnosis.search import minimise
 from ilic_cli.diagnosis.select import Evaluation, SelectSettings
 from ilic_cli.diagnosis.stats import FTest, blocked_folds, heldout_errors, heldout_fall_p, nested_f_test
 from ilic_cli.effects import Estimate
+from ilic_cli.lm import minimise
 from ilic_cli.lsq import finite_or_none, lstsq, relative_error_pct
 
 ALPHA = 1e-3

@@ -36,7 +36,7 @@ from ilic_cli.diagnosis.dwell import IN_MOTION_ALPHA, reference_moving
 from ilic_cli.diagnosis.fold_plant import MIN_PLANT_FOLDS, fitted_plant, fold_fit, not_a_plant
 from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
 from ilic_cli.diagnosis.replay_again import Heldout, judged_again
-from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, minimise, search_range
+from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, search_range
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import contiguous_runs, folds_either_side, heldout_fall_p
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
@@ -45,6 +45,7 @@ from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull
 from ilic_cli.errors import DivergedError, ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
+from ilic_cli.lm import minimise
 from ilic_cli.lsq import relative_error_pct
 from ilic_cli.parallel import ordered_map
 from ilic_cli.regressor import Model

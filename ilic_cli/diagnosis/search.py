@@ -18,6 +18,7 @@ from ilic_cli.diagnosis.system import Step, effect_columns, shifted_force
 from ilic_cli.effects import Effect
 from ilic_cli.filtering import decimated_band_hz, kept_indices
 from ilic_cli.idim_ls import IDIMData
+from ilic_cli.lm import minimise
 from ilic_cli.lsq import lstsq
 from ilic_cli.regressor import Kinematics, Model, evaluated_later
 
@@ -327,14 +328,3 @@ def search_range(effect: Effect, grid: np.ndarray, value: float) -> np.ndarray:
         k = max(k, math.ceil(span / abs(float(grid[1] - grid[0])) - 1e-9))
     i = int(np.argmin(np.abs(grid - value)))
     return grid[max(i - k, 0) : i + k + 1]
-
-
-def minimise(f: Any, lo: float, hi: float, use_log: bool, rel_tol: float = 1e-4) -> float:
-    """Bounded 1-D minimisation of ``f`` on ``[lo, hi]`` (on a log scale when ``use_log``), to ``rel_tol`` of the range on that scale."""
-    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize is slow to import
-
-    fwd = math.log if use_log else (lambda v: v)
-    inv = math.exp if use_log else (lambda u: u)
-    a, b = fwd(lo), fwd(hi)
-    res = minimize_scalar(lambda u: f(inv(u)), bounds=(a, b), method="bounded", options={"xatol": rel_tol * abs(b - a) + 1e-12})
-    return float(inv(res.x))

@@ -112,11 +112,14 @@ class ModelSpec:
 
     structure: str = "rigid-offset"
     effects: Mapping[str, Any] = field(default_factory=dict)
+    estimated_lag_s: float = 0.0
+    """The drive lag estimated on the log when the model states none (:func:`ilic_cli.drive_lag.drive_lag`; 0: none applied)."""
 
     @property
     def lag_s(self) -> float:
-        """The drive lag the model states (:func:`stated_lag_s`)."""
-        return stated_lag_s(self.effects)
+        """The drive lag the fits evaluate the regressor after, beyond the hold: the one the model states
+        (:func:`stated_lag_s`), or the one estimated on the log."""
+        return stated_lag_s(self.effects) + self.estimated_lag_s
 
     def regressor(self, fs_hz: float) -> Model:
         """The regressor of :attr:`structure` extended by the columns of :attr:`effects` (:func:`with_effects`)."""
@@ -132,6 +135,12 @@ def stated_lag_s(effects: Mapping[str, Any]) -> float:
     replay it in their plant (:func:`ilic_cli.closed_loop_id.plant_of`).
     """
     return -sum(float(v) for eid, v in effects.items() if get(eid).shift and v is not None)
+
+
+def states_lag(effects: Mapping[str, Any]) -> bool:
+    """Whether a model states its drive lag (a time shift among ``effects``, ``delay:delay=0`` for none): then no lag is estimated
+    on the log (:func:`ilic_cli.drive_lag.drive_lag`)."""
+    return any(get(eid).shift for eid in effects)
 
 
 def with_effects(structure: str, effects: dict[str, Any] | None, fs_hz: float) -> Model:

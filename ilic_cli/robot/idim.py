@@ -213,7 +213,7 @@ def prepare_parts(
 ) -> RobotSystem:
     """:func:`prepare` of each contiguous part ``(start, stop)`` of a log cut at its gaps (:func:`ilic_cli.timebase.segments`), stacked.
 
-    The one-joint chain's rule (``idim_ls._systems``): each part is filtered, differentiated and decimated on its own;
+    The one-joint chain's rule (``idim_ls.decimated_systems``): each part is filtered, differentiated and decimated on its own;
     a part shorter than :func:`ilic_cli.idim_ls.min_samples` is left out, and none left is an error. Rows are
     joint-major within each part; :attr:`RobotSystem.sample` says which sample each stands for.
     """

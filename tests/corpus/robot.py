@@ -374,10 +374,12 @@ def simulate(case: Case, effects: dict[str, dict[str, float]]) -> RunLog:
 
 
 def relative_error_pct(log: RunLog) -> float:
-    """Relative error (%) of ``identify --method ls`` (the rigid fit on the rows it keeps)."""
+    """Relative error (%) of ``identify --method ls`` (the rigid fit on the rows it keeps), with no drive lag: the design's
+    measure of an effect's size, as it was before ``identify`` estimated a lag (:mod:`ilic_cli.drive_lag`), which takes a
+    ``delay`` or a current loop's share of the error and would resize every log."""
     from ilic_cli.identify import identify  # deferred: scipy
 
-    report = identify(log, method="ls")
+    report = identify(log, method="ls", effects={"delay": 0.0})
     assert report.ls is not None
     return float(report.ls.result.relative_error_pct)
 

@@ -30,21 +30,21 @@ def _built() -> Built:
     return build(CASE)
 
 
-def _errors(log: RunLog, lag_s: float | None) -> dict[str, float]:
-    effects = None if lag_s is None else {"delay": -lag_s}
-    r = identify(log, method="ls", effects=effects).ls
+def _errors(log: RunLog, lag_s: float) -> dict[str, float]:
+    r = identify(log, method="ls", effects={"delay": -lag_s}).ls
     assert r is not None
     truth = ALL_AXES[CASE.axis].truth
     return {n: float(r.result.theta[r.result.names.index(n)] / truth[n] - 1.0) for n in ("M", "Fv", "Fc")}
 
 
 def test_the_loops_lag_stated_takes_its_bias_off_idim_ls() -> None:
-    """Left out, the lag leaves ``M lag dddq`` in the residual, which the rows at rest left out make lean on Fv and Fc (Fc +2.7 %,
-    4.7 of its σ); stated, M, Fv and Fc are within 0.5 % (measured on 8 seeds of this case: M +0.07 %, Fv -0.10 % and Fc
+    """Stated none (``delay:delay=0``: no lag estimated either, :mod:`tests.identify.test_drive_lag`), the lag leaves ``M lag dddq``
+    in the residual, which the rows at rest left out make lean on Fv and Fc (Fc +2.7 %, 4.7 of its σ); stated, M, Fv and Fc are
+    within 0.5 % (measured on 8 seeds of this case: M +0.07 %, Fv -0.10 % and Fc
     +0.24 % on average, the largest 0.54 %; the same axis with sensor noise alone and no loop: Fc +0.28 %, the Coulomb
     column's expected sign leaning the other way on this axis: with the plain sign -0.05 %, docs/methods.md)."""
     log = _built().log
-    without, stated = _errors(log, None), _errors(log, LOOP_LAG_S)
+    without, stated = _errors(log, 0.0), _errors(log, LOOP_LAG_S)
     assert without["Fc"] > 0.02 and without["Fv"] < -0.01, without
     assert all(abs(e) < 5e-3 for e in stated.values()), stated
     report = identify(log, method="ls", effects={"delay": -LOOP_LAG_S})

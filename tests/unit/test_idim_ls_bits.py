@@ -14,7 +14,7 @@ from ilic_cli import idim_ilic
 from ilic_cli.derivatives import central_difference
 from ilic_cli.filtering import butter_lowpass_zero_phase, lowpass_decimate
 from ilic_cli.idim_ilic import tracking_error_ratio
-from ilic_cli.idim_ls import LSSettings, _columns, _decimate, _systems, held, lsq_rows, valid_rows
+from ilic_cli.idim_ls import LSSettings, _columns, _decimate, decimated_systems, held, lsq_rows, valid_rows
 from ilic_cli.regressor import GRAVITY_COLUMNS, Column, Kinematics, Model, get_model
 from tests.unit.synth import FS, motion, rigid_force
 
@@ -92,7 +92,7 @@ def test_the_held_system_is_the_straightforward_one(log: tuple[np.ndarray, ...])
     settings = LSSettings()
     for model in _models()[:2]:
         for v in (None, valid):
-            W, y, td, kept = _systems(t, q, tau, FS, model, settings, v, None, shift)
+            W, y, td, kept = decimated_systems(t, q, tau, FS, model, settings, v, None, shift)
             _, W0, y0, _ = straightforward(t, q, tau, model, settings, v, shift)
             assert np.array_equal(W, W0) and np.array_equal(y, y0)
             data = held(lsq_rows(t, q, tau, FS, model, settings, valid=v), model, shift)
@@ -103,7 +103,7 @@ def test_the_held_system_is_the_straightforward_one(log: tuple[np.ndarray, ...])
 def test_segments_are_the_parts_stacked(log: tuple[np.ndarray, ...]) -> None:
     t, q, tau = log
     model = get_model("rigid-offset")
-    W, y, td, kept = _systems(t, q, tau, FS, model, LSSettings(), None, ((0, 2500), (2600, 6000)), 0.0)
+    W, y, td, kept = decimated_systems(t, q, tau, FS, model, LSSettings(), None, ((0, 2500), (2600, 6000)), 0.0)
     parts = [lsq_rows(t[a:b], q[a:b], tau[a:b], FS, model) for a, b in ((0, 2500), (2600, 6000))]
     assert np.array_equal(W, np.concatenate([p.W for p in parts])) and np.array_equal(y, np.concatenate([p.y for p in parts]))
     assert np.array_equal(td, np.concatenate([p.t_dec for p in parts])) and kept is None
