@@ -18,7 +18,7 @@ from ilic_cli import parameters
 from ilic_cli.closed_loop_id import ClosedLoopResult, ClosedLoopSettings, plant_of, require_closed_loop
 from ilic_cli.drive_lag import DriveLag, drive_lag
 from ilic_cli.effects import unit_of
-from ilic_cli.errors import IlicError, ParameterError
+from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.estimators.base import Fit, LoopSimulator, ModelSpec, states_lag, with_effects
 from ilic_cli.estimators.closed_loop import ClosedLoopFitSettings
 from ilic_cli.estimators.inverse import TRACKING_LIMIT, ilic_unusable
@@ -335,8 +335,8 @@ def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[Run
         report.warnings.append(UNKNOWN_FORCE_TIMING)
     closed = [label(m) for m in runs if METHODS[m].closed_loop]
     report.drive_lag = _drive_lag(prepared, spec, settings.ls) if "ls" in runs else None
-    if report.drive_lag is not None and report.drive_lag.applied:  # every fit and validation evaluates the regressor after it
-        settings = replace(settings, model=replace(spec, estimated_lag_s=report.drive_lag.value_s))
+    if report.drive_lag is not None and report.drive_lag.applied:  # the model's lag from here, as if stated: every fit, replay, validation
+        settings = replace(settings, model=replace(spec, effects={**spec.effects, "delay": -report.drive_lag.value_s}))
     if closed:  # refuse before any work
         require_closed_loop(log, prepared.source, " and ".join(closed))
     for m in runs:
@@ -360,7 +360,10 @@ def _drive_lag(prepared: PreparedLog, spec: ModelSpec, ls: LSSettings) -> DriveL
     log, fs = prepared.log, prepared.fs_hz
     model = spec.regressor(fs)
     v, seg, noise = prepared.valid, prepared.segments, identification_speed_noise(prepared)
-    return drive_lag(lambda lag: decimated_systems(log.t, log["q"], log["tau"], fs, model, ls, v, seg, hold + lag, noise)[:2], 1.0 / fs)
+    try:
+        return drive_lag(lambda lag: decimated_systems(log.t, log["q"], log["tau"], fs, model, ls, v, seg, hold + lag, noise)[:2], 1.0 / fs)
+    except ValueError as exc:  # as IDIM-LS's own fit says it (estimators.inverse.IDIMLS.run)
+        raise IdentificationError(prepared.source, str(exc)) from None
 
 
 def _run_fits(report: IdentifyReport, prepared: PreparedLog, runs: tuple[str, ...], settings: IdentifySettings, loop: LoopSimulator) -> None:

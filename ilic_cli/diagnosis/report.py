@@ -67,6 +67,18 @@ def _std(est: Estimate) -> str:
     return "" if est.std is None or not math.isfinite(est.std) else f"{est.std:.3g}"
 
 
+def _undetermined(params: dict[str, Estimate]) -> str:
+    """The estimates the log does not determine (:attr:`Estimate.determined`), said after the finding; ``""``: none."""
+    loose = [
+        f"{n} = {e.value:.4g} ± {_num(e.std, e.unit)}" if e.std is not None and math.isfinite(e.std) else f"{n} (no finite std)"
+        for n, e in params.items()
+        if not e.determined
+    ]
+    if not loose:
+        return ""
+    return f"; not determined by this log, its 95 % interval holding 0: {', '.join(loose)}"
+
+
 def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], method: str, at_dwells: bool = True) -> list[str]:
     """The finding's estimates: the method's, and the inverse model's beside them when the method is another.
 
@@ -160,7 +172,7 @@ def _summary(diag: Diagnosis, force_unit: str, at_dwells: bool) -> list[str]:
             r = f.located[0]
             structured = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} {force_unit}). "
             where = structured if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
-        lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}. {f.effect.explanation}")
+        lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}{_undetermined(f.parameters)}. {f.effect.explanation}")
     lines += [
         "",
         f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} (held out: {_pct(ho['before'])} -> {_pct(ho['after'])})"

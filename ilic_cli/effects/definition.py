@@ -92,6 +92,10 @@ class Scan:
     at_log_rate: Callable[[Kinematics, float], bool] | None = None
 
 
+Z95 = 1.959963984540054
+"""The two-sided 95 % point of the normal distribution: an estimate's 95 % interval is ``value ± Z95 std``."""
+
+
 @dataclass(frozen=True)
 class Estimate:
     """A value with its standard deviation (``None`` when not estimated) and unit."""
@@ -100,8 +104,17 @@ class Estimate:
     std: float | None
     unit: str = ""
 
+    @property
+    def determined(self) -> bool:
+        """Whether the log determines it: its 95 % interval, ``value ± 1.96 std``, leaves out 0 (a standard deviation above
+        half the value's size does not: the log does not tell the value from none, e.g. gravity's ``MX`` where the swing is
+        too short to separate ``cos q`` from the offset). Without a standard deviation nothing is claimed either way: ``True``
+        (an infinite value: ``False``)."""
+        return math.isfinite(self.value) and (self.std is None or (math.isfinite(self.std) and abs(self.value) > Z95 * self.std))
+
     def to_dict(self) -> dict[str, Any]:
-        return {"value": finite_or_none(self.value), "std": None if self.std is None else finite_or_none(self.std), "unit": self.unit}
+        std = None if self.std is None else finite_or_none(self.std)
+        return {"value": finite_or_none(self.value), "std": std, "unit": self.unit, "determined": self.determined}
 
 
 @dataclass(frozen=True)

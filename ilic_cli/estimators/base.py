@@ -112,14 +112,11 @@ class ModelSpec:
 
     structure: str = "rigid-offset"
     effects: Mapping[str, Any] = field(default_factory=dict)
-    estimated_lag_s: float = 0.0
-    """The drive lag estimated on the log when the model states none (:func:`ilic_cli.drive_lag.drive_lag`; 0: none applied)."""
 
     @property
     def lag_s(self) -> float:
-        """The drive lag the fits evaluate the regressor after, beyond the hold: the one the model states
-        (:func:`stated_lag_s`), or the one estimated on the log."""
-        return stated_lag_s(self.effects) + self.estimated_lag_s
+        """The drive lag the model states (:func:`stated_lag_s`)."""
+        return stated_lag_s(self.effects)
 
     def regressor(self, fs_hz: float) -> Model:
         """The regressor of :attr:`structure` extended by the columns of :attr:`effects` (:func:`with_effects`)."""

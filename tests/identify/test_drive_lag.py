@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.drive_lag import LAG_MAX_S, drive_lag
+from ilic_cli.errors import IdentificationError
 from ilic_cli.estimators.base import ModelSpec
 from ilic_cli.identify import identify
 from ilic_cli.identify_report import to_markdown
@@ -54,6 +55,8 @@ def test_the_loops_lag_is_found_and_takes_its_bias_off() -> None:
     found, none = _errors(log), _errors(log, {"delay": 0.0})
     assert all(abs(e) < 0.02 for e in found.values()), found
     assert none["Fv"] < -0.02, none  # stated none: the bias the lag leaves (Fv -3.4 % on this seed, +0.15 % with it)
+    assert report.model_effects() == {"delay": {"delay": pytest.approx(-lag.value_s)}}  # the model file keeps it, as a stated one
+    assert report.to_dict()["effects"] == {}  # stated: none
     d = report.to_dict()["drive_lag"]
     assert d["applied"] is True and d["value_s"] == lag.value_s and "drive's held command" in d["rule"]
     assert f"the drive's lag, {lag.words()}, estimated on the log" in to_markdown(report)
@@ -90,3 +93,15 @@ def test_a_log_without_standstill_keeps_the_published_procedure(emps_mat: Path) 
     report = identify(read_log(emps_mat), method="ls")
     assert report.drive_lag is None and report.to_dict()["drive_lag"] is None
     assert report.ls is not None and report.ls.hold_s == 0.0
+
+
+def test_a_log_idim_ls_cannot_fit_is_refused_as_its_fit_refuses_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The lag's search builds IDIM-LS's system first: where it cannot (no part of the log long enough), the same error."""
+    import ilic_cli.identify as ident
+
+    def short(*_: object) -> tuple[np.ndarray, np.ndarray]:
+        raise ValueError("no contiguous part of the log has the 212 samples IDIM-LS needs")
+
+    monkeypatch.setattr(ident, "decimated_systems", short)
+    with pytest.raises(IdentificationError, match="no contiguous part of the log has the 212 samples"):
+        identify(_log(LOOP), method="ls")

@@ -279,8 +279,8 @@ def test_record_defaults() -> None:
     assert fx.Scan("s", "u", lambda k, f: np.ones(1)).log is True and fx.Scan("s", "u", lambda k, f: np.ones(1)).secondary is None
     fit = Fit(("a",), np.array([1.0]), np.eye(1))
     assert (fit.value, fit.value_std, fit.hold_s) == (None, None, 0.0) and fit.get("b") == 0.0
-    assert Estimate(1.0, None).to_dict() == {"value": 1.0, "std": None, "unit": ""}
-    assert Estimate(math.inf, 2.0, "N").to_dict() == {"value": None, "std": 2.0, "unit": "N"}
+    assert Estimate(1.0, None).to_dict() == {"value": 1.0, "std": None, "unit": "", "determined": True}
+    assert Estimate(math.inf, 2.0, "N").to_dict() == {"value": None, "std": 2.0, "unit": "N", "determined": False}
     assert (fx.EffectColumn("c", "N").description, fx.EffectColumn("c", "N").of) == ("", None)
     e = fx.Effect("x", "t", "e.")
     assert (e.coefficients, e.replaces, e.strategy, e.linear_form({})) == (None, (), None, None)
