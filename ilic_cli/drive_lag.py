@@ -12,11 +12,12 @@ Pure numerics: :func:`drive_lag` is handed IDIM-LS's system as a function of the
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from ilic_cli.idim_ls import LSSettings
 from ilic_cli.lm import minimise
 from ilic_cli.lsq import finite_or_none, lstsq, robust_std
 
@@ -27,13 +28,20 @@ drive's, whatever rate the log is written at. A longer timing error is no curren
 
 LAG_MIN_T = 6.0
 """A lag is applied when it exceeds this many of its robust standard deviations (one-sided: a drive lags, never leads).
-Calibrated on the logs without one: with sensor noise alone or a force disturbance, the loop's response to the position
-noise, which the regressor carries too, acts as a timing of 0.00-0.18 ms, up to 5.1 σ (104 fresh clean dwell-and-move logs
-of the robot corpus, 250 Hz-8 kHz, four axes); applied from 3 σ it leaned their Fv by +0.2 % on average (+0.4 % at 250 Hz).
-Measured on those and 64 under a 700 Hz current loop: M, Fv, Fc within 2 % on 128 of the 168 without the lag, 139 with it
-applied above 6 σ (138 above 3 σ); under the loop 52 -> 63 of 64, the lag-free logs as they were (76 of 104). That timing is
-a bias of the rows, not their noise, so its σ-count grows with the log's length: on 40 s logs of the 0.5 kg·m² elbow with
-sensor noise alone it reached 5.6-6.6 σ, and 0.08-0.10 ms was applied on two of three (Fv +0.3 and +1.2 %, within 2 %)."""
+Calibrated on the logs without one (104 fresh clean dwell-and-move logs of the robot corpus, 250 Hz-8 kHz, four axes, with
+sensor noise alone or a force disturbance): the loop's response to the position noise, which the regressor carries too,
+acts as a timing of its own, up to 3.8 σ from 400 Hz up on the rows of :data:`LAG_BAND_HZ` and 5.1 σ at 250 Hz, whose rows
+keep 16.7 Hz (up to 0.18 ms). Measured on those and 64 under a 700 Hz current loop: M, Fv, Fc
+within 2 % on 128 of the 168 without the lag, 139 with it applied above 6 σ (137 above 3 σ, where 5 lag-free logs took
+one); under the loop 52 -> 63 of 64, the lag-free logs as they were (76 of 104). That timing is a bias of the rows, not
+their noise: its σ-count grows with the log's length, which at 250 Hz may carry it past 6 σ on a long log."""
+
+LAG_BAND_HZ = 20.0
+"""The band (Hz) of the rows the lag is estimated on: half the 40 Hz the fits' rows keep from 1 kHz up, and no more than
+theirs below (250 Hz: fs/15). The moves' jerk, which carries the lag, lies below it (the corpus's speed ramps last 80-150
+ms); above it the position noise, differentiated, and the loop's response to it make a timing of their own. Measured, 40
+against 20 Hz: on 40 s logs of the 0.5 kg·m² elbow with sensor noise alone 0.08-0.11 ms (up to 8.5 σ) against 0.00-0.03 ms
+(up to 2.9 σ); under the 700 Hz loop at 1 kHz 0.370 against 0.237 ms for its 0.227 ms."""
 
 EDGE_SHARE = 0.02
 """An estimate within this share of :data:`LAG_MAX_S` of its end is on the edge of the range searched: never applied."""
@@ -43,7 +51,8 @@ STEP_PERIODS = 0.02
 
 LAG_RULE = (
     f"when rows at rest are left out and the force is the drive's held command, the drive's lag is estimated: the regressor "
-    f"evaluated later again by the lag in 0-{LAG_MAX_S * 1e3:g} ms that minimises IDIM-LS's residual, applied when it exceeds "
+    f"evaluated later again by the lag in 0-{LAG_MAX_S * 1e3:g} ms that minimises IDIM-LS's residual on rows keeping at most "
+    f"{LAG_BAND_HZ:g} Hz, applied when it exceeds "
     f"{LAG_MIN_T:g} of its robust standard deviations (Newey-West, on the residual's slope in the lag) and is off the range's "
     "end; a current loop's lag left out leans Fv and Fc by a few per cent once the dwells are left out. A lag stated with the "
     "model (--effect delay:delay=-SECONDS, 0 for none) is taken instead"
@@ -94,3 +103,11 @@ def drive_lag(system: Callable[[float], tuple[np.ndarray, np.ndarray]], period_s
     if not (np.isfinite(std) and lag > min_t * std):
         return DriveLag(lag, std, False, f"within {min_t:g} of its robust standard deviations, what a log without a lag gives")
     return DriveLag(lag, std, True)
+
+
+def lag_rows(ls: LSSettings, fs_hz: float) -> LSSettings:
+    """The settings of the rows the lag is estimated on: the fits' (``ls``), keeping :data:`LAG_BAND_HZ` at most (a decimation
+    given as it is: ``ls`` itself)."""
+    if ls.band_hz is None:
+        return ls
+    return replace(ls, band_hz=min(ls.band_hz, LAG_BAND_HZ), at_hz=None).at_rate(fs_hz)

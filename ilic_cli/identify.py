@@ -16,7 +16,7 @@ import numpy as np
 
 from ilic_cli import parameters
 from ilic_cli.closed_loop_id import ClosedLoopResult, ClosedLoopSettings, plant_of, require_closed_loop
-from ilic_cli.drive_lag import DriveLag, drive_lag
+from ilic_cli.drive_lag import DriveLag, drive_lag, lag_rows
 from ilic_cli.effects import unit_of
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.estimators.base import Fit, LoopSimulator, ModelSpec, states_lag, with_effects
@@ -358,7 +358,7 @@ def _drive_lag(prepared: PreparedLog, spec: ModelSpec, ls: LSSettings) -> DriveL
     if hold == 0.0 or states_lag(spec.effects):
         return None
     log, fs = prepared.log, prepared.fs_hz
-    model = spec.regressor(fs)
+    model, ls = spec.regressor(fs), lag_rows(ls, fs)
     v, seg, noise = prepared.valid, prepared.segments, identification_speed_noise(prepared)
     try:
         return drive_lag(lambda lag: decimated_systems(log.t, log["q"], log["tau"], fs, model, ls, v, seg, hold + lag, noise)[:2], 1.0 / fs)

@@ -1,7 +1,7 @@
 """The drive's lag estimated by ``identify`` where the model states none (:func:`ilic_cli.drive_lag.drive_lag`, issue 29).
 
 Measured on 168 fresh clean dwell-and-move logs of the robot corpus (four reseeds and the beyond set, 250 Hz-8 kHz): under
-the 700 Hz current loop the lag is found on 63 of 64, 0.21-0.43 ms at 500 Hz-8 kHz for the loop's 0.227 ms (0.24-0.47 ms
+the 700 Hz current loop the lag is found on 63 of 64, 0.21-0.31 ms at 500 Hz-8 kHz for the loop's 0.227 ms (0.25-0.47 ms
 at 250 Hz: the loop's response to the position noise adds to it), and M, Fv, Fc come within 2 % on 63 (52 without it); on
 none of the 104 without a lag is one applied."""
 
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ilic_cli.drive_lag import LAG_MAX_S, drive_lag
+from ilic_cli.drive_lag import LAG_BAND_HZ, LAG_MAX_S, drive_lag, lag_rows
 from ilic_cli.errors import IdentificationError
 from ilic_cli.estimators.base import ModelSpec
 from ilic_cli.identify import identify
@@ -105,3 +105,14 @@ def test_a_log_idim_ls_cannot_fit_is_refused_as_its_fit_refuses_it(monkeypatch: 
     monkeypatch.setattr(ident, "decimated_systems", short)
     with pytest.raises(IdentificationError, match="no contiguous part of the log has the 212 samples"):
         identify(_log(LOOP), method="ls")
+
+
+def test_the_lag_is_sought_on_rows_keeping_20_hz_at_most() -> None:
+    """Above 20 Hz the position noise, differentiated, and the loop's response to it make a timing of their own (module doc)."""
+    assert LAG_BAND_HZ == 20.0
+    assert lag_rows(LSSettings().at_rate(1000.0), 1000.0).decimation == 20  # the fits' rows: 10 (40 Hz)
+    assert lag_rows(LSSettings().at_rate(2000.0), 2000.0).decimation == 40
+    low, fits = lag_rows(LSSettings().at_rate(250.0), 250.0), LSSettings().at_rate(250.0)
+    assert (low.decimation, low.stencil) == (fits.decimation, fits.stencil) == (6, 5)  # fs/15 = 16.7 Hz: the fits' own rows
+    given = LSSettings(decimation=7, band_hz=None)
+    assert lag_rows(given, 1000.0) is given  # a decimation given is kept as given
