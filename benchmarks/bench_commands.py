@@ -6,7 +6,8 @@ run in turn with ``python -c 'import numpy'`` -- A B A B ... after one warm-up
 pair -- and the ratio is taken pair by pair (a machine whose speed drifts moves
 both); ``ilic diagnose DATA_EMPS.mat`` (replays included) likewise, and ``ilic diagnose`` of a
 robot-like log (the robot corpus's clean 200 kg trapezoid at 1 kHz, written as CSV,
-its PD loop given by flags: dwells, so the closed loop's Stribeck search runs). Prints the
+its PD loop given by flags: dwells, so the closed loop's Stribeck search runs), and ``ilic identify --method ls`` of it
+(dwells, so the drive's lag is sought). Prints the
 medians, the median ratio and its range. Never asserted by tests: run it with
 ``make bench``.
 """
@@ -108,7 +109,9 @@ def main() -> None:
     else:
         print("  ../shared/emps absent: the DATA_EMPS.mat jobs are skipped")
     with tempfile.TemporaryDirectory() as tmp:
-        jobs.append(("ilic diagnose, robot corpus 1 kHz trapezoid", [*ilic, "diagnose", *robot_log(Path(tmp))], 3))
+        robot = robot_log(Path(tmp))
+        jobs.append(("ilic identify --method ls, robot 1 kHz trapezoid", [*ilic, "identify", robot[0], "--method", "ls", *robot[1:]], repeat))
+        jobs.append(("ilic diagnose, robot corpus 1 kHz trapezoid", [*ilic, "diagnose", *robot], 3))
         for label, args, runs in jobs:
             print(describe(label, paired(args, NUMPY, runs), "python -c 'import numpy'"), flush=True)
 

@@ -28,11 +28,11 @@ drive's, whatever rate the log is written at. A longer timing error is no curren
 
 LAG_MIN_T = 6.0
 """A lag is applied when it exceeds this many of its robust standard deviations (one-sided: a drive lags, never leads).
-Calibrated on the logs without one (104 fresh clean dwell-and-move logs of the robot corpus, 250 Hz-8 kHz, four axes, with
+Calibrated on the logs without one (104 clean dwell-and-move logs of the robot corpus, 250 Hz-8 kHz, four axes, with
 sensor noise alone or a force disturbance): the loop's response to the position noise, which the regressor carries too,
 acts as a timing of its own, up to 3.8 σ from 400 Hz up on the rows of :data:`LAG_BAND_HZ` and 5.1 σ at 250 Hz, whose rows
 keep 16.7 Hz (up to 0.18 ms). Measured on those and 64 under a 700 Hz current loop: M, Fv, Fc
-within 2 % on 128 of the 168 without the lag, 139 with it applied above 6 σ (137 above 3 σ, where 5 lag-free logs took
+within 2 % on 128 of the 168 without the lag, 139 with it applied above 6 σ (137 above 3 σ, where 6 lag-free logs took
 one); under the loop 52 -> 63 of 64, the lag-free logs as they were (76 of 104). That timing is a bias of the rows, not
 their noise: its σ-count grows with the log's length, which at 250 Hz may carry it past 6 σ on a long log."""
 

@@ -87,7 +87,8 @@ from ilic_cli.runlog import RunLog
     metavar="ID[:k=v,...]",
     help=(
         "Identify this effect's regressor columns too (IDIM-LS; nonlinear parameters fixed at the given or default values); repeatable. "
-        "A drive lag, delay:delay=-SECONDS, evaluates the regressor that much later and goes into the closed-loop methods' plant."
+        "A drive lag, delay:delay=-SECONDS, evaluates the regressor that much later and goes into the closed-loop methods' plant; "
+        "unstated, it is estimated where rows at rest are left out (drive_lag in the JSON); delay:delay=0 states none."
     ),
 )
 @click.option(

@@ -1,6 +1,6 @@
 """The drive's lag estimated by ``identify`` where the model states none (:func:`ilic_cli.drive_lag.drive_lag`, issue 29).
 
-Measured on 168 fresh clean dwell-and-move logs of the robot corpus (four reseeds and the beyond set, 250 Hz-8 kHz): under
+Measured on 168 clean dwell-and-move logs of the robot corpus (its four seed sets and the beyond set, 250 Hz-8 kHz): under
 the 700 Hz current loop the lag is found on 63 of 64, 0.21-0.31 ms at 500 Hz-8 kHz for the loop's 0.227 ms (0.25-0.47 ms
 at 250 Hz: the loop's response to the position noise adds to it), and M, Fv, Fc come within 2 % on 63 (52 without it); on
 none of the 104 without a lag is one applied."""
