@@ -43,6 +43,11 @@ ms); above it the position noise, differentiated, and the loop's response to it 
 against 20 Hz: on 40 s logs of the 0.5 kg·m² elbow with sensor noise alone 0.08-0.11 ms (up to 8.5 σ) against 0.00-0.03 ms
 (up to 2.9 σ); under the 700 Hz loop at 1 kHz 0.370 against 0.237 ms for its 0.227 ms."""
 
+SUGGEST_T = 3.0
+"""A lag of this many robust standard deviations, short of :data:`LAG_MIN_T`, is reported as suggested and not applied: the
+usual significance, where the loop's response to the position noise and a weak drive lag cannot be told apart (the robot
+corpus's --reseed 1 s3115: the 700 Hz loop at 250 Hz, 0.47 ± 0.12 ms, 3.9 σ; lag-free logs up to 5.1 σ)."""
+
 EDGE_SHARE = 0.02
 """An estimate within this share of :data:`LAG_MAX_S` of its end is on the edge of the range searched: never applied."""
 
@@ -69,12 +74,20 @@ class DriveLag:
     applied: bool
     reason: str = ""
     """Why it is not applied (``""`` when it is)."""
+    at_edge: bool = False
+    """At the end of the range searched (never applied nor suggested)."""
+
+    @property
+    def suggested(self) -> bool:
+        """Not applied, but :data:`SUGGEST_T` standard deviations or more from 0 (off the range's end): the report says so."""
+        return not self.applied and not self.at_edge and bool(np.isfinite(self.std_s)) and self.value_s > SUGGEST_T * self.std_s
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "value_s": self.value_s,
             "std_s": finite_or_none(self.std_s),
             "applied": self.applied,
+            "suggested": self.suggested,
             "not_applied_because": self.reason or None,
             "rule": LAG_RULE,
         }
@@ -99,7 +112,7 @@ def drive_lag(system: Callable[[float], tuple[np.ndarray, np.ndarray]], period_s
     slope = (system(hi)[0] - system(lo)[0]) @ theta / (hi - lo)
     std = float(robust_std(np.c_[W, slope], y - W @ theta).std[-1])
     if lag >= (1.0 - EDGE_SHARE) * max_s:
-        return DriveLag(lag, std, False, f"at the end of the range searched (0-{max_s * 1e3:g} ms): no current loop's")
+        return DriveLag(lag, std, False, f"at the end of the range searched (0-{max_s * 1e3:g} ms): no current loop's", at_edge=True)
     if not (np.isfinite(std) and lag > min_t * std):
         return DriveLag(lag, std, False, f"within {min_t:g} of its robust standard deviations, what a log without a lag gives")
     return DriveLag(lag, std, True)

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli.closed_loop_id import STD_SOURCE
+from ilic_cli.drive_lag import LAG_MIN_T, DriveLag
 from ilic_cli.effects import unit_of
 from ilic_cli.estimators.base import stated_lag_s
 from ilic_cli.filtering import DECIMATION_RULE
@@ -205,8 +206,20 @@ def _rows_lines(report: IdentifyReport, ls_result: IDIMLSResult) -> list[str]:
         timing = f"; {held}" if held else ""
         sign = f"; {words}" if (words := u.sign_words(position_unit(report.joint_type))) else ""
         rest = f"{u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule})"
-        return [f"{u.usable} of {u.decimated} decimated rows fitted: {rest}{timing}{sign}{rule}.", ""]
+        return [f"{u.usable} of {u.decimated} decimated rows fitted: {rest}{timing}{sign}{rule}.", "", *_suggested_lag(lag)]
     return [f"{held[0].upper()}{held[1:]}.", ""] if held else []
+
+
+def _suggested_lag(lag: DriveLag | None) -> list[str]:
+    """A drive lag the rows suggest and ``identify`` does not apply (:attr:`DriveLag.suggested`), and how to state it; ``[]``: none."""
+    if lag is None or not lag.suggested:
+        return []
+    return [
+        f"The rows suggest a drive lag of {lag.words()} ({lag.value_s / lag.std_s:.2g} σ), short of the {LAG_MIN_T:g} σ at which it "
+        "is applied: the loop's response to the position noise makes a timing of its own up to about 5 σ. Not applied; if the "
+        f"drive lags its command, state it: `--effect delay:delay={-lag.value_s:.3g}`.",
+        "",
+    ]
 
 
 def _regressor_timing(shift_s: float, lag_s: float, estimated: str = "") -> str:

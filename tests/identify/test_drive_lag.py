@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ilic_cli.drive_lag import LAG_BAND_HZ, LAG_MAX_S, drive_lag, lag_rows
+from ilic_cli.drive_lag import LAG_BAND_HZ, LAG_MAX_S, DriveLag, drive_lag, lag_rows
 from ilic_cli.errors import IdentificationError
 from ilic_cli.estimators.base import ModelSpec
 from ilic_cli.identify import identify
@@ -116,3 +116,18 @@ def test_the_lag_is_sought_on_rows_keeping_20_hz_at_most() -> None:
     assert (low.decimation, low.stencil) == (fits.decimation, fits.stencil) == (6, 5)  # fs/15 = 16.7 Hz: the fits' own rows
     given = LSSettings(decimation=7, band_hz=None)
     assert lag_rows(given, 1000.0) is given  # a decimation given is kept as given
+
+
+def test_a_lag_short_of_the_gate_is_suggested_and_how_to_state_it_said() -> None:
+    """The corpus's --reseed 1 s3115 (the 700 Hz loop at 250 Hz): 0.47 ± 0.12 ms, 3.9 σ, not applied (Fv -3.7 %): the report
+    says the rows suggest it and how to state it; a lag-free log's 0.001 ± 0.012 ms is not mentioned."""
+    report = identify(build(Case("rev0.5", "trapezoid", 250.0, "current_loop", 3115)).log, method="ls")
+    lag = report.drive_lag
+    assert lag is not None and not lag.applied and lag.suggested and 3 < lag.value_s / lag.std_s < 6, lag
+    text = to_markdown(report)
+    assert f"The rows suggest a drive lag of {lag.words()}" in text and f"`--effect delay:delay={-lag.value_s:.3g}`" in text
+    assert report.to_dict()["drive_lag"]["suggested"] is True
+    quiet = identify(_log(SENSOR), method="ls")
+    assert quiet.drive_lag is not None and not quiet.drive_lag.suggested and "The rows suggest" not in to_markdown(quiet)
+    edge = DriveLag(2e-3, 1e-5, False, "at the end", at_edge=True)
+    assert not edge.suggested  # 200 σ, but at the range's end: never
