@@ -30,6 +30,7 @@ from ilic_cli.lsq import LSResult
 from ilic_cli.methods import CHOICES, METHODS, effect_methods, label, methods_of, model_method
 from ilic_cli.output_error import OEResult, OESettings
 from ilic_cli.prepare import PreparedLog, prepare_log
+from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.loop import PLANT_LOOP
 from ilic_cli.usable import UNKNOWN_FORCE_TIMING, UsableRows, force_timing_unknown, identification_hold_s, identification_speed_noise, usable_rows, with_rest
@@ -334,7 +335,7 @@ def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[Run
     if force_timing_unknown(prepared):
         report.warnings.append(UNKNOWN_FORCE_TIMING)
     closed = [label(m) for m in runs if METHODS[m].closed_loop]
-    report.drive_lag = _drive_lag(prepared, spec, settings.ls) if "ls" in runs else None
+    report.drive_lag = _drive_lag(prepared, spec, model, settings.ls) if "ls" in runs else None
     if report.drive_lag is not None and report.drive_lag.applied:  # the model's lag from here, as if stated: every fit, replay, validation
         settings = replace(settings, model=replace(spec, effects={**spec.effects, "delay": -report.drive_lag.value_s}))
     if closed:  # refuse before any work
@@ -350,15 +351,15 @@ def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[Run
     return report
 
 
-def _drive_lag(prepared: PreparedLog, spec: ModelSpec, ls: LSSettings) -> DriveLag | None:
+def _drive_lag(prepared: PreparedLog, spec: ModelSpec, model: Model, ls: LSSettings) -> DriveLag | None:
     """The drive's lag estimated on ``prepared`` (:data:`ilic_cli.drive_lag.LAG_RULE`) where IDIM-LS's regressor is evaluated half
     a period late for the drive's held command (rows at rest left out: :func:`identification_hold_s`) and the model states no lag
-    (:func:`states_lag`); ``None`` elsewhere: a log without standstill keeps the published procedure."""
+    (:func:`states_lag`; ``model``: its regressor); ``None`` elsewhere: a log without standstill keeps the published procedure."""
     hold = identification_hold_s(prepared)
     if hold == 0.0 or states_lag(spec.effects):
         return None
     log, fs = prepared.log, prepared.fs_hz
-    model, ls = spec.regressor(fs), lag_rows(ls, fs)
+    ls = lag_rows(ls, fs)
     v, seg, noise = prepared.valid, prepared.segments, identification_speed_noise(prepared)
     try:
         return drive_lag(lambda lag: decimated_systems(log.t, log["q"], log["tau"], fs, model, ls, v, seg, hold + lag, noise)[:2], 1.0 / fs)

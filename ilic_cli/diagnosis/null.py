@@ -149,9 +149,13 @@ class NullSettings:
                 f"at least {min_replicates(alpha)} for a Monte-Carlo test at level {alpha:g} (p cannot go below 1/(B+1))",
             )
 
+    @property
+    def level(self) -> float:
+        """The level the replay's test runs at: :attr:`alpha`, else :data:`REPLAY_ALPHA`."""
+        return self.alpha if self.alpha is not None else REPLAY_ALPHA
+
     def to_dict(self) -> dict[str, Any]:
-        alpha = self.alpha if self.alpha is not None else REPLAY_ALPHA  # the level the replay ran at
-        return {"null": self.kind, "replicates": self.replicates if self.kind == "montecarlo" else None, "seed": self.seed, "alpha": alpha}
+        return {"null": self.kind, "replicates": self.replicates if self.kind == "montecarlo" else None, "seed": self.seed, "alpha": self.level}
 
 
 # ---------------------------------------------------------------------------

@@ -15,7 +15,7 @@ from ilic_cli.diagnosis.drift import WINDOWS as DRIFT_WINDOWS
 from ilic_cli.diagnosis.dwell import DWELL_MIN_COUNT, DWELL_MIN_S
 from ilic_cli.diagnosis.heldout_replay import FOLD_XATOL_STEPS
 from ilic_cli.diagnosis.materiality import MATERIAL_FORCE, MIN_DELAY_PERIODS
-from ilic_cli.diagnosis.null import REPLAY_ALPHA, NullSettings
+from ilic_cli.diagnosis.null import NullSettings
 from ilic_cli.diagnosis.refit_search import MAX_ROUNDS, ROUND_GAIN
 from ilic_cli.diagnosis.segments import LEVEL_Z, SEGMENT_S
 from ilic_cli.diagnosis.select import SelectSettings
@@ -93,5 +93,5 @@ DiagnoseSettings = DiagnosisSettings
 
 
 def replay_alpha(settings: DiagnosisSettings) -> float:
-    """Level of the replay's test: ``settings.null.alpha``, else :data:`ilic_cli.diagnosis.null.REPLAY_ALPHA`."""
-    return settings.null.alpha if settings.null.alpha is not None else REPLAY_ALPHA
+    """Level of the replay's test (:attr:`ilic_cli.diagnosis.null.NullSettings.level`)."""
+    return settings.null.level
