@@ -28,8 +28,10 @@ demo: $(STAMP)
 # the suite in TEST_WORKERS processes (pytest-xdist; CI has 2 cores): 268 s in two with one BLAS thread each, 332 s with BLAS threads on top (2-core machine)
 TEST_WORKERS ?= 2
 
-# one BLAS thread a worker: the TEST_WORKERS processes already share the cores (BLAS's own threads on top oversubscribed them)
-TEST_ENV := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1
+# one BLAS thread a worker: the TEST_WORKERS processes already share the cores (BLAS's own threads on top oversubscribed them).
+# Bytecode written (PYTHONDONTWRITEBYTECODE emptied where the environment sets it): the `ilic` processes the tests start load
+# the tree's modules compiled once, not each anew, and pytest keeps its assertion-rewritten test modules
+TEST_ENV := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 PYTHONDONTWRITEBYTECODE=
 
 # the tests' CPU time, steady under other load (wall time is not): make test PYTEST_ARGS="-p tests.cpu_durations --cpu-durations=30"
 PYTEST_ARGS ?=

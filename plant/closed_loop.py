@@ -94,7 +94,7 @@ def simulate_segments(
             raise ParameterError("segment", (int(i), int(length)), f"within the command's {n} samples")
         x, cs = _initial_state((float(x0[j][0]), float(x0[j][1])), T)
         a, b = int(i), int(i) + length
-        bad = run_periods(a, b, x, cs, zero, zero, zero, u, zero, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd, None)
+        bad = run_periods(a, b, x, cs, zero, zero, zero, u, zero, p, c, chi8, int(substeps), T, out_q, out_u, out_vir, out_qt, out_qd, out_qdd, zero)
         if bad >= 0:
             raise DivergedError(None, f"the open-loop segment from t = {i * T:.6g} s diverged at t = {bad * T:.6g} s (non-finite state)")
     return np.concatenate([out_qt[i : i + length] for i in starts]) if len(starts) else np.zeros(0)
@@ -175,7 +175,7 @@ class _Loop:
     names: tuple[str, ...]
     substeps: int
     T: float
-    dist: np.ndarray | None
+    dist: np.ndarray  # zeros without a disturbance (plant.kernel.run_periods)
     out: tuple[np.ndarray, ...]  # q, u, vir, q_true, qd_true, qdd_true
 
     def run(self, a: int, b: int, chi_now: np.ndarray) -> None:
@@ -295,7 +295,7 @@ def simulate_loop(
     qdd_log = qdd_r if qdd_log is None else np.asarray(qdd_log, dtype=np.float64)
     pul = np.zeros(n) if pulses is None else np.ascontiguousarray(pulses, dtype=np.float64)
     noise_tau, noise_q = draw_noise(n, seed, effects)
-    dist = draw_disturbance(n, seed, effects, fs_hz) if "disturbance" in effects else None
+    dist = draw_disturbance(n, seed, effects, fs_hz) if "disturbance" in effects else np.zeros(n)
     x, cs = _initial_state((float(q_r[0]), float(qd_r[0])) if x0 is None else x0, T)
     out = tuple(np.zeros(n) for _ in range(6))
     backing = populate_beside(out)  # their pages' memory on another core, not in the loop's writes

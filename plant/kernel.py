@@ -389,10 +389,11 @@ def _finite(x0, x1, x2, x3):
 
 
 @njit(cache=CACHE, nogil=True)
-def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd, dist=None):
+def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, substeps, T, out_q, out_u, out_vir, out_qtrue, out_qd, out_qdd, dist):
     """Advance the closed loop over periods ``k0 <= k < k1``.
 
-    ``dist`` (optional) is the disturbance force on the axis per period.
+    ``dist`` is the disturbance force on the axis per period (zeros: none): always an array, so that numba compiles
+    one signature (one for each way of calling it: ``None``, an array, left out; some 3 s of CPU each).
     ``current_loop``: the applied force lags the command
     (:func:`_current_loop_period`); ``x`` then has a fifth entry, that force
     (NaN before the first period: the first command).
@@ -437,7 +438,7 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
         if lag_n >= 0:  # drive lag: the commands lag_n (+1) periods back
             ub = out_u[max(k - lag_n, 0)]
             ua = out_u[max(k - lag_n - 1, 0)] if phi > 0.0 else ub
-        dk = 0.0 if dist is None else dist[k]
+        dk = dist[k]
         if tau_i > 0.0:  # current loop: the applied force y lags the (lagged) command
             out_qdd[k], x0, x1, x2, x3, y = _current_loop_period(p, ua, ub, y, dk, x0, x1, x2, x3, tk, h, substeps, lag, flex, tau_i)
         elif du != 0.0:  # the ramped pulses' path: the disturbance with the command (out_u keeps the command)

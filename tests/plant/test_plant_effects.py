@@ -139,7 +139,7 @@ def _constant_force(force: float, periods: int = 1000) -> np.ndarray:
     z = np.zeros(periods)
     x, cs = np.zeros(4), np.zeros(4)
     out = [np.zeros(periods) for _ in range(6)]
-    assert run_periods(0, periods, x, cs, z, z, z, z, z, p, c, chi, 10, 1e-3, *out) == -1
+    assert run_periods(0, periods, x, cs, z, z, z, z, z, p, c, chi, 10, 1e-3, *out, z) == -1
     return out[3]
 
 

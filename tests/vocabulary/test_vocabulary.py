@@ -200,7 +200,7 @@ def test_compiled_ctc_law_is_the_regressor_of_its_structure(structure: str) -> N
     x, cs = np.zeros(4), np.zeros(4)
     out = [np.zeros(n) for _ in range(6)]
     z = np.zeros(n)
-    assert kernel.run_periods(0, n, x, cs, q_r, qd_r, qdd_r, z, z, p, ctc.vector(), chi_vector(model.names, theta), 10, 1e-3, *out) == -1
+    assert kernel.run_periods(0, n, x, cs, q_r, qd_r, qdd_r, z, z, p, ctc.vector(), chi_vector(model.names, theta), 10, 1e-3, *out, z) == -1
     q_meas = out[0]
     qd_hat = np.diff(np.r_[q_meas[0], q_meas]) / 1e-3  # eq. 25 (the first period: the memory starts at the first sample)
     w = ctc.Kp * (q_r - q_meas) + ctc.Kv * (qd_r - qd_hat) + qdd_r
