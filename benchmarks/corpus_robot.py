@@ -99,7 +99,8 @@ def failure_list(rows: list[dict[str, Any]]) -> str:
                 lines.append(f"| {r['case']} | {r['size_pts']} | {eid} off by {err:.0%}: {_fmt(got)}, truth {_fmt(r['truth'][eid])} | |")
         ident = r["identify"]
         if ident is not None and not all(abs(e) <= 0.02 for e in ident["error"].values()):
-            lines.append(f"| {r['case']} | | identify: {', '.join(f'{k} {e:+.1%}' for k, e in ident['error'].items())} | |")
+            zs = ident.get("z", {})
+            lines.append(f"| {r['case']} | | identify: {', '.join(f'{k} {e:+.1%} ({zs.get(k, math.nan):+.1f} σ)' for k, e in ident['error'].items())} | |")
         if ident is not None and not ident["same_rows"]:
             lines.append(f"| {r['case']} | | identify fits {ident['rows']} rows, diagnose {r['diagnose_rows']} | |")
     return "\n".join(lines)
@@ -119,7 +120,8 @@ def report(rows: list[dict[str, Any]], wall_s: float, jobs: int) -> str:
         f"- concealed effects stated as indistinct from another (`a or b`: the data cannot tell them apart; not named exactly): "
         f"{s['effects_stated_indistinct']}",
         f"- `identify --method ls` within 2 % of M, Fv, Fc on clean dwell-and-move logs: {_pct(s['identify_within'], s['identify_logs'])}; "
-        f"the same rows as `diagnose`: {_pct(s['identify_same_rows'], s['identify_logs'])}",
+        f"the same rows as `diagnose`: {_pct(s['identify_same_rows'], s['identify_logs'])}; the truth within its stated 95 % robust interval "
+        f"(1.96 robust σ): {_pct(s['identify_in_interval'], s['identify_interval_compared'])} of M, Fv, Fc",
         f"- logs refused (`ilic: error:`, exit 2): {s['refused']}",
     ]
     for by in BY:

@@ -30,6 +30,10 @@ MIN_EXACT_RATE = 0.90
 MIN_PARAMETERS_WITHIN = 1.0
 """Share of the named effects' main parameters within :data:`tests.corpus.robot.TOLERANCE` ("parameters are within 15 %": all)."""
 
+Z95 = 1.959964
+"""The two-sided 95 % normal quantile: identify's robust interval holds the truth where its error is within this many of its
+stated robust standard deviations (measured, not a rate of the "Done when")."""
+
 
 def write_csv(built: Built, path: Path) -> Path:
     """A robot's CSV (pandas): ``time, position, effort, reference``; a ``# units:`` line when the joint is revolute."""
@@ -194,8 +198,11 @@ def run_case(case: Case) -> dict[str, Any]:
         row["identify"] = {"error": {k: math.nan for k in ("M", "Fv", "Fc")}, "rows": 0, "same_rows": False}
     if ident is not None:
         ls = ident["ls"]
+        robust = (ls.get("robust_std") or {}).get("std", {})
         row["identify"] = {
             "error": {k: ls["parameters"][k]["value"] / axis.truth[k] - 1.0 for k in ("M", "Fv", "Fc")},
+            # the error in the robust standard deviations identify states (ls.robust_std): how honest its interval is
+            "z": {k: (ls["parameters"][k]["value"] - axis.truth[k]) / robust[k] if robust.get(k) else math.nan for k in ("M", "Fv", "Fc")},
             "rows": ls["rows"],
             "same_rows": ls["rows"] == diag["rows_total"] and ident["usable_rows"]["usable_rows"] == diag["usable_rows"]["usable_rows"],
         }
@@ -228,6 +235,8 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "identify_logs": len(ident),
         "identify_within": sum(all(abs(e) <= IDENTIFY_TOLERANCE for e in r["identify"]["error"].values()) for r in ident),
         "identify_same_rows": sum(r["identify"]["same_rows"] for r in ident),
+        "identify_in_interval": sum(abs(z) <= Z95 for r in ident for z in r["identify"].get("z", {}).values()),
+        "identify_interval_compared": sum(len(r["identify"].get("z", {})) for r in ident),
         "refused": sum(bool(r.get("refused")) for r in rows),
     }
 
