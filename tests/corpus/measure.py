@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.effects.definition import Z95
 from ilic_cli.errors import IlicError
 from tests.clirun import run_cli
 from tests.corpus.robot import ALL_AXES, BAND_PTS, DWELL_TRAJECTORIES, TOLERANCE, Built, Case, build, score
@@ -29,10 +30,6 @@ MAX_FALSE_ALARM_RATE = 1 / 40
 MIN_EXACT_RATE = 0.90
 MIN_PARAMETERS_WITHIN = 1.0
 """Share of the named effects' main parameters within :data:`tests.corpus.robot.TOLERANCE` ("parameters are within 15 %": all)."""
-
-Z95 = 1.959964
-"""The two-sided 95 % normal quantile: identify's robust interval holds the truth where its error is within this many of its
-stated robust standard deviations (measured, not a rate of the "Done when")."""
 
 
 def write_csv(built: Built, path: Path) -> Path:
@@ -235,6 +232,7 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "identify_logs": len(ident),
         "identify_within": sum(all(abs(e) <= IDENTIFY_TOLERANCE for e in r["identify"]["error"].values()) for r in ident),
         "identify_same_rows": sum(r["identify"]["same_rows"] for r in ident),
+        # identify's 95 % robust interval holds the truth (measured, not a rate of the "Done when")
         "identify_in_interval": sum(abs(z) <= Z95 for r in ident for z in r["identify"].get("z", {}).values()),
         "identify_interval_compared": sum(len(r["identify"].get("z", {})) for r in ident),
         "refused": sum(bool(r.get("refused")) for r in rows),
