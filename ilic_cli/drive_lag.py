@@ -105,8 +105,15 @@ def drive_lag(system: Callable[[float], tuple[np.ndarray, np.ndarray]], period_s
     The standard deviation is the Gauss-Newton one: the slope of the fitted force in the lag, one column beside the
     model's, its Newey-West standard deviation (:func:`ilic_cli.lsq.robust_std`) at the minimum.
     """
-    lag = minimise(lambda d: lstsq(*system(d))[1], 0.0, max_s, use_log=False, rel_tol=1e-3)
-    W, y = system(lag)
+    built: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at(d: float) -> tuple[np.ndarray, np.ndarray]:  # each lag's rows built once: the minimum is one of the lags searched
+        if d not in built:
+            built[d] = system(d)
+        return built[d]
+
+    lag = minimise(lambda d: lstsq(*at(d))[1], 0.0, max_s, use_log=False, rel_tol=1e-3)
+    W, y = at(lag)
     theta, _ = lstsq(W, y)
     lo, hi = max(lag - STEP_PERIODS * period_s, 0.0), lag + STEP_PERIODS * period_s
     slope = (system(hi)[0] - system(lo)[0]) @ theta / (hi - lo)
