@@ -29,6 +29,7 @@ def output_error_refit(
     y_norm: float,
     round_gain: float = ROUND_GAIN,
     joint: str = "prismatic",
+    lead: str = "refitted instead by",
 ) -> Refit | str:
     """The refit by :func:`output_error_gauss_newton`: the linear parameters ``names`` and every searched value of the kept effects at once.
 
@@ -38,7 +39,7 @@ def output_error_refit(
     the edge of the range the closed loop searches it in
     (:func:`~ilic_cli.diagnosis.select.at_edge`). Its covariance is that of the
     final Jacobian, the residual's autocorrelation accounted for
-    (:func:`~ilic_cli.diagnosis.stats.gls_covariance`).
+    (:func:`~ilic_cli.diagnosis.stats.gls_covariance`). ``lead``: the words the reason starts with.
     """
     slots = slots_of(known, steps, grids, joint)
     v0 = np.array([slot_value(steps[j].value, k) for j, _, _, k in slots])
@@ -83,7 +84,7 @@ def output_error_refit(
     ]
     return Refit(
         True,
-        f"refitted instead by a {OE_METHOD}, its sensitivities by finite differences of replays "
+        f"{lead} a {OE_METHOD}, its sensitivities by finite differences of replays "
         f"({count(len(fit.history) - 1, 'iteration')}, {fit.replays} replays): closed-loop output error {error_inverse:.3g} % -> {error:.3g} %",
         found[len(known) :],
         names,
