@@ -29,7 +29,7 @@ from ilic_cli.diagnosis.search import (
     minimise,
     search_range,
 )
-from ilic_cli.diagnosis.stats import FTest, blocked_folds, folds_either_side, heldout_errors, heldout_fall_p, nested_f_test
+from ilic_cli.diagnosis.stats import HELDOUT_FALL_TEST, FTest, blocked_folds, folds_either_side, heldout_errors, heldout_fall_p, nested_f_test
 from ilic_cli.diagnosis.system import Step, SystemFit, change_time, effect_columns, extended, fit_system, moving_rows, shifted_force, system
 from ilic_cli.diagnosis.verdicts import Selection
 from ilic_cli.effects import EFFECTS, Effect, applicable, catalogue_ids
@@ -148,9 +148,7 @@ class Evaluation:
             **self.test.to_dict(),
             "relative_error_pct": self.relative_error_pct,
             "heldout_relative_error_pct": {"before": self.heldout_before_pct, "after": self.heldout_after_pct},
-            "heldout_test": None
-            if self.heldout_p_value is None
-            else {"test": "Diebold-Mariano, one-sided, Newey-West variance", "p_value": self.heldout_p_value},
+            "heldout_test": None if self.heldout_p_value is None else {"test": f"{HELDOUT_FALL_TEST}, held-out IDIM rows", "p_value": self.heldout_p_value},
             "validation_relative_error_pct": None
             if self.validation_before_pct is None
             else {"before": self.validation_before_pct, "after": self.validation_after_pct},

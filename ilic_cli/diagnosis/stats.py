@@ -298,6 +298,10 @@ def diebold_mariano(e_before: np.ndarray, e_after: np.ndarray, loss: str = "squa
     return float(normal_sf(mean / np.sqrt(lrv / n)))
 
 
+HELDOUT_FALL_TEST = "Diebold-Mariano, one-sided, Newey-West variance, the larger of the squared- and absolute-loss statistics against its own null"
+""":func:`heldout_fall_p`, in words (what the inverse model's held-out test and the replay's state, each with what it compares)."""
+
+
 def heldout_fall_p(e_before: np.ndarray, e_after: np.ndarray) -> float:
     """The held-out test: one-sided p-value that ``e_after`` is smaller than ``e_before``, sample by sample.
 

@@ -18,6 +18,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ilic_cli.diagnosis.stats import HELDOUT_FALL_TEST
+
 
 class Selection(Enum):
     """The inverse model's decision on one candidate at one step of the forward selection (:mod:`ilic_cli.diagnosis.select`)."""
@@ -109,10 +111,7 @@ class RefitOutcome(Enum):
         return self in (RefitOutcome.DIDIM, RefitOutcome.NOT_LOWERED, RefitOutcome.OUTPUT_ERROR, RefitOutcome.VALUE_SEARCH)
 
 
-DM_TEST = (
-    "Diebold-Mariano, one-sided, Newey-West variance, the larger of the squared- and absolute-loss statistics against its own null, "
-    "held-out replay force errors"
-)
+DM_TEST = f"{HELDOUT_FALL_TEST}, held-out replay force errors"
 
 MC_TEST = "Monte-Carlo null: the kept model simulated in closed loop with the log's noise model, the candidate proposed again on each replicate"
 

@@ -11,7 +11,7 @@ import pytest
 
 from ilic_cli.derivatives import derivative
 from ilic_cli.diagnosis.select import Evaluation, Searcher, SelectSettings, at_edge, forward_select, moving_rows, parsimonious_first, system, validation_error
-from ilic_cli.diagnosis.stats import nested_f_test
+from ilic_cli.diagnosis.stats import HELDOUT_FALL_TEST, nested_f_test
 from ilic_cli.effects import EFFECTS, catalogue_ids
 from ilic_cli.effects.grids import flexible_acceleration
 from ilic_cli.filtering import kept_indices, rows_band_hz
@@ -317,7 +317,7 @@ def test_records_and_their_defaults() -> None:
     d = ev.to_dict()
     assert d["heldout_test"] is None and d["validation_relative_error_pct"] is None and d["nonlinear_value"] is None
     done = dataclasses.replace(ev, heldout_p_value=0.5)
-    assert done.to_dict()["heldout_test"] == {"test": "Diebold-Mariano, one-sided, Newey-West variance", "p_value": 0.5}
+    assert done.to_dict()["heldout_test"] == {"test": f"{HELDOUT_FALL_TEST}, held-out IDIM rows", "p_value": 0.5}
     assert dataclasses.replace(ev, value=(20.0, 0.05)).to_dict()["nonlinear_value"] == [20.0, 0.05]
     assert SelectionResult().rows is None and SelectionResult().steps == []
     for obj, attr in ((step, "value"), (ev, "accepted")):
