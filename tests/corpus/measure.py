@@ -164,7 +164,8 @@ def run_case(case: Case) -> dict[str, Any]:
             diag = {"findings": [], "decisions": [], "base": {"parameters": {k: {"value": math.nan} for k in ("M", "Fv", "Fc")}}, "rows_total": 0}
     t2 = time.perf_counter()
     findings = [(f["effect"], f.get("plant_effect"), f.get("indistinct_from")) for f in diag["findings"]]
-    s = score(built, findings)
+    stated = {f["effect"]: f.get("parameters", {}) for f in diag["findings"]}
+    s = score(built, findings, stated)
     axis = ALL_AXES[case.axis]
     base = {k: diag["base"]["parameters"][k]["value"] for k in ("M", "Fv", "Fc")}
     row: dict[str, Any] = {
@@ -229,6 +230,9 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "effects_stated_indistinct": sum(len(r.get("indistinct", [])) for r in eff),
         "parameters_compared": len(errs),
         "parameters_within": sum(math.isfinite(e) and e <= TOLERANCE for e in errs),
+        # of those beyond 15 %: within what the diagnosis states of them (95 % interval, or stated undetermined; measured, not a rate)
+        "parameters_beyond_within_stated": sum(v is True for r in eff for v in r.get("parameter_stated", {}).values()),
+        "parameters_beyond_judged": sum(v is not None for r in eff for v in r.get("parameter_stated", {}).values()),
         "identify_logs": len(ident),
         "identify_within": sum(all(abs(e) <= IDENTIFY_TOLERANCE for e in r["identify"]["error"].values()) for r in ident),
         "identify_same_rows": sum(r["identify"]["same_rows"] for r in ident),

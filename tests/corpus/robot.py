@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.effects.definition import Z95
 from ilic_cli.runlog import RunLog
 
 STANDARD_GRAVITY = 9.80665
@@ -478,15 +479,45 @@ def _compared(eid: str, p: dict[str, float]) -> dict[str, float]:
     return dict(p)
 
 
-def score(built: Built, findings: list[tuple[str, dict[str, float] | None]] | list[tuple[str, dict[str, float] | None, str | None]]) -> dict[str, Any]:
+STATED_AS = {"lag": "delay"}
+"""A compared value's name among a finding's stated parameters, where it differs (a lag is the negative ``delay``)."""
+
+
+def within_stated(truth: dict[str, float], got: dict[str, float], stated: dict[str, dict[str, Any]]) -> bool | None:
+    """Whether every compared value beyond :data:`TOLERANCE` lies within what the finding states of it: within 1.96 of its stated
+    standard deviation (the 95 % interval), or stated undetermined; ``None`` when one has no stated standard deviation."""
+    verdict = True
+    for k, v in truth.items():
+        if v == 0 or abs(got.get(k, math.nan) - v) <= TOLERANCE * abs(v):
+            continue
+        st = stated.get(STATED_AS.get(k, k))
+        if st is None:
+            return None
+        if st.get("determined") is False:
+            continue
+        std = st.get("std")
+        if std is None or not std > 0:
+            return None
+        verdict = verdict and abs(got.get(k, math.nan) - v) <= Z95 * std
+    return verdict
+
+
+def score(
+    built: Built,
+    findings: list[tuple[str, dict[str, float] | None]] | list[tuple[str, dict[str, float] | None, str | None]],
+    stated: dict[str, dict[str, dict[str, Any]]] | None = None,
+) -> dict[str, Any]:
     """Judge a diagnosis of ``built``'s log: ``offset`` is right, a concealed effect named is right, a current-loop-sized
     ``delay`` on a log with that loop is right, anything else is a false alarm; parameter errors of the effects named.
+    ``stated``: each finding's parameters as the diagnosis states them (name -> ``std``, ``determined``): for an effect
+    beyond :data:`TOLERANCE`, whether it is within what the diagnosis states (:func:`within_stated`, ``parameter_stated``).
 
     A finding may carry a third element, the effect the diagnosis says it cannot tell it from (``indistinct_from``): when
     either is concealed the verdict is ``indistinct`` (a stated ambiguity: no false alarm, and the concealed one is not
     named exactly: it counts as missed), else a false alarm."""
     case = built.case
     verdicts, errors = [], {}
+    honest: dict[str, bool | None] = {}
     ambiguous: set[str] = set()
     for eid, plant, *rest in findings:
         other = rest[0] if rest else None
@@ -502,6 +533,8 @@ def score(built: Built, findings: list[tuple[str, dict[str, float] | None]] | li
                 truth = {"lag": truth["lag"] + case.expected_lag_s()}
             got = _compared(eid, plant) if plant is not None else None
             errors[eid] = math.nan if got is None else max(abs(got.get(k, math.nan) - v) / abs(v) for k, v in truth.items() if v != 0)
+            if got is not None and stated is not None and not errors[eid] <= TOLERANCE:
+                honest[eid] = within_stated(truth, got, stated.get(eid, {}))
         elif eid == "delay" and case.expected_lag_s() > 0 and plant is not None:
             lag, tau = max(-plant["delay"], 0.0), case.expected_lag_s()
             verdicts.append("right" if abs(lag - tau) <= DELAY_SIZE_TOLERANCE * tau else "false alarm")
@@ -514,6 +547,7 @@ def score(built: Built, findings: list[tuple[str, dict[str, float] | None]] | li
         "verdicts": verdicts,
         "missed": missed,
         "parameter_error": errors,
+        "parameter_stated": honest,
         "false_alarms": false,
         "exact": not missed and false == 0,
         "indistinct": sorted(ambiguous & set(built.effects)),

@@ -100,6 +100,23 @@ def test_an_effect_log_below_the_band_counts_in_no_rate() -> None:
     assert (s["effect_logs"], s["named_exactly"], s["below_band"], s["effects_total"], s["effects_named"]) == (2, 1, 1, 2, 1)
 
 
+def test_a_parameter_beyond_15_percent_is_judged_by_what_the_diagnosis_states_of_it() -> None:
+    """Measured beside the rate: within 1.96 of its stated σ, or stated undetermined, counts as stated; a σ that does not
+    reach the truth does not; a value the finding states no σ of is not judged; a lag is judged by the stated delay."""
+    from tests.corpus.robot import within_stated
+
+    truth, got = {"MX": 1.0, "MY": 1.0}, {"MX": 1.5, "MY": 1.05}  # MY within 15 %: not judged
+    assert within_stated(truth, got, {"MX": {"std": 0.3, "determined": True}}) is True
+    assert within_stated(truth, got, {"MX": {"std": 0.2, "determined": True}}) is False
+    assert within_stated(truth, got, {"MX": {"std": 0.01, "determined": False}}) is True
+    assert within_stated(truth, got, {"MY": {"std": 1.0, "determined": True}}) is None
+    assert within_stated({"lag": 1e-3}, {"lag": 2e-3}, {"delay": {"std": 0.4e-3, "determined": True}}) is False
+    rows = [{"clean": False, "size_pts": 0.5, "exact": True, "truth": {"gravity": {}}, "missed": [], "false_alarms": 0, "identify": None,
+             "parameter_error": {"gravity": 0.5}, "parameter_stated": {"gravity": v}} for v in (True, False, None)]  # fmt: skip
+    s = summary(rows)
+    assert (s["parameters_within"], s["parameters_beyond_judged"], s["parameters_beyond_within_stated"]) == (0, 2, 1)
+
+
 Z99 = NormalDist().inv_cdf(0.995)
 """The two-sided 99 % point of the normal distribution (over the corpus's 40 disturbance logs the truth lies within it on 114 of 120 of M, Fv,
 Fc; within 1.96 on 99)."""
