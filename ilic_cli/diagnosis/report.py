@@ -12,7 +12,7 @@ import ilic_cli.diagnosis.dwell as dwell
 import ilic_cli.diagnosis.segments as segments
 from ilic_cli.diagnosis.compare import SimulationComparison
 from ilic_cli.diagnosis.core import Diagnosis, Finding
-from ilic_cli.diagnosis.fits import INVERSE_METHOD
+from ilic_cli.diagnosis.fits import CLOSED_LOOP_SPREAD, INVERSE_METHOD, METHOD, OE_METHOD
 from ilic_cli.diagnosis.locate import Region
 from ilic_cli.diagnosis.settings import replay_alpha
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, RefitOutcome
@@ -94,8 +94,9 @@ def _estimates_table(params: dict[str, Estimate], inverse: dict[str, Estimate], 
             by += f"; std: {segments.SPREAD}"
         lines = [f"Estimated by {by}.", "", "| parameter | value | std |", "| --- | --- | --- |"]
         return lines + [f"| {n} | {_num(e.value, e.unit)} | {_std(e)} |" for n, e in params.items()] + [""]
+    spread = f"; std: {CLOSED_LOOP_SPREAD}" if method in (METHOD, OE_METHOD) else ""
     lines = [
-        f"Estimated by the {method} (the inverse model's estimate beside it).",
+        f"Estimated by the {method} (the inverse model's estimate beside it){spread}.",
         "",
         "| parameter | closed loop | std | inverse model | std |",
         "| --- | --- | --- | --- | --- |",

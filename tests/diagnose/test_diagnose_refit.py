@@ -157,6 +157,8 @@ def test_coupled_values_the_coordinate_search_leaves_short_are_fitted_at_once() 
     parameter, Levenberg-Marquardt on the closed loop's own sensitivities): 31.04 Hz, load fraction 0.804, stiffness
     within 1 % (0.186 %, 27 replays); the reason says both steps."""
     from ilic_cli.diagnosis.core import diagnose
+    from ilic_cli.diagnosis.fits import CLOSED_LOOP_SPREAD
+    from ilic_cli.diagnosis.report import to_markdown
     from tests.corpus.robot import build, cases
     from tests.corpus.robot import score as robot_score
 
@@ -169,6 +171,8 @@ def test_coupled_values_the_coordinate_search_leaves_short_are_fitted_at_once() 
     assert sc["exact"] and sc["parameter_error"]["flexibility"] < 0.05, sc
     (f_res,) = [s for s in refit.searches if s.parameter == "f_res"]
     assert f_res.accepted and f_res.inverse < 27.0 and abs(f_res.value - 31.0) < 0.5 and "then fitted on the closed loop" in f_res.reason
+    # the report says what its standard deviations are, and are not: the closed-loop fit's given the model, no bias in them
+    assert f"Estimated by the {OE_METHOD} (the inverse model's estimate beside it); std: {CLOSED_LOOP_SPREAD}." in to_markdown(diag)
 
 
 @pytest.fixture(scope="module")
