@@ -39,8 +39,8 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.corpus.measure import BY, below_band, breakdown, failures, run_case, summary  # noqa: E402
-from tests.corpus.robot import BAND_PTS, beyond_cases, cases  # noqa: E402
+from tests.corpus.measure import BY, IDENTIFY_TOLERANCE, below_band, breakdown, failures, run_case, summary  # noqa: E402
+from tests.corpus.robot import BAND_PTS, TOLERANCE, beyond_cases, cases  # noqa: E402
 
 RESEED_STEP = 3000
 """``--reseed K`` adds ``K`` times this to every seed: a multiple of 3, so each case keeps its variant (``Case.variant``)."""
@@ -76,6 +76,10 @@ def _fmt(p: dict[str, float] | None) -> str:
     return "" if not p else "(" + ", ".join(f"{k}={v:.3g}" for k, v in p.items()) + ")"
 
 
+STATED = {True: "within what the diagnosis states", False: "beyond what the diagnosis states", None: ""}
+"""A failure's last column for a parameter beyond the tolerance, by :func:`tests.corpus.robot.within_stated`'s verdict."""
+
+
 def failure_list(rows: list[dict[str, Any]]) -> str:
     """Each failing log: what went wrong and the diagnosis's reason."""
     lines = ["| case | size (pts) | failure | reason |", "|---|---|---|---|"]
@@ -94,15 +98,14 @@ def failure_list(rows: list[dict[str, Any]]) -> str:
         for eid in r["missed"]:
             lines.append(f"| {r['case']} | {r['size_pts']} | missed: {eid}{_fmt(r['truth'][eid])} | {r['missed_reasons'].get(eid, '')} |")
         for eid, err in r["parameter_error"].items():
-            if not err <= 0.15:
+            if not err <= TOLERANCE:
                 got = next((f["plant"] for f in r["findings"] if f["effect"] == eid), None)
-                said = {True: "within what the diagnosis states", False: "beyond what the diagnosis states", None: ""}
                 lines.append(
                     f"| {r['case']} | {r['size_pts']} | {eid} off by {err:.0%}: {_fmt(got)}, truth {_fmt(r['truth'][eid])} | "
-                    f"{said[r.get('parameter_stated', {}).get(eid)]} |"
+                    f"{STATED[r.get('parameter_stated', {}).get(eid)]} |"
                 )
         ident = r["identify"]
-        if ident is not None and not all(abs(e) <= 0.02 for e in ident["error"].values()):
+        if ident is not None and not all(abs(e) <= IDENTIFY_TOLERANCE for e in ident["error"].values()):
             zs = ident.get("z", {})
             lines.append(f"| {r['case']} | | identify: {', '.join(f'{k} {e:+.1%} ({zs.get(k, math.nan):+.1f} σ)' for k, e in ident['error'].items())} | |")
         if ident is not None and not ident["same_rows"]:

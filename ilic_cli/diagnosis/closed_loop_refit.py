@@ -292,18 +292,12 @@ def _without_didim(
     error_inverse, names0, y_norm = out.error_inverse_pct, out.names, loop.y_norm
     # 1b. every parameter at once on the output error itself, its sensitivities by finite differences of replays
     theta_0 = np.asarray(theta0, dtype=np.float64)
-    oe = output_error_refit(
-        known, steps, names0, theta_0, grids, lambda s, th: loop.residual_of(s, names0, th), error_inverse, y_norm, loop.round_gain, loop.joint
-    )
+    oe = _output_error_fit(loop, known, steps, names0, theta_0, grids, error_inverse, confirm)
     if isinstance(oe, str):
         out.reason += f"; {oe}"
-    elif (final := loop.replayed([*known, *oe.steps], names0, estimate(oe))) is None:
-        out.reason += f"; the {OE_METHOD} estimate does not replay"
-    elif (why := None if confirm is None else confirm(oe)) is not None:
-        out.reason += f"; the {OE_METHOD} lowers it to {oe.error_pct:.3g} %, but {why}"
     else:
         oe.reason = f"{out.reason}; {oe.reason}"
-        oe.error_inverse_pct, oe.simulated = error_inverse, final
+        oe.error_inverse_pct = error_inverse
         return oe
     biased = {k: g for k, g in grids.items() if k in SEARCH_STEPS}  # the values the inverse model is known to bias; the others are within a grid step
     if inverse_fit is None or not biased:
@@ -395,7 +389,7 @@ def _with_didim(
                 else s
                 for s in searches
             ]
-    if sum(s.accepted for s in searches) >= 2 and (polished := _polished(loop, known, chosen, res0.result.theta, grids, error, searches, confirm)):
+    if sum(s.accepted for s in searches) >= 2 and (polished := _polished(loop, known, chosen, res0.result.theta, grids, error, searches, confirm)) is not None:
         polished.reason = f"{_didim_reason(res0, searches, error_inverse, error)}; {polished.reason}"
         polished.error_inverse_pct = error_inverse
         return polished
@@ -420,6 +414,42 @@ def _didim_reason(res: ClosedLoopResult, searches: list[ValueSearch], error_inve
     )
 
 
+def _output_error_fit(
+    loop: _Loop,
+    known: list[Step],
+    steps: list[Step],
+    names: tuple[str, ...],
+    theta: np.ndarray,
+    grids: Mapping[str, np.ndarray],
+    error_from: float,
+    confirm: Callable[[Refit], str | None] | None,
+    lead: str = "refitted instead by",
+) -> Refit | str:
+    """The output-error fit from ``steps`` and ``theta`` (:func:`output_error_refit`, starting at ``error_from`` %), its final
+    replay kept as the estimate's (``simulated``) when it replays and ``confirm`` does not refuse it; else why not."""
+    oe = output_error_refit(
+        known,
+        steps,
+        names,
+        theta,
+        grids,
+        lambda s, th: loop.residual_of(s, names, th),
+        error_from,
+        loop.y_norm,
+        loop.round_gain,
+        loop.joint,
+        lead=lead,
+    )
+    if isinstance(oe, str):
+        return oe
+    if (final := loop.replayed([*known, *oe.steps], names, estimate(oe))) is None:
+        return f"the {OE_METHOD} estimate does not replay"
+    if confirm is not None and (why := confirm(oe)) is not None:
+        return f"the {OE_METHOD} lowers it to {oe.error_pct:.3g} %, but {why}"
+    oe.simulated = final
+    return oe
+
+
 def _polished(
     loop: _Loop,
     known: list[Step],
@@ -430,30 +460,17 @@ def _polished(
     searches: list[ValueSearch],
     confirm: Callable[[Refit], str | None] | None,
 ) -> Refit | None:
-    """The values the coordinate search found, with the linear parameters, fitted at once on the output error (:data:`OE_METHOD`): kept
-    when it lowers the output error by :data:`ROUND_GAIN` of it, replays, and ``confirm`` does not refuse it (``None`` otherwise).
+    """The values the coordinate search found, with the linear parameters, fitted at once on the output error
+    (:func:`_output_error_fit`): kept when it lowers the output error by :data:`ROUND_GAIN` of it, replays, and ``confirm``
+    does not refuse it (``None`` otherwise).
 
     Coupled values lie along a curved valley of the output error that searches one value at a time descend slowly, and stop
     where a round gains less than :data:`ROUND_GAIN`: on the robot corpus's flexibilities behind a point-to-point move (the 200
     kg axis's S-curves under a current loop, s341), at a resonance 10 % low with a load fraction 20 % low (27.8 Hz and 0.64
     for 31 Hz and 0.8; output error 0.196 %); fitted at once, 31.04 Hz and 0.804 (0.186 %, 27 replays)."""
     names = extended(loop.base, steps, loop.fs).names
-    oe = output_error_refit(
-        known,
-        steps,
-        names,
-        theta,
-        grids,
-        lambda s, th: loop.residual_of(s, names, th),
-        error,
-        loop.y_norm,
-        loop.round_gain,
-        loop.joint,
-        lead="then every value and linear parameter at once by",
-    )
-    if isinstance(oe, str) or (final := loop.replayed([*known, *oe.steps], names, estimate(oe))) is None:
-        return None
-    if confirm is not None and confirm(oe) is not None:
+    oe = _output_error_fit(loop, known, steps, names, theta, grids, error, confirm, lead="then every value and linear parameter at once by")
+    if isinstance(oe, str):
         return None
     before = {(s.effect, s.parameter): s for s in searches}
     oe.searches = [
@@ -462,7 +479,6 @@ def _polished(
         else s
         for s in oe.searches
     ]
-    oe.simulated = final
     return oe
 
 
