@@ -102,6 +102,11 @@ def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[
     return total, touched
 
 
+MIN_ROWS_PER_COLUMN = 4
+"""A diagnosis fits a model only on more than this many rows per column (:meth:`UsableRows.too_few`): its F-tests, held-out blocks
+and prewhitening need residual degrees of freedom beyond the parameters'."""
+
+
 @dataclass(frozen=True)
 class UsableRows:
     """The decimated rows of a log every fit uses, and why the others are left out (the one rule: :data:`REST_RULE`).
@@ -141,6 +146,17 @@ class UsableRows:
         return (
             f"the Coulomb column erf(v / (√2 σv)), the expected sign of a velocity whose noise σv is {self.speed_noise:.3g} {position_unit}/s over the dwells"
         )
+
+    def too_few(self, fitted: int, columns: int) -> str | None:
+        """Why ``fitted`` rows are too few for a fit of ``columns`` columns (not more than :data:`MIN_ROWS_PER_COLUMN` each), and what
+        left the others out; ``None``: enough."""
+        if fitted > MIN_ROWS_PER_COLUMN * columns:
+            return None
+        why = [f"{n} touch a saturated drive" if k == "s" else f"{n} a sample at rest" for k, n in (("s", self.saturated), ("r", self.at_rest)) if n]
+        if self.usable > fitted:
+            why.append(f"{self.usable - fitted} more a velocity reversal or the filter's edges")
+        left_out = f"; of the others, {', '.join(why)}" if why else ""
+        return f"only {fitted} of {self.decimated} decimated rows to fit{left_out}: too few for {columns} parameters"
 
     def to_dict(self) -> dict[str, Any]:
         return {

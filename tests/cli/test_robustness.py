@@ -527,3 +527,23 @@ def test_a_bad_thread_count_is_one_line_exit_2(monkeypatch: pytest.MonkeyPatch) 
     for asked in (["--help"], ["diagnose", "-h"], ["--version"]):  # help is no work: answered all the same
         res = run_cli(*asked)
         assert res.status == 0 and res.stderr == "" and ("Usage: ilic" in res.stdout or "ilic, version" in res.stdout), (asked, res)
+
+
+def test_a_log_whose_drive_saturates_on_most_rows_is_refused_with_what_left_them_out(tmp_path: Path) -> None:
+    """A chirp whose flexible load makes the drive saturate on 36 % of its samples (robot corpus, lin12 500 Hz, seed 12260): 794 of
+    its 826 decimated rows touch the limit. ``diagnose`` refuses before any replay and says what left the rows out; it said
+    "after leaving out standstill" before, which left out 5 of them (the rows per column, and each count, planted wrong: fails)."""
+    import dataclasses
+
+    from ilic_cli.usable import MIN_ROWS_PER_COLUMN
+    from tests.corpus.measure import controller_flags, write_csv
+    from tests.corpus.robot import build, cases
+
+    case = next(c for c in cases() if c.name == "lin12/chirp/500Hz/sensor/flexibility/s260")
+    case = dataclasses.replace(case, seed=12260)
+    path = write_csv(build(case), tmp_path / "saturating.csv")
+    res = run_cli("diagnose", str(path), *controller_flags(case))
+    assert res.status == 2 and res.stdout == ""
+    assert_one_line_error(res.stderr, "saturating.csv", ("only 16 of 826 decimated rows to fit",))
+    assert "794 touch a saturated drive, 5 a sample at rest, 11 more a velocity reversal" in res.stderr, res.stderr
+    assert "too few for 4 parameters" in res.stderr and 16 <= MIN_ROWS_PER_COLUMN * 4
