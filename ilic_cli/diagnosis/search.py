@@ -72,10 +72,13 @@ class Searcher:
     on the model's :class:`LogRate` system (``at``); every other on the decimated rows ``(W0, y)``.
     """
 
-    def __init__(self, data: IDIMData, fs_hz: float, rows: np.ndarray) -> None:
+    def __init__(self, data: IDIMData, fs_hz: float, rows: np.ndarray, held: np.ndarray | None = None) -> None:
         self.data = data
         self.fs = fs_hz
         self.keep = rows
+        self.held = held
+        """The force of held levels on the rows (:func:`~ilic_cli.diagnosis.system.system` takes it off the force): taken off every
+        shifted force too; ``None``: none."""
         k = data.kin
         dec = data.decimate
         self.kin_dec = Kinematics(qd=dec(k.qd), qdd=dec(k.qdd), q=None if k.q is None else dec(k.q), t=data.t_dec, speed_noise=k.speed_noise)
@@ -151,7 +154,8 @@ class Searcher:
             t = self.data.kin.t
             assert t is not None
             Y = np.stack([evaluated_later(t, self.data.tau, v) for v in values], axis=1)
-            out = (values, self.data.decimate(Y)[self.keep], True)
+            Y = self.data.decimate(Y)[self.keep]
+            out = (values, Y if self.held is None else Y - self.held[:, None], True)
         elif len(values) <= EXACT_GRID_MAX:
             full = np.concatenate([effect.matrix(self.data.kin, v, self.fs) for v in values], axis=1)
             m = full.shape[1] // len(values)
@@ -165,7 +169,8 @@ class Searcher:
     def exact(self, effect: Effect, value: Any) -> np.ndarray:
         """Exactly decimated columns (or shifted force) for one value."""
         if effect.shift:
-            return shifted_force(self.data, value, remember=False)[self.keep]
+            y = shifted_force(self.data, value, remember=False)[self.keep]
+            return y if self.held is None else y - self.held
         return effect_columns(self.data, effect, value, remember=False)[self.keep]
 
     def exact_linear(self, effect: Effect) -> np.ndarray:

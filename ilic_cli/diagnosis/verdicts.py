@@ -34,6 +34,9 @@ class Selection(Enum):
     """Its F-test does not pass."""
     ANOTHER_FIRST = "another effect was accepted first"
     """Another candidate of the same step was accepted before it."""
+    BESIDE_STRONGER = "not significant beside a stronger candidate"
+    """Its F-test passed, but not in the model with a candidate of the same step whose F-test is stronger: what it explains is that
+    one's force (:func:`ilic_cli.diagnosis.select.forward_select`)."""
     HELDOUT_UNCONFIRMED = "does not lower the held-out error significantly"
     """Its F-test passed, its held-out test did not confirm it."""
     RAISES_VALIDATION = "raises the error on the validation log"
@@ -76,6 +79,9 @@ class Verdict(Enum):
     """Kept: a finding."""
     REFUTED = "refuted"
     """Kept by the replay, then refuted by the open-loop segments' fit (:mod:`ilic_cli.diagnosis.segments`)."""
+    NOT_PROPOSED_AGAIN = "no longer proposed"
+    """Kept by the replay, then no longer proposed by the inverse model on the model with a closed-loop proposal kept after it
+    (:func:`ilic_cli.diagnosis.decide.proposed_again`)."""
 
 
 class RefitOutcome(Enum):

@@ -70,3 +70,15 @@ def test_gravity_about_an_upright_is_no_negative_spring() -> None:
     assert [(e.effect, e.indistinct_from) for e in res.accepted] == [("gravity", None)]
     spring = res.last_word("spring")
     assert spring is not None and spring.reason.startswith("physically impossible: negative stiffness")
+
+
+def test_an_ambiguity_the_j_test_states_is_not_undone_by_the_stronger_candidate_check() -> None:
+    """Gravity of a small first moment (MX 0.05, MY -0.3) over +-0.8 rad: the spring's straight line and gravity's force cannot be
+    told apart, and the spring is proposed with gravity as ``indistinct_from``, although gravity's F-test is the stronger (p 9e-62
+    against 3e-61). The selection's check that a candidate is significant beside a stronger one (``select._beside_stronger``)
+    leaves two linear effects to the J-test: without that exception (planted), the spring is not significant beside gravity's two
+    columns and gravity is named bare (corpus s12711, a spring named gravity)."""
+    res = forward_select(_gravity_log(0.05, -0.3), BASE, FS, SelectSettings(effects=("spring", "gravity"), max_effects=1))
+    assert [(e.effect, e.indistinct_from) for e in res.accepted] == [("spring", "gravity")]
+    gravity, spring = res.last_word("gravity"), res.last_word("spring")
+    assert gravity is not None and spring is not None and gravity.test.p_adjusted < spring.test.p_adjusted
