@@ -214,6 +214,11 @@ def _search(
     std = None
     if ok:
         std = _std(f, inv, float(res.x), CURVATURE_STEPS * step_u, e_best, dof, memo[best].rho)
+        if std is None and scan.of_the_whole_log:
+            # a time of the log on a flat profile: between two accelerations every change time replays alike (the inverse
+            # model's value is its profile interval's middle, :meth:`~ilic_cli.diagnosis.search.Searcher.refine`)
+            why = f"the closed-loop profile ({span}) is flat at its optimum ({pname} {best:.4g} {unit}): the inverse model's value is kept"
+            ok = False
     n_replays = replays[0] - at["start"]
     found = ValueSearch(st.effect.id, pname, unit, v0, best, best if ok else v0, std, (lo, hi), err0, e_best, n_replays, ok, why, slot == 0)
     return found, memo[best] if ok else start

@@ -16,6 +16,7 @@ import numpy as np
 from ilic_cli.diagnosis.stats import batched_rss, lag1_autocorrelation, shifted_rss
 from ilic_cli.diagnosis.system import Step, effect_columns, shifted_force
 from ilic_cli.effects import Effect
+from ilic_cli.effects.definition import Z95
 from ilic_cli.filtering import decimated_band_hz, kept_indices
 from ilic_cli.idim_ls import IDIMData
 from ilic_cli.lm import minimise
@@ -233,6 +234,9 @@ class Searcher:
         bounds), then the first again; its value is the pair. With ``rows``
         (a training set) only the value is refined (std ``None``). An effect
         searched at the log's rate is refined, and its std taken, there (``at``).
+        A time of the log (a payload's change) is its profile's 95 % interval
+        instead (:meth:`profile_interval`): its middle, and half its width over
+        ``Z95``, which on a quadratic profile are the optimum and the curvature's.
         """
         assert effect.scan is not None
         sec = effect.scan.secondary
@@ -265,7 +269,38 @@ class Searcher:
         rho = lag1_autocorrelation(y1 - W1 @ theta)
         inflation = (1 + max(rho, 0.0)) / (1 - min(max(rho, 0.0), 0.99))
         std = math.sqrt(2.0 * r0 / max(n - k, 1) * inflation / curv) if curv > 0 else None
+        if effect.scan.of_the_whole_log and sec is None and not self.at_log_rate(effect):
+            # a time of the log: the profile's 95 % interval, its middle and half-width / Z95 (a plateau where nothing shows it)
+            lo_t, hi_t = self.profile_interval(effect, W0, y, float(best), Z95**2 * inflation / max(n - k, 1))
+            return 0.5 * (lo_t + hi_t), (hi_t - lo_t) / (2.0 * Z95)
         return pack(best), std
+
+    def profile_interval(self, effect: Effect, W0: np.ndarray, y: np.ndarray, best: float, share: float) -> tuple[float, float]:
+        """The values about ``best`` whose RSS stays within ``1 + share`` of the least on the grid: the grid's profile (the scan's
+        batched RSS) walked out from ``best`` each way to the first value beyond, the crossing interpolated linearly (an end of the
+        grid ends the walk there).
+
+        With ``share = Z95^2 c / (n - k)`` (``c`` the residual's autocorrelation, :meth:`refine`'s) it is the likelihood-ratio
+        95 % interval: on a quadratic profile ``best +- Z95 std``, the curvature's. A payload's change time has no quadratic
+        profile: the force shows the mass only while the axis accelerates, so every time between two accelerations fits alike,
+        and the least RSS lies on the plateau's edge by the noise (corpus s12240, a change at 4.0 s during the S-curves' cruise
+        and dwell from 3.74 s to 4.74 s: 4.728 +- 0.046 s from the curvature at that edge)."""
+        values, X, _ = self.grid(effect)
+        r = batched_rss(W0, y, X)
+        threshold = float(np.min(r)) * (1.0 + share)
+        i0 = int(np.argmin(np.abs(values - best)))
+        ends = []
+        for direction in (-1, 1):
+            i, end = i0, float(values[i0])
+            while 0 <= i + direction < len(values):
+                j = i + direction
+                if r[j] > threshold:
+                    frac = (threshold - r[i]) / (r[j] - r[i]) if r[j] > r[i] else 0.0
+                    end = float(values[i] + (values[j] - values[i]) * min(max(frac, 0.0), 1.0))
+                    break
+                i, end = j, float(values[j])
+            ends.append(end)
+        return min(ends[0], best), max(ends[1], best)
 
 
 EDGE_STEPS = 0.5

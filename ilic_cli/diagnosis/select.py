@@ -296,7 +296,7 @@ def forward_select(
                 tried.append(ev.decided(Selection.BESIDE_STRONGER, stronger))
             else:
                 prior = [*known, *out.steps]
-                judged_on = _folds_for(searcher, eff, ev.value, folds, settings)
+                judged_on = _folds_for(searcher, eff, ev.value, folds, settings, prior)
                 ev = _heldout_judged(
                     ev, searcher, eff, W, y, judged_on, settings.alpha_heldout, (data, validation, base, prior) if validation is not None else None, at
                 )
@@ -399,11 +399,13 @@ def still_proposed(
 
 
 def _folds_for(
-    searcher: Searcher, eff: Effect, value: Any, folds: list[tuple[np.ndarray, np.ndarray]], settings: SelectSettings
+    searcher: Searcher, eff: Effect, value: Any, folds: list[tuple[np.ndarray, np.ndarray]], settings: SelectSettings, prior: list[Step] | None = None
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The held-out folds that judge ``eff`` at ``value``: ``folds``, or for a time of the log (a payload's change) the same blocks
-    laid on each side of it (:func:`folds_either_side`)."""
-    change = change_time([Step(eff, value)])
+    """The held-out folds that judge ``eff`` at ``value`` on the model of ``prior``: ``folds``, or, when the model with it holds a time
+    of the log (a payload's change, the candidate's or one accepted before), the same blocks laid on each side of it
+    (:func:`folds_either_side`). Blocked over the whole log, a fold whose training blocks hold a few rows after an accepted change
+    fits the change's size to their noise (corpus s710, a spring after a change at 6.5 s: held-out error 191 % -> 188 %)."""
+    change = change_time([*(prior or []), Step(eff, value)])
     return folds if change is None else folds_either_side(searcher.data.t_dec[searcher.keep], change, settings.folds, settings.guard)
 
 

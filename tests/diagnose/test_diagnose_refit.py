@@ -18,6 +18,7 @@ from ilic_cli.diagnosis.core import _prepare
 from ilic_cli.diagnosis.refit import METHOD, OE_METHOD, closed_loop_refit, plant_problem
 from ilic_cli.diagnosis.select import SEARCH_STEPS, Step, moving_rows, system
 from ilic_cli.effects import EFFECTS
+from ilic_cli.effects.definition import Z95
 from ilic_cli.errors import ParameterError
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.lsq import lstsq
@@ -239,3 +240,26 @@ def test_plant_problem_names_an_effect_outside_its_physics() -> None:
     assert plant_problem(st, names, np.array([95.0, 200.0, 20.0, 0.0, 3.0]), joint="prismatic") is None
     assert "below Coulomb (Fs = -3 N)" in (plant_problem(st, names, np.array([95.0, 200.0, 20.0, 0.0, -3.0]), joint="prismatic") or "")
     assert "below Coulomb (Fs = -3 N·m)" in (plant_problem(st, names, np.array([0.5, 0.8, 1.5, 0.0, -3.0]), joint="revolute") or "")
+
+
+def test_a_change_time_on_a_flat_closed_loop_profile_keeps_the_inverse_model_s_interval() -> None:
+    """A payload change of 0.21 kg at 4.0 s on the 12 kg axis's S-curves at 500 Hz under the current loop (robot corpus, seed 12240),
+    during a cruise and dwell from 3.74 to 4.74 s. The inverse model states the change time as that plateau's 95 % interval (its
+    middle, half-width / 1.96); the closed-loop search, whose profile is flat there too, moved it by 20 ms for a gain of 0.0001 %
+    and left it without a standard deviation. Its value stays the inverse model's, with that interval (the search's move kept,
+    planted: no std, fails)."""
+    import dataclasses
+
+    from ilic_cli.diagnosis.core import diagnose
+    from tests.corpus.robot import build, cases
+
+    case = next(c for c in cases() if c.name == "lin12/s-curve/500Hz/current_loop/payload_change/s240")
+    built = build(dataclasses.replace(case, seed=12240))
+    diag = diagnose(built.log)
+    (payload,) = [f for f in diag.findings if f.effect.id == "payload_change"]
+    t = payload.parameters["t_change"]
+    assert t.std is not None and abs(t.value - 4.0) < Z95 * t.std and 3.6 < t.value - Z95 * t.std < 3.9 and 4.6 < t.value + Z95 * t.std < 4.9, t
+    assert abs(payload.parameters["dM"].value / built.effects["payload_change"]["dM"] - 1) < 0.05
+    assert diag.refit is not None
+    (search,) = [s for s in diag.refit.searches if s.parameter == "t_change"]
+    assert not search.accepted and "is flat at its optimum" in search.reason

@@ -177,7 +177,9 @@ def test_refine_std_is_the_curvature_std_of_an_exact_quadratic(use_log: bool) ->
     n = 50
     W0 = np.ones((n, 1))
     y = 5.0 + np.where(np.arange(n) % 2 == 0, 1.0, -1.0)  # residual alternates: lag-1 autocorrelation < 0, no inflation
-    effect = SimpleNamespace(id="quad", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=use_log, at_log_rate=None))
+    effect = SimpleNamespace(
+        id="quad", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=use_log, at_log_rate=None, of_the_whole_log=False)
+    )
     s = QuadraticSearcher(data, np.linspace(1.0, 11.0, 11), v0=4.3, c0=2.0, curvature=3.0)
     value, std = s.refine(effect, W0, y, 4.0)
     assert value == pytest.approx(4.3, abs=1e-3)
@@ -194,7 +196,9 @@ def test_refine_std_scales_with_one_over_root_curvature() -> None:
     data = concealed_asymmetry(n=4000)
     W0 = np.ones((50, 1))
     y = 5.0 + np.where(np.arange(50) % 2 == 0, 1.0, -1.0)
-    effect = SimpleNamespace(id="quad", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None))
+    effect = SimpleNamespace(
+        id="quad", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None, of_the_whole_log=False)
+    )
     s1 = QuadraticSearcher(data, np.linspace(100.0, 1100.0, 11), v0=430.0, c0=2.0, curvature=3.0)
     s4 = QuadraticSearcher(data, np.linspace(100.0, 1100.0, 11), v0=430.0, c0=2.0, curvature=12.0)
     _, a = s1.refine(effect, W0, y, 400.0)
@@ -291,7 +295,10 @@ def test_refine_a_secondary_parameter_after_the_first() -> None:
     W0 = np.ones((50, 1))
     y = 5.0 + np.where(np.arange(50) % 2 == 0, 1.0, -1.0)
     effect = SimpleNamespace(
-        id="quad2", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=("z", "", 0.005, 0.5, 0.05), log=True, at_log_rate=None)
+        id="quad2",
+        shift=False,
+        columns=(("a", "", ""),),
+        scan=SimpleNamespace(secondary=("z", "", 0.005, 0.5, 0.05), log=True, at_log_rate=None, of_the_whole_log=False),
     )
     s = TwoParameter(data, np.geomspace(1.0, 100.0, 21), v0=4.3, c0=2.0, curvature=3.0)
     (v, z), std = s.refine(effect, W0, y, 4.0)
@@ -452,7 +459,9 @@ def test_refine_curvature_step_is_small(v0: float) -> None:
     n = 50
     W0 = np.ones((n, 1))
     y = 5.0 + np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
-    effect = SimpleNamespace(id="q4", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None))
+    effect = SimpleNamespace(
+        id="q4", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None, of_the_whole_log=False)
+    )
     s = QuarticSearcher(data, np.linspace(-5.0, 15.0, 21), v0=v0, c0=2.0, curvature=3.0)
     s.D = 50.0
     value, std = s.refine(effect, W0, y, round(v0))
@@ -470,7 +479,9 @@ def test_refine_std_inflation_for_correlated_residuals_and_flat_profiles() -> No
     y = 5.0 + e
     rho = lag1_autocorrelation(e)
     assert rho > 0.5
-    effect = SimpleNamespace(id="q", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None))
+    effect = SimpleNamespace(
+        id="q", shift=False, columns=(("a", "", ""),), scan=SimpleNamespace(secondary=None, log=False, at_log_rate=None, of_the_whole_log=False)
+    )
     s = QuadraticSearcher(data, np.linspace(1.0, 11.0, 11), v0=4.3, c0=2.0, curvature=0.3, rows=n)
     _, std = s.refine(effect, W0, y, 4.0)
     inflation = (1 + rho) / (1 - rho)
