@@ -164,9 +164,9 @@ def proposed_again(prop: Proposal, settings: DiagnosisSettings, kept: list[Step]
     the dwells (Stribeck friction, whose ``vs`` it biases): a breakaway's force, rising before the motion, is what a drive lag
     makes (corpus, Stribeck friction six times the Coulomb level on the 0.5 kg·m² joint's trapezoid, s9461: a lag of -0.67 ms
     proposed at p = 4.1e-11 beside the inverse model's Stribeck column at its ``vs``; the friction valued on the closed loop
-    then kept). Each is tried again by the inverse model on the model of every other effect kept, the closed-loop one's column at
-    its value (:func:`~ilic_cli.diagnosis.select.still_proposed`), by the same F-test at the same level, its candidates counted
-    as at the step that proposed it; not significant there (or impossible, or on its search's edge), it is no finding.
+    then kept). Each is tried again by the inverse model on the model of every other effect kept, the closed-loop one's level held
+    (:func:`~ilic_cli.diagnosis.select.still_proposed`), by the same F-test at the same level, its candidates counted as at the
+    step that proposed it; not significant there (or impossible, or on its search's edge), it is no finding.
     """
     if not any(s.level is not None for s in kept):
         return kept, verdicts
