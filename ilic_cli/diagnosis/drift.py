@@ -41,7 +41,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.drift_windows import WINDOWS, WindowEstimates, estimable_windows
 from ilic_cli.diagnosis.select import Evaluation, SelectSettings
-from ilic_cli.diagnosis.stats import FTest, blocked_folds, heldout_errors, heldout_fall_p, nested_f_test
+from ilic_cli.diagnosis.stats import FTest, blocked_folds, gls_covariance, heldout_errors, heldout_fall_p, nested_f_test
 from ilic_cli.effects import Estimate
 from ilic_cli.lm import minimise
 from ilic_cli.lsq import finite_or_none, lstsq, relative_error_pct
@@ -89,6 +89,8 @@ class Trend:
     test: FTest
     shape_delta_bic: float | None
     rows: int
+    std: dict[str, float] = field(default_factory=dict)
+    """Standard deviations of ``start``, ``relative_change`` and ``tau`` or ``rate`` (:func:`estimated`); empty: none."""
 
     @property
     def change(self) -> float:
@@ -150,12 +152,12 @@ class DriftResult:
         """The finding's reported values: per drifting coefficient its relative change, and the time constant or rate."""
         out: dict[str, Estimate] = {}
         for tr in self.findings:
-            out[f"{tr.parameter}_start"] = Estimate(tr.start, None, "")
-            out[f"{tr.parameter}_relative_change"] = Estimate(tr.relative_change, None, "")
+            out[f"{tr.parameter}_start"] = Estimate(tr.start, tr.std.get("start"), "")
+            out[f"{tr.parameter}_relative_change"] = Estimate(tr.relative_change, tr.std.get("relative_change"), "")
             if tr.tau is not None:
-                out[f"{tr.parameter}_tau"] = Estimate(tr.tau, None, "s")
+                out[f"{tr.parameter}_tau"] = Estimate(tr.tau, tr.std.get("tau"), "s")
             if tr.rate is not None:
-                out[f"{tr.parameter}_rate"] = Estimate(tr.rate, None, "1/s")
+                out[f"{tr.parameter}_rate"] = Estimate(tr.rate, tr.std.get("rate"), "1/s")
         return out
 
     def plant_effect(self) -> dict[str, float] | None:
@@ -288,16 +290,34 @@ def estimated(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...
     """The trends of ``chosen`` estimated together with every parameter of the model, on all the rows."""
     if not chosen:
         return []
-    theta, _ = lstsq(np.c_[W, np.column_stack([c.column for c in chosen])], y)
+    X = np.c_[W, np.column_stack([c.column for c in chosen])]
+    theta, _ = lstsq(X, y)
     duration = float(t[-1]) - origin
+    # the covariance of every coefficient and each warm-up's time constant: the time constant's column is the derivative of
+    # b col exp(-s / tau) in tau at the optimum, b (the trend's column) s / tau^2 (the fit's linearisation), the residual's
+    # autocorrelation accounted for
+    d_tau = [float(theta[W.shape[1] + i]) * c.column * (t - origin) / c.tau**2 for i, c in enumerate(chosen) if c.tau is not None]
+    J = np.c_[X, np.column_stack(d_tau)] if d_tau else X
+    cov = gls_covariance(J, y, np.r_[theta, np.zeros(len(d_tau))])
     out = []
+    k_tau = X.shape[1]
     for i, c in enumerate(chosen):
-        a, b = float(theta[names.index(c.parameter)]), float(theta[W.shape[1] + i])
+        ia, ib = names.index(c.parameter), W.shape[1] + i
+        a, b = float(theta[ia]), float(theta[ib])
+        C = cov[np.ix_([ia, ib], [ia, ib])]
         if c.tau is not None:
             shape: tuple[float, float, float | None, float | None, float | None] = (a + b, a + b * math.exp(-duration / c.tau), a, c.tau, None)
+            # start a + b, relative change -b / |a + b|
+            start_grad, rel_grad = np.array([1.0, 1.0]), np.array([b, -a]) * np.sign(a + b) / (a + b) ** 2
+            last = {"tau": math.sqrt(max(float(cov[k_tau, k_tau]), 0.0))}
+            k_tau += 1
         else:
             shape = (a, a + b * duration, None, None, b)
-        out.append(Trend(c.parameter, c.shape, *shape, c.test, c.shape_delta_bic, len(y)))
+            # start a, relative change b duration / |a|
+            start_grad, rel_grad = np.array([1.0, 0.0]), np.array([-b * duration, a * duration]) * np.sign(a) / a**2
+            last = {"rate": math.sqrt(max(float(C[1, 1]), 0.0))}
+        std = {"start": math.sqrt(max(float(start_grad @ C @ start_grad), 0.0)), "relative_change": math.sqrt(max(float(rel_grad @ C @ rel_grad), 0.0)), **last}
+        out.append(Trend(c.parameter, c.shape, *shape, c.test, c.shape_delta_bic, len(y), std))
     return out
 
 
