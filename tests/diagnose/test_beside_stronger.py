@@ -1,4 +1,5 @@
-"""A candidate that owes its F-test to a stronger candidate's force is not proposed (issue 29: a drive lag named beside Stribeck friction)."""
+"""A candidate that owes its F-test to a stronger candidate's force is not proposed, nor kept once the inverse model, asked again with
+the effect the closed loop valued, no longer proposes it (issue 29: a drive lag named beside Stribeck friction)."""
 
 from __future__ import annotations
 
