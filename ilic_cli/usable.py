@@ -103,7 +103,7 @@ def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[
 
 
 MIN_ROWS_PER_COLUMN = 4
-"""A diagnosis fits a model only on more than this many rows per column (:meth:`UsableRows.too_few`): its F-tests, held-out blocks
+"""A diagnosis fits a model only on more than this many rows per column (:func:`too_few_rows`): its F-tests, held-out blocks
 and prewhitening need residual degrees of freedom beyond the parameters'."""
 
 
@@ -232,3 +232,11 @@ def usable_rows(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> U
     _, saturated = rows_left_out(none if prepared.saturated is None else prepared.saturated, settings, segs)
     _, unusable = rows_left_out(none if prepared.valid is None else ~prepared.valid, settings, segs)
     return UsableRows(total, at_rest, saturated, total - unusable, prepared.rest, identification_hold_s(prepared), identification_speed_noise(prepared))
+
+
+def too_few_rows(prepared: PreparedLog, settings: LSSettings, fitted: int, columns: int) -> str | None:
+    """Why ``fitted`` rows of ``prepared`` are too few for ``columns`` columns (:data:`MIN_ROWS_PER_COLUMN`), with what left the
+    others out (:meth:`UsableRows.too_few`); ``None``: enough. The rows' summary is built only to refuse."""
+    if fitted > MIN_ROWS_PER_COLUMN * columns:
+        return None
+    return usable_rows(prepared, settings).too_few(fitted, columns)

@@ -175,13 +175,14 @@ def proposed_again(prop: Proposal, settings: DiagnosisSettings, kept: list[Step]
         if st.level is not None:
             continue
         at = prop.selection.last_at(st.effect.id)
-        n = len(prop.selection.tried[at[0]]) if at is not None else len(prop.select.effects)
+        assert at is not None  # the inverse model proposed it: it was tried
+        n = len(prop.selection.tried[at[0]])
         others = [*prop.known, *(s for s in out if s is not st)]
         given = None
         if prop.drift is not None:
             W, _, names = system(prop.data, prop.base, others, prop.rows)
             given = prop.drift.columns(prop.data.t_dec[prop.rows], W, names)
-        ev = still_proposed(prop.data, prop.base, prop.data.fs_hz, prop.rows, others, st, n, given)
+        ev = still_proposed(prop.data, prop.base, prop.rows, others, st, n, given)
         if ev is None:
             continue
         loop = ", ".join(s.effect.id for s in out if s.level is not None)

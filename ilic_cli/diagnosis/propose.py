@@ -29,7 +29,7 @@ from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
 from ilic_cli.runlog import RunLog, joint_type
 from ilic_cli.simulation.replay import tau_sensor
-from ilic_cli.usable import identification_speed_noise, usable_rows, with_rest
+from ilic_cli.usable import identification_speed_noise, too_few_rows, with_rest
 
 
 @dataclass
@@ -127,7 +127,7 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
     if known:
         sel = replace(sel, effects=tuple(e for e in sel.effects if e not in {s.effect.id for s in known}))
     rows = moving_rows(data)
-    if (few := usable_rows(prepared, settings.ls).too_few(int(np.count_nonzero(rows)), len(base.columns))) is not None:
+    if (few := too_few_rows(prepared, settings.ls, int(np.count_nonzero(rows)), len(base.columns))) is not None:
         raise IdentificationError(prepared.source, f"{few}: nothing to diagnose")  # before any replay spends time on them
     drift = drift_given(data, base, known, rows, float(log.t[0]), settings)
     given = None

@@ -46,7 +46,7 @@ from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lsq import LSResult, evaluate, noise_corrected_lstsq, solve
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
-from ilic_cli.usable import usable_rows
+from ilic_cli.usable import too_few_rows
 
 __all__ = [  # the stage, and the refit's names importable from here as before the split
     "INVERSE_METHOD",
@@ -89,9 +89,9 @@ def with_std(res: LSResult, cov: np.ndarray) -> LSResult:
 
 
 def final_fit(prop: Proposal, kept: list[Step], ls: LSSettings, n_rows: int) -> FinalFit:
-    """The inverse model's fit of ``base + known + kept``; refused when ``n_rows`` are too few for its columns (:meth:`UsableRows.too_few`)."""
+    """The inverse model's fit of ``base + known + kept``; refused when ``n_rows`` are too few for its columns (:func:`~ilic_cli.usable.too_few_rows`)."""
     W1, y1, names1 = system(prop.data, prop.base, [*prop.known, *kept], prop.rows)
-    if (few := usable_rows(prop.prepared, ls).too_few(n_rows, W1.shape[1])) is not None:
+    if (few := too_few_rows(prop.prepared, ls, n_rows, W1.shape[1])) is not None:
         raise IdentificationError(prop.prepared.source, f"{few}: too few for the model the diagnosis found")
     res1 = solve(W1, y1, names1, sigma=ls.sigma)
     noise = column_noise(prop.data, prop.base, [*prop.known, *kept], prop.rows)

@@ -255,6 +255,16 @@ class Searcher:
             best = minimise(lambda v: self.rss(effect, W0, y, (v, other), sel, at), lo, hi, use_log)
         if rows is not None:
             return pack(best), None
+        W1, y1 = self.fitted(effect, W0, y, pack(best), at=at)
+        n = len(y1)
+        k = W1.shape[1] + 1
+        theta, _ = lstsq(W1, y1)
+        rho = lag1_autocorrelation(y1 - W1 @ theta)
+        inflation = (1 + max(rho, 0.0)) / (1 - min(max(rho, 0.0), 0.99))
+        if effect.scan.of_the_whole_log and sec is None and not self.at_log_rate(effect):
+            # a time of the log: the profile's 95 % interval, its middle and half-width / Z95 (a plateau where nothing shows it)
+            lo_t, hi_t = self.profile_interval(effect, W0, y, float(best), Z95**2 * inflation / max(n - k, 1))
+            return 0.5 * (lo_t + hi_t), (hi_t - lo_t) / (2.0 * Z95)
         # curvature of the profile RSS at the optimum, in the parameter's own unit
         h = 1e-3 * abs(best) if best != 0 else 1e-3 * (hi - lo)
         if effect.shift:
@@ -262,17 +272,7 @@ class Searcher:
         r0 = self.rss(effect, W0, y, pack(best), at=at)
         rp, rm = self.rss(effect, W0, y, pack(best + h), at=at), self.rss(effect, W0, y, pack(best - h), at=at)
         curv = (rp - 2 * r0 + rm) / h**2
-        W1, y1 = self.fitted(effect, W0, y, pack(best), at=at)
-        n = len(y1)
-        k = W1.shape[1] + 1
-        theta, _ = lstsq(W1, y1)
-        rho = lag1_autocorrelation(y1 - W1 @ theta)
-        inflation = (1 + max(rho, 0.0)) / (1 - min(max(rho, 0.0), 0.99))
         std = math.sqrt(2.0 * r0 / max(n - k, 1) * inflation / curv) if curv > 0 else None
-        if effect.scan.of_the_whole_log and sec is None and not self.at_log_rate(effect):
-            # a time of the log: the profile's 95 % interval, its middle and half-width / Z95 (a plateau where nothing shows it)
-            lo_t, hi_t = self.profile_interval(effect, W0, y, float(best), Z95**2 * inflation / max(n - k, 1))
-            return 0.5 * (lo_t + hi_t), (hi_t - lo_t) / (2.0 * Z95)
         return pack(best), std
 
     def profile_interval(self, effect: Effect, W0: np.ndarray, y: np.ndarray, best: float, share: float) -> tuple[float, float]:

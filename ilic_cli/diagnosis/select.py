@@ -374,7 +374,6 @@ def _candidate(searcher: Searcher, eff: Effect, W: np.ndarray, y: np.ndarray, n_
 def still_proposed(
     data: IDIMData,
     base: Model,
-    fs_hz: float,
     rows: np.ndarray,
     model: list[Step],
     st: Step,
@@ -391,7 +390,7 @@ def still_proposed(
     if searched_at_log_rate(st.effect, data):
         return None
     levels = [effect_columns(data, s.effect, s.value)[rows] @ np.asarray(s.level, dtype=np.float64) for s in model if s.level is not None]
-    searcher = Searcher(data, fs_hz, rows, held=np.sum(levels, axis=0) if levels else None)
+    searcher = Searcher(data, data.fs_hz, rows, held=np.sum(levels, axis=0) if levels else None)
     W, y, _ = system(data, base, model, rows)
     if given is not None and given.shape[1]:
         W = np.c_[W, given]
@@ -399,13 +398,13 @@ def still_proposed(
 
 
 def _folds_for(
-    searcher: Searcher, eff: Effect, value: Any, folds: list[tuple[np.ndarray, np.ndarray]], settings: SelectSettings, prior: list[Step] | None = None
+    searcher: Searcher, eff: Effect, value: Any, folds: list[tuple[np.ndarray, np.ndarray]], settings: SelectSettings, prior: list[Step]
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """The held-out folds that judge ``eff`` at ``value`` on the model of ``prior``: ``folds``, or, when the model with it holds a time
     of the log (a payload's change, the candidate's or one accepted before), the same blocks laid on each side of it
     (:func:`folds_either_side`). Blocked over the whole log, a fold whose training blocks hold a few rows after an accepted change
     fits the change's size to their noise (corpus s710, a spring after a change at 6.5 s: held-out error 191 % -> 188 %)."""
-    change = change_time([*(prior or []), Step(eff, value)])
+    change = change_time([*prior, Step(eff, value)])
     return folds if change is None else folds_either_side(searcher.data.t_dec[searcher.keep], change, settings.folds, settings.guard)
 
 

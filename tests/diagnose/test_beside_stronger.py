@@ -49,9 +49,9 @@ def test_a_lag_proposed_without_the_closed_loop_s_stribeck_friction_is_asked_aga
     assert at is not None and prop.selection.tried[at[0]][at[1]].test.p_adjusted < 1e-9
     n = len(prop.selection.tried[at[0]])
     held = Step(EFFECTS["stribeck"], 0.1034, level=(10.76,))
-    ev = still_proposed(prop.data, prop.base, prop.data.fs_hz, prop.rows, [held], lag, n)
+    ev = still_proposed(prop.data, prop.base, prop.rows, [held], lag, n)
     assert ev is not None and ev.test.p_adjusted > 0.5, ev
-    fitted = still_proposed(prop.data, prop.base, prop.data.fs_hz, prop.rows, [Step(EFFECTS["stribeck"], 0.1034)], lag, n)
+    fitted = still_proposed(prop.data, prop.base, prop.rows, [Step(EFFECTS["stribeck"], 0.1034)], lag, n)
     assert fitted is not None and fitted.test.p_adjusted < 1e-6, fitted
 
 
