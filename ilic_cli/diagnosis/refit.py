@@ -34,6 +34,7 @@ from ilic_cli.diagnosis.model_values import model_parameters
 from ilic_cli.diagnosis.oe_fit import OutputErrorFit, output_error_gauss_newton
 from ilic_cli.diagnosis.oe_fit import output_error_refit as _output_error_refit
 from ilic_cli.diagnosis.propose import Proposal
+from ilic_cli.diagnosis.refit_search import ROUND_GAIN
 from ilic_cli.diagnosis.search import searched_at_log_rate
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.stats import gls_covariance
@@ -247,18 +248,22 @@ def _drift_found(prop: Proposal, final: FinalFit, settings: DiagnosisSettings) -
 
 
 def noise_objection(refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str, Any], before: float, known: list[Step], hold: float) -> str | None:
-    """Why ``refit`` is not kept: replayed with the deciding replays' sensor noise, it does not beat the inverse model's estimate
-    (its output error so, ``before`` %); else ``None``.
+    """Why ``refit`` is not kept: replayed with the deciding replays' sensor noise, its output error rises above the inverse model's
+    estimate's (``before`` %) by :data:`~ilic_cli.diagnosis.refit_search.ROUND_GAIN` of it or more; else ``None``.
 
     The refit itself replays noise-free (a value estimated on noisy replays is pulled by the replay's own answer to
     its noise: a 1.0 ms lag to 0.71-0.84 ms, the corpus's lags 14-17 % off against 0.1-5 %); whether its estimate
     is kept is decided as the replay decides effects. Measured on the corpus's trapezoid spring with a force
     disturbance: DIDIM lowered the noise-free output error 2.74 % -> 2.65 % with the spring 21 % off; replayed with
-    the noise, the inverse model's estimate gives 2.25 % and DIDIM's 2.33 %, and the inverse model's spring (0.7 %
-    off) is kept.
+    the noise, the inverse model's estimate gives 2.25 % and DIDIM's 2.33 % (3.6 % higher), and the inverse model's spring
+    (0.7 % off) is kept. A change below :data:`~ilic_cli.diagnosis.refit_search.ROUND_GAIN` is no change at the resolution
+    a refit's gain is judged at, and the noise-free replay has decided: on the corpus's asymmetric friction under the current
+    loop (``--reseed 6``, s18361) the refit sized the loop's lag 0.229 ms (its time constant 0.227 ms; the inverse model's
+    0.348 ms) and lowered the noise-free output error 0.547 % -> 0.524 %, and the noisy one went 0.684 % -> 0.685 %: it was
+    refused, the lag reported 53 % long.
     """
     assert refit.theta is not None
     after = noisy_output_error(log, ls, *model_parameters([*known, *refit.steps], refit.names, refit.theta, np.zeros((len(refit.theta),) * 2), hold), sensor)
-    if after < before:
+    if after < (1.0 + ROUND_GAIN) * before:
         return None
-    return f"replayed with the recording's sensor noise, as the decisions are, its output error does not fall ({before:.3g} % -> {after:.3g} %)"
+    return f"replayed with the recording's sensor noise, as the decisions are, its output error rises ({before:.3g} % -> {after:.3g} %)"

@@ -12,6 +12,7 @@ import numpy as np
 from ilic_cli.diagnosis.fits import Point, ValueSearch
 from ilic_cli.diagnosis.search import at_edge, search_range
 from ilic_cli.diagnosis.system import Step
+from ilic_cli.effects.definition import Z95
 
 XATOL_STEPS = 0.05
 """Tolerance of the bounded search on the value, in grid steps (on the grid's own scale)."""
@@ -214,9 +215,10 @@ def _search(
     std = None
     if ok:
         std = _std(f, inv, float(res.x), CURVATURE_STEPS * step_u, e_best, dof, memo[best].rho)
-        if std is None and scan.of_the_whole_log:
-            # a time of the log on a flat profile: between two accelerations every change time replays alike (the inverse
-            # model's value is its profile interval's middle, :meth:`~ilic_cli.diagnosis.search.Searcher.refine`)
+        if scan.of_the_whole_log and (std is None or Z95 * std > 0.5 * (hi - lo)):
+            # a time of the log on a flat profile, no curvature or a 95 % interval wider than the range searched: between two
+            # accelerations every change time replays alike (the inverse model's value is its profile interval's middle,
+            # :meth:`~ilic_cli.diagnosis.search.Searcher.refine`)
             why = f"the closed-loop profile ({span}) is flat at its optimum ({pname} {best:.4g} {unit}): the inverse model's value is kept"
             ok = False
     n_replays = replays[0] - at["start"]

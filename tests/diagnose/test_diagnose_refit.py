@@ -263,3 +263,82 @@ def test_a_change_time_on_a_flat_closed_loop_profile_keeps_the_inverse_model_s_i
     assert diag.refit is not None
     (search,) = [s for s in diag.refit.searches if s.parameter == "t_change"]
     assert not search.accepted and "is flat at its optimum" in search.reason
+
+
+def _robot(name: str, seed: int):  # type: ignore[no-untyped-def]
+    """Corpus case ``name`` of the robot corpus, reseeded, built, and its diagnosis."""
+    import dataclasses
+
+    from ilic_cli.diagnosis.core import diagnose
+    from tests.corpus.robot import build, cases
+
+    built = build(dataclasses.replace(next(c for c in cases() if c.name == name), seed=seed))
+    return built, diagnose(built.log)
+
+
+def test_a_resonance_the_inverse_model_puts_far_below_is_reached_by_the_closed_loop() -> None:
+    """A 35 Hz flexibility behind the 0.01 kg·m² joint's trapezoids at 1 kHz under the current loop (robot corpus, seed 9421).
+
+    Near the top of the rows' 40 Hz band the inverse model puts the resonance at 27.8 Hz (21 % low; over six seeds
+    27.2-29.8 Hz), and its stiffness 73 % low. DIDIM does not lower the output error, and the output-error fit, searched
+    within three grid steps (21.6-34.3 Hz), ended on that range's edge: the inverse model's values were kept. Within six
+    steps (:data:`~ilic_cli.diagnosis.search.SEARCH_STEPS`) it ends inside, at the resonance (planted: three steps, fails)."""
+    from tests.corpus.robot import score as robot_score
+
+    built, diag = _robot("rev0.01/trapezoid/1000Hz/current_loop/flexibility/s421", 9421)
+    refit = diag.refit
+    assert refit is not None and refit.accepted and refit.method == OE_METHOD, refit.reason if refit else None
+    (f_res,) = [s for s in refit.searches if s.parameter == "f_res"]
+    assert f_res.inverse < 30.0 and abs(f_res.value - 35.0) < 1.5, f_res
+    sc = robot_score(built, [(f.effect.id, f.plant_effect) for f in diag.findings])
+    assert sc["exact"] and sc["parameter_error"]["flexibility"] < 0.15, sc
+
+
+def test_coupled_values_are_fitted_at_once_when_the_searches_one_at_a_time_are_not_kept() -> None:
+    """A 35 Hz flexibility behind the 0.5 kg·m² joint's chirp at 1 kHz under the current loop (robot corpus, seed 3511).
+
+    DIDIM lowers the output error at the inverse model's resonance (32.6 Hz, 7 % low). The searches one value at a time
+    move the resonance and its damping ratio, but DIDIM at the values found does worse (0.871 % against 0.64 %), and both
+    were kept at the inverse model's: stiffness 30 % low. Fitted at once from DIDIM's estimate (every value and linear
+    parameter), as when two searches are kept: within 15 % (planted: fitted at once only after two kept searches, fails)."""
+    from tests.corpus.robot import score as robot_score
+
+    built, diag = _robot("rev0.5/chirp/1000Hz/current_loop/flexibility/s511", 3511)
+    refit = diag.refit
+    assert refit is not None and refit.accepted and refit.method == OE_METHOD, refit.reason if refit else None
+    assert refit.reason.startswith(f"refitted on the closed loop ({METHOD}") and "then every value and linear parameter at once" in refit.reason
+    sc = robot_score(built, [(f.effect.id, f.plant_effect) for f in diag.findings])
+    assert sc["exact"] and sc["parameter_error"]["flexibility"] < 0.15, sc
+
+
+def test_a_refit_the_noisy_replay_finds_as_good_is_kept() -> None:
+    """Asymmetric viscous friction on the 0.01 kg·m² joint's multisine at 1 kHz under the 700 Hz current loop (robot corpus,
+    seed 18361). The inverse model sizes the loop's lag 0.348 ms (its time constant: 0.227 ms); the refit searches it on the
+    closed loop to 0.229 ms and lowers the noise-free output error 0.547 % -> 0.524 %. Replayed with the recording's sensor
+    noise its output error is 0.684 % -> 0.685 %: no change at the resolution a refit's gain is judged at (1 %,
+    :data:`~ilic_cli.diagnosis.refit_search.ROUND_GAIN`). It was refused, and the lag reported 53 % long as a false alarm; it
+    is kept (planted: any rise refuses, fails)."""
+    from tests.corpus.robot import score as robot_score
+
+    built, diag = _robot("rev0.01/multisine/1000Hz/current_loop/asymmetric_friction/s361", 18361)
+    refit = diag.refit
+    assert refit is not None and refit.accepted, refit.reason if refit else None
+    (lag,) = [f for f in diag.findings if f.effect.id == "delay"]
+    assert abs(-lag.parameters["delay"].value - 0.000227) < 0.02e-3, lag.parameters
+    sc = robot_score(built, [(f.effect.id, f.plant_effect) for f in diag.findings])
+    assert sc["exact"] and sc["false_alarms"] == 0, sc
+
+
+def test_a_change_time_whose_closed_loop_interval_is_wider_than_its_search_keeps_the_inverse_model_s() -> None:
+    """A payload change at 6.0 s on the 0.5 kg·m² joint's S-curves with the 10 Hz force disturbance (robot corpus s491). The
+    closed-loop search over 5.99-6.26 s moved it 6.11 -> 6.15 s for no gain the report's four digits show (4.324 %), and its
+    curvature stated ± 144 s: the finding was called undetermined, its interval holding 0, in a 12 s log. A 95 % interval
+    wider than the range searched is a flat profile: the inverse model's value and interval are kept, 6.11 ± 0.135 s
+    (planted: only a profile without curvature is flat, fails)."""
+    built, diag = _robot("rev0.5/s-curve/1000Hz/disturbance/payload_change/s491", 491)
+    (payload,) = [f for f in diag.findings if f.effect.id == "payload_change"]
+    t = payload.parameters["t_change"]
+    assert t.std is not None and t.std < 0.5 and abs(t.value - 6.0) < Z95 * t.std and all(e.determined for e in payload.parameters.values()), t
+    assert diag.refit is not None
+    (search,) = [s for s in diag.refit.searches if s.parameter == "t_change"]
+    assert not search.accepted and "is flat at its optimum" in search.reason
