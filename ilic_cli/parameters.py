@@ -107,6 +107,11 @@ def unit(name: str, joint: str = "prismatic") -> str:
     return "" if p is None else p.unit_for(joint)
 
 
+def per_second(unit: str) -> str:
+    """The unit of a quantity in ``unit`` changing per second: N·s/m -> N/m, N·m·s/rad -> N·m/rad, N -> N/s (a friction's wear rate)."""
+    return unit.replace("·s/", "/", 1) if "·s/" in unit else f"{unit}/s"
+
+
 def structure_names(structure: str) -> tuple[str, ...]:
     """The parameters of a model structure; :class:`ParameterError` for an unknown one."""
     try:

@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli import parameters
 from ilic_cli.diagnosis.drift_windows import WINDOWS, WindowEstimates, estimable_windows
 from ilic_cli.diagnosis.select import Evaluation, SelectSettings
 from ilic_cli.diagnosis.stats import FTest, blocked_folds, gls_covariance, heldout_errors, heldout_fall_p, nested_f_test
@@ -90,17 +91,22 @@ class Trend:
     shape_delta_bic: float | None
     rows: int
     std: dict[str, float] = field(default_factory=dict)
-    """Standard deviations of ``start``, ``relative_change`` and ``tau`` or ``rate`` (:func:`estimated`); empty: none."""
+    """Standard deviations of ``start``, ``full_change``, ``relative_change`` and ``tau`` or ``rate`` (:func:`estimated`, keys
+    ``start``, ``change``, ...); empty: none."""
 
     @property
     def change(self) -> float:
         return self.end - self.start
 
     @property
+    def full_change(self) -> float:
+        """The warm-up's whole change for an exponential (the plant's ``dFv``/``dFc``), the change over the log for a line."""
+        return (self.asymptote - self.start) if self.asymptote is not None else self.change
+
+    @property
     def relative_change(self) -> float:
-        """The change over the log relative to the level at the start (the warm-up's whole change for an exponential)."""
-        full = (self.asymptote - self.start) if self.asymptote is not None else self.change
-        return full / abs(self.start) if self.start != 0 else math.inf
+        """:attr:`full_change` relative to the level at the start."""
+        return self.full_change / abs(self.start) if self.start != 0 else math.inf
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -148,16 +154,19 @@ class DriftResult:
     def shape(self) -> str | None:
         return self.findings[0].shape if self.findings else None
 
-    def estimates(self) -> dict[str, Estimate]:
-        """The finding's reported values: per drifting coefficient its relative change, and the time constant or rate."""
+    def estimates(self, joint: str = "prismatic") -> dict[str, Estimate]:
+        """The finding's reported values, per drifting coefficient: its level at the start, its change (:attr:`Trend.full_change`,
+        the plant's) and that change relative to the start, and the time constant or rate; in the coefficient's units on ``joint``."""
         out: dict[str, Estimate] = {}
         for tr in self.findings:
-            out[f"{tr.parameter}_start"] = Estimate(tr.start, tr.std.get("start"), "")
+            u = parameters.unit(tr.parameter, joint)
+            out[f"{tr.parameter}_start"] = Estimate(tr.start, tr.std.get("start"), u)
+            out[f"{tr.parameter}_change"] = Estimate(tr.full_change, tr.std.get("change"), u)
             out[f"{tr.parameter}_relative_change"] = Estimate(tr.relative_change, tr.std.get("relative_change"), "")
             if tr.tau is not None:
                 out[f"{tr.parameter}_tau"] = Estimate(tr.tau, tr.std.get("tau"), "s")
             if tr.rate is not None:
-                out[f"{tr.parameter}_rate"] = Estimate(tr.rate, tr.std.get("rate"), "1/s")
+                out[f"{tr.parameter}_rate"] = Estimate(tr.rate, tr.std.get("rate"), parameters.per_second(u))
         return out
 
     def plant_effect(self) -> dict[str, float] | None:
@@ -309,13 +318,14 @@ def estimated(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...
             shape: tuple[float, float, float | None, float | None, float | None] = (a + b, a + b * math.exp(-duration / c.tau), a, c.tau, None)
             # start a + b, relative change -b / |a + b|
             start_grad, rel_grad = np.array([1.0, 1.0]), np.array([b, -a]) * np.sign(a + b) / (a + b) ** 2
-            last = {"tau": math.sqrt(max(float(cov[k_tau, k_tau]), 0.0))}
+            # the warm-up's whole change is -b
+            last = {"change": math.sqrt(max(float(C[1, 1]), 0.0)), "tau": math.sqrt(max(float(cov[k_tau, k_tau]), 0.0))}
             k_tau += 1
         else:
             shape = (a, a + b * duration, None, None, b)
             # start a, relative change b duration / |a|
             start_grad, rel_grad = np.array([1.0, 0.0]), np.array([-b * duration, a * duration]) * np.sign(a) / a**2
-            last = {"rate": math.sqrt(max(float(C[1, 1]), 0.0))}
+            last = {"change": duration * math.sqrt(max(float(C[1, 1]), 0.0)), "rate": math.sqrt(max(float(C[1, 1]), 0.0))}
         std = {"start": math.sqrt(max(float(start_grad @ C @ start_grad), 0.0)), "relative_change": math.sqrt(max(float(rel_grad @ C @ rel_grad), 0.0)), **last}
         out.append(Trend(c.parameter, c.shape, *shape, c.test, c.shape_delta_bic, len(y), std))
     return out

@@ -479,8 +479,9 @@ def _compared(eid: str, p: dict[str, float]) -> dict[str, float]:
     return dict(p)
 
 
-STATED_AS = {"lag": "delay"}
-"""A compared value's name among a finding's stated parameters, where it differs (a lag is the negative ``delay``)."""
+STATED_AS: dict[str, tuple[str, ...]] = {"lag": ("delay",), "dFv": ("Fv_change",), "dFc": ("Fc_change",), "tau": ("Fv_tau", "Fc_tau")}
+"""A compared value's names among a finding's stated parameters, where they differ, the first stated taken (a lag is the negative
+``delay``; a drift states each drifting coefficient's change and time constant)."""
 
 
 def within_stated(truth: dict[str, float], got: dict[str, float], stated: dict[str, dict[str, Any]]) -> bool | None:
@@ -490,7 +491,7 @@ def within_stated(truth: dict[str, float], got: dict[str, float], stated: dict[s
     for k, v in truth.items():
         if v == 0 or abs(got.get(k, math.nan) - v) <= TOLERANCE * abs(v):
             continue
-        st = stated.get(STATED_AS.get(k, k))
+        st = next((stated[n] for n in STATED_AS.get(k, (k,)) if n in stated), None)
         if st is None:
             return None
         if st.get("determined") is False:

@@ -102,7 +102,8 @@ def test_an_effect_log_below_the_band_counts_in_no_rate() -> None:
 
 def test_a_parameter_beyond_15_percent_is_judged_by_what_the_diagnosis_states_of_it() -> None:
     """Measured beside the rate: within 1.96 of its stated σ, or stated undetermined, counts as stated; a σ that does not
-    reach the truth does not; a value the finding states no σ of is not judged; a lag is judged by the stated delay."""
+    reach the truth does not; a value the finding states no σ of is not judged; a lag is judged by the stated delay, a drift by its stated change and time
+    constant."""
     from tests.corpus.robot import within_stated
 
     truth, got = {"MX": 1.0, "MY": 1.0}, {"MX": 1.5, "MY": 1.05}  # MY within 15 %: not judged
@@ -111,6 +112,12 @@ def test_a_parameter_beyond_15_percent_is_judged_by_what_the_diagnosis_states_of
     assert within_stated(truth, got, {"MX": {"std": 0.01, "determined": False}}) is True
     assert within_stated(truth, got, {"MY": {"std": 1.0, "determined": True}}) is None
     assert within_stated({"lag": 1e-3}, {"lag": 2e-3}, {"delay": {"std": 0.4e-3, "determined": True}}) is False
+    # a drift: its change and time constant, as the finding states them per drifting coefficient
+    truth, got = {"dFv": -90.0, "dFc": 0.0, "tau": 2.5}, {"dFv": -115.0, "dFc": 0.0, "tau": 3.0}
+    stated = {"Fv_change": {"std": 10.0, "determined": True}, "Fv_tau": {"std": 1.0, "determined": True}}
+    assert within_stated(truth, got, stated) is False
+    assert within_stated(truth, got, {**stated, "Fv_change": {"std": 13.0, "determined": True}}) is True
+    assert within_stated(truth, got, {**stated, "Fv_tau": {"std": 0.2, "determined": True}}) is False
     rows = [{"clean": False, "size_pts": 0.5, "exact": True, "truth": {"gravity": {}}, "missed": [], "false_alarms": 0, "identify": None,
              "parameter_error": {"gravity": 0.5}, "parameter_stated": {"gravity": v}} for v in (True, False, None)]  # fmt: skip
     s = summary(rows)

@@ -311,21 +311,25 @@ def test_stationary_friction_on_moves_has_no_drift(seed: int) -> None:
 @pytest.mark.parametrize(
     ("fv", "fc", "truth"),
     [
-        (lambda t: 200.0 - 200.0 / 3.0 * (1 - np.exp(-t / 6.0)), lambda t: 20.0 + 0 * t, {"start": 200.0, "relative_change": -1 / 3, "tau": 6.0}),
-        (lambda t: 200.0 + 0 * t, lambda t: 20.0 + 0.2 * t, {"start": 20.0, "relative_change": 0.2 * 29.99 / 20.0, "rate": 0.2}),
+        (
+            lambda t: 200.0 - 200.0 / 3.0 * (1 - np.exp(-t / 6.0)),
+            lambda t: 20.0 + 0 * t,
+            {"start": 200.0, "change": -200.0 / 3.0, "relative_change": -1 / 3, "tau": 6.0},
+        ),
+        (lambda t: 200.0 + 0 * t, lambda t: 20.0 + 0.2 * t, {"start": 20.0, "change": 0.2 * 29.99, "relative_change": 0.2 * 29.99 / 20.0, "rate": 0.2}),
     ],
     ids=["warm-up", "wear"],
 )
 def test_a_drift_s_standard_deviations_are_its_estimates_spread(fv, fc, truth) -> None:  # noqa: ANN001
     """Over 60 seeds of AR(1) force noise, each estimate's stated σ (the GLS covariance of the fit linearised in the time
-    constant, delta method for the start and the relative change) is the estimates' spread, within 30 %, and the truth lies
+    constant, delta method for the start and the relative change; the change's, its coefficient's) is the estimates' spread, within 30 %, and the truth lies
     within 1.96 σ on at least 52 (a warm-up's τ column taken as the exponential's derivative twice over, planted: its σ three
     times the spread, fails). Before, the finding stated no σ."""
     est, std = [], []
     for seed in range(60):
         t, W, y = _system(seed, fv=fv, fc=fc)
         (tr,) = detect_drift(t, W, y, NAMES).findings
-        got = {"start": tr.start, "relative_change": tr.relative_change, "tau": tr.tau, "rate": tr.rate}
+        got = {"start": tr.start, "change": tr.full_change, "relative_change": tr.relative_change, "tau": tr.tau, "rate": tr.rate}
         est.append([got[k] for k in truth])
         std.append([tr.std[k] for k in truth])
     e, s = np.array(est), np.array(std)
@@ -333,3 +337,21 @@ def test_a_drift_s_standard_deviations_are_its_estimates_spread(fv, fc, truth) -
     assert (inside >= 52).all(), dict(zip(truth, inside, strict=True))
     ratio = np.median(s, axis=0) / e.std(axis=0)
     assert ((ratio > 0.7) & (ratio < 1.3)).all(), dict(zip(truth, ratio, strict=True))
+
+
+@pytest.mark.parametrize(
+    ("joint", "units"),
+    [
+        ("prismatic", {"Fv_start": "N·s/m", "Fv_change": "N·s/m", "Fv_tau": "s", "Fc_start": "N", "Fc_change": "N", "Fc_rate": "N/s"}),
+        ("revolute", {"Fv_start": "N·m·s/rad", "Fv_change": "N·m·s/rad", "Fv_tau": "s", "Fc_start": "N·m", "Fc_change": "N·m", "Fc_rate": "N·m/s"}),
+    ],
+)
+def test_a_drift_s_estimates_carry_their_coefficient_s_units(joint: str, units: dict[str, str]) -> None:
+    """A warm-up of Fv and a wear of Fc: the levels and changes in the coefficient's units on the joint, a wear's rate in them per
+    second (before: no unit, and the rate's "1/s" as if it were relative), the relative change without one."""
+    t, W, y = _system(3, fv=lambda t: 200.0 - 60.0 * (1 - np.exp(-t / 4.0)), fc=lambda t: 20.0 + 0.3 * t)
+    res = detect_drift(t, W, y, NAMES)
+    est = res.estimates(joint)
+    assert {k: e.unit for k, e in est.items() if not k.endswith("_relative_change")} == units
+    assert est["Fv_change"].value == pytest.approx(-60.0, rel=0.1) and est["Fc_rate"].value == pytest.approx(0.3, rel=0.1)
+    assert est["Fv_relative_change"].unit == ""
