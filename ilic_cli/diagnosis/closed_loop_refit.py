@@ -461,9 +461,9 @@ def _polished(
     searches: list[ValueSearch],
     confirm: Callable[[Refit], str | None] | None,
 ) -> Refit | None:
-    """The values the coordinate search found, with the linear parameters, fitted at once on the output error
-    (:func:`_output_error_fit`): kept when it lowers the output error by :data:`ROUND_GAIN` of it, replays, and ``confirm``
-    does not refuse it (``None`` otherwise).
+    """The values where the coordinate search left them (those it kept, the inverse model's for the others), with the linear
+    parameters, fitted at once on the output error (:func:`_output_error_fit`): kept when it lowers the output error by
+    :data:`ROUND_GAIN` of it, replays, and ``confirm`` does not refuse it (``None`` otherwise).
 
     Coupled values lie along a curved valley of the output error that searches one value at a time descend slowly, and stop
     where a round gains less than :data:`ROUND_GAIN`: on the robot corpus's flexibilities behind a point-to-point move (the 200

@@ -314,18 +314,19 @@ def estimated(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...
         ia, ib = names.index(c.parameter), W.shape[1] + i
         a, b = float(theta[ia]), float(theta[ib])
         C = cov[np.ix_([ia, ib], [ia, ib])]
+        std_b = math.sqrt(max(float(C[1, 1]), 0.0))
         if c.tau is not None:
             shape: tuple[float, float, float | None, float | None, float | None] = (a + b, a + b * math.exp(-duration / c.tau), a, c.tau, None)
             # start a + b, relative change -b / |a + b|
             start_grad, rel_grad = np.array([1.0, 1.0]), np.array([b, -a]) * np.sign(a + b) / (a + b) ** 2
             # the warm-up's whole change is -b
-            last = {"change": math.sqrt(max(float(C[1, 1]), 0.0)), "tau": math.sqrt(max(float(cov[k_tau, k_tau]), 0.0))}
+            last = {"change": std_b, "tau": math.sqrt(max(float(cov[k_tau, k_tau]), 0.0))}
             k_tau += 1
         else:
             shape = (a, a + b * duration, None, None, b)
             # start a, relative change b duration / |a|
             start_grad, rel_grad = np.array([1.0, 0.0]), np.array([-b * duration, a * duration]) * np.sign(a) / a**2
-            last = {"change": duration * math.sqrt(max(float(C[1, 1]), 0.0)), "rate": math.sqrt(max(float(C[1, 1]), 0.0))}
+            last = {"change": duration * std_b, "rate": std_b}
         std = {"start": math.sqrt(max(float(start_grad @ C @ start_grad), 0.0)), "relative_change": math.sqrt(max(float(rel_grad @ C @ rel_grad), 0.0)), **last}
         out.append(Trend(c.parameter, c.shape, *shape, c.test, c.shape_delta_bic, len(y), std))
     return out

@@ -172,7 +172,7 @@ def refit(
         # the inverse model's estimate replayed with the noise: once, whichever refits (an output-error fit, then a search) are judged
         zero = np.zeros((len(final.res.theta),) * 2)
         before = cache(lambda: noisy_output_error(log, ls, *model_parameters([*known, *kept], final.names, final.res.theta, zero, hold), noise))
-        confirm = lambda r: noise_objection(r, log, ls, noise, before(), known, hold)  # noqa: E731
+        confirm = lambda r: noise_objection(r, log, ls, noise, before(), known, hold, settings.refit_round_gain)  # noqa: E731
     return closed_loop_refit(
         log,
         prop.prepared,
@@ -247,16 +247,19 @@ def _drift_found(prop: Proposal, final: FinalFit, settings: DiagnosisSettings) -
     return found.found
 
 
-def noise_objection(refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str, Any], before: float, known: list[Step], hold: float) -> str | None:
+def noise_objection(
+    refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str, Any], before: float, known: list[Step], hold: float, round_gain: float = ROUND_GAIN
+) -> str | None:
     """Why ``refit`` is not kept: replayed with the deciding replays' sensor noise, its output error rises above the inverse model's
-    estimate's (``before`` %) by :data:`~ilic_cli.diagnosis.refit_search.ROUND_GAIN` of it or more; else ``None``.
+    estimate's (``before`` %) by ``round_gain`` of it or more (the share a refit must gain, the settings' ``refit_round_gain``,
+    :data:`~ilic_cli.diagnosis.refit_search.ROUND_GAIN`); else ``None``.
 
     The refit itself replays noise-free (a value estimated on noisy replays is pulled by the replay's own answer to
     its noise: a 1.0 ms lag to 0.71-0.84 ms, the corpus's lags 14-17 % off against 0.1-5 %); whether its estimate
     is kept is decided as the replay decides effects. Measured on the corpus's trapezoid spring with a force
     disturbance: DIDIM lowered the noise-free output error 2.74 % -> 2.65 % with the spring 21 % off; replayed with
     the noise, the inverse model's estimate gives 2.25 % and DIDIM's 2.33 % (3.6 % higher), and the inverse model's spring
-    (0.7 % off) is kept. A change below :data:`~ilic_cli.diagnosis.refit_search.ROUND_GAIN` is no change at the resolution
+    (0.7 % off) is kept. A change below ``round_gain`` is no change at the resolution
     a refit's gain is judged at, and the noise-free replay has decided: on the corpus's asymmetric friction under the current
     loop (``--reseed 6``, s18361) the refit sized the loop's lag 0.229 ms (its time constant 0.227 ms; the inverse model's
     0.348 ms) and lowered the noise-free output error 0.547 % -> 0.524 %, and the noisy one went 0.684 % -> 0.685 %: it was
@@ -264,6 +267,6 @@ def noise_objection(refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str,
     """
     assert refit.theta is not None
     after = noisy_output_error(log, ls, *model_parameters([*known, *refit.steps], refit.names, refit.theta, np.zeros((len(refit.theta),) * 2), hold), sensor)
-    if after < (1.0 + ROUND_GAIN) * before:
+    if after < (1.0 + round_gain) * before:
         return None
     return f"replayed with the recording's sensor noise, as the decisions are, its output error rises ({before:.3g} % -> {after:.3g} %)"
