@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ilic_cli.diagnosis.core import Diagnosis
+from ilic_cli.diagnosis.locate import Region
 from ilic_cli.io.atomic import atomic_path
 from ilic_cli.jointlog import UNITS
 from ilic_cli.plotting import broken_at_gaps, edge_rows, mark_edges, scale_y, scaled_rows
@@ -16,6 +17,18 @@ from ilic_cli.spectra import welch_psd
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+
+SHADED_KINDS = ("velocity", "position", "time", "drift")
+"""The located regions the residual plot shades (a ``frequency`` one is marked on the spectrum)."""
+
+
+def residual_title(located: list[Region]) -> str:
+    """The residual plot's title: it names the shading only when a significant region is shaded (a drift's finding alone, or
+    a spectral line, locates none there)."""
+    if any(g.significant and g.kind in SHADED_KINDS for g in located):
+        return "IDIM residual; shaded: located regions (significant)"
+    return "IDIM residual (no region located)"
 
 
 def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
@@ -47,7 +60,7 @@ def write_plots(diag: Diagnosis, out_dir: Path) -> list[Path]:
         ax.set_xlabel(f"{kind} ({unit})")
         ax.set_ylabel(f"force residual ({force})")
     axes[0].legend(loc="upper right")
-    axes[0].set_title("IDIM residual; shaded: located regions (significant)")
+    axes[0].set_title(residual_title(sig))
     fig.tight_layout()
     save(fig, "residual.png")
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.fits import Point, ValueSearch
 from ilic_cli.diagnosis.search import at_edge, search_range
+from ilic_cli.diagnosis.stats import variance_inflation
 from ilic_cli.diagnosis.system import Step
 from ilic_cli.effects.definition import Z95
 
@@ -231,7 +232,8 @@ def _std(f: Callable[[float], float], inv: Callable[[float], float], u: float, h
 
     ``f`` is the output error in % of ``||y||``, so ``f**2`` is the residual sum of squares up to a
     constant that cancels: ``var = 2 (RSS / dof) / RSS''``, inflated for the lag-1 autocorrelation
-    ``rho`` of the residual, as :meth:`ilic_cli.diagnosis.select.Searcher.refine` does on the inverse model's RSS.
+    ``rho`` of the residual (:func:`~ilic_cli.diagnosis.stats.variance_inflation`), as
+    :meth:`ilic_cli.diagnosis.search.Searcher.refine` does on the inverse model's RSS.
     """
     ep, em = f(u + h), f(u - h)
     if not (math.isfinite(ep) and math.isfinite(em)):
@@ -240,9 +242,7 @@ def _std(f: Callable[[float], float], inv: Callable[[float], float], u: float, h
     curv = (ep**2 - 2.0 * e**2 + em**2) / dv**2
     if not curv > 0:
         return None
-    r = min(max(rho, 0.0), 0.99)
-    inflation = (1.0 + r) / (1.0 - r)
-    return math.sqrt(2.0 * e**2 / max(dof, 1) * inflation / curv)
+    return math.sqrt(2.0 * e**2 / max(dof, 1) * variance_inflation(rho) / curv)
 
 
 def slot_range(step: Step, slot: int, grid: np.ndarray) -> np.ndarray:

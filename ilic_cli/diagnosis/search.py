@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.stats import batched_rss, lag1_autocorrelation, shifted_rss
+from ilic_cli.diagnosis.stats import batched_rss, lag1_autocorrelation, shifted_rss, variance_inflation
 from ilic_cli.diagnosis.system import Step, effect_columns, shifted_force
 from ilic_cli.effects import Effect
 from ilic_cli.effects.definition import Z95
@@ -260,7 +260,7 @@ class Searcher:
         k = W1.shape[1] + 1
         theta, _ = lstsq(W1, y1)
         rho = lag1_autocorrelation(y1 - W1 @ theta)
-        inflation = (1 + max(rho, 0.0)) / (1 - min(max(rho, 0.0), 0.99))
+        inflation = variance_inflation(rho)
         if effect.scan.of_the_whole_log and sec is None and not self.at_log_rate(effect):
             # a time of the log: the profile's 95 % interval, its middle and half-width / Z95 (a plateau where nothing shows it)
             lo_t, hi_t = self.profile_interval(effect, W0, y, float(best), Z95**2 * inflation / max(n - k, 1))

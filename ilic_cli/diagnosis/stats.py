@@ -26,6 +26,13 @@ def lag1_autocorrelation(e: np.ndarray) -> float:
     return float(e[1:] @ e[:-1] / den) if den > 0 else 0.0
 
 
+def variance_inflation(rho: float) -> float:
+    """Factor by which a positive lag-1 autocorrelation ``rho`` of a residual inflates the variance of an estimate from it,
+    against white noise: ``(1 + r)/(1 - r)``, ``r`` = ``rho`` clipped to [0, 0.99] (a negative one is not credited)."""
+    r = min(max(rho, 0.0), 0.99)
+    return (1.0 + r) / (1.0 - r)
+
+
 def effective_size(n: int, rho: float) -> float:
     """Effective number of independent samples of an AR(1) series: ``n (1 - rho)/(1 + rho)``."""
     rho = min(max(rho, -0.99), 0.99)

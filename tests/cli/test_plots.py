@@ -61,6 +61,7 @@ def test_diagnose_plots(emps_mat: Path, tmp_path: Path, saved: dict[str, Figure]
     res = run_cli("diagnose", str(emps_mat), "--out", str(tmp_path / "d"))
     assert res.status == 0, res.stderr
     _labels_have_units(saved)
+    assert next(f for n, f in saved.items() if "residual" in n).axes[0].get_title() == "IDIM residual; shaded: located regions (significant)"
     force = next(f for n, f in saved.items() if "force_fit" in n)
     lo, hi = force.axes[1].get_ylim()
     assert hi - lo < 60  # the replay's start transient (about -89 N at t = 0) does not set the scale
@@ -80,3 +81,18 @@ def test_a_revolute_joint_s_plots_are_in_its_units(tmp_path: Path, saved: dict[s
     labels = [label for fig in saved.values() for ax in fig.axes for label in (ax.get_xlabel(), ax.get_ylabel()) if label]
     units = {UNIT.search(label).group(0) for label in labels if UNIT.search(label)}  # type: ignore[union-attr]
     assert {"(N·m)", "(rad)", "(rad/s)"} <= units and not units & {"(N)", "(m)", "(m/s)"}, units
+
+
+def test_the_residual_title_names_shading_only_when_a_region_is_shaded() -> None:
+    """A drift finding or a spectral line alone shades nothing on the residual plot, and its title does not say it does."""
+    from ilic_cli.diagnosis.locate import Region
+    from ilic_cli.diagnosis.plots import residual_title
+
+    def region(kind: str, significant: bool = True) -> Region:
+        return Region(kind, "", (0.0, 1.0), 10, 0.0, 1.0, 5.0, 0.001, significant)
+
+    assert residual_title([]) == "IDIM residual (no region located)"
+    assert residual_title([region("frequency"), region("lag")]) == "IDIM residual (no region located)"
+    assert residual_title([region("velocity", significant=False)]) == "IDIM residual (no region located)"
+    for kind in ("velocity", "position", "time", "drift"):
+        assert residual_title([region("frequency"), region(kind)]) == "IDIM residual; shaded: located regions (significant)"

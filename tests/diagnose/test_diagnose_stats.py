@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy import signal
 
 from ilic_cli.diagnosis.locate import force_lag, velocity_bins
-from ilic_cli.diagnosis.stats import ar_fit, batched_rss, blocked_folds, diebold_mariano, nested_f_test
+from ilic_cli.diagnosis.stats import ar_fit, batched_rss, blocked_folds, diebold_mariano, nested_f_test, variance_inflation
 from ilic_cli.effects import EFFECTS, catalogue_ids
 from ilic_cli.lsq import lstsq
 
@@ -80,3 +81,19 @@ def test_locate_velocity_bins_and_lag() -> None:
     y = np.sin(np.linspace(0, 60, 6000)) + 0.01 * rng.standard_normal(6000)
     lag = force_lag(np.roll(y, 3), y, 1000.0)
     assert abs(lag.bounds[0] - 0.003) < 2e-4
+
+
+def test_variance_inflation_is_the_ar1_factor_of_a_mean_and_credits_no_negative_autocorrelation() -> None:
+    """The one factor both the inverse model's and the closed loop's profile standard deviations inflate by: the variance of
+    the mean of an AR(1) series of lag-1 autocorrelation rho is about (1 + rho)/(1 - rho) times white noise's."""
+    rng = np.random.default_rng(3)
+    rho, n, trials = 0.6, 400, 2000
+    w = rng.standard_normal((trials, n))
+    e = np.empty_like(w)
+    e[:, 0] = w[:, 0] / np.sqrt(1 - rho**2)
+    for i in range(1, n):
+        e[:, i] = rho * e[:, i - 1] + w[:, i]
+    measured = np.var(e.mean(axis=1)) / (1 / (1 - rho**2) / n)
+    assert abs(measured / variance_inflation(rho) - 1) < 0.12
+    assert variance_inflation(-0.5) == 1.0 and variance_inflation(0.0) == 1.0
+    assert variance_inflation(0.999) == variance_inflation(0.99) == pytest.approx(199.0)
