@@ -92,7 +92,7 @@ from ilic_cli.modelfile import load_model_file
     "replay_alpha",
     type=click.FloatRange(min=0, max=1, min_open=True, max_open=True),
     default=None,
-    help="Level of the replay's test, the decision [default: 0.01; the inverse model's held-out test proposes at 0.05].",
+    help="Level of the replay's test, the decision [default: 0.05, as the inverse model's held-out test that proposes].",
 )
 @click.option("--format", "out_format", type=click.Choice(["md", "json"]), default="md", show_default=True, help="What to print on stdout.")
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), default=None, help="Folder for report.md, report.json, model.json and plots.")

@@ -18,7 +18,7 @@ from ilic_cli.diagnosis.drift import GivenDrift, detect_drift
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
 from ilic_cli.diagnosis.sensor import measurement_std, position_noise
-from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
+from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.strategies import strategy_of
 from ilic_cli.diagnosis.system import Step, effect_columns, extended, moving_rows, system
 from ilic_cli.effects import EFFECTS, applicable
@@ -205,16 +205,16 @@ def closed_loop_proposal(
     material proposal if it made one (the caller's :func:`ilic_cli.diagnosis.decide.decide`): the filtered kinematics do not
     resolve the stick and break-away at the dwells, so the inverse model's level is no estimate there (corpus s292, a
     200 kg axis: Fs 106 N for 306 N; the closed loop's search, 306 N). Elsewhere, only when the inverse model's last
-    word on it was that its F-test passed and its held-out test did not confirm it at the replay's level, the one that
-    decides (:meth:`~ilic_cli.diagnosis.select.SelectionResult.unconfirmed`): a proposal confirmed only at the held-out
-    level of 0.05 is the closed loop's to estimate, as before that level was 0.01 (the EMPS reference with a flexibility
-    beside it, seed 1303: held-out p = 0.027, the inverse model's Stribeck peak 130 % off, the closed loop's within 10 %).
+    word on it was that its F-test passed and its held-out test did not confirm it at
+    :attr:`~ilic_cli.diagnosis.select.SelectSettings.alpha_confirm` (:meth:`~ilic_cli.diagnosis.select.SelectionResult.unconfirmed`):
+    a proposal confirmed only at the held-out level of 0.05 is the closed loop's to estimate (the EMPS reference with a
+    flexibility beside it, seed 1303: held-out p = 0.027, the inverse model's Stribeck peak 130 % off, the closed loop's within 10 %).
     """
     for effect in EFFECTS.values():
         strategy = strategy_of(effect)
         if strategy is None or effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in proposed):
             continue
-        if not selection.unconfirmed(effect.id, replay_alpha(settings)) and not strategy.applies(log, settings.dwell_min_s, settings.dwell_min_count):
+        if not selection.unconfirmed(effect.id, settings.select.alpha_confirm) and not strategy.applies(log, settings.dwell_min_s, settings.dwell_min_count):
             continue
         return strategy.propose(effect, data, base, rows)
     return None

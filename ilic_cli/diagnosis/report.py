@@ -14,7 +14,6 @@ from ilic_cli.diagnosis.compare import SimulationComparison
 from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.fits import CLOSED_LOOP_SPREAD, INVERSE_METHOD, METHOD, OE_METHOD
 from ilic_cli.diagnosis.locate import Region
-from ilic_cli.diagnosis.settings import replay_alpha
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, RefitOutcome
 from ilic_cli.effects import Estimate
 from ilic_cli.jointlog import position_unit
@@ -114,8 +113,8 @@ def _on_loop(diag: Diagnosis, f: Finding) -> bool:
 
 def _at_dwells(diag: Diagnosis, f: Finding) -> bool:
     """Whether ``f`` was proposed on the closed loop at the reference's dwells (not for want of the inverse model's held-out test at
-    the replay's level: :func:`ilic_cli.diagnosis.propose.closed_loop_proposal`)."""
-    return _on_loop(diag, f) and not f.evidence.unconfirmed_at(replay_alpha(diag.settings))
+    :attr:`~ilic_cli.diagnosis.select.SelectSettings.alpha_confirm`: :func:`ilic_cli.diagnosis.propose.closed_loop_proposal`)."""
+    return _on_loop(diag, f) and not f.evidence.unconfirmed_at(diag.settings.select.alpha_confirm)
 
 
 def to_markdown(diag: Diagnosis) -> str:

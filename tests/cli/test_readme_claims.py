@@ -136,15 +136,15 @@ def test_replay_of_the_diagnosed_model_file() -> None:
 
 def test_diagnosis_settings_as_described() -> None:
     """docs/diagnosis.md: "Bonferroni over candidates and grid points, alpha = 0.001 ... blocked 5-fold cross-validation
-    over time (Diebold-Mariano, alpha = 0.05)" ... "one-sided Diebold-Mariano at the decimated rows, alpha = 0.01" (the replay),
-    and the drift's held-out check at 0.01."""
+    over time (Diebold-Mariano, alpha = 0.05)" ... "one-sided Diebold-Mariano at the decimated rows, alpha = 0.05" (the replay),
+    the drift's held-out check at 0.01, and a Stribeck proposal's inverse-model value kept when confirmed held out at 0.01."""
     from ilic_cli.diagnosis.drift import HELDOUT_ALPHA
     from ilic_cli.diagnosis.select import SelectSettings
     from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
 
     s = SelectSettings()
-    assert (s.alpha, s.alpha_heldout, s.folds) == (0.001, 0.05, 5)
-    assert (replay_alpha(DiagnosisSettings()), HELDOUT_ALPHA) == (0.01, 0.01)
+    assert (s.alpha, s.alpha_heldout, s.alpha_confirm, s.folds) == (0.001, 0.05, 0.01, 5)
+    assert (replay_alpha(DiagnosisSettings()), HELDOUT_ALPHA) == (0.05, 0.01)
 
 
 def test_paper_sim_study_setting_and_k2_edge() -> None:

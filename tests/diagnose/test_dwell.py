@@ -97,9 +97,8 @@ def test_stribeck_beside_a_flexibility_that_the_held_out_test_leaves_unconfirmed
     (p = 9.5e-10 when the search held levels, not impulses); the refit (the searched level its start) then gives Fs 3.63 N
     (truth 3.53: 3 %), vs 7.76 mm/s (8: 3 %) and the flexibility within 2 %. Before, Stribeck friction was missed on
     this seed. Since the inverse model's held-out test confirms a proposal at 0.05, p = 0.027 confirms it as a proposal
-    but not at the replay's level, 0.01: the closed loop values it still (the inverse model's peak was 130 % off).
+    but not at 0.01 (``SelectSettings.alpha_confirm``): the closed loop values it still (the inverse model's peak was 130 % off).
     """
-    from ilic_cli.diagnosis.null import REPLAY_ALPHA
     from ilic_cli.diagnosis.select import Selection, SelectSettings
     from tests.corpus import case_of
 
@@ -112,7 +111,7 @@ def test_stribeck_beside_a_flexibility_that_the_held_out_test_leaves_unconfirmed
     assert sc["false_alarms"] == 0 and sc["missed"] == []
     (ev,) = [e for step in diag.tried for e in step if e.effect == "stribeck"][-1:]
     assert ev.reason.startswith(Selection.ACCEPTED.value + "; valued on the closed loop instead: the replay agrees") and ev.test.p_adjusted < 1e-3
-    assert ev.heldout_p_value is not None and REPLAY_ALPHA <= ev.heldout_p_value < SelectSettings().alpha_heldout
+    assert ev.heldout_p_value is not None and SelectSettings().alpha_confirm <= ev.heldout_p_value < SelectSettings().alpha_heldout
     (verdict,) = [v for v in diag.decisions if v.effect == "stribeck"]
     assert verdict.accepted and verdict.proposed_by == dwell.METHOD and verdict.p_value is not None and verdict.p_value < 1e-6
     assert diag.refit is not None and diag.refit.accepted

@@ -21,6 +21,7 @@ from ilic_cli.diagnosis.baseline import hold_s
 from ilic_cli.diagnosis.core import _prepare, model_parameters
 from ilic_cli.diagnosis.decide import replay_decide
 from ilic_cli.diagnosis.null import (
+    REPLAY_ALPHA,
     MonteCarloNull,
     NoiseModel,
     NullSettings,
@@ -225,10 +226,34 @@ def test_cli_montecarlo_names_the_test_and_its_null(ripple_csv: Path) -> None:
     assert r.status == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["decisions"][0]["test"]["test"].startswith("Diebold-Mariano") and doc["settings"]["replay_test"]["null"] == "dm"
-    assert doc["settings"]["replay_test"]["alpha"] == 0.01  # the level it ran at, not the held-out test's 0.05
+    assert doc["settings"]["replay_test"]["alpha"] == REPLAY_ALPHA == 0.05  # the level it ran at
 
 
 def test_cli_refuses_too_few_replicates(ripple_csv: Path) -> None:
-    r = run_cli("diagnose", str(ripple_csv), "--null", "montecarlo", "--replicates", "19")
+    r = run_cli("diagnose", str(ripple_csv), "--null", "montecarlo", "--replicates", "9")  # the default level, 0.05, needs 19
     assert r.status == 2 and r.stdout == ""
-    assert "at least 99" in r.stderr and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "at least 19" in r.stderr and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    r = run_cli("diagnose", str(ripple_csv), "--null", "montecarlo", "--replicates", "19", "--replay-alpha", "0.01")
+    assert r.status == 2 and "at least 99" in r.stderr and r.stdout == ""
+
+
+def test_the_replay_decides_at_the_usual_level() -> None:
+    """Issue 29 item 7, a replay test with the power its data has: a 0.71 ms drive lag on the 0.01 kg·m² joint's 500 Hz
+    multisine under the 10 Hz force disturbance (robot corpus, seed 18410) lowers the held-out replay's force error by 2.8 %
+    of itself at p = 0.018. At the former level, 0.01, it was rejected ("not significantly"); at 0.05
+    (:data:`REPLAY_ALPHA`, planted 0.01: fails) it is kept, and sized within 5 %. The clean logs that keep it honest: 0 of
+    480 robot-corpus logs with a finding at either level, and the forced calibration in docs/diagnosis.md."""
+    import dataclasses
+
+    from ilic_cli.diagnosis.core import diagnose
+    from tests.corpus.robot import build, cases
+
+    case = next(c for c in cases() if c.name == "rev0.01/multisine/500Hz/disturbance/delay/s410")
+    built = build(dataclasses.replace(case, seed=18410))
+    diag = diagnose(built.log)
+    (verdict,) = [v for v in diag.decisions if v.effect == "delay"]
+    assert verdict.p_value is not None and 0.01 < verdict.p_value < REPLAY_ALPHA and verdict.accepted
+    assert verdict.force_before is not None and verdict.force_after is not None and verdict.force_after < 0.99 * verdict.force_before
+    (finding,) = diag.findings
+    assert finding.effect.id == "delay" and finding.plant_effect is not None
+    assert finding.plant_effect["delay"] == pytest.approx(built.effects["delay"]["delay"], rel=0.05)

@@ -12,6 +12,7 @@ import pytest
 
 import ilic_cli.diagnosis.propose as propose
 from ilic_cli.diagnosis.null import REPLAY_ALPHA
+from ilic_cli.diagnosis.select import SelectSettings
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.system import Step
 from ilic_cli.effects import EFFECTS
@@ -58,13 +59,14 @@ def test_without_dwells_only_what_the_held_out_test_left_unconfirmed(monkeypatch
     assert proposal(monkeypatch, False, [], ("stribeck",)) is not None  # an F-test passed, the held-out test not
 
 
-def test_unconfirmed_means_at_the_replay_s_level(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A proposal the held-out test confirms at 0.05 but not at the replay's 0.01 is the closed loop's to value (EMPS s1303)."""
+def test_unconfirmed_means_at_the_confirming_level(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A proposal the held-out test confirms at 0.05 but not at 0.01 (``SelectSettings.alpha_confirm``, not the replay's level)
+    is the closed loop's to value (EMPS s1303)."""
     strategy = Strategy(False)
     monkeypatch.setattr(propose, "strategy_of", lambda effect: strategy if effect is STRIBECK else None)
     selection = Selection()
     propose.closed_loop_proposal(None, None, None, [], np.ones(3, dtype=bool), DiagnosisSettings(), selection)  # type: ignore[arg-type]
-    assert selection.levels == [REPLAY_ALPHA]
+    assert selection.levels == [SelectSettings().alpha_confirm] == [0.01] and REPLAY_ALPHA != 0.01
 
 
 def test_neither_a_model_file_s_effect_nor_one_found_immaterial_is_proposed_again(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -279,7 +279,7 @@ def test_known_effects_are_kept_not_tried_and_validation_is_reported() -> None:
 
 def test_settings_record() -> None:
     s = SelectSettings(effects=("delay",))
-    assert s.to_dict() == {"alpha": 0.001, "alpha_heldout": 0.05, "folds": 5, "guard_rows": 10, "max_effects": 4, "effects": ["delay"]}
+    assert s.to_dict() == {"alpha": 0.001, "alpha_heldout": 0.05, "alpha_confirm": 0.01, "folds": 5, "guard_rows": 10, "max_effects": 4, "effects": ["delay"]}
     assert SelectSettings().effects == catalogue_ids()
 
 
@@ -596,11 +596,10 @@ def test_a_flexible_mode_above_the_rows_band_is_searched_at_the_log_s_rate() -> 
     assert theta[-1] == pytest.approx(m_load, rel=0.05)
 
 
-def test_a_proposal_confirmed_held_out_below_the_replay_s_level_only_is_unconfirmed_at_it() -> None:
+def test_a_proposal_confirmed_held_out_below_the_confirming_level_only_is_unconfirmed_at_it() -> None:
     """The held-out test confirms a proposal at 0.05; an effect whose inverse-model value is biased on closed-loop data (Stribeck
-    friction) is the closed loop's to value unless confirmed at the replay's level, 0.01 (``SelectionResult.unconfirmed``)."""
-    from ilic_cli.diagnosis.null import REPLAY_ALPHA
-    from ilic_cli.diagnosis.select import Evaluation, SelectionResult
+    friction) is the closed loop's to value unless confirmed at 0.01 (``SelectSettings.alpha_confirm``, ``SelectionResult.unconfirmed``)."""
+    from ilic_cli.diagnosis.select import Evaluation, SelectionResult, SelectSettings
     from ilic_cli.diagnosis.stats import nested_f_test
     from ilic_cli.diagnosis.verdicts import Selection
 
@@ -610,6 +609,7 @@ def test_a_proposal_confirmed_held_out_below_the_replay_s_level_only_is_unconfir
         ev.decided(o, heldout_p_value=p) for o, p in ((Selection.ACCEPTED, 0.027), (Selection.ACCEPTED, 0.004), (Selection.HELDOUT_UNCONFIRMED, 0.3))
     )
     assert [e.unconfirmed_at(None) for e in (weak, strong, unconfirmed)] == [False, False, True]
-    assert [e.unconfirmed_at(REPLAY_ALPHA) for e in (weak, strong, unconfirmed)] == [True, False, True]
-    assert [SelectionResult(tried=[[e]]).unconfirmed("stribeck", REPLAY_ALPHA) for e in (weak, strong)] == [True, False]
-    assert not SelectionResult(tried=[[weak]]).unconfirmed("delay", REPLAY_ALPHA)
+    level = SelectSettings().alpha_confirm
+    assert [e.unconfirmed_at(level) for e in (weak, strong, unconfirmed)] == [True, False, True]
+    assert [SelectionResult(tried=[[e]]).unconfirmed("stribeck", level) for e in (weak, strong)] == [True, False]
+    assert not SelectionResult(tried=[[weak]]).unconfirmed("delay", level)
