@@ -65,14 +65,12 @@ NULL_KINDS = ("dm", "montecarlo")
 """``dm``: the asymptotic Diebold-Mariano test (default); ``montecarlo``: this module's null."""
 
 REPLAY_ALPHA = 0.05
-"""Level of the replay's test, the decision (``--replay-alpha``), the usual 0.05 as the inverse model's held-out test that
-proposes (:attr:`ilic_cli.diagnosis.select.SelectSettings.alpha_heldout`). A candidate reaches it only past the F-test
-at 0.001 after Bonferroni and that held-out test. Calibrated where the replay alone must reject: every applicable effect
-forced past the inverse model on 128 clean plant logs (``benchmarks/null_calibration.py``), the Diebold-Mariano p was at
-most 0.05 on 3 of the 152 that reach the replay (2.0 %). At 0.01 before (issue 29), true effects whose held-out replay
-error fell by 3-15 % at p = 0.012-0.023 were rejected on the robot corpus (500 Hz delays and Stribeck friction beside a
-flexibility under the 10 Hz disturbance); at 0.05 they are kept, and none of its 480 clean logs (eight seed sets) has a
-finding, as at 0.01."""
+"""Level of the replay's test, the decision (``--replay-alpha``): the usual 0.05, as the held-out test that proposes
+(:attr:`~ilic_cli.diagnosis.select.SelectSettings.alpha_heldout`), reached only past the F-test at 0.001 (Bonferroni).
+Forced past the inverse model on 128 clean plant logs (``benchmarks/null_calibration.py``), the p was at most 0.05 on 3
+of the 152 trials the replay alone must reject (2.0 %). At 0.01 (before issue 29) true effects lowering the held-out error
+by 3-15 % at p = 0.012-0.023 were rejected (robot corpus: 500 Hz lags, Stribeck friction beside a flexibility); at 0.05
+they are kept, and none of its 480 clean logs (eight seed sets) has a finding, as at 0.01."""
 
 BANDWIDTH_RANGE = (0.5, 0.4)
 """The disturbance's corner frequency is kept within [0.5 Hz, 0.4 times the decimated rate]."""
