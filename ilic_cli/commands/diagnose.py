@@ -139,7 +139,8 @@ def command(
     held-out closed-loop force error significantly without raising the
     position error (nor, with --validate, the other log's error). The report
     says why each candidate was kept or rejected. "No significant mismatch"
-    is a result. With --format json stdout holds only the JSON document.
+    is a result; "undecided" says a proposal no replay could judge (its fit
+    is no plant). With --format json stdout holds only the JSON document.
 
     \b
     Examples:

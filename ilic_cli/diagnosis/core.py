@@ -31,6 +31,7 @@ from ilic_cli.diagnosis.settings import DiagnoseSettings, DiagnosisSettings, rep
 from ilic_cli.diagnosis.stats import folds_either_side, gls_covariance, heldout_errors
 from ilic_cli.diagnosis.strategies import strategy_of
 from ilic_cli.diagnosis.system import change_time, system
+from ilic_cli.diagnosis.verdicts import Verdict
 from ilic_cli.effects import EFFECTS, Effect, Estimate, unit_of
 from ilic_cli.errors import ParameterError
 from ilic_cli.lsq import LSResult, relative_error_pct, solve
@@ -137,10 +138,24 @@ class Diagnosis:
     """``prismatic`` or ``revolute`` (:func:`ilic_cli.runlog.joint_type`): the units the report writes."""
 
     @property
+    def unjudged(self) -> list[str]:
+        """Effects proposed past the inverse model's tests and materiality that no replay could judge, since their fit is no
+        plant (:attr:`~ilic_cli.diagnosis.verdicts.Verdict.NO_PLANT`: a flexibility's load above the axis's inertia on the
+        folds), and that are not findings: neither named nor ruled out (corpus s21512, a flexibility of F-test p = 1e-125)."""
+        named = {f.effect.id for f in self.findings}
+        return [v.effect for v in self.decisions if v.verdict is Verdict.NO_PLANT and v.effect not in named]
+
+    @property
+    def unjudged_titles(self) -> list[str]:
+        """The catalogue's titles of :attr:`unjudged` (an id the catalogue does not have, as it is)."""
+        return [EFFECTS[e].title if e in EFFECTS else e for e in self.unjudged]
+
+    @property
     def conclusion(self) -> str:
+        open_ = "; not judged (its fit is no plant): " + ", ".join(self.unjudged_titles) if self.unjudged else ""
         if not self.findings:
-            return "no significant mismatch"
-        return "left out: " + ", ".join(f.effect.title for f in self.findings)
+            return ("undecided" if self.unjudged else "no significant mismatch") + open_
+        return "left out: " + ", ".join(f.effect.title for f in self.findings) + open_
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -153,6 +168,7 @@ class Diagnosis:
             "rows_total": self.rows_total,
             "usable_rows": None if self.usable is None else self.usable.to_dict(),
             "conclusion": self.conclusion,
+            "not_judged": self.unjudged,
             "findings": [f.to_dict() for f in self.findings],
             "fit": self.fit,
             "base": self.base.to_dict(),

@@ -152,20 +152,32 @@ def to_markdown(diag: Diagnosis) -> str:
     return "\n".join(lines)
 
 
+def _unjudged(diag: Diagnosis) -> str:
+    """What the inverse model proposed that no replay could judge (:attr:`Diagnosis.unjudged`), as a sentence, or ``""``."""
+    if not diag.unjudged:
+        return ""
+    return (
+        f"the inverse model proposes {', '.join(diag.unjudged_titles)} (its F-test and held-out test passed: see the candidates "
+        "below), but its fit is no plant on the held-out folds, so no replay can judge it: it is neither named nor ruled out"
+    )
+
+
 def _summary(diag: Diagnosis, force_unit: str, at_dwells: bool) -> list[str]:
     """The first paragraph: no mismatch, or what was left out and the fit before and after."""
     fit = diag.fit
     rel = fit["relative_error_pct"]
     ho = fit["heldout_relative_error_pct"]
+    unjudged = _unjudged(diag)
     if not diag.findings:
         judged = f" ({len(diag.decisions)} proposed, none material or kept by the replay: see below)" if diag.decisions else ""
-        return [
-            f"No significant mismatch: none of the {len(diag.tried[0]) if diag.tried else 0} effects of the catalogue passed the F-test, "
-            f"the held-out test, materiality and the replay{judged}. The rigid model ({diag.model}) explains the force to {_pct(rel['before'])} "
-            f"(held out: {_pct(ho['before'])}).",
-            "",
-        ]
-    lines = []
+        head = (
+            f"Undecided: {unjudged}. Nothing else passed the F-test, the held-out test, materiality and the replay"
+            if unjudged
+            else f"No significant mismatch: none of the {len(diag.tried[0]) if diag.tried else 0} effects of the catalogue passed the "
+            f"F-test, the held-out test, materiality and the replay{judged}"
+        )
+        return [f"{head}. The rigid model ({diag.model}) explains the force to {_pct(rel['before'])} (held out: {_pct(ho['before'])}).", ""]
+    lines = [f"- Not judged: {unjudged}."] if unjudged else []
     for f in diag.findings:
         where = ""
         if f.located:

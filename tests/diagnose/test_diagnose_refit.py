@@ -342,3 +342,18 @@ def test_a_change_time_whose_closed_loop_interval_is_wider_than_its_search_keeps
     assert diag.refit is not None
     (search,) = [s for s in diag.refit.searches if s.parameter == "t_change"]
     assert not search.accepted and "is flat at its optimum" in search.reason
+
+
+def test_a_proposal_no_replay_can_judge_is_said_undecided_not_no_mismatch() -> None:
+    """A 31 Hz flexibility behind the 0.5 kg·m² joint on the 2 kHz multisine under the 10 Hz disturbance (robot corpus, seed
+    21512): the inverse model proposes it (F-test p ~ 1e-125, resonance 30.8 Hz), but on every held-out fold its load comes
+    out above the axis's inertia (0.52-0.56 kg·m² for 0.5), no plant, so no replay judges it. The report said "no
+    significant mismatch"; it says "undecided" and names what was not judged (planted: the old conclusion, fails)."""
+    from ilic_cli.diagnosis.report import to_markdown
+
+    built, diag = _robot("rev0.5/multisine/2000Hz/disturbance/flexibility/s512", 21512)
+    assert built.effects.keys() == {"flexibility"} and diag.findings == []
+    assert diag.unjudged == ["flexibility"] and diag.to_dict()["not_judged"] == ["flexibility"]
+    assert diag.conclusion == "undecided; not judged (its fit is no plant): transmission flexibility"
+    first = to_markdown(diag).split("\n\n")[1]
+    assert first.startswith("Undecided: the inverse model proposes transmission flexibility") and "No significant mismatch" not in first
