@@ -152,10 +152,10 @@ class Diagnosis:
 
     @property
     def conclusion(self) -> str:
-        open_ = "; not judged (its fit is no plant): " + ", ".join(self.unjudged_titles) if self.unjudged else ""
+        pending = "; not judged (its fit is no plant): " + ", ".join(self.unjudged_titles) if self.unjudged else ""
         if not self.findings:
-            return ("undecided" if self.unjudged else "no significant mismatch") + open_
-        return "left out: " + ", ".join(f.effect.title for f in self.findings) + open_
+            return ("undecided" if self.unjudged else "no significant mismatch") + pending
+        return "left out: " + ", ".join(f.effect.title for f in self.findings) + pending
 
     def to_dict(self) -> dict[str, Any]:
         return {
