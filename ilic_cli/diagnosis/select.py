@@ -196,7 +196,7 @@ class SelectionResult:
 
 
 def parsimonious_first(evals: list[Candidate], W: np.ndarray, y: np.ndarray, alpha: float) -> list[Candidate]:
-    """Put a linear candidate with fewer columns ahead of the best-fitting one when the latter adds nothing beyond it.
+    """Of two linear candidates of different column counts, put the simpler first unless the larger one's force adds to it.
 
     Two linear effects can span nearly the same force over the range a log covers: gravity on a
     revolute joint, ``g (MX cos q - MY sin q)``, is a straight line in ``q`` plus a curvature a spring
@@ -211,22 +211,33 @@ def parsimonious_first(evals: list[Candidate], W: np.ndarray, y: np.ndarray, alp
     the simpler one, the simpler one is proposed first (parsimony); where the swing shows the curvature
     the larger one stays first. When, besides, the simpler one's adds nothing to the model with the larger
     one, neither explains anything the other does not: the simpler one is proposed with the larger one as
-    :attr:`Evaluation.indistinct_from`, a stated ambiguity rather than a name the data do not decide.
+    :attr:`Evaluation.indistinct_from`, a stated ambiguity rather than a name the data do not decide. A larger one
+    that fits no better than the simpler stands for nothing. Whichever the ranking puts first, the decision is the same.
     """
     ok = [i for i, (ev, eff, _, _) in enumerate(evals) if not ev.outcome.never_a_finding and ev.test.p_adjusted < alpha]
     if not ok:
         return evals
-    top_ev, top, W_top, _ = evals[ok[0]]
+    top_ev, top, W_top, y_top = evals[t := ok[0]]
     if top.nonlinear or top.shift:
         return evals
+    k = W.shape[1]
     for i in ok[1:]:
-        ev, eff, W_s, y_s = evals[i]
-        if eff.nonlinear or eff.shift or len(eff.columns) >= len(top.columns):
+        ev, eff, W_e, y_e = evals[i]
+        if eff.nonlinear or eff.shift or len(eff.columns) == len(top.columns):
             continue
-        if rival_test(W_s, W_top, W.shape[1], y).p_value >= alpha:
-            indistinct = rival_test(W_top, W_s, W.shape[1], y).p_value >= alpha
-            simpler = (replace(ev, indistinct_from=top_ev.effect) if indistinct else ev, eff, W_s, y_s)
-            return [simpler, *evals[:i], *evals[i + 1 :]]
+        if len(eff.columns) < len(top.columns):  # a simpler one behind the top: first when the top's force adds nothing beyond it
+            if rival_test(W_e, W_top, k, y).p_value >= alpha:
+                indistinct = rival_test(W_top, W_e, k, y).p_value >= alpha
+                return [(replace(ev, indistinct_from=top_ev.effect) if indistinct else ev, eff, W_e, y_e), *evals[:i], *evals[i + 1 :]]
+            continue
+        # a larger one behind the top: no better fit, nothing; else the two tests as above, the other way round
+        if ev.relative_error_pct >= top_ev.relative_error_pct:
+            return evals
+        if rival_test(W_top, W_e, k, y).p_value < alpha:
+            return [evals[i], *evals[:i], *evals[i + 1 :]]
+        if rival_test(W_e, W_top, k, y).p_value >= alpha:
+            return [*evals[:t], (replace(top_ev, indistinct_from=ev.effect), top, W_top, y_top), *evals[t + 1 :]]
+        return evals
     return evals
 
 
@@ -250,6 +261,9 @@ def forward_select(
     given: np.ndarray | None = None,
 ) -> SelectionResult:
     """Add catalogue effects to ``base`` one at a time while they are significant and predict better.
+
+    Each round ranks the candidates by the prewhitened test's BIC change (``FTest.delta_bic``), not the raw error (corpus
+    s9710: gravity's 1.93 %, F = 47, ran ahead of a payload's step, 2.12 %, F = 371, and the spring was named gravity).
 
     Parameters
     ----------
@@ -289,8 +303,8 @@ def forward_select(
         factors = {searcher.rate_factor(e) for e in cands if searcher.at_log_rate(e)}
         assert len(factors) <= 1, factors  # one effect searched there (a resonance)
         at = searcher.log_rate(base, [*known, *out.steps], given, factors.pop()) if factors else None
-        # the candidate explaining most of the mismatch first; significance and held-out error gate it
-        evals = sorted((_candidate(searcher, eff, W, y, len(cands), at) for eff in cands), key=lambda e: e[0].relative_error_pct)
+        # the candidate the prewhitened evidence favours most first (the docstring); significance and held-out error gate it
+        evals = sorted((_candidate(searcher, eff, W, y, len(cands), at) for eff in cands), key=lambda e: e[0].test.delta_bic)
         evals = parsimonious_first(evals, W, y, settings.alpha)
         tried: list[Evaluation] = []
         chosen = None
