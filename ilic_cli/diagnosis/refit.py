@@ -34,7 +34,6 @@ from ilic_cli.diagnosis.model_values import model_parameters
 from ilic_cli.diagnosis.oe_fit import OutputErrorFit, output_error_gauss_newton
 from ilic_cli.diagnosis.oe_fit import output_error_refit as _output_error_refit
 from ilic_cli.diagnosis.propose import Proposal
-from ilic_cli.diagnosis.refit_search import ROUND_GAIN
 from ilic_cli.diagnosis.search import searched_at_log_rate
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.stats import gls_covariance
@@ -248,7 +247,7 @@ def _drift_found(prop: Proposal, final: FinalFit, settings: DiagnosisSettings) -
 
 
 def noise_objection(
-    refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str, Any], before: float, known: list[Step], hold: float, round_gain: float = ROUND_GAIN
+    refit: Refit, log: RunLog, ls: LSSettings, sensor: dict[str, Any], before: float, known: list[Step], hold: float, round_gain: float
 ) -> str | None:
     """Why ``refit`` is not kept: replayed with the deciding replays' sensor noise, its output error rises above the inverse model's
     estimate's (``before`` %) by ``round_gain`` of it or more (the share a refit must gain, the settings' ``refit_round_gain``,

@@ -22,7 +22,7 @@ ROS 2 bags, diagnoses them and prints the table of docs/diagnosis.md.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -310,6 +310,12 @@ def cases() -> list[Case]:
             eid = ("asymmetric_friction", "spring", "payload_change", "position_ripple")[(ai + ri) % 4]
             out.append(Case(a, DWELL_TRAJECTORIES[(ai + ri) % 2], fs, "sensor", 900 + 10 * ai + ri, (eid,), 0.8, writer=_writer(a, ai + ri)))
     return out
+
+
+def case_named(name: str, seed: int | None = None) -> Case:
+    """The case of :func:`cases` named ``name``, with ``seed`` in place of its own when given (the log of another seed set)."""
+    case = next(c for c in cases() if c.name == name)
+    return case if seed is None else replace(case, seed=seed)
 
 
 def beyond_cases() -> list[Case]:

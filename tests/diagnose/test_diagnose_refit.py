@@ -267,12 +267,10 @@ def test_a_change_time_on_a_flat_closed_loop_profile_keeps_the_inverse_model_s_i
 
 def _robot(name: str, seed: int):  # type: ignore[no-untyped-def]
     """Corpus case ``name`` of the robot corpus, reseeded, built, and its diagnosis."""
-    import dataclasses
-
     from ilic_cli.diagnosis.core import diagnose
-    from tests.corpus.robot import build, cases
+    from tests.corpus.robot import build, case_named
 
-    built = build(dataclasses.replace(next(c for c in cases() if c.name == name), seed=seed))
+    built = build(case_named(name, seed))
     return built, diagnose(built.log)
 
 

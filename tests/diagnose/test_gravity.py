@@ -132,12 +132,9 @@ def test_a_spring_beside_a_payload_step_is_not_named_gravity() -> None:
     step's prewhitened evidence is far the stronger (F = 371 against gravity's 47), gravity's two columns lowered the raw
     error more (1.93 % against 2.12 %). Ranked by the raw error (planted: fails), gravity was taken first and the spring
     named gravity; ranked by the evidence (``forward_select``), the step first, then the spring, both within 15 %."""
-    import dataclasses
+    from tests.corpus.robot import build, case_named
 
-    from tests.corpus.robot import build, cases
-
-    case = next(c for c in cases() if c.name == "rev0.5/trapezoid/500Hz/current_loop/spring+payload_change/s710")
-    built = build(dataclasses.replace(case, seed=9710))
+    built = build(case_named("rev0.5/trapezoid/500Hz/current_loop/spring+payload_change/s710", 9710))
     diag = diagnose(built.log)
     found = {f.effect.id: f for f in diag.findings}
     assert "gravity" not in found and {"spring", "payload_change"} <= found.keys(), diag.conclusion

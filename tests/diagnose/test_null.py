@@ -243,13 +243,10 @@ def test_the_replay_decides_at_the_usual_level() -> None:
     of itself at p = 0.018. At the former level, 0.01, it was rejected ("not significantly"); at 0.05
     (:data:`REPLAY_ALPHA`, planted 0.01: fails) it is kept, and sized within 5 %. The clean logs that keep it honest: 0 of
     480 robot-corpus logs with a finding at either level, and the forced calibration in docs/diagnosis.md."""
-    import dataclasses
-
     from ilic_cli.diagnosis.core import diagnose
-    from tests.corpus.robot import build, cases
+    from tests.corpus.robot import build, case_named
 
-    case = next(c for c in cases() if c.name == "rev0.01/multisine/500Hz/disturbance/delay/s410")
-    built = build(dataclasses.replace(case, seed=18410))
+    built = build(case_named("rev0.01/multisine/500Hz/disturbance/delay/s410", 18410))
     diag = diagnose(built.log)
     (verdict,) = [v for v in diag.decisions if v.effect == "delay"]
     assert verdict.p_value is not None and 0.01 < verdict.p_value < REPLAY_ALPHA and verdict.accepted
