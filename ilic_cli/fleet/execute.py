@@ -77,8 +77,9 @@ def run_task(task: Task) -> dict[str, Any]:
     ``joint_type``, ``start_time_ns`` as the log gives them), ``estimates``
     (``method``, ``window``, ``t_start``, ``t_end``, ``parameters``: name ->
     ``[value, std, rel_std_pct]``, ``relative_error_pct``), ``findings`` (effect
-    ids, ``None`` without ``diagnose``), ``error`` (``None`` when identified),
-    ``warnings``.
+    ids, ``None`` without ``diagnose``), ``not_judged`` (the effects proposed that
+    no replay could judge: :attr:`ilic_cli.diagnosis.Diagnosis.unjudged`; ``None``
+    without ``diagnose``), ``error`` (``None`` when identified), ``warnings``.
     """
     doc: dict[str, Any] = {
         "key": task.key,
@@ -87,6 +88,7 @@ def run_task(task: Task) -> dict[str, Any]:
         "meta": {},
         "estimates": [],
         "findings": None,
+        "not_judged": None,
         "error": None,
         "warnings": [],
     }
@@ -136,6 +138,7 @@ def _identify_into(doc: dict[str, Any], task: Task) -> None:
             doc["warnings"].append(f"diagnose: {task.path}: internal error: {type(exc).__name__}: {exc}")
         else:
             doc["findings"] = [f["effect"] for f in diagnosis["findings"]]
+            doc["not_judged"] = list(diagnosis["not_judged"])
 
 
 def log_meta(meta: dict[str, Any]) -> dict[str, Any]:

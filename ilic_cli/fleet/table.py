@@ -13,7 +13,10 @@ Columns, in this order and of these types whatever the batch held:
 ``t_start_s``, ``t_end_s``  float64    the window's span (NaN for a whole-log estimate)
 P, ``P_std``, ``P_rel_std_pct``  float64    each parameter P of the structure, σ and %σ
 ``relative_error_pct``      float64    ‖Y − Wθ̂‖/‖Y‖ of the estimate
-``findings``                string     the diagnosis's effect ids, comma-separated; ``none``; null without ``--diagnose``
+``findings``                string     the diagnosis's effect ids, comma-separated; ``none``; ``undecided`` when nothing is
+                                       found and a proposal could not be judged; null without ``--diagnose``
+``not_judged``              string     the effect ids proposed that no replay could judge (their fit is no plant),
+                                       comma-separated; ``none``; null without ``--diagnose``
 ``status``                  string     ``ok`` or ``error``
 ``error``                   string     why the log gave no estimate (or why the diagnosis failed)
 ==========================  =========  =============================================================
@@ -52,7 +55,7 @@ def columns(structure: str) -> list[tuple[str, str]]:
     cols += [("start_time", "timestamp"), ("joint_type", "string"), ("method", "string"), ("window", "int64"), ("t_start_s", "float64"), ("t_end_s", "float64")]
     for name in parameters.structure_names(structure):
         cols += [(name, "float64"), (f"{name}_std", "float64"), (f"{name}_rel_std_pct", "float64")]
-    cols += [("relative_error_pct", "float64"), ("findings", "string"), ("status", "string"), ("error", "string")]
+    cols += [("relative_error_pct", "float64"), ("findings", "string"), ("not_judged", "string"), ("status", "string"), ("error", "string")]
     return cols
 
 
@@ -77,18 +80,35 @@ def rows(result: BatchResult, structure: str, group_by: Any = None) -> list[dict
             "joint_type": meta.get("joint_type"),
         }
         error = group_error or doc["error"]
-        findings = None if doc["findings"] is None else ",".join(doc["findings"]) or "none"
+        findings, not_judged = _diagnosed(doc)
         diag_error = next((w for w in doc["warnings"] if w.startswith("diagnose: ")), None)
         if error is not None or not doc["estimates"]:
-            out.append(_row(base, names, None, None, "error", error or f"{path}: no estimate"))
+            out.append(_row(base, names, None, None, None, "error", error or f"{path}: no estimate"))
             continue
         for est in doc["estimates"]:
-            out.append(_row(base, names, est, findings, "ok", diag_error))
+            out.append(_row(base, names, est, findings, not_judged, "ok", diag_error))
     out.sort(key=_sort_key)
     return out
 
 
-def _row(base: dict[str, Any], names: tuple[str, ...], est: dict[str, Any] | None, findings: str | None, status: str, error: str | None) -> dict[str, Any]:
+def _diagnosed(doc: dict[str, Any]) -> tuple[str | None, str | None]:
+    """The ``findings`` and ``not_judged`` cells of a log's document (``None``: not diagnosed).
+
+    A log whose diagnosis found nothing but could not judge a proposal is ``undecided``, not ``none``: its conclusion is
+    "undecided" (:attr:`ilic_cli.diagnosis.Diagnosis.conclusion`), and a fleet filtered on ``none`` takes it for a clean log.
+    A document a batch stored before ``not_judged`` was kept does not say: its ``not_judged`` is null."""
+    if doc["findings"] is None:
+        return None, None
+    pending = doc.get("not_judged")
+    found = ",".join(doc["findings"])
+    if pending is None:
+        return found or "none", None
+    return found or ("undecided" if pending else "none"), ",".join(pending) or "none"
+
+
+def _row(
+    base: dict[str, Any], names: tuple[str, ...], est: dict[str, Any] | None, findings: str | None, not_judged: str | None, status: str, error: str | None
+) -> dict[str, Any]:
     row = dict(base)
     row["method"] = None if est is None else est["method"]
     row["window"] = 0 if est is None else int(est["window"])
@@ -98,7 +118,7 @@ def _row(base: dict[str, Any], names: tuple[str, ...], est: dict[str, Any] | Non
         v, s, p = est["parameters"].get(n, (None, None, None)) if est is not None else (None, None, None)
         row[n], row[f"{n}_std"], row[f"{n}_rel_std_pct"] = _float(v), _float(s), _float(p)
     row["relative_error_pct"] = _float(None if est is None else est["relative_error_pct"])
-    row["findings"], row["status"], row["error"] = findings, status, error
+    row["findings"], row["not_judged"], row["status"], row["error"] = findings, not_judged, status, error
     return row
 
 
@@ -183,7 +203,7 @@ def read_table(path: Path) -> Any:
             import pyarrow.csv as pacsv
 
             # pyarrow's parser reads every float back exactly (the shortest repr the table was written with)
-            types = {c: pa.string() for c in (*STRING_COLUMNS, "joint_type", "method", "findings", "status", "error")}
+            types = {c: pa.string() for c in (*STRING_COLUMNS, "joint_type", "method", "findings", "not_judged", "status", "error")}
             types["start_time"] = pa.timestamp("ns", tz="UTC")
             frame = pacsv.read_csv(path, convert_options=pacsv.ConvertOptions(column_types=types, strings_can_be_null=True)).to_pandas()
     except FileNotFoundError:

@@ -176,8 +176,34 @@ def test_diagnose_puts_the_findings_in_every_row_of_the_log(small_fleet, tmp_pat
     frame = read_table(tmp_path / "d" / "table.csv")
     plain = read_table(write_table(run_batch([log], tmp_path / "p", TaskSettings()), "rigid-offset")[0])
     # the simulated rigid axis leaves nothing out; identification is the same with or without the diagnosis
-    assert list(frame.findings) == ["none", "none"] and plain.findings.isna().all()
+    assert list(frame.findings) == ["none", "none"] and list(frame.not_judged) == ["none", "none"] and plain.findings.isna().all()
     assert list(frame.M) == list(plain.M) and frame.error.isna().all()
+
+
+def test_an_undecided_diagnosis_is_not_a_clean_row(small_fleet, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A diagnosis that finds nothing but could not judge a proposal (its fit no plant, corpus s21512) is ``undecided`` in the
+    table, the proposal in ``not_judged``; a clean one is ``none`` in both; a document stored before ``not_judged`` was kept
+    leaves it null."""
+    import ilic_cli.diagnosis as diagnosis
+
+    folder, _ = small_fleet
+    log = folder / "m01" / "m01_2026-01-01.mcap"
+
+    class Undecided:
+        def to_dict(self) -> dict[str, object]:
+            return {"findings": [], "not_judged": ["flexibility"]}
+
+    monkeypatch.setattr(diagnosis, "diagnose", lambda *a, **k: Undecided())
+    result = run_batch([log], tmp_path / "u", TaskSettings(diagnose=True))
+    frame = read_table(write_table(result, "rigid-offset")[0])
+    assert list(frame.findings) == ["undecided", "undecided"] and list(frame.not_judged) == ["flexibility", "flexibility"]
+    doc = result.documents[result.keys[0]]
+    doc["not_judged"] = []
+    frame = read_table(write_table(result, "rigid-offset")[0])
+    assert list(frame.findings) == ["none", "none"] and list(frame.not_judged) == ["none", "none"]
+    del doc["not_judged"]
+    frame = read_table(write_table(result, "rigid-offset")[0])
+    assert list(frame.findings) == ["none", "none"] and frame.not_judged.isna().all()
 
 
 def test_a_killed_batch_resumes_to_the_same_table(logs: Path, local_run: Path, tmp_path: Path) -> None:
