@@ -292,7 +292,8 @@ def _findings(prop: Proposal, decision: Decision, final: FinalFit, refit: Refit 
             assert refit is not None and refit.theta is not None and refit.cov is not None
             std = refit.value_std.get(st.effect.id) if st_final.value != st.value else st.value_std if st.level is not None else ev.value_std
             params, plant, note = effect_fit(st_final, refit.names, refit.theta, refit.cov, std, hold, prop.joint)
-            method = refit.method
+            if st_final.value != st.value or st.effect.columns:  # a value alone the refit held (a lag beside the segments' fit) is not its estimate
+                method = refit.method
         params, inverse = st.effect.on_joint(params, prop.joint), st.effect.on_joint(inverse, prop.joint)  # in the joint's units
         findings.append(Finding(st.effect, params, plant, [], ev, "; ".join(n for n in [note, *notes, _indistinct(st.effect, ev)] if n), method, inverse))
     return findings

@@ -537,9 +537,9 @@ def test_a_log_whose_drive_saturates_on_most_rows_is_refused_with_what_left_them
 
     from ilic_cli.usable import MIN_ROWS_PER_COLUMN
     from tests.corpus.measure import controller_flags, write_csv
-    from tests.corpus.robot import build, cases
+    from tests.corpus.robot import build, case_named
 
-    case = next(c for c in cases() if c.name == "lin12/chirp/500Hz/sensor/flexibility/s260")
+    case = case_named("lin12/chirp/500Hz/sensor/flexibility/s260")
     case = dataclasses.replace(case, seed=12260)
     path = write_csv(build(case), tmp_path / "saturating.csv")
     res = run_cli("diagnose", str(path), *controller_flags(case))

@@ -11,7 +11,7 @@ selection, the replay and the fit's figures alike, the change and the spring are
 from __future__ import annotations
 
 from ilic_cli.diagnosis.core import diagnose
-from tests.corpus.robot import TOLERANCE, build, cases, score
+from tests.corpus.robot import TOLERANCE, build, case_named, score
 
 S710 = "rev0.5/trapezoid/500Hz/current_loop/spring+payload_change/s710"
 
@@ -19,7 +19,7 @@ S710 = "rev0.5/trapezoid/500Hz/current_loop/spring+payload_change/s710"
 def test_a_payload_change_at_a_block_s_edge_is_named_with_its_spring() -> None:
     """Measured: payload dM 0.02736 kg (truth 0.02725) from 6.49 s (truth 6.0, the dwell it falls in), spring 0.0871 N·m/rad
     (truth 0.0884); the replay's held-out force error 3.76 % -> 2.84 % -> 2.13 %; nothing else named."""
-    (case,) = [c for c in cases() if c.name == S710]
+    case = case_named(S710)
     built = build(case)
     diag = diagnose(built.log)
     found = [(f.effect.id, f.plant_effect, f.evidence.indistinct_from) for f in diag.findings]

@@ -8,7 +8,7 @@ import dataclasses
 from ilic_cli.diagnosis.propose import propose
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.verdicts import Selection
-from tests.corpus.robot import build, cases
+from tests.corpus.robot import build, case_named
 
 
 def test_a_lag_significant_only_without_the_stronger_stribeck_friction_is_not_proposed() -> None:
@@ -17,7 +17,7 @@ def test_a_lag_significant_only_without_the_stronger_stribeck_friction_is_not_pr
     test unconfirmed on the inverse model's rows; a lag of -0.54 ms (p = 0.00027), whose breakaway force rising before the motion
     it resembles. The lag leaves the smaller error and was tried first: proposed, and kept by the replay beside the friction.
     In the model with the friction its p is 0.44: it is no proposal (without the check, planted: proposed, fails)."""
-    case = next(c for c in cases() if c.name == "rev0.5/trapezoid/1000Hz/disturbance/stribeck/s461")
+    case = case_named("rev0.5/trapezoid/1000Hz/disturbance/stribeck/s461")
     prop = propose(build(dataclasses.replace(case, seed=3461)).log, DiagnosisSettings(), None, None)
     first = {ev.effect: ev for ev in prop.selection.tried[0]}
     lag, friction = first["delay"], first["stribeck"]
@@ -30,7 +30,7 @@ def test_a_lag_significant_only_without_the_stronger_stribeck_friction_is_not_pr
 
 
 def _built(name: str, seed: int):  # type: ignore[no-untyped-def]
-    case = next(c for c in cases() if c.name == name)
+    case = case_named(name)
     return build(dataclasses.replace(case, seed=seed))
 
 

@@ -27,7 +27,7 @@ from ilic_cli.usable import with_rest
 from tests.corpus import robot
 
 FLEX = EFFECTS["flexibility"]
-CASE = next(c for c in robot.cases() if c.name == "lin200/multisine/500Hz/sensor/flexibility/s340")
+CASE = robot.case_named("lin200/multisine/500Hz/sensor/flexibility/s340")
 TRUTH = {"stiffness": 5.96775e6, "damping": 8141.12, "load_fraction": 0.617}  # s3340's (the seed 3340)
 
 

@@ -160,10 +160,10 @@ def test_coupled_values_the_coordinate_search_leaves_short_are_fitted_at_once() 
     from ilic_cli.diagnosis.core import diagnose
     from ilic_cli.diagnosis.fits import CLOSED_LOOP_SPREAD
     from ilic_cli.diagnosis.report import to_markdown
-    from tests.corpus.robot import build, cases
+    from tests.corpus.robot import build, case_named
     from tests.corpus.robot import score as robot_score
 
-    built = build(next(c for c in cases() if c.name == "lin200/s-curve/1000Hz/current_loop/flexibility/s341"))
+    built = build(case_named("lin200/s-curve/1000Hz/current_loop/flexibility/s341"))
     diag = diagnose(built.log)
     refit = diag.refit
     assert refit is not None and refit.accepted and refit.method == OE_METHOD and refit.didim is None, refit.reason if refit else None
@@ -251,9 +251,9 @@ def test_a_change_time_on_a_flat_closed_loop_profile_keeps_the_inverse_model_s_i
     import dataclasses
 
     from ilic_cli.diagnosis.core import diagnose
-    from tests.corpus.robot import build, cases
+    from tests.corpus.robot import build, case_named
 
-    case = next(c for c in cases() if c.name == "lin12/s-curve/500Hz/current_loop/payload_change/s240")
+    case = case_named("lin12/s-curve/500Hz/current_loop/payload_change/s240")
     built = build(dataclasses.replace(case, seed=12240))
     diag = diagnose(built.log)
     (payload,) = [f for f in diag.findings if f.effect.id == "payload_change"]

@@ -158,3 +158,19 @@ def test_a_friction_at_low_speed_whose_replay_falls_at_rest_only_is_rejected() -
     both = 0.5 * before
     verdict, why = hr.in_motion((before, before, None), (both, both, None), "agrees")
     assert verdict is Verdict.AGREES and why.startswith("agrees; where the reference moves p = ")
+
+
+def test_a_lag_the_segments_fit_holds_is_reported_as_the_inverse_models_estimate() -> None:
+    """The open-loop segments' fit holds a value on a linear scale at its start (a drive lag, ``segment_refit``): beside Stribeck
+    friction it estimates (robot corpus, lin12 trapezoid at 500 Hz with the 700 Hz current loop, s210), the lag is the inverse
+    model's, and the report says so, in one column; it said "Estimated by the open-loop segments' output error" beside an
+    identical inverse-model column (planted: the refit's method for every finding, fails)."""
+    from ilic_cli.diagnosis.core import diagnose
+    from tests.corpus.robot import build, case_named
+
+    diag = diagnose(build(case_named("lin12/trapezoid/500Hz/current_loop/stribeck/s210")).log)
+    methods = {f.effect.id: f.method for f in diag.findings}
+    assert diag.refit is not None and diag.refit.accepted and diag.refit.method == segments.METHOD
+    assert methods == {"delay": "IDIM-LS", "stribeck": segments.METHOD}
+    lag = to_markdown(diag).split("`delay`")[1].split("###")[0]
+    assert "Estimated by the inverse model (IDIM-LS)." in lag and "| parameter | value | std |" in lag

@@ -51,7 +51,7 @@ def test_rev05_s721_s_flexibility_is_judged_on_its_plant_folds() -> None:
     """The corpus's 1 kHz flexible elbow: at a resonance of 42 Hz, lightly damped, two of the five folds put the load above
     the axis. (Before the Coulomb column was the expected sign of the noisy velocity, the selection's 33.34 Hz did; now every
     fold's fit there is a plant, and the mechanism is held on a value where some are not.)"""
-    case = next(c for c in robot.cases() if c.name == "rev0.5/multisine/1000Hz/sensor/stribeck+flexibility/s721")
+    case = robot.case_named("rev0.5/multisine/1000Hz/sensor/stribeck+flexibility/s721")
     built = robot.build(case)
     ls = DiagnosisSettings().ls.at_rate(built.log.fs_hz)
     base = get_model("rigid-offset")
