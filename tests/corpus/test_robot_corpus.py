@@ -156,3 +156,29 @@ def test_the_subset_meets_the_done_when(case) -> None:  # noqa: ANN001 - a Case
         within = all(e <= TOLERANCE for e in row["parameter_error"].values())
         assert within is (short != "parameters"), row["parameter_error"]
         assert BAND_PTS[0] <= row["size_pts"] <= BAND_PTS[1], row["size_pts"]
+
+
+def test_a_size_whose_log_is_refused_is_beyond_the_band(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A size at which the loop saturates the drive gives a log ``identify`` refuses (``--reseed 9`` s27510's flexibility): the
+    calibration takes it for a change beyond the band and sizes below it, not a crash of the whole corpus run (planted: the
+    refusal not caught, fails)."""
+    from ilic_cli.errors import IdentificationError
+    from tests.corpus import robot
+
+    size = [0.0]  # the size of the effect last simulated
+    real = robot.effect_of_size
+
+    def sized(eid: str, s: float, *args: object) -> dict[str, float]:
+        size[0] = s
+        return real(eid, s, *args)  # type: ignore[arg-type]
+
+    def error_pct(log: object) -> float:
+        if size[0] > 0.5:  # the doubling's 0.8 and the bisection's 0.566 saturate
+            raise IdentificationError("robot-corpus", "only 3 decimated rows are left once the invalid (saturated) samples are masked")
+        return 1.0 + size[0]
+
+    monkeypatch.setattr(robot, "effect_of_size", sized)
+    monkeypatch.setattr(robot, "simulate", lambda case, effects: None)
+    monkeypatch.setattr(robot, "relative_error_pct", error_pct)
+    s, change = robot.calibrate(robot.case_named("rev0.5/trapezoid/500Hz/sensor/flexibility/s510"), "flexibility", 0.5, 1.0)
+    assert 0.4 < s <= 0.5 and change == pytest.approx(s) and BAND_PTS[0] <= change <= BAND_PTS[1]
