@@ -23,7 +23,7 @@ def _flexibility(seed: int) -> tuple[dict[str, float], dict[str, float], Refit]:
 def test_a_500_hz_resonance_is_refitted_where_the_output_error_sees_it() -> None:
     """Seed 6510: the inverse model's damping ratio is 0.138 for 0.10 (the position's noise), and the refit in the rows' band
     kept it, the load behind the spring making up for it: 0.509 of the inertia for 0.4, the stiffness 19 % off. In the 67 Hz
-    band its resonance and damping are searched on the closed loop (planted: the rows' band, fails): within 2 %."""
+    band its resonance and damping are searched on the closed loop (planted: the rows' band, fails): within 5 % (measured 1.2 %)."""
     plant, truth, refit = _flexibility(6510)
     assert refit.reason.startswith("in the 66.7 Hz band that sees the resonance: refitted on the closed loop")
     assert {s.parameter for s in refit.searches if s.accepted} == {"f_res", "damping_ratio"}
