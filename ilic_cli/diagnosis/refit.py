@@ -17,7 +17,7 @@ Each result is a :class:`~ilic_cli.diagnosis.fits.Refit` with its typed
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import cache
 from typing import Any
@@ -159,7 +159,8 @@ def refit(
         return at_the_replays_values(prop, decision, final, ls)
     data, base, rows = prop.data, prop.base, prop.rows
     grids = {s.effect.id: s.effect.scan.grid(data.kin, data.fs_hz) for s in kept if s.effect.scan is not None}
-    wide = wide_band(ls, data, kept, grids)
+    at_log_rate = {s.effect.id for s in kept if s.effect.id in grids and searched_at_log_rate(s.effect, data)}
+    wide = wide_band(ls, data.fs_hz, max(float(grids[e][-1]) for e in at_log_rate)) if at_log_rate else None
     inverse_fit: InverseFit | None = lambda s: _inverse_fit(data, base, s, rows)
     columns, theta0 = kept, final.res.theta
     if held:
@@ -198,16 +199,16 @@ def refit(
         out.reason = f"{seen}: {out.reason}"
         return out
     # DIDIM failed there: the refit in the rows' band, which does not see the resonance, its values the inverse model's
-    rows_band = refitted(ls, {s.effect.id: grids[s.effect.id] for s in kept if s.effect.id in grids and not searched_at_log_rate(s.effect, data)})
+    rows_band = refitted(ls, {e: g for e, g in grids.items() if e not in at_log_rate})
     rows_band.reason = f"{seen}, {out.reason}; in the rows' band: {rows_band.reason}"
     return rows_band
 
 
-def wide_band(ls: LSSettings, data: IDIMData, kept: list[Step], grids: Mapping[str, np.ndarray]) -> LSSettings | None:
+def wide_band(ls: LSSettings, fs_hz: float, top_hz: float) -> LSSettings:
     """The settings of the closed-loop refit when a kept effect's value is searched at the log's rate (a resonance above the rows'
     band, below 1 kHz: :func:`~ilic_cli.diagnosis.search.searched_at_log_rate`): the rows decimated only as far as keeps the top of
-    its grid in their band (:func:`~ilic_cli.diagnosis.search.log_rate_factor`, the inverse model's search's), so that the output
-    error sees the resonance and its value is searched there as every other's; else ``None`` (the rows' band).
+    its grid, ``top_hz``, in their band (:func:`~ilic_cli.diagnosis.search.log_rate_factor`, the inverse model's search's), so that
+    the output error sees the resonance and its value is searched there as every other's.
 
     In the rows' band (33 Hz at 500 Hz) the output error barely sees a 28-35 Hz mode, and the refit kept the inverse model's
     resonance and damping ratio, which the position's noise biases (damping ratios 24 % high on average on the robot corpus's
@@ -216,11 +217,8 @@ def wide_band(ls: LSSettings, data: IDIMData, kept: list[Step], grids: Mapping[s
     a Stribeck friction beside them 5 of 10 -> 2 of 10. Where DIDIM fails in that band (an iterate outside the plant), the
     caller refits in the rows' band instead.
     """
-    tops = [float(grids[s.effect.id][-1]) for s in kept if s.effect.id in grids and searched_at_log_rate(s.effect, data)]
-    if not tops:
-        return None
-    at = ls.at_rate(data.fs_hz)
-    return replace(at, band_hz=None, decimation=log_rate_factor(data.fs_hz, at.decimation, max(tops)))
+    at = ls.at_rate(fs_hz)
+    return replace(at, band_hz=None, decimation=log_rate_factor(fs_hz, at.decimation, top_hz))
 
 
 def at_the_replays_values(prop: Proposal, decision: Decision, final: FinalFit, ls: LSSettings) -> Refit:
