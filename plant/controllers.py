@@ -20,7 +20,7 @@ The force is applied from ``t_k`` to ``t_k + T`` (zero-order hold).
 
 PD (``../shared/reference/emps-benchmark.md``), at sample k::
 
-    qfm(k) = 0.5*qm(k) + 0.5*qm(k-1)
+    qfm(k) = 0.5*qm(k) + 0.5*qm(k-1)              (velocity="averaged", the benchmark's; "backward": qfm(k) = qm(k))
     qdm(k) = (qfm(k) - qfm(k-1)) / T
     v(k)   = kv*(kp*(qg(k) - qm(k)) - qdm(k))
     vir(k) = sat(v(k-1), +-vmax) + pulses(k)      (one-sample delay, then saturation)
@@ -32,6 +32,10 @@ sample's position and acts from ``t_k + delay_samples*T`` on (the plant's drive
 lag carries the fraction): ``vir(k) = sat(v(k), +-vmax) + pulses(k)``, logged at
 sample ``k`` as the EMPS recordings log it (their ``vir(k)`` follows the law on
 ``qm(k)``, not ``qm(k-1)``: :mod:`ilic_cli.simulation.timing`).
+
+``velocity="backward"`` differences the measured position itself, the textbook discrete PD: a loop written so
+records a command the benchmark's law does not fit, and :mod:`ilic_cli.simulation.timing` reads which of the two
+estimates the recording follows, as it reads the sample.
 
 ``pulse_input="held"`` (default) holds ``vir(k)`` over the period, as the rig
 did (the recorded ``vir`` includes the pulses); ``"ramp"`` moves the pulse part
@@ -52,9 +56,12 @@ from ilic_cli import parameters
 from ilic_cli.errors import ParameterError
 
 # packed controller vector (read by the integrator)
-C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP, C_PD_SAME = range(12)
-N_CTRL = 12
+C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP, C_PD_SAME, C_PD_BACKWARD = range(13)
+N_CTRL = 13
 PULSE_INPUTS = ("held", "ramp")
+PD_VELOCITIES = ("averaged", "backward")
+"""The PD loop's velocity estimates: the benchmark's difference of the position averaged over two samples, or the plain
+backward difference of the measured position."""
 VELOCITY_ESTIMATES = ("backward", "exact")
 KIND_CTC, KIND_PD = 0.0, 1.0
 
@@ -142,7 +149,7 @@ class CTCSettings:
 @dataclass
 class PDSettings:
     """The benchmark PD loop (values of DATA_EMPS.mat by default); ``pulse_input``: ``held`` or ``ramp``;
-    ``delay_samples``: computation delay in periods, in [0, 1] (module docstring)."""
+    ``delay_samples``: computation delay in periods, in [0, 1]; ``velocity``: one of :data:`PD_VELOCITIES` (module docstring)."""
 
     kp: float = 160.18
     kv: float = 243.45
@@ -150,6 +157,7 @@ class PDSettings:
     vmax: float = 10.0
     pulse_input: str = "held"
     delay_samples: float = 1.0
+    velocity: str = "averaged"
 
     kind = "pd"
 
@@ -159,6 +167,8 @@ class PDSettings:
             raise ParameterError("pulse_input", self.pulse_input, f"one of {', '.join(PULSE_INPUTS)}")
         if not (math.isfinite(self.delay_samples) and 0.0 <= self.delay_samples <= 1.0):
             raise ParameterError("delay_samples", self.delay_samples, "a number of control periods in [0, 1]")
+        if self.velocity not in PD_VELOCITIES:
+            raise ParameterError("velocity", self.velocity, f"one of {', '.join(PD_VELOCITIES)}")
 
     @property
     def same_sample(self) -> bool:
@@ -166,14 +176,17 @@ class PDSettings:
         return self.delay_samples < 1.0
 
     def to_dict(self) -> dict[str, Any]:
-        d = self.delay_samples
-        return {"kind": "pd", **asdict(self), "delay_samples": 1 if d == 1.0 else d, "position_filter": [0.5, 0.5]}
+        d, out = self.delay_samples, asdict(self)
+        if self.velocity == "averaged":  # the benchmark's loop: its metadata as before the estimate was a setting
+            del out["velocity"]
+        return {"kind": "pd", **out, "delay_samples": 1 if d == 1.0 else d, "position_filter": [0.5, 0.5] if self.velocity == "averaged" else [1.0]}
 
     def vector(self) -> np.ndarray:
         c = np.zeros(N_CTRL)
         c[C_KIND], c[C_PD_KP], c[C_PD_KV], c[C_GTAU], c[C_VMAX] = KIND_PD, self.kp, self.kv, self.gtau, self.vmax
         c[C_PULSE_RAMP] = 1.0 if self.pulse_input == "ramp" else 0.0
         c[C_PD_SAME] = 1.0 if self.same_sample else 0.0
+        c[C_PD_BACKWARD] = 1.0 if self.velocity == "backward" else 0.0
         return c
 
 

@@ -57,6 +57,7 @@ def controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
                 vmax=float(ctl.get("vmax", 10.0)),
                 pulse_input=str(ctl.get("pulse_input", "held")),
                 delay_samples=float(ctl.get("delay_samples", 1.0)),
+                velocity=str(ctl.get("velocity", "averaged")),
             )
         except (TypeError, ValueError):
             raise SimulationError(log.provenance.source, "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None

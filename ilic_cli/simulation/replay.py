@@ -1,7 +1,8 @@
 """Replay of a log through the plant, and the relative errors of a simulation against the recording.
 
 The replay uses the plant's public :func:`plant.simulate_replay` (the
-controller of the log's metadata). The relative errors
+controller of the log's metadata). A lag the recording's timing gave the loop (:data:`LAG_READ`) and a ``delay`` effect are one
+lag from the sample to the force: a model with the effect replays the loop acting at its sample, the effect the whole lag. The relative errors
 (:func:`ilic_cli.closed_loop_id.relative_errors`, the benchmark's simulation
 table) are defined with the closed-loop estimators, which score their replays
 by them, and offered here beside the replay.
@@ -10,15 +11,29 @@ by them, and offered here beside the replay.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 from ilic_cli.closed_loop_id import relative_errors
 from ilic_cli.prepare import tau_sensor
 from ilic_cli.runlog import RunLog
 from plant.controllers import PDSettings
-from plant.replay import simulate_replay
+from plant.replay import controller_from_log, simulate_replay
 
-__all__ = ["REPLAY_STEP_S", "relative_errors", "replay", "replay_substeps", "tau_sensor"]
+__all__ = ["DRIVE_LAGS", "LAG_READ", "REPLAY_STEP_S", "relative_errors", "replay", "replay_substeps", "tau_sensor"]
+
+LAG_READ = "delay_samples_read"
+"""The key of a PD controller's metadata saying that its ``delay_samples`` (below one period: the command acts within its sample)
+was read from the recording by replaying it with a model (:func:`ilic_cli.simulation.timing.with_recorded_timing`), not
+declared. That lag stands in for a lag the model lacks: it is the same lag as a ``delay`` effect's (the plant adds both to the
+drive's lag), and read with a model without a drive lag it absorbs that lag (a 2 ms actuator delay on a loop written apart
+from ``ilic``, acting within its sample: 0.9 of the 1 ms period read as timing and 1.15 ms left to the effect). A model with a
+drive lag (:data:`DRIVE_LAGS`) is replayed with the command acting at its sample, the effect carrying the whole lag (2.03 ms
+there, as the inverse model's rows say)."""
+
+DRIVE_LAGS = ("delay", "current_loop")
+"""The plant's entries that realise a drive lag (a ``delay`` effect's value: a lag shorter than a sample is the current loop's,
+:func:`ilic_cli.effects.drive` ``_delay_realise``)."""
 
 REPLAY_STEP_S = 1e-4
 """The finest integration step the diagnosis's replays need (s): a tenth of the 1 kHz period, the step every EMPS figure and the
@@ -45,6 +60,18 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
     (:mod:`ilic_cli.diagnosis.null`'s replicates).
     """
     effects = dict(effects or {})
+    if controller is None and any(e in effects for e in DRIVE_LAGS):
+        controller = _at_the_sample(log)
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
     return simulate_replay(log, params, effects, controller, substeps=replay_substeps(log.fs_hz), tau_sensor=tau_sensor(log), seed=seed)
+
+
+def _at_the_sample(log: RunLog) -> PDSettings | None:
+    """The log's PD loop acting at its sample when its lag was read from the recording (:data:`LAG_READ`), else ``None`` (the
+    log's loop as it is)."""
+    recorded = log.controller
+    if recorded is None or not recorded.settings.get(LAG_READ):
+        return None
+    ctl = controller_from_log(log)
+    return replace(ctl, delay_samples=0.0) if isinstance(ctl, PDSettings) else None

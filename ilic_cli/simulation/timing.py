@@ -12,6 +12,14 @@ fraction of a period after its sample, keeping the fraction that minimises the
 replayed force error (an optimum at a bound of the range is reported as such,
 never as a measured lag). :func:`with_recorded_timing` gives the log whose
 controller carries that timing: the diagnosis replays the loop that ran.
+
+The law is read with both of the loop's velocity estimates (:data:`plant.controllers.PD_VELOCITIES`): the benchmark's
+difference of the position averaged over two samples, and the textbook backward difference of the measured position.
+A loop written the textbook way records a command the benchmark's law does not fit (its velocity term is half a period
+earlier and noisier), and the replay then ran another loop than the recording's: on a 12 kg axis whose viscous friction
+warms up by a third, simulated apart from ``ilic``'s plant with that loop acting within its sample, the replay with the
+benchmark's loop put the simulated force error at 24 %, 22 % with the warm-up in the plant, and the diagnosis rejected
+the warm-up the inverse model had found (-31 %, time constant 2.0 s for 2.0 s).
 """
 
 from __future__ import annotations
@@ -24,9 +32,10 @@ import numpy as np
 
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.idim_ls import LSSettings
+from ilic_cli.prepare import drive_command
 from ilic_cli.runlog import RunLog
-from ilic_cli.simulation.replay import relative_errors, replay
-from plant.controllers import PDSettings
+from ilic_cli.simulation.replay import LAG_READ, relative_errors, replay
+from plant.controllers import PD_VELOCITIES, PDSettings
 from plant.replay import controller_from_log
 
 GRID = tuple(round(0.1 * i, 1) for i in range(10))
@@ -51,6 +60,11 @@ class LawResiduals:
 
     same_pct: float
     previous_pct: float
+    velocity: str = "averaged"
+    """The velocity estimate of the law the residuals are of (:data:`plant.controllers.PD_VELOCITIES`): the backward difference
+    when its law fits clearly better (its least residual below :data:`FOLLOWS_RATIO` of the benchmark's), else the benchmark's."""
+    other_pct: float | None = None
+    """The other estimate's least residual (% of the command's RMS), ``None`` when not read."""
 
     @property
     def follows(self) -> str | None:
@@ -62,17 +76,24 @@ class LawResiduals:
         return None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"same_sample_pct": self.same_pct, "previous_sample_pct": self.previous_pct, "follows": self.follows}
+        return {
+            "same_sample_pct": self.same_pct,
+            "previous_sample_pct": self.previous_pct,
+            "follows": self.follows,
+            "velocity": self.velocity,
+            "other_velocity_pct": self.other_pct,
+        }
 
 
 def pd_law_residuals(
     q: np.ndarray, q_ref: np.ndarray, vir: np.ndarray, pulses: np.ndarray | None, kp: float, kv: float, vmax: float, dt_s: float
 ) -> LawResiduals:
-    """How well the recorded command follows the benchmark PD law on the same and on the previous sample.
+    """How well the recorded command follows the PD law on the same and on the previous sample, with the velocity estimate
+    whose law fits it (:attr:`LawResiduals.velocity`).
 
-    ``v(k) = kv*(kp*(q_ref(k) - q(k)) - (q(k) - q(k-2))/(2 dt))`` (the
-    position averaged over two samples, then differenced); the first three
-    samples and those where either reading saturates (``|v| >= vmax``) are
+    ``v(k) = kv*(kp*(q_ref(k) - q(k)) - (q(k) - q(k-2))/(2 dt))`` (the benchmark's: the
+    position averaged over two samples, then differenced), or ``(q(k) - q(k-1))/dt`` in its place (the backward
+    difference); the first three samples and those where either reading saturates (``|v| >= vmax``) are
     left out, and the pulses enter with the gain that fits best (one least-squares
     factor per reading).
 
@@ -90,9 +111,21 @@ def pd_law_residuals(
     LawResiduals
     """
     q, q_ref, vir = (np.asarray(a, dtype=np.float64) for a in (q, q_ref, vir))
+    averaged = _law_residuals(q, q_ref, vir, pulses, kp, kv, vmax, (q[2:] - q[:-2]) / (2.0 * dt_s))
+    backward = _law_residuals(q, q_ref, vir, pulses, kp, kv, vmax, (q[2:] - q[1:-1]) / dt_s)
+    if min(backward) < FOLLOWS_RATIO * min(averaged):
+        return LawResiduals(*backward, velocity=PD_VELOCITIES[1], other_pct=min(averaged))
+    return LawResiduals(*averaged, velocity=PD_VELOCITIES[0], other_pct=min(backward))
+
+
+def _law_residuals(
+    q: np.ndarray, q_ref: np.ndarray, vir: np.ndarray, pulses: np.ndarray | None, kp: float, kv: float, vmax: float, qd: np.ndarray
+) -> tuple[float, float]:
+    """``(same, previous)``: the residuals (% of the command's RMS) of the law with the velocity estimate ``qd`` (from the third
+    sample on) on the same and on the previous sample (:func:`pd_law_residuals`)."""
     add = np.zeros_like(vir) if pulses is None else np.asarray(pulses, dtype=np.float64)
     v = np.empty_like(q)
-    v[2:] = kv * (kp * (q_ref[2:] - q[2:]) - (q[2:] - q[:-2]) / (2.0 * dt_s))
+    v[2:] = kv * (kp * (q_ref[2:] - q[2:]) - qd)
     v[:2] = v[2]
     inside = np.abs(v) < vmax
     keep = inside[3:] & inside[2:-1]  # off the saturation on both readings (where the rig's clipping may differ)
@@ -106,7 +139,7 @@ def pd_law_residuals(
             e = e - a * (float(a @ e) / float(a @ a))
         return 100.0 * float(np.sqrt(np.mean(e**2))) / scale
 
-    return LawResiduals(rms_pct(vir[3:] - v[3:] - add[3:]), rms_pct(vir[3:] - v[2:-1] - add[3:]))
+    return rms_pct(vir[3:] - v[3:] - add[3:]), rms_pct(vir[3:] - v[2:-1] - add[3:])
 
 
 def vertex(x: np.ndarray, y: np.ndarray, i: int) -> float:
@@ -128,7 +161,11 @@ class ControlTiming:
     Attributes
     ----------
     law : LawResiduals
-        Which sample the recorded command follows.
+        Which sample the recorded command follows, and with which velocity estimate.
+    replay_velocity : str
+        The velocity estimate of the loop the log declares (the replay's before the law was read).
+    lag_found : bool
+        The diagnosis kept a drive lag: its model replays the loop acting at the sample, the lag the delay's (:data:`LAG_READ`).
     negative_flexibility : bool
         The diagnosis rejected a flexibility for its negative mass (the sentence then says what it is).
     period_s : float
@@ -140,7 +177,8 @@ class ControlTiming:
     at_edge : str or None
         Why ``best`` is a bound of the range, not a measured lag.
     documented, refined : dict
-        Replay errors (position, velocity, force, %) with one period of delay and with ``best``.
+        Replay errors (position, velocity, force, %) with the declared loop (one period of delay) and with the loop read
+        (``best``, the velocity estimate of ``law``).
     """
 
     law: LawResiduals
@@ -151,31 +189,62 @@ class ControlTiming:
     documented: dict[str, float] = field(default_factory=dict)
     refined: dict[str, float] = field(default_factory=dict)
     negative_flexibility: bool = False
+    lag_found: bool = False
+    replay_velocity: str = PD_VELOCITIES[0]
+
+    @property
+    def velocity_mismatch(self) -> bool:
+        """The recorded command follows a law whose velocity estimate is not the declared loop's."""
+        return self.law.follows is not None and self.law.velocity != self.replay_velocity
 
     @property
     def mismatch(self) -> bool:
-        """The command follows the same sample while the replay delays it by a period."""
-        return self.law.follows == "same" and bool(self.tried)
+        """The replay's loop is not the recording's: the command follows the same sample while the replay delays it by a
+        period (and a delay was read), or its velocity estimate is another."""
+        return (self.law.follows == "same" and bool(self.tried)) or self.velocity_mismatch
 
     def sentence(self) -> str:
-        """One sentence for reports (empty when the replay's timing is the recording's)."""
-        if not self.mismatch or self.best is None:
+        """One sentence for reports (empty when the replay's loop is the recording's)."""
+        if not self.mismatch or (self.tried and self.best is None) or not self.refined:
             return ""
         law = self.law
         f0, f1 = self.documented["force"], self.refined["force"]
         v0, v1 = self.documented["velocity"], self.refined["velocity"]
-        ms = self.best * self.period_s * 1e3
-        where = f"acting {ms:.2g} ms after its sample" if self.at_edge is None else f"acting {ms:.2g} ms after its sample ({self.at_edge})"
-        return (
-            f"The recorded command follows the PD law on the same sample's position ({law.same_pct:.2g} % of its RMS left, "
-            f"{law.previous_pct:.2g} % on the previous sample's), so the drive acts within the sample, not one period later "
-            f"as the documented loop assumes: the replays here run the loop with the command {where}; "
-            f"the starting model's simulated force error is {f1:.2f} % so, {f0:.2f} % with the documented loop (velocity {v1:.3g} %, {v0:.3g} %)"
-        ) + (
-            "; a drive lag this short is what the flexibility candidate's negative mass shows (a rigid plant simulated with a 0.2 ms lag "
-            "on the EMPS reference gives one too, README), not a two-mass axis"
-            if self.negative_flexibility
+        estimate = (
+            f" with the {law.velocity} difference of the position as its velocity ({law.other_pct:.2g} % left with the "
+            f"{self.replay_velocity} one the declared loop uses)"
+            if self.velocity_mismatch
             else ""
+        )
+        if self.tried and self.best is not None:
+            ms = self.best * self.period_s * 1e3
+            where = f"acting {ms:.2g} ms after its sample" if self.at_edge is None else f"acting {ms:.2g} ms after its sample ({self.at_edge})"
+            head = (
+                f"The recorded command follows the PD law{estimate} on the same sample's position ({law.same_pct:.2g} % of its RMS left, "
+                f"{law.previous_pct:.2g} % on the previous sample's), so the drive acts within the sample, not one period later "
+                f"as the documented loop assumes: the replays here run the loop with the command {where}"
+            )
+        else:
+            head = (
+                f"The recorded command follows the PD law{estimate} on the {law.follows} sample's position "
+                f"({min(law.same_pct, law.previous_pct):.2g} % of its RMS left): the replays here run that loop"
+            )
+        return (
+            (
+                f"{head}; the simulated force error of the model the timing is read with is {f1:.2f} % so, {f0:.2f} % with the documented loop "
+                f"(velocity {v1:.3g} %, {v0:.3g} %)"
+            )
+            + (
+                "; the model with the delay found replays the loop acting at its sample, the delay the whole lag"
+                if self.lag_found and self.tried and self.best is not None
+                else ""
+            )
+            + (
+                "; a drive lag this short is what the flexibility candidate's negative mass shows (a rigid plant simulated with a 0.2 ms lag "
+                "on the EMPS reference gives one too, README), not a two-mass axis"
+                if self.negative_flexibility
+                else ""
+            )
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -186,6 +255,7 @@ class ControlTiming:
             "best_delay_samples": self.best,
             "best_delay_s": None if self.best is None else self.best * self.period_s,
             "at_edge": self.at_edge,
+            "lag_found": self.lag_found,
             "documented": self.documented,
             "refined": self.refined,
             "sentence": self.sentence(),
@@ -193,7 +263,8 @@ class ControlTiming:
 
 
 def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, ls: LSSettings) -> ControlTiming | None:
-    """The timing of ``log``'s PD loop; ``None`` for a log without a recorded PD command (``vir``, ``q_ref``, the loop's gains).
+    """The timing of ``log``'s PD loop; ``None`` for a log without a recorded PD command (``vir``, or its force with a declared
+    drive gain: :func:`ilic_cli.prepare.drive_command`), ``q_ref`` or the loop's gains.
 
     When the command follows the same sample and the replay's loop delays it
     by a period, the log is replayed with ``params``/``effects`` at the delays
@@ -201,7 +272,8 @@ def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any
     lag), and the least one is refined by a parabola (a minimum at 0 or at the
     top of the grid is a bound: ``at_edge``).
     """
-    if "vir" not in log or "q_ref" not in log or "q" not in log:
+    command = drive_command(log)  # its vir, or its force over the declared drive gain (the one definition)
+    if command is None or "q_ref" not in log or "q" not in log:
         return None
     try:
         ctl = controller_from_log(log)
@@ -210,19 +282,23 @@ def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any
     if not isinstance(ctl, PDSettings) or ctl.pulse_input != "held":
         return None
     pulses = log["pulses"] if "pulses" in log else None
-    law = pd_law_residuals(log["q"], log["q_ref"], log["vir"], pulses, ctl.kp, ctl.kv, ctl.vmax, log.dt_s)
-    out = ControlTiming(law, log.dt_s)
+    law = pd_law_residuals(log["q"], log["q_ref"], command, pulses, ctl.kp, ctl.kv, ctl.vmax, log.dt_s)
+    out = ControlTiming(law, log.dt_s, replay_velocity=ctl.velocity)
+    read = replace(ctl, velocity=law.velocity) if out.velocity_mismatch else ctl
     if law.follows != "same" or ctl.same_sample:
+        if out.velocity_mismatch:  # the declared timing, the velocity estimate read
+            out.documented = relative_errors(log, replay(log, params, effects, controller=ctl), ls)
+            out.refined = relative_errors(log, replay(log, params, effects, controller=read), ls)
         return out
 
     cache: dict[float, dict[str, float]] = {}
 
     def errors(delay: float) -> dict[str, float]:
         if delay not in cache:
-            cache[delay] = relative_errors(log, replay(log, params, effects, controller=replace(ctl, delay_samples=delay)), ls)
+            cache[delay] = relative_errors(log, replay(log, params, effects, controller=replace(read, delay_samples=delay)), ls)
         return cache[delay]
 
-    out.documented = errors(1.0)
+    out.documented = errors(1.0) if not out.velocity_mismatch else relative_errors(log, replay(log, params, effects, controller=ctl), ls)
     # walk up the grid while the force error falls (it is unimodal in the lag: measured on both EMPS runs),
     # so a minimum at 0 costs two replays instead of the whole grid
     for d in GRID:
@@ -245,16 +321,21 @@ def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any
 
 
 def with_recorded_timing(log: RunLog, timing: ControlTiming | None) -> RunLog:
-    """``log`` whose PD controller acts with the timing read from it (``delay_samples`` = ``timing.best``).
+    """``log`` whose PD controller acts with the timing read from it (``delay_samples`` = ``timing.best``) and estimates the
+    velocity as its recorded command does.
 
     Unchanged when the recording follows the replay's loop already (or tells
     nothing). At a bound of the range the bound is used: the least replayed
     error there, though only bounded as a lag (:attr:`ControlTiming.at_edge`).
     """
-    if timing is None or not timing.mismatch or timing.best is None:
+    if timing is None or not timing.mismatch or (timing.tried and timing.best is None):
         return log
     recorded = log.controller
-    controller = {**(recorded.settings if recorded is not None else {}), "kind": "pd", "delay_samples": float(timing.best)}
+    controller = {**(recorded.settings if recorded is not None else {}), "kind": "pd"}
+    if timing.tried and timing.best is not None:
+        controller["delay_samples"], controller[LAG_READ] = float(timing.best), True
+    if timing.velocity_mismatch:
+        controller["velocity"] = timing.law.velocity
     return RunLog(dict(log.channels), dict(log.units), {**log.meta, "controller": controller})
 
 

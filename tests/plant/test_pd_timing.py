@@ -1,4 +1,5 @@
-"""The PD loop's computation delay (``PDSettings.delay_samples``): where the command acts, and what is logged."""
+"""The PD loop's computation delay (``PDSettings.delay_samples``) and velocity estimate (``PDSettings.velocity``): where the command
+acts, what is logged, and which law the log is read to follow."""
 
 from __future__ import annotations
 
@@ -49,6 +50,28 @@ def test_the_documented_loop_is_unchanged() -> None:
     assert sim.meta["controller"]["delay_samples"] == 1 and isinstance(sim.meta["controller"]["delay_samples"], int)
 
 
+@pytest.mark.parametrize("delay", [0.0, 1.0])
+def test_a_backward_difference_loop_is_read_as_such(delay: float) -> None:
+    """``velocity="backward"``: the textbook loop differences the measured position itself; the law is read with that estimate, on
+    the sample it is computed from, and the benchmark's averaged estimate leaves a residual of the command."""
+    log = make_synthetic_log(samples=2000)
+    sim = simulate_replay(log, PARAMS, controller=PDSettings(delay_samples=delay, velocity="backward"))
+    q, T = sim["q"], sim.dt_s
+    c = PDSettings()
+    v = c.kv * (c.kp * (sim["q_ref"][2:] - q[2:]) - (q[2:] - q[1:-1]) / T)  # the law, written out
+    logged = sim["vir"][2:] - sim["pulses"][2:]
+    np.testing.assert_allclose(logged if delay == 0.0 else logged[1:], np.clip(v if delay == 0.0 else v[:-1], -c.vmax, c.vmax), atol=1e-9)
+    law = pd_law_residuals(q, sim["q_ref"], sim["vir"], sim["pulses"], c.kp, c.kv, c.vmax, T)
+    assert law.velocity == "backward" and law.follows == ("same" if delay == 0.0 else "previous")
+    assert min(law.same_pct, law.previous_pct) < 1e-9 and law.other_pct is not None and law.other_pct > 0.5
+    meta = sim.meta["controller"]
+    assert meta["velocity"] == "backward" and meta["position_filter"] == [1.0]
+    # the benchmark's loop keeps its metadata as it was (no velocity key) and is read with its own estimate
+    bench = simulate_replay(log, PARAMS, controller=PDSettings())
+    assert "velocity" not in bench.meta["controller"] and bench.meta["controller"]["position_filter"] == [0.5, 0.5]
+    assert pd_law_residuals(bench["q"], bench["q_ref"], bench["vir"], bench["pulses"], c.kp, c.kv, c.vmax, T).velocity == "averaged"
+
+
 def test_delay_samples_is_checked() -> None:
     log = make_synthetic_log(samples=200)
     for bad in (-0.1, 1.5, float("nan")):
@@ -56,3 +79,5 @@ def test_delay_samples_is_checked() -> None:
             simulate_replay(log, PARAMS, controller=PDSettings(delay_samples=bad))
     with pytest.raises(ParameterError, match="ramped pulses"):
         simulate_replay(log, PARAMS, controller=PDSettings(delay_samples=0.5, pulse_input="ramp"))
+    with pytest.raises(ParameterError, match="velocity"):
+        simulate_replay(log, PARAMS, controller=PDSettings(velocity="filtered"))

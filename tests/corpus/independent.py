@@ -1,0 +1,88 @@
+"""Logs from a simulator written apart from ``ilic``'s plant: what a user's own simulator, or a robot, records.
+
+The project's corpora run ``plant.simulate_replay``, whose PD loop is the EMPS benchmark's (velocity of the position averaged
+over two samples, the command acting one period after its sample) and whose integrator and friction are the ones the replays
+use. A log from elsewhere need not share any of it. This simulator shares nothing but the axes and references of
+:mod:`tests.logs.test_rates`:
+
+- the textbook discrete PD loop: ``u(k) = kv (kp (q_ref(k) - q_m(k)) - (q_m(k) - q_m(k-1)) / T)``, clipped to +-10 V, acting
+  from its own sample (``loop="same"``) or one period later (``"previous"``), logged as ``effort = drive_gain u(k)``;
+- a semi-implicit Euler integration, ``SUBSTEPS`` steps a period;
+- Coulomb friction with stiction (Karnopp): at rest the axis stays while the drive's force is within the break-away level,
+  and a velocity crossing zero within a step stops there;
+- the effects written out in the force balance: a warm-up of the viscous coefficient ``Fv + dFv (1 - exp(-t / tau))``,
+  gravity ``g (MX cos q - MY sin q)``, a spring ``k (q - q0)``, Stribeck friction (the Coulomb level rising to ``Fs`` at
+  rest, ``Fc + (Fs - Fc) exp(-(v / vs)^2)``, and breaking away there), a payload ``dM`` added at ``t``, an actuator delay
+  (the force acts ``delay`` s after the command);
+- position noise and encoder quantisation as the axis states.
+
+Pure Python, one loop over the substeps (0.3 s for 9 s at 500 Hz).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ilic_cli.runlog import RunLog
+from tests.logs.test_rates import AXES, reference
+
+SUBSTEPS = 10
+G = 9.81
+LOOPS = ("same", "previous")
+
+
+def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, float]], seed: int, repeat: int = 1) -> RunLog:
+    """The axis ``name`` of :data:`tests.logs.test_rates.AXES` following its moves ``repeat`` times (each repetition from where the last
+    ended) at ``fs_hz`` under the textbook PD loop, with ``effects`` (``drift``: ``dFv, tau``; ``gravity``: ``MX, MY``; ``spring``:
+    ``k, q0``; ``stribeck``: ``Fs, vs``; ``payload``: ``dM, t``; ``delay``: ``delay`` s); the log as a user's CSV is read with the
+    loop declared: ``t, q, q_ref, tau``, no ``vir``."""
+    if loop not in LOOPS:
+        raise ValueError(f"loop: one of {LOOPS}")
+    axis = AXES[name]
+    t1, q1 = reference(axis, fs_hz)
+    q_ref = np.concatenate([q1 + i * q1[-1] for i in range(repeat)])
+    t = np.arange(len(q_ref)) / fs_hz
+    T, h = 1.0 / fs_hz, 1.0 / (fs_hz * SUBSTEPS)
+    M, Fv, Fc = axis.truth["M"], axis.truth["Fv"], axis.truth["Fc"]
+    kp, kv = axis.gains()
+    rng = np.random.default_rng(seed)
+    noise = rng.normal(0.0, axis.noise, len(t))
+    drift, gravity, lag = effects.get("drift"), effects.get("gravity"), effects.get("delay")
+    spring, stribeck, payload = effects.get("spring"), effects.get("stribeck"), effects.get("payload")
+    breakaway = stribeck["Fs"] if stribeck else Fc
+    pending = [0.0] * (int(round(lag["delay"] / h)) + 1 if lag else 1)  # the commanded force on its way to the axis
+    q = v = 0.0
+    q_prev = 0.0
+    u_prev = 0.0
+    qm = np.empty(len(t))
+    effort = np.empty(len(t))
+    for k in range(len(t)):
+        meas = round((q + noise[k]) / axis.resolution) * axis.resolution
+        law = kv * (kp * (q_ref[k] - meas) - (meas - (q_prev if k else meas)) / T)
+        u = law if loop == "same" else u_prev
+        u = min(max(u, -10.0), 10.0)
+        u_prev, q_prev = law, meas
+        qm[k], effort[k] = meas, axis.drive_gain * u
+        for s in range(SUBSTEPS):
+            pending.append(axis.drive_gain * u)
+            force = pending.pop(0)
+            time = t[k] + s * h
+            fv = Fv + drift["dFv"] * (1.0 - math.exp(-time / drift["tau"])) if drift else Fv
+            if gravity:
+                force -= G * (gravity["MX"] * math.cos(q) - gravity["MY"] * math.sin(q))
+            if spring:
+                force -= spring["k"] * (q - spring["q0"])
+            if v == 0.0 and abs(force) <= breakaway:  # stuck
+                continue
+            direction = math.copysign(1.0, v if v != 0.0 else force)
+            fc = Fc + (stribeck["Fs"] - Fc) * math.exp(-((v / stribeck["vs"]) ** 2)) if stribeck else Fc
+            m = M + payload["dM"] if payload and time >= payload["t"] else M
+            v_next = v + h * (force - fv * v - fc * direction) / m
+            v = 0.0 if v != 0.0 and v_next * v < 0.0 else v_next
+            q += h * v
+    position, force_unit = ("m", "N") if axis.joint == "prismatic" else ("rad", "N·m")
+    meta: dict[str, Any] = {"controller": {"kind": "pd", "kp": kp, "kv": kv}, "drive_gain": axis.drive_gain, "source": f"independent {name}"}
+    return RunLog({"t": t, "q": qm, "q_ref": q_ref, "tau": effort}, {"t": "s", "q": position, "q_ref": position, "tau": force_unit}, meta)
