@@ -16,7 +16,7 @@ use. A log from elsewhere need not share any of it. This simulator shares nothin
   (the force acts ``delay`` s after the command);
 - position noise and encoder quantisation as the axis states.
 
-Pure Python, one loop over the substeps (0.3 s for 9 s at 500 Hz).
+Pure Python, one loop over the substeps (0.1 s for 9 s at 500 Hz, 10 steps a period).
 """
 
 from __future__ import annotations
@@ -30,6 +30,8 @@ from ilic_cli.runlog import RunLog
 from tests.logs.test_rates import AXES, reference
 
 SUBSTEPS = 10
+"""Euler steps a period by default (the tests'). At 0.2 ms (500 Hz) its steps lag a break-away from Stribeck friction enough for
+the diagnosis to see a delay of a tenth of a millisecond beside it; with 40 (50 µs) that is gone (:mod:`benchmarks.corpus_independent`)."""
 G = 9.81
 LOOPS = ("same", "previous")
 
@@ -39,13 +41,22 @@ def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, fl
     ended) at ``fs_hz`` under the textbook PD loop, with ``effects`` (``drift``: ``dFv, tau``; ``gravity``: ``MX, MY``; ``spring``:
     ``k, q0``; ``stribeck``: ``Fs, vs``; ``payload``: ``dM, t``; ``delay``: ``delay`` s); the log as a user's CSV is read with the
     loop declared: ``t, q, q_ref, tau``, no ``vir``."""
+    axis = AXES[name]
+    _, q1 = reference(axis, fs_hz)
+    q_ref = np.concatenate([q1 + i * q1[-1] for i in range(repeat)])
+    return run_loop(axis, fs_hz, q_ref, loop, effects, seed, name)
+
+
+def run_loop(
+    axis: Any, fs_hz: float, q_ref: np.ndarray, loop: str, effects: dict[str, dict[str, float]], seed: int, name: str = "", substeps: int = SUBSTEPS
+) -> RunLog:
+    """``axis`` (its ``truth``, ``drive_gain``, ``gains()``, ``noise``, ``resolution``, ``joint``: :class:`tests.logs.test_rates.Axis` or
+    :class:`tests.corpus.robot.Axis`) following ``q_ref`` sampled at ``fs_hz`` under the textbook PD loop (:func:`simulate`), in
+    ``substeps`` Euler steps a period."""
     if loop not in LOOPS:
         raise ValueError(f"loop: one of {LOOPS}")
-    axis = AXES[name]
-    t1, q1 = reference(axis, fs_hz)
-    q_ref = np.concatenate([q1 + i * q1[-1] for i in range(repeat)])
     t = np.arange(len(q_ref)) / fs_hz
-    T, h = 1.0 / fs_hz, 1.0 / (fs_hz * SUBSTEPS)
+    T, h = 1.0 / fs_hz, 1.0 / (fs_hz * substeps)
     M, Fv, Fc = axis.truth["M"], axis.truth["Fv"], axis.truth["Fc"]
     kp, kv = axis.gains()
     rng = np.random.default_rng(seed)
@@ -66,7 +77,7 @@ def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, fl
         u = min(max(u, -10.0), 10.0)
         u_prev, q_prev = law, meas
         qm[k], effort[k] = meas, axis.drive_gain * u
-        for s in range(SUBSTEPS):
+        for s in range(substeps):
             pending.append(axis.drive_gain * u)
             force = pending.pop(0)
             time = t[k] + s * h
@@ -84,5 +95,5 @@ def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, fl
             v = 0.0 if v != 0.0 and v_next * v < 0.0 else v_next
             q += h * v
     position, force_unit = ("m", "N") if axis.joint == "prismatic" else ("rad", "N·m")
-    meta: dict[str, Any] = {"controller": {"kind": "pd", "kp": kp, "kv": kv}, "drive_gain": axis.drive_gain, "source": f"independent {name}"}
+    meta: dict[str, Any] = {"controller": {"kind": "pd", "kp": kp, "kv": kv}, "drive_gain": axis.drive_gain, "source": f"independent {name or axis.joint}"}
     return RunLog({"t": t, "q": qm, "q_ref": q_ref, "tau": effort}, {"t": "s", "q": position, "q_ref": position, "tau": force_unit}, meta)
