@@ -1,8 +1,9 @@
 """Logs of a simulator written apart from ``ilic``'s plant, diagnosed and identified (issue 29: right on logs nobody tuned it to).
 
 Every case runs :func:`tests.corpus.independent.run_loop` (the textbook PD loop: the backward difference of the measured
-position, acting at its sample or one period later; semi-implicit Euler, :data:`SUBSTEPS` steps a period; Coulomb friction
-with stiction; the effects written out in the force balance) on two axes of the robot corpus (:data:`tests.corpus.robot.AXES`:
+position, acting at its sample or one period later, or the plant's own velocity at its sample; semi-implicit Euler,
+:data:`SUBSTEPS` steps a period; Coulomb friction with stiction; the effects written out in the force balance) on two axes
+of the robot corpus (:data:`tests.corpus.robot.AXES`:
 the 12 kg linear axis and the 0.5 kg·m² revolute joint), following a trapezoid with dwells or a chirp of that corpus
 (:func:`tests.corpus.robot.reference`, 10 s), at 500 Hz, 1 and 2 kHz, each effect sized as that corpus sizes it
 (:func:`tests.corpus.robot.effect_of_size`) at one size. Each log is diagnosed and, when clean and of moves with dwells,
@@ -26,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 RATES_HZ = (500.0, 1000.0, 2000.0)
-LOOPS = ("same", "previous")
+LOOPS = ("same", "previous", "state")
 AXES = ("lin12", "rev0.5")
 TRAJECTORIES = ("trapezoid", "chirp")
 SEED = 7

@@ -21,7 +21,7 @@ The force is applied from ``t_k`` to ``t_k + T`` (zero-order hold).
 PD (``../shared/reference/emps-benchmark.md``), at sample k::
 
     qfm(k) = 0.5*qm(k) + 0.5*qm(k-1)              (velocity="averaged", the benchmark's; "backward": qfm(k) = qm(k))
-    qdm(k) = (qfm(k) - qfm(k-1)) / T
+    qdm(k) = (qfm(k) - qfm(k-1)) / T              ("exact": the plant's own velocity at t_k)
     v(k)   = kv*(kp*(qg(k) - qm(k)) - qdm(k))
     vir(k) = sat(v(k-1), +-vmax) + pulses(k)      (one-sample delay, then saturation)
     force  = gtau*vir(k)
@@ -33,9 +33,10 @@ lag carries the fraction): ``vir(k) = sat(v(k), +-vmax) + pulses(k)``, logged at
 sample ``k`` as the EMPS recordings log it (their ``vir(k)`` follows the law on
 ``qm(k)``, not ``qm(k-1)``: :mod:`ilic_cli.simulation.timing`).
 
-``velocity="backward"`` differences the measured position itself, the textbook discrete PD: a loop written so
-records a command the benchmark's law does not fit, and :mod:`ilic_cli.simulation.timing` reads which of the two
-estimates the recording follows, as it reads the sample.
+``velocity="backward"`` differences the measured position itself, the textbook discrete PD; ``"exact"`` feeds back the
+plant's own velocity at the sample, as a simulator written with the state at hand may (no rig measures it so). A loop
+written either way records a command the benchmark's law does not fit, and :mod:`ilic_cli.simulation.timing` reads which
+estimate the recording follows, as it reads the sample.
 
 ``pulse_input="held"`` (default) holds ``vir(k)`` over the period, as the rig
 did (the recorded ``vir`` includes the pulses); ``"ramp"`` moves the pulse part
@@ -56,12 +57,12 @@ from ilic_cli import parameters
 from ilic_cli.errors import ParameterError
 
 # packed controller vector (read by the integrator)
-C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP, C_PD_SAME, C_PD_BACKWARD = range(13)
+C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP, C_PD_SAME, C_PD_VELOCITY = range(13)
 N_CTRL = 13
 PULSE_INPUTS = ("held", "ramp")
-PD_VELOCITIES = ("averaged", "backward")
-"""The PD loop's velocity estimates: the benchmark's difference of the position averaged over two samples, or the plain
-backward difference of the measured position."""
+PD_VELOCITIES = ("averaged", "backward", "exact")
+"""The PD loop's velocity estimates: the benchmark's difference of the position averaged over two samples, the plain
+backward difference of the measured position, or the plant's own velocity (packed as the index in this tuple)."""
 VELOCITY_ESTIMATES = ("backward", "exact")
 KIND_CTC, KIND_PD = 0.0, 1.0
 
@@ -179,14 +180,14 @@ class PDSettings:
         d, out = self.delay_samples, asdict(self)
         if self.velocity == "averaged":  # the benchmark's loop: its metadata as before the estimate was a setting
             del out["velocity"]
-        return {"kind": "pd", **out, "delay_samples": 1 if d == 1.0 else d, "position_filter": [0.5, 0.5] if self.velocity == "averaged" else [1.0]}
+        return {"kind": "pd", **out, "delay_samples": 1 if d == 1.0 else d, "position_filter": {"averaged": [0.5, 0.5], "backward": [1.0]}.get(self.velocity)}
 
     def vector(self) -> np.ndarray:
         c = np.zeros(N_CTRL)
         c[C_KIND], c[C_PD_KP], c[C_PD_KV], c[C_GTAU], c[C_VMAX] = KIND_PD, self.kp, self.kv, self.gtau, self.vmax
         c[C_PULSE_RAMP] = 1.0 if self.pulse_input == "ramp" else 0.0
         c[C_PD_SAME] = 1.0 if self.same_sample else 0.0
-        c[C_PD_BACKWARD] = 1.0 if self.velocity == "backward" else 0.0
+        c[C_PD_VELOCITY] = float(PD_VELOCITIES.index(self.velocity))
         return c
 
 

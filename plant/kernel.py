@@ -50,7 +50,7 @@ import numpy as np
 
 from ilic_cli.jit import njit
 from ilic_cli.parameters import STANDARD_GRAVITY
-from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_BACKWARD, C_PD_KP, C_PD_KV, C_PD_SAME, C_PULSE_RAMP, C_VMAX
+from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PD_SAME, C_PD_VELOCITY, C_PULSE_RAMP, C_VMAX
 from plant.dynamics import (
     N_PLANT,
     P_CL_BW,
@@ -290,8 +290,8 @@ def _command(k, x0, x1, cs, q_r, qd_r, qdd_r, pulses, noise_q, c, chi, T, res, f
         cs[2] = 0.0
         cs[3] = 1.0
     if c[C_KIND] == 1.0:
-        qfm = qm if c[C_PD_BACKWARD] == 1.0 else 0.5 * qm + 0.5 * cs[0]
-        qdm = (qfm - cs[1]) / T
+        qfm = qm if c[C_PD_VELOCITY] == 1.0 else 0.5 * qm + 0.5 * cs[0]  # backward, or the benchmark's averaged position
+        qdm = x1 if c[C_PD_VELOCITY] == 2.0 else (qfm - cs[1]) / T  # exact: the plant's own velocity
         v = c[C_PD_KV] * (c[C_PD_KP] * (q_r[k] - qm) - qdm)
         vd = v if c[C_PD_SAME] == 1.0 else cs[2]  # same: computed from this sample, delayed by the drive lag (plant.controllers)
         if vd > c[C_VMAX]:

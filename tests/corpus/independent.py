@@ -6,7 +6,9 @@ use. A log from elsewhere need not share any of it. This simulator shares nothin
 :mod:`tests.logs.test_rates`:
 
 - the textbook discrete PD loop: ``u(k) = kv (kp (q_ref(k) - q_m(k)) - (q_m(k) - q_m(k-1)) / T)``, clipped to +-10 V, acting
-  from its own sample (``loop="same"``) or one period later (``"previous"``), logged as ``effort = drive_gain u(k)``;
+  from its own sample (``loop="same"``) or one period later (``"previous"``), logged as ``effort = drive_gain u(k)``; or the
+  loop a simulator writes with the state at hand (``"state"``): the plant's own velocity in place of the difference, acting
+  from its sample;
 - a semi-implicit Euler integration, ``SUBSTEPS`` steps a period;
 - Coulomb friction with stiction (Karnopp): at rest the axis stays while the drive's force is within the break-away level,
   and a velocity crossing zero within a step stops there;
@@ -33,7 +35,7 @@ SUBSTEPS = 10
 """Euler steps a period by default (the tests'). At 0.2 ms (500 Hz) its steps lag a break-away from Stribeck friction enough for
 the diagnosis to see a delay of a tenth of a millisecond beside it; with 40 (50 µs) that is gone (:mod:`benchmarks.corpus_independent`)."""
 G = 9.81
-LOOPS = ("same", "previous")
+LOOPS = ("same", "previous", "state")
 
 
 def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, float]], seed: int, repeat: int = 1) -> RunLog:
@@ -72,8 +74,8 @@ def run_loop(
     effort = np.empty(len(t))
     for k in range(len(t)):
         meas = round((q + noise[k]) / axis.resolution) * axis.resolution
-        law = kv * (kp * (q_ref[k] - meas) - (meas - (q_prev if k else meas)) / T)
-        u = law if loop == "same" else u_prev
+        law = kv * (kp * (q_ref[k] - meas) - (v if loop == "state" else (meas - (q_prev if k else meas)) / T))
+        u = u_prev if loop == "previous" else law
         u = min(max(u, -10.0), 10.0)
         u_prev, q_prev = law, meas
         qm[k], effort[k] = meas, axis.drive_gain * u

@@ -72,6 +72,20 @@ def test_a_backward_difference_loop_is_read_as_such(delay: float) -> None:
     assert pd_law_residuals(bench["q"], bench["q_ref"], bench["vir"], bench["pulses"], c.kp, c.kv, c.vmax, T).velocity == "averaged"
 
 
+def test_a_loop_fed_the_plant_s_velocity_is_read_as_such() -> None:
+    """``velocity="exact"``: the command is the law on the plant's own velocity at its sample; read with the velocity IDIM-LS
+    estimates, that law leaves the position noise's filtered trace, the differences far more."""
+    log = make_synthetic_log(samples=3000)
+    c = PDSettings(delay_samples=0.0, velocity="exact")
+    sim = simulate_replay(log, PARAMS, {"quantization": {"resolution": 5e-8}}, controller=c)
+    v = c.kv * (c.kp * (sim["q_ref"] - sim["q"]) - sim["qd_plant"])  # the law, written out on the plant's velocity at the sample
+    np.testing.assert_allclose(sim["vir"] - sim["pulses"], np.clip(v, -c.vmax, c.vmax), atol=1e-9)
+    law = pd_law_residuals(sim["q"], sim["q_ref"], sim["vir"], sim["pulses"], c.kp, c.kv, c.vmax, sim.dt_s)
+    assert law.velocity == "exact" and law.follows == "same"
+    assert law.other_pct is not None and min(law.same_pct, law.previous_pct) < 0.5 * law.other_pct
+    assert "position_filter" in sim.meta["controller"] and sim.meta["controller"]["position_filter"] is None
+
+
 def test_delay_samples_is_checked() -> None:
     log = make_synthetic_log(samples=200)
     for bad in (-0.1, 1.5, float("nan")):
