@@ -285,8 +285,9 @@ def controller_options(func: F) -> F:
         type=click.Choice(PD_TIMINGS),
         default="recorded",
         show_default=True,
-        help="When a PD log's command acts in the replays: as read from the recording (the EMPS recordings' command follows the same "
-        "sample's position), or as documented in its metadata (the benchmark's loop, one period late).",
+        help="The PD loop the replays run: as read from the recording (which sample its command follows, when it acts, which "
+        "velocity it feeds back; the EMPS recordings' command follows the same sample's position), or as documented in its "
+        "metadata (the benchmark's loop, one period late).",
     )(func)
     func = click.option(
         "--drive-gain",
