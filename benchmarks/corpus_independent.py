@@ -2,7 +2,8 @@
 
 Every case runs :func:`tests.corpus.independent.run_loop` (the textbook PD loop: the backward difference of the measured
 position, acting at its sample or one period later, or the plant's own velocity at its sample; semi-implicit Euler,
-:data:`SUBSTEPS` steps a period; Coulomb friction with stiction; the effects written out in the force balance) on two axes
+:data:`SUBSTEPS` steps a period; Coulomb friction with stiction, or smoothed without it; the effects written out in the
+force balance) on two axes
 of the robot corpus (:data:`tests.corpus.robot.AXES`:
 the 12 kg linear axis and the 0.5 kg·m² revolute joint), following a trapezoid with dwells or a chirp of that corpus
 (:func:`tests.corpus.robot.reference`, 10 s), at 500 Hz, 1 and 2 kHz, each effect sized as that corpus sizes it
@@ -27,7 +28,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 RATES_HZ = (500.0, 1000.0, 2000.0)
-LOOPS = ("same", "previous", "state")
+LOOPS = ("same", "previous", "state", "same, tanh")
+"""The loop (:data:`tests.corpus.independent.LOOPS`); ``"same, tanh"``: the loop acting at its sample, the simulator's Coulomb
+friction smoothed by ``tanh(v / eps)`` without stiction, ``eps`` a hundredth of the axis's cruise speed."""
 AXES = ("lin12", "rev0.5")
 TRAJECTORIES = ("trapezoid", "chirp")
 SEED = 7
@@ -71,7 +74,8 @@ def run(axis_name: str, trajectory: str, fs_hz: float, loop: str, eid: str) -> d
     axis = ROBOT_AXES[axis_name]
     _, q_ref = reference(axis, trajectory, fs_hz, SEED, 10.0)
     effects, truth = plant_and_truth(eid, axis)
-    log = run_loop(axis, fs_hz, q_ref, loop, effects, SEED, axis_name, SUBSTEPS)
+    smooth = 0.01 * axis.speed if loop.endswith("tanh") else 0.0
+    log = run_loop(axis, fs_hz, q_ref, loop.split(",")[0], effects, SEED, axis_name, SUBSTEPS, smooth)
     diag = diagnose(log, settings=DiagnoseSettings())
     found = {f.effect.id: {k: v.value for k, v in f.parameters.items()} for f in diag.findings}
     named = None if eid == "clean" else eid
@@ -102,15 +106,17 @@ def main(argv: list[str] | None = None) -> int:
         ident = f"{100 * r['identify']:.2f} %" if "identify" in r else ""
         named = (", ".join(r["found"]) or "nothing") + ("" if r["exact"] else " (not exact)")
         print(f"| {r['log']} | {r['rate']:g} Hz | {r['loop']} | {named} | {err} | {ident} |")
-    effect_rows = [r for r in rows if not r["log"].endswith("clean")]
-    clean = [r for r in rows if r["log"].endswith("clean")]
-    within = [r["error"] for r in effect_rows if r["error"] is not None]
-    ident = [r["identify"] for r in clean if "identify" in r]
     print()
-    print(f"effect logs named exactly {sum(r['exact'] for r in effect_rows)}/{len(effect_rows)}; ", end="")
-    print(f"values within 15 % on {sum(e <= 0.15 for e in within)}/{len(within)} named effects; ", end="")
-    print(f"clean logs with a finding {sum(bool(r['found']) for r in clean)}/{len(clean)}; ", end="")
-    print(f"identify within 2 % on {sum(e <= 0.02 for e in ident)}/{len(ident)}")
+    for loop in (*LOOPS, None):  # each loop, then all
+        of = [r for r in rows if loop is None or r["loop"] == loop]
+        effect_rows = [r for r in of if not r["log"].endswith("clean")]
+        clean = [r for r in of if r["log"].endswith("clean")]
+        within = [r["error"] for r in effect_rows if r["error"] is not None]
+        ident = [r["identify"] for r in clean if "identify" in r]
+        print(f"{loop or 'all'}: effect logs named exactly {sum(r['exact'] for r in effect_rows)}/{len(effect_rows)}; ", end="")
+        print(f"values within 15 % on {sum(e <= 0.15 for e in within)}/{len(within)} named effects; ", end="")
+        print(f"clean logs with a finding {sum(bool(r['found']) for r in clean)}/{len(clean)}; ", end="")
+        print(f"identify within 2 % on {sum(e <= 0.02 for e in ident)}/{len(ident)}")
     return 0
 
 

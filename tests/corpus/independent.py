@@ -11,7 +11,8 @@ use. A log from elsewhere need not share any of it. This simulator shares nothin
   from its sample;
 - a semi-implicit Euler integration, ``SUBSTEPS`` steps a period;
 - Coulomb friction with stiction (Karnopp): at rest the axis stays while the drive's force is within the break-away level,
-  and a velocity crossing zero within a step stops there;
+  and a velocity crossing zero within a step stops there; or smoothed without stiction, ``Fc tanh(v / eps)``
+  (``smooth_speed = eps``), as simulators often write it: the axis then creeps at the dwells;
 - the effects written out in the force balance: a warm-up of the viscous coefficient ``Fv + dFv (1 - exp(-t / tau))``,
   gravity ``g (MX cos q - MY sin q)``, a spring ``k (q - q0)``, Stribeck friction (the Coulomb level rising to ``Fs`` at
   rest, ``Fc + (Fs - Fc) exp(-(v / vs)^2)``, and breaking away there), a payload ``dM`` added at ``t``, an actuator delay
@@ -38,7 +39,7 @@ G = 9.81
 LOOPS = ("same", "previous", "state")
 
 
-def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, float]], seed: int, repeat: int = 1) -> RunLog:
+def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, float]], seed: int, repeat: int = 1, smooth_speed: float = 0.0) -> RunLog:
     """The axis ``name`` of :data:`tests.logs.test_rates.AXES` following its moves ``repeat`` times (each repetition from where the last
     ended) at ``fs_hz`` under the textbook PD loop, with ``effects`` (``drift``: ``dFv, tau``; ``gravity``: ``MX, MY``; ``spring``:
     ``k, q0``; ``stribeck``: ``Fs, vs``; ``payload``: ``dM, t``; ``delay``: ``delay`` s); the log as a user's CSV is read with the
@@ -46,15 +47,23 @@ def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, fl
     axis = AXES[name]
     _, q1 = reference(axis, fs_hz)
     q_ref = np.concatenate([q1 + i * q1[-1] for i in range(repeat)])
-    return run_loop(axis, fs_hz, q_ref, loop, effects, seed, name)
+    return run_loop(axis, fs_hz, q_ref, loop, effects, seed, name, smooth_speed=smooth_speed)
 
 
 def run_loop(
-    axis: Any, fs_hz: float, q_ref: np.ndarray, loop: str, effects: dict[str, dict[str, float]], seed: int, name: str = "", substeps: int = SUBSTEPS
+    axis: Any,
+    fs_hz: float,
+    q_ref: np.ndarray,
+    loop: str,
+    effects: dict[str, dict[str, float]],
+    seed: int,
+    name: str = "",
+    substeps: int = SUBSTEPS,
+    smooth_speed: float = 0.0,
 ) -> RunLog:
     """``axis`` (its ``truth``, ``drive_gain``, ``gains()``, ``noise``, ``resolution``, ``joint``: :class:`tests.logs.test_rates.Axis` or
     :class:`tests.corpus.robot.Axis`) following ``q_ref`` sampled at ``fs_hz`` under the textbook PD loop (:func:`simulate`), in
-    ``substeps`` Euler steps a period."""
+    ``substeps`` Euler steps a period; ``smooth_speed`` > 0: Coulomb friction ``tanh(v / smooth_speed)``, no stiction."""
     if loop not in LOOPS:
         raise ValueError(f"loop: one of {LOOPS}")
     t = np.arange(len(q_ref)) / fs_hz
@@ -88,13 +97,16 @@ def run_loop(
                 force -= G * (gravity["MX"] * math.cos(q) - gravity["MY"] * math.sin(q))
             if spring:
                 force -= spring["k"] * (q - spring["q0"])
-            if v == 0.0 and abs(force) <= breakaway:  # stuck
+            if smooth_speed > 0.0:  # no stiction: the sign smoothed
+                direction = math.tanh(v / smooth_speed)
+            elif v == 0.0 and abs(force) <= breakaway:  # stuck
                 continue
-            direction = math.copysign(1.0, v if v != 0.0 else force)
+            else:
+                direction = math.copysign(1.0, v if v != 0.0 else force)
             fc = Fc + (stribeck["Fs"] - Fc) * math.exp(-((v / stribeck["vs"]) ** 2)) if stribeck else Fc
             m = M + payload["dM"] if payload and time >= payload["t"] else M
             v_next = v + h * (force - fv * v - fc * direction) / m
-            v = 0.0 if v != 0.0 and v_next * v < 0.0 else v_next
+            v = 0.0 if smooth_speed == 0.0 and v != 0.0 and v_next * v < 0.0 else v_next
             q += h * v
     position, force_unit = ("m", "N") if axis.joint == "prismatic" else ("rad", "N·m")
     meta: dict[str, Any] = {"controller": {"kind": "pd", "kp": kp, "kv": kv}, "drive_gain": axis.drive_gain, "source": f"independent {name or axis.joint}"}
