@@ -13,6 +13,7 @@ from __future__ import annotations
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
+from ilic_cli.diagnosis.verdicts import Verdict
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.simulation.timing import control_timing
 from tests.corpus.independent import simulate
@@ -97,3 +98,13 @@ def test_a_proposal_that_does_not_replay_leaves_the_timing_to_the_rigid_fit(monk
     diag = diagnose(simulate("linear", 1000.0, "same", {}, 11), settings=DiagnoseSettings())
     assert diag.timing is not None and diag.timing.law.velocity == "backward" and diag.timing.best is not None and diag.timing.best < 0.1
     assert diag.findings == []
+
+
+def test_a_delay_kept_below_the_period_rule_is_no_finding() -> None:
+    """The period rule holds for the value kept, which the findings report, not only for the value judged: beside Stribeck friction
+    at 500 Hz (the simulator's 0.2 ms Euler steps lag its break-away) a delay judged at the closed loop's -0.86 to -1.06 ms was
+    kept and reported at the inverse model's -0.12 ms, 0.06 of the period."""
+    diag = diagnose(simulate("linear", 500.0, "previous", {"stribeck": {"Fs": 6.0, "vs": 0.02}}, 14), settings=DiagnoseSettings())
+    assert [f.effect.id for f in diag.findings] == ["stribeck"]
+    delay = next(v for v in diag.decisions if v.effect == "delay")
+    assert delay.verdict is Verdict.BELOW_PERIOD and "inverse model -0.118 ms" in delay.reason
