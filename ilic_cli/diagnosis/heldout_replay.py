@@ -428,12 +428,9 @@ class HeldoutReplays:
             sims = [_replayed(vlog, self.plant_of, s, fit_system(self.data, self.base, s, self.rows), vsensor) for s in (kept, [*kept, judged])]
             if sims[0] is not None and sims[1] is not None:
                 vb, va = relative_errors(vlog, sims[0], vls)["force"], relative_errors(vlog, sims[1], vls)["force"]
-        # the period rule holds for the value judged and for the value kept (an inverse-model proposal is kept at its own value,
-        # which the findings report: a lag judged at the closed loop's -0.86 to -1.06 ms beside an unmodelled Stribeck friction
-        # was reported at the inverse model's -0.12 ms, 0.06 of a 500 Hz period)
-        short = below_period(judged, self.data.fs_hz, self.min_delay_periods) or (
-            None if proposed_here else below_period(st, self.data.fs_hz, self.min_delay_periods)
-        )
+        # the period rule on the value judged and on the value kept, which the findings report (an inverse-model proposal's own)
+        fs, least = self.data.fs_hz, self.min_delay_periods
+        short = below_period(judged, fs, least) or (None if proposed_here else below_period(st, fs, least))
         verdict, why = replay_verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, short)
         if proposed_here and verdict is Verdict.AGREES:
             verdict, why = self.in_motion(current, after, why)
