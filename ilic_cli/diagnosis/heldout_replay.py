@@ -230,8 +230,6 @@ class HeldoutReplays:
         self.idx_q = np.concatenate([np.arange(a, b) for spans in self.blocks for a, b in spans])
         self.moving_tau = reference_moving(np.asarray(log["q_ref"]), self.step_dec)[self.idx_tau]
         """Whether the reference moves at each held-out force sample (:func:`~ilic_cli.diagnosis.dwell.reference_moving`)."""
-        self.moving_q = reference_moving(np.asarray(log["q_ref"]), 1)[self.idx_q]
-        """Whether the reference moves at each held-out position sample."""
         self.min_delay_periods = MIN_DELAY_PERIODS
         """A judged delay shorter than this share of the sample period is not a finding (:func:`~ilic_cli.diagnosis.materiality.below_period`)."""
         self.fold_xatol_steps = FOLD_XATOL_STEPS
@@ -266,10 +264,12 @@ class HeldoutReplays:
     def compared(self, current: Heldout, after: Heldout, moving: bool = False) -> tuple[tuple[float, float], tuple[float, float], float, float]:
         """The held-out force and position errors (%) without and with (:meth:`percent`) on the folds both have
         (:meth:`paired`), the held-out test's p that ``after``'s are the smaller (:func:`heldout_fall_p`), and the share of
-        the held-out force samples left out. ``moving``: compared where the reference moves only (:attr:`moving_tau`, :attr:`moving_q`)."""
+        the held-out force samples left out. ``moving``: compared where the reference moves only (:attr:`moving_tau`; the positions
+        at full rate)."""
         current, after, left_out = self.paired(current, after)
         if moving:
-            current, after = ((np.where(self.moving_tau, h[0], np.nan), np.where(self.moving_q, h[1], np.nan), h[2]) for h in (current, after))
+            moving_q = reference_moving(np.asarray(self.log["q_ref"]), 1)[self.idx_q]
+            current, after = ((np.where(self.moving_tau, h[0], np.nan), np.where(moving_q, h[1], np.nan), h[2]) for h in (current, after))
         (fb, pb), (fa, pa) = self.percent(current), self.percent(after)
         both = np.isfinite(current[0]) & np.isfinite(after[0])
         return (fb, fa), (pb, pa), heldout_fall_p(current[0][both], after[0][both]), left_out

@@ -141,12 +141,14 @@ def pd_law_residuals(
     if len(q) >= min_samples(ls):  # long enough for the filter (every log a fit takes)
         estimates["exact"].append(derivative(filtered_position(q, fs_hz, ls), dt_s, ls.stencil)[2:])
     laws = {name: min((_law_residuals(q, q_ref, vir, pulses, kp, kv, vmax, e) for e in estimates[name]), key=min) for name in PD_VELOCITIES}
+
+    def others(name: str) -> float:
+        return min(min(r) for other, r in laws.items() if other != name)
+
     best = min(laws, key=lambda name: min(laws[name]))
-    others = min(min(r) for name, r in laws.items() if name != best)
-    if best == PD_VELOCITIES[0] or not min(laws[best]) < FOLLOWS_RATIO * others:
+    if not min(laws[best]) < FOLLOWS_RATIO * others(best):
         best = PD_VELOCITIES[0]  # the benchmark's, unless another fits clearly better
-        others = min(min(r) for name, r in laws.items() if name != best)
-    return LawResiduals(*laws[best], velocity=best, other_pct=others)
+    return LawResiduals(*laws[best], velocity=best, other_pct=others(best))
 
 
 def _law_residuals(
@@ -316,20 +318,23 @@ def control_timing(log: RunLog, params: dict[str, float], effects: dict[str, Any
     law = pd_law_residuals(log["q"], log["q_ref"], command, pulses, ctl.kp, ctl.kv, ctl.vmax, log.dt_s)
     out = ControlTiming(law, log.dt_s, replay_velocity=ctl.velocity)
     read = replace(ctl, velocity=law.velocity) if out.velocity_mismatch else ctl
+
+    def replayed(loop: PDSettings) -> dict[str, float]:
+        return relative_errors(log, replay(log, params, effects, controller=loop), ls)
+
     if law.follows != "same" or ctl.same_sample:
         if out.velocity_mismatch:  # the declared timing, the velocity estimate read
-            out.documented = relative_errors(log, replay(log, params, effects, controller=ctl), ls)
-            out.refined = relative_errors(log, replay(log, params, effects, controller=read), ls)
+            out.documented, out.refined = replayed(ctl), replayed(read)
         return out
 
     cache: dict[float, dict[str, float]] = {}
 
     def errors(delay: float) -> dict[str, float]:
         if delay not in cache:
-            cache[delay] = relative_errors(log, replay(log, params, effects, controller=replace(read, delay_samples=delay)), ls)
+            cache[delay] = replayed(replace(read, delay_samples=delay))
         return cache[delay]
 
-    out.documented = errors(1.0) if not out.velocity_mismatch else relative_errors(log, replay(log, params, effects, controller=ctl), ls)
+    out.documented = replayed(ctl)  # the loop as declared: one period late (not the same sample, tested above)
     # walk up the grid while the force error falls (it is unimodal in the lag: measured on both EMPS runs),
     # so a minimum at 0 costs two replays instead of the whole grid
     for d in GRID:
