@@ -93,46 +93,24 @@ def test_a_spring_with_a_disturbance_is_refitted_within_its_tolerance() -> None:
     assert diag.model_file["method"].startswith(METHOD)
 
 
-def test_the_refit_of_stribeck_and_a_flexibility_with_the_current_loop() -> None:
+def test_when_didim_raises_the_error_the_output_error_itself_is_fitted() -> None:
     """Stribeck + flexibility on the EMPS reference with the current loop, whose lag is kept with them (seed 1303).
 
-    The closed loop proposes the Stribeck friction (at the dwells), the inverse model the flexibility and the lag; the
-    refit ends with Fs 3.63 N for 3.53, vs 7.76 mm/s for 8, the flexibility within 2 % and the lag 0.224 ms (the loop's
-    time constant: 0.227 ms), closed-loop output error 0.827 % -> 0.71 %. Since the dwell search holds the impulse
-    ``Fs·vs`` (vs 5.9 mm/s from it), DIDIM's step no longer lowers the error on this seed (0.827 % -> 0.836 %) and the
-    output error itself is fitted, as on seed 2303 below (before, DIDIM took this seed, its rounds of the coordinate
-    search moving the values in each of 3; the rounds are tested in ``tests/unit/test_refit_search.py``). The route is
-    either: what is held is where it ends.
+    The closed loop proposes the Stribeck friction (at the dwells), the inverse model the flexibility and the lag. Since
+    the dwell search holds the impulse ``Fs·vs``, DIDIM's step raises the closed-loop output error (0.798 % -> 0.84 %),
+    and the output error itself is fitted: Levenberg-Marquardt on finite-difference sensitivities (every linear parameter
+    and searched value at once), 0.798 % -> 0.71 % in 2 iterations, 33 replays; Fs 3.63 N for 3.53, vs 7.76 mm/s for 8,
+    the flexibility within 2.2 %, the lag 0.224 ms (the loop's time constant: 0.227 ms). Seed 2303 takes the same route
+    (0.845 % -> 0.704 %; Fs 3.6 %, vs 4.4 %, the flexibility within 4.2 %): not run here, the suite's time budget (13 s
+    of CPU). DIDIM's rounds of the coordinate search: ``tests/unit/test_refit_search.py``.
     """
     require_shared()  # the EMPS reference trajectory is DATA_EMPS.mat's
-    name = "stribeck+flexibility-emps-current_loop-s303@s1303"
-    diag = diagnosed(name)
-    refit = diag.refit
-    assert refit is not None and refit.accepted and refit.method in (METHOD, OE_METHOD), refit.reason if refit else None
-    errors = score(case_of(name), [(x.effect.id, x.plant_effect) for x in diag.findings])["parameter_error"]
-    assert set(errors) == {"stribeck", "flexibility"} and errors["stribeck"] <= 0.1 and errors["flexibility"] <= 0.05, errors
-    (lag,) = [s for s in refit.searches if s.effect == "delay"]
-    assert lag.accepted and abs(-lag.value - 0.000227) < 0.02e-3, lag
-    assert refit.error_inverse_pct is not None and refit.error_pct is not None and refit.error_pct < 0.72 < refit.error_inverse_pct
-
-
-def test_when_didim_raises_the_error_the_output_error_itself_is_fitted() -> None:
-    """The Stribeck + flexibility EMPS log on seed 2303, where DIDIM's step raises the output error (0.845 % -> 0.998 %).
-
-    The closed loop proposed Stribeck friction (the inverse model's held-out test left it unconfirmed) and its folds
-    held the flexibility and the lag at the inverse model's estimates: Fs 2.32 N for 3.53 (34 % low), the
-    flexibility 12 % off. Measured with the output error minimised by Levenberg-Marquardt on finite-difference
-    sensitivities (every linear parameter and searched value at once): 0.845 % -> 0.704 % in 1 iteration, 22
-    replays; Fs 3.40 N (3.6 %), vs 8.35 mm/s (4.4 %), stiffness 0.9 %, damping 4.2 %, load fraction 0.6 %, the lag
-    0.236 ms (the loop's time constant 0.227 ms).
-    """
-    require_shared()  # the EMPS reference trajectory is DATA_EMPS.mat's
-    name = "stribeck+flexibility-emps-current_loop-s303@s2303"
+    name = "stribeck+flexibility-emps-current_loop-s303@s1303"  # diagnosed for tests/diagnose/test_dwell.py too (shared)
     diag = diagnosed(name)
     refit = diag.refit
     assert refit is not None and refit.accepted and refit.method == OE_METHOD and refit.didim is None, refit.reason if refit else None
     assert "DIDIM does not lower the closed-loop output error" in refit.reason and "refitted instead by a closed-loop output-error fit" in refit.reason
-    assert refit.error_inverse_pct is not None and refit.error_pct is not None and refit.error_pct < 0.9 * refit.error_inverse_pct
+    assert refit.error_inverse_pct is not None and refit.error_pct is not None and refit.error_pct < 0.72 < refit.error_inverse_pct
     assert {(s.effect, s.parameter) for s in refit.searches} == {
         ("flexibility", "f_res"),
         ("flexibility", "damping_ratio"),
@@ -142,11 +120,12 @@ def test_when_didim_raises_the_error_the_output_error_itself_is_fitted() -> None
     assert all(s.accepted and s.std is not None and s.std > 0 for s in refit.searches)
     sc = score(case_of(name), [(x.effect.id, x.plant_effect) for x in diag.findings])
     assert sc["false_alarms"] == 0 and sc["missed"] == []
-    assert all(e <= 0.1 for e in sc["parameter_error"].values()), sc["parameter_error"]
+    errors = sc["parameter_error"]
+    assert set(errors) == {"stribeck", "flexibility"} and errors["stribeck"] <= 0.1 and errors["flexibility"] <= 0.05, errors
     assert all(f.method == OE_METHOD for f in diag.findings)
     assert diag.model_file["method"].startswith(OE_METHOD) and set(diag.model_file["std"]["effects"]) == {"flexibility", "stribeck"}
     (lag,) = [s for s in refit.searches if s.effect == "delay"]
-    assert abs(-lag.value - 0.000227) < 0.02e-3
+    assert abs(-lag.value - 0.000227) < 0.02e-3, lag
 
 
 def test_coupled_values_the_coordinate_search_leaves_short_are_fitted_at_once() -> None:
