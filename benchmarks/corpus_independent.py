@@ -13,7 +13,7 @@ identified with ``identify --method ls``, through the library, with the loop dec
 Prints one Markdown row per log (what the diagnosis names; each named value against the truth, the largest relative error;
 for the clean dwell-and-move logs ``identify``'s largest error of M, Fv, Fc), then the counts.
 
-Usage: python benchmarks/corpus_independent.py [--jobs 2]
+Usage: python benchmarks/corpus_independent.py [--jobs 2] [--loops LOOP ...]
 """
 
 from __future__ import annotations
@@ -81,6 +81,7 @@ def run(axis_name: str, trajectory: str, fs_hz: float, loop: str, eid: str) -> d
     named = None if eid == "clean" else eid
     row: dict[str, Any] = {"log": f"{axis_name} {trajectory} {eid}", "rate": fs_hz, "loop": loop, "found": sorted(found)}
     row["exact"] = sorted(found) == ([named] if named else [])
+    row["law"] = diag.friction_law is not None and diag.friction_law.vc is not None  # the smoothed Coulomb law read and replayed
     row["error"] = max(abs(found[eid][k] / v - 1.0) for k, v in truth.items() if v) if named in found else None
     if named is None and trajectory == "trapezoid":
         ls = identify(log, method="ls").ls
@@ -93,21 +94,23 @@ def run(axis_name: str, trajectory: str, fs_hz: float, loop: str, eid: str) -> d
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--loops", nargs="+", choices=LOOPS, default=LOOPS, metavar="LOOP", help=f"the loops run (default all: {', '.join(LOOPS)})")
     args = ap.parse_args(argv)
+    loops = tuple(loop for loop in LOOPS if loop in args.loops)
     jobs = [
-        (a, tr, fs, loop, e) for a in AXES for tr in TRAJECTORIES for fs in RATES_HZ for loop in LOOPS for e in EFFECTS if e != "gravity" or a.startswith("rev")
+        (a, tr, fs, loop, e) for a in AXES for tr in TRAJECTORIES for fs in RATES_HZ for loop in loops for e in EFFECTS if e != "gravity" or a.startswith("rev")
     ]
     with ProcessPoolExecutor(args.jobs) as pool:
         rows = list(pool.map(run, *zip(*jobs, strict=True)))
-    print("| log | rate | loop | named | largest error of its values | identify: largest error of M, Fv, Fc |")
-    print("| --- | --- | --- | --- | --- | --- |")
+    print("| log | rate | loop | named | largest error of its values | identify: largest error of M, Fv, Fc | friction law replayed |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
     for r in rows:
         err = "-" if r["error"] is None else f"{100 * r['error']:.1f} %"
         ident = f"{100 * r['identify']:.2f} %" if "identify" in r else ""
         named = (", ".join(r["found"]) or "nothing") + ("" if r["exact"] else " (not exact)")
-        print(f"| {r['log']} | {r['rate']:g} Hz | {r['loop']} | {named} | {err} | {ident} |")
+        print(f"| {r['log']} | {r['rate']:g} Hz | {r['loop']} | {named} | {err} | {ident} | {'smoothed' if r['law'] else 'stick/slip'} |")
     print()
-    for loop in (*LOOPS, None):  # each loop, then all
+    for loop in (*loops, None):  # each loop, then all
         of = [r for r in rows if loop is None or r["loop"] == loop]
         effect_rows = [r for r in of if not r["log"].endswith("clean")]
         clean = [r for r in of if r["log"].endswith("clean")]
@@ -116,6 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{loop or 'all'}: effect logs named exactly {sum(r['exact'] for r in effect_rows)}/{len(effect_rows)}; ", end="")
         print(f"values within 15 % on {sum(e <= 0.15 for e in within)}/{len(within)} named effects; ", end="")
         print(f"clean logs with a finding {sum(bool(r['found']) for r in clean)}/{len(clean)}; ", end="")
+        print(f"smoothed friction read on {sum(r['law'] for r in of)}/{len(of)}; ", end="")
         print(f"identify within 2 % on {sum(e <= 0.02 for e in ident)}/{len(ident)}")
     return 0
 

@@ -129,8 +129,9 @@ def plant_model(values: Mapping[str, float], effects: Mapping[str, Any] | None =
     P_DR_TAU,
     P_DR_RFV,
     P_DR_RFC,
-) = range(32)
-N_PLANT = 32
+    P_VC,
+) = range(33)
+N_PLANT = 33
 
 SLOTS: dict[str, dict[str, int]] = {
     "asymmetric_friction": {"Fv_pos": P_FV_POS, "Fv_neg": P_FV_NEG, "Fc_pos": P_FC_POS, "Fc_neg": P_FC_NEG},
@@ -147,6 +148,7 @@ SLOTS: dict[str, dict[str, int]] = {
     "current_loop": {"bandwidth_hz": P_CL_BW},
     "gravity": {"MX": P_MX, "MY": P_MY},
     "friction_drift": {"dFv": P_DR_DFV, "dFc": P_DR_DFC, "tau": P_DR_TAU, "Fv_rate": P_DR_RFV, "Fc_rate": P_DR_RFC},
+    "coulomb_smoothing": {"vc": P_VC},
 }
 """Compiled form of the built-in effects: parameter -> slot of the plant vector."""
 
@@ -241,7 +243,8 @@ def force_model(
     (:meth:`ilic_cli.effects.Effect.linear_form`: ``asymmetric_friction`` in place of ``Fv, Fc``, ``stribeck``,
     ``position_ripple``, ``spring``, ``gravity``, ``payload_change``, an effect added by a definition alone);
     ``friction_drift`` changes the friction coefficients with ``t`` (:func:`ilic_cli.effects.drift_of`, Coulomb
-    levels kept >= 0); the blocks (:mod:`plant.blocks`): ``flexibility`` adds the force that accelerates the load
+    levels kept >= 0); ``coulomb_smoothing`` puts ``tanh(qd/vc)`` for ``sign(qd)`` in every column of the sign (Coulomb,
+    Stribeck, an asymmetry's sides); the blocks (:mod:`plant.blocks`): ``flexibility`` adds the force that accelerates the load
     mass, the acceleration terms of the effects (``payload_change``) landing on the load, obtained by simulating the
     linear load dynamics driven by the given motor motion (load at rest relative to the motor at ``t[0]``; uniform
     ``t`` expected); ``delay`` returns the force ``delay`` seconds earlier (:func:`plant.blocks.shifted`).
@@ -264,7 +267,7 @@ def force_model(
         eff = make_effects(effects)
     plant_vector(params, eff)  # the plant's rules (rigid ranges, the static friction level)
     q, qd, qdd, t = (np.asarray(a, dtype=np.float64) for a in (q, qd, qdd, t))
-    kin = Kinematics(qd, qdd, q, t)
+    kin = Kinematics(qd, qdd, q, t, sign_qd=np.tanh(qd / eff["coulomb_smoothing"]["vc"]) if "coulomb_smoothing" in eff else None)
     rigid, own = linear_terms(params, eff)
     if "friction_drift" in eff:
         rigid = _drifted(rigid, eff["friction_drift"], t)
@@ -272,8 +275,8 @@ def force_model(
         tau = _columns_force(rigid, own, kin)
     else:
         flex = eff["flexibility"]
-        still = Kinematics(qd, np.zeros_like(qdd), q, t)
-        moved = Kinematics(qd, np.ones_like(qdd), q, t)
+        still = Kinematics(qd, np.zeros_like(qdd), q, t, sign_qd=kin.sign_qd)
+        moved = Kinematics(qd, np.ones_like(qdd), q, t, sign_qd=kin.sign_qd)
         m_rigid = rigid.pop("M")
         rest = _columns_force(rigid, own, still)
         m_load = flex["load_fraction"] * m_rigid + (_columns_force(rigid, own, moved) - rest)  # the acceleration terms: mass on the load

@@ -24,8 +24,8 @@ velocity), the velocity is set to exactly 0 and the rest of the step starts
 with a new stick/slip decision. The result is deterministic and does not
 depend on luck at zero crossings.
 
-Rigid axis without smooth effects (no Stribeck term, ripple, spring, gravity, friction drift or
-flexibility; payload change, asymmetric friction, offset and the measurement
+Rigid axis without smooth effects (no Stribeck term, ripple, spring, gravity, friction drift,
+flexibility or smoothed Coulomb friction; payload change, asymmetric friction, offset and the measurement
 effects allowed): the closed-form RK4 step of :mod:`plant.kernel_linear`.
 
 Effects
@@ -81,6 +81,7 @@ from plant.dynamics import (
     P_RIP_L,
     P_RIP_PH,
     P_TCH,
+    P_VC,
     P_VEPS,
     P_VS,
 )
@@ -129,13 +130,20 @@ def _deriv(p, s, u, x0, x1, x2, x3, t, mm, ml, flex):
     al = fc / ml if flex else 0.0
     if s == 0:
         return 0.0, 0.0, x3, al
-    if s > 0:
+    if p[P_VC] > 0.0:  # coulomb_smoothing: tanh(qd/vc) for the sign in every friction column, the sides weighted by it too
+        th = math.tanh(x1 / p[P_VC])
+        wp, wn = 0.5 * (1.0 + th), 0.5 * (1.0 - th)
+        fr = (p[P_FV_POS] * wp + p[P_FV_NEG] * wn) * x1 + th * (p[P_FC_POS] * wp + p[P_FC_NEG] * wn)
+        sgn = th
+    elif s > 0:
         fr = p[P_FV_POS] * x1 + p[P_FC_POS]
+        sgn = 1.0
     else:
         fr = p[P_FV_NEG] * x1 - p[P_FC_NEG]
+        sgn = -1.0
     if p[P_FS] != 0.0:
         r = x1 / p[P_VS]
-        fr += s * p[P_FS] * math.exp(-r * r)
+        fr += sgn * p[P_FS] * math.exp(-r * r)
     return x1, (f - fr) / mm, x3, al
 
 
@@ -157,7 +165,10 @@ def _rk4(p, s, u, x0, x1, x2, x3, t, h, mm, ml, flex):
 
 @njit(cache=CACHE, nogil=True)
 def _direction(p, u, x0, x1, x2, x3, t, flex):
-    """Friction direction for the next step (sliding sign, or the Karnopp stick/slip decision)."""
+    """Friction direction for the next step (sliding sign, or the Karnopp stick/slip decision; with ``coulomb_smoothing`` the
+    axis never sticks: the velocity's sign, 1 at rest, the friction then smooth in the velocity across zero)."""
+    if p[P_VC] > 0.0:
+        return 1 if x1 >= 0.0 else -1
     if x1 > p[P_VEPS]:
         return 1
     if x1 < -p[P_VEPS]:
@@ -194,7 +205,7 @@ def _step(p, u, x0, x1, x2, x3, t, h, mm, ml, flex):
     if s == 0:
         x1 = 0.0
     y0, y1, y2, y3 = _rk4(p, s, u, x0, x1, x2, x3, t, h, mm, ml, flex)
-    if s != 0 and y1 * s < 0.0:
+    if s != 0 and y1 * s < 0.0 and p[P_VC] == 0.0:  # a smoothed friction crosses zero smoothly
         th = x1 / (x1 - y1)
         if th < 0.0:
             th = 0.0
@@ -416,7 +427,17 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
         p = p.copy()
     fmax = p[P_FMAX]
     # rigid axis without smooth effects: the closed-form RK4 step (plant.kernel_linear)
-    linear = not flex and p[P_FS] == 0.0 and p[P_RIP_A] == 0.0 and p[P_K] == 0.0 and p[P_MX] == 0.0 and p[P_MY] == 0.0 and not drift and not HAS_GENERIC
+    linear = (
+        not flex
+        and p[P_FS] == 0.0
+        and p[P_RIP_A] == 0.0
+        and p[P_K] == 0.0
+        and p[P_MX] == 0.0
+        and p[P_MY] == 0.0
+        and p[P_VC] == 0.0
+        and not drift
+        and not HAS_GENERIC
+    )
     cf = linear_coefficients(p, h, substeps)
     static = (p[P_FC_POS] + p[P_FS], -(p[P_FC_NEG] + p[P_FS]))
     lag_n, phi, n1, n2, h1, h2 = _lag_split(p, T, h, substeps)

@@ -20,6 +20,7 @@ from ilic_cli.diagnosis.decide import Decision, ReplayVerdict, decide, proposal_
 from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, detect_drift, fitted_with, with_drift
 from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.fold_plant import fitted_plant
+from ilic_cli.diagnosis.friction_law import FrictionLaw, read_friction_law, with_friction_law
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.model_values import effect_fit, model_parameters, model_std, steps_from_effects
 from ilic_cli.diagnosis.propose import Proposal, base_model, propose
@@ -128,6 +129,8 @@ class Diagnosis:
     warnings: list[str] = field(default_factory=list)
     residual: dict[str, np.ndarray] = field(default_factory=dict)
     timing: ControlTiming | None = None
+    friction_law: FrictionLaw | None = None
+    """The friction law near zero speed the replays ran (:mod:`ilic_cli.diagnosis.friction_law`), ``None`` when nothing was replayed."""
     drift: DriftResult | None = None
     """Friction drift read from per-window estimates (:mod:`ilic_cli.diagnosis.drift`)."""
     weight: dict[str, Estimate] | None = None
@@ -193,6 +196,7 @@ class Diagnosis:
             "replay_sensor_noise": self.replay_sensor,
             "warnings": list(self.warnings),
             "timing": None if self.timing is None else self.timing.to_dict(),
+            "friction_law": None if self.friction_law is None else self.friction_law.to_dict(),
             "drift": None if self.drift is None else self.drift.to_dict(),
             "weight": None if self.weight is None else {k: v.to_dict() for k, v in self.weight.items()},
         }
@@ -218,9 +222,10 @@ def _baseline(prop: Proposal, model_doc: dict[str, Any] | None, settings: Diagno
     return Baseline(W0, y0, names0, res0, before_params, before_effects)
 
 
-def _timing_model(prop: Proposal, base: Baseline, model_doc: dict[str, Any] | None) -> tuple[dict[str, float], dict[str, Any]]:
+def _timing_model(prop: Proposal, base: Baseline, model_doc: dict[str, Any] | None, lags: bool = False) -> tuple[dict[str, float], dict[str, Any]]:
     """The model the loop's timing is read with (:func:`ilic_cli.simulation.timing.recorded_loop`): the model file's, else the
     inverse model's proposal (its effects and drift fitted on the rows) but a drive lag, the rigid fit when it proposes nothing else.
+    ``lags``: with a proposed drive lag (the friction law's model: the loop's timing read, the lag replayed at the sample).
 
     Read with the rigid fit, the timing of a loop acting within its sample absorbed what that fit misses: on logs of a
     12 kg axis and a 0.08 kg·m² joint simulated apart from ``ilic`` (the command acting at its sample), a third of a
@@ -229,7 +234,7 @@ def _timing_model(prop: Proposal, base: Baseline, model_doc: dict[str, Any] | No
     A proposed drive lag is left out: the timing is the lag a model without one replays with, and a model with one replays
     the loop acting at its sample (:data:`ilic_cli.simulation.replay.LAG_READ`), so the replay judges the lag against the timing.
     """
-    steps = [st for st in prop.selection.steps if st.effect.id not in DRIVE_LAGS]
+    steps = [st for st in prop.selection.steps if lags or st.effect.id not in DRIVE_LAGS]
     if model_doc is not None or (not steps and prop.drift is None):
         return base.params, base.effects
     return fitted_plant(prop.data, prop.base, [*prop.known, *steps], prop.rows, proposal_plant(prop), drift=prop.drift)
@@ -267,16 +272,18 @@ def diagnose(
     log, validate = prop.log, prop.validate
     base = _baseline(prop, model_doc, settings)
     res0 = base.res
-    timing = None
+    timing, law = None, None
     if settings.simulate and against is None and settings.pd_timing == "recorded":  # the replays run the loop that ran: its timing read from the recording
         timed = _timing_model(prop, base, model_doc)
         timed_log, timing = recorded_loop(log, *timed, settings.ls)
         if timing is None and timed != (base.params, base.effects):  # the proposal does not replay: the rigid fit
             timed = base.params, base.effects
             timed_log, timing = recorded_loop(log, *timed, settings.ls)
-        log = timed_log
+        law_model = timed if timed == (base.params, base.effects) else _timing_model(prop, base, model_doc, lags=True)
+        law = read_friction_law(timed_log, prop.data, prop.base, prop.known, prop.rows, law_model, settings.ls, settings.select.alpha)
+        log = with_friction_law(timed_log, law)  # and the friction law it shows near zero speed
         if validate is not None:
-            validate, _ = recorded_loop(validate, *timed, settings.ls)
+            validate = with_friction_law(recorded_loop(validate, *timed, settings.ls)[0], law)
     decision = decide(log, prop, settings, validate, against)  # 2. decide
     replayed = settings.simulate and against is None and "q_ref" in log
     decision, at_dwells = refit_at_dwells(log, prop, decision, settings, replayed)  # 3. refit
@@ -284,10 +291,11 @@ def diagnose(
     refit = refit_stage(log, prop, decision, final, at_dwells, settings, replayed)
     res0 = with_std(res0, gls_covariance(base.W, base.y, res0.theta))
     findings = _findings(prop, decision, final, refit)  # 4. the findings, the model file and the figures the report renders
-    doc = _model_file(prop, decision, final, refit)
+    doc = _model_file(prop, decision, final, refit) if law is None else law.in_model_file(_model_file(prop, decision, final, refit))
     kept = [*prop.known, *decision.kept]
     judge = (lambda drift: replay_drift(log, prop, kept, drift, settings, decision.sensor)) if replayed else None
     diag = _assembled(prop, replace(base, res=res0), decision, final, refit, findings, doc, settings, timing, judge)
+    diag.friction_law = law
     if settings.simulate or against is not None:
         _simulated(diag, log, prop, base, refit, against, settings)
     return diag

@@ -36,13 +36,25 @@ from ilic_cli.effects.catalogue import BUILT_IN
 from ilic_cli.effects.definition import Effect, EffectColumn, EffectParams, Effects, Estimate, EstimateResult, Fit, LinearForm, PlantParam, Scan, col, unit_on
 from ilic_cli.effects.drive import CURRENT_LOOP, DELAY, DISTURBANCE, FLEXIBILITY, MAX_DELAY_S, NOISE, QUANTIZATION, SATURATION
 from ilic_cli.effects.grids import FLEX_DAMPING, flexible_acceleration
-from ilic_cli.effects.mechanics import ASYMMETRIC_FRICTION, FRICTION_DRIFT, GRAVITY, OFFSET, PAYLOAD_CHANGE, POSITION_RIPPLE, SPRING, STRIBECK, drift_of
+from ilic_cli.effects.mechanics import (
+    ASYMMETRIC_FRICTION,
+    COULOMB_SMOOTHING,
+    FRICTION_DRIFT,
+    GRAVITY,
+    OFFSET,
+    PAYLOAD_CHANGE,
+    POSITION_RIPPLE,
+    SPRING,
+    STRIBECK,
+    drift_of,
+)
 from ilic_cli.effects.registry import EFFECTS, applicable, catalogue_ids, effects_to_dict, get, make_effects, plant_ids, register, unit_of, unregister
 from ilic_cli.errors import ParameterError
 
 __all__ = [
     "ASYMMETRIC_FRICTION",
     "BUILT_IN",
+    "COULOMB_SMOOTHING",
     "CURRENT_LOOP",
     "DELAY",
     "DISTURBANCE",

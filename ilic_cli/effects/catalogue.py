@@ -3,7 +3,17 @@
 from __future__ import annotations
 
 from ilic_cli.effects.drive import CURRENT_LOOP, DELAY, DISTURBANCE, FLEXIBILITY, NOISE, QUANTIZATION, SATURATION
-from ilic_cli.effects.mechanics import ASYMMETRIC_FRICTION, FRICTION_DRIFT, GRAVITY, OFFSET, PAYLOAD_CHANGE, POSITION_RIPPLE, SPRING, STRIBECK
+from ilic_cli.effects.mechanics import (
+    ASYMMETRIC_FRICTION,
+    COULOMB_SMOOTHING,
+    FRICTION_DRIFT,
+    GRAVITY,
+    OFFSET,
+    PAYLOAD_CHANGE,
+    POSITION_RIPPLE,
+    SPRING,
+    STRIBECK,
+)
 from ilic_cli.effects.registry import register
 
 BUILT_IN = (
@@ -14,6 +24,7 @@ BUILT_IN = (
     GRAVITY,
     PAYLOAD_CHANGE,
     FRICTION_DRIFT,
+    COULOMB_SMOOTHING,
     OFFSET,
     DELAY,
     FLEXIBILITY,

@@ -10,7 +10,8 @@ from ilic_cli.filtering import ROWS_BAND_HZ, bilinear_lfilter, rows_band_hz
 from ilic_cli.regressor import Kinematics
 
 
-def _vmax(kin: Kinematics) -> float:
+def top_speed(kin: Kinematics) -> float:
+    """The log's top speed: the 99.5th percentile of ``|qd|`` (1 when the axis does not move), the scale of the speed grids."""
     v = float(np.percentile(np.abs(kin.qd), 99.5))
     return v if v > 0 else 1.0
 
@@ -18,7 +19,7 @@ def _vmax(kin: Kinematics) -> float:
 def stribeck_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
     """Stribeck speeds ``vs`` searched: 32 log-spaced from 1 % to 40 % of the log's top speed (99.5th percentile)."""
     # from 1 % (below: standstill, left out of the fit) to 40 % of the top speed
-    vmax = _vmax(kin)
+    vmax = top_speed(kin)
     return np.geomspace(0.01 * vmax, 0.4 * vmax, 32)
 
 
@@ -36,8 +37,8 @@ def ripple_grid(kin: Kinematics, fs_hz: float) -> np.ndarray:
     # phase over the stroke moves by less than a tenth of a cycle per step
     q = kin.q if kin.q is not None else np.cumsum(kin.qd) / fs_hz
     stroke = float(np.ptp(q)) or 1.0
-    moving = np.abs(kin.qd) > 0.05 * _vmax(kin)
-    v_typ = float(np.median(np.abs(kin.qd[moving]))) if moving.any() else _vmax(kin)
+    moving = np.abs(kin.qd) > 0.05 * top_speed(kin)
+    v_typ = float(np.median(np.abs(kin.qd[moving]))) if moving.any() else top_speed(kin)
     p_min = max(v_typ / 40.0, stroke / 2000.0)
     p_max = stroke
     if p_max <= p_min:

@@ -270,6 +270,22 @@ FRICTION_DRIFT = Effect(
     sentence=_drift_sentence,
 )
 
+COULOMB_SMOOTHING = Effect(
+    "coulomb_smoothing",
+    "smoothed Coulomb friction",
+    "Near zero speed the Coulomb friction rises smoothly with the speed instead of switching to its level, and the axis never "
+    "sticks: it creeps under any force, as a simulator's tanh law or a lubricated contact's pre-sliding give.",
+    params=(PlantParam("vc", "m/s", 0.001, "speed over which Coulomb friction rises: Fc tanh(qd/vc)", low=0.0, low_open=True),),
+    form="Fc tanh(qd/vc) in place of Fc sign(qd) (Stribeck's and an asymmetry's sides likewise), no stiction",
+    signature="the force falls below the Coulomb level near zero speed, and the axis creeps where a sticking one holds",
+    signature_kinds=("velocity", "reversal"),
+    sentence=lambda p: f"vc = {p['vc'].value * 1e3:.3g} m{p['vc'].unit}",
+)
+"""A friction law, not an added force: the plant's Coulomb (and Stribeck) friction multiplies ``tanh(qd/vc)`` instead of the
+direction of motion, and the Karnopp stick/slip decision is gone (:mod:`plant.kernel`; the inverse dynamics'
+:attr:`~ilic_cli.regressor.Kinematics.sgn`: :func:`plant.dynamics.force_model`). No column: diagnosis does not propose it;
+it reads it from the recording as the law the replays run (:mod:`ilic_cli.diagnosis.friction_law`)."""
+
 OFFSET = Effect(
     "offset",
     "force offset",

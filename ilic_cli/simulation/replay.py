@@ -20,7 +20,7 @@ from ilic_cli.runlog import RunLog
 from plant.controllers import PDSettings
 from plant.replay import controller_from_log, simulate_replay
 
-__all__ = ["DRIVE_LAGS", "LAG_READ", "REPLAY_STEP_S", "relative_errors", "replay", "replay_substeps", "tau_sensor"]
+__all__ = ["DRIVE_LAGS", "FRICTION_LAW", "LAG_READ", "REPLAY_STEP_S", "relative_errors", "replay", "replay_substeps", "tau_sensor"]
 
 LAG_READ = "delay_samples_read"
 """The key of a PD controller's metadata saying that its ``delay_samples`` (below one period: the command acts within its sample)
@@ -34,6 +34,11 @@ there, as the inverse model's rows say)."""
 DRIVE_LAGS = ("delay", "current_loop")
 """The plant's entries that realise a drive lag (a ``delay`` effect's value: a lag shorter than a sample is the current loop's,
 :func:`ilic_cli.effects.drive` ``_delay_realise``)."""
+
+FRICTION_LAW = "friction_law_read"
+"""The key of a log's metadata holding the smoothed Coulomb friction read from the recording (``{"vc": ...}``, the parameters of
+the plant's ``coulomb_smoothing``: :mod:`ilic_cli.diagnosis.friction_law`): every replay of the log runs that law unless the model
+it replays states its own."""
 
 REPLAY_STEP_S = 1e-4
 """The finest integration step the diagnosis's replays need (s): a tenth of the 1 kHz period, the step every EMPS figure and the
@@ -60,6 +65,8 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
     (:mod:`ilic_cli.diagnosis.null`'s replicates).
     """
     effects = dict(effects or {})
+    if FRICTION_LAW in log.meta and "coulomb_smoothing" not in effects:  # the law the recording shows near zero speed
+        effects["coulomb_smoothing"] = dict(log.meta[FRICTION_LAW])
     if controller is None and any(e in effects for e in DRIVE_LAGS):
         controller = _at_the_sample(log)
     if "payload_change" in effects:

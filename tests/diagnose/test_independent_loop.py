@@ -13,6 +13,7 @@ from __future__ import annotations
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
+from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.diagnosis.verdicts import Verdict
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.simulation.timing import control_timing
@@ -87,6 +88,10 @@ def test_an_actuator_delay_is_reported_whole(fs_hz: float) -> None:
     assert diag.timing is not None and diag.timing.best is not None and diag.timing.best > 0.5  # the rigid fit's lag, read
     assert _values(diag, "delay")["delay"] == pytest.approx(-0.002, rel=TOLERANCE)
     assert diag.timing.lag_found and "the delay the whole lag" in diag.timing.sentence()
+    # stiction: every smoothed law moves the replay away from the recording, and the plant's stick/slip goes unsaid
+    law = diag.friction_law
+    assert law is not None and law.vc is None and law.candidate is not None and law.after["position"] > law.before["position"], law
+    assert "Friction near zero speed" not in to_markdown(diag) and diag.to_dict()["friction_law"]["law"] == "stick/slip"
 
 
 def test_a_proposal_that_does_not_replay_leaves_the_timing_to_the_rigid_fit(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -94,7 +99,7 @@ def test_a_proposal_that_does_not_replay_leaves_the_timing_to_the_rigid_fit(monk
     the rigid fit, not with no timing at all (the documented loop, one period late)."""
     from ilic_cli.diagnosis import core
 
-    monkeypatch.setattr(core, "_timing_model", lambda prop, base, doc: ({**base.params, "M": -1.0}, {}))
+    monkeypatch.setattr(core, "_timing_model", lambda prop, base, doc, lags=False: ({**base.params, "M": -1.0}, {}))
     diag = diagnose(simulate("linear", 1000.0, "same", {}, 11), settings=DiagnoseSettings())
     assert diag.timing is not None and diag.timing.law.velocity == "backward" and diag.timing.best is not None and diag.timing.best < 0.1
     assert diag.findings == []

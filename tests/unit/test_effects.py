@@ -22,6 +22,7 @@ def test_registry_order_and_kinds() -> None:
         "gravity",
         "payload_change",
         "friction_drift",
+        "coulomb_smoothing",
         "offset",
         "delay",
         "flexibility",
@@ -35,7 +36,8 @@ def test_registry_order_and_kinds() -> None:
     # gravity is proposed on a revolute joint only; friction drift is read from per-window estimates (ilic_cli.diagnosis.drift), no column
     assert "gravity" not in fx.catalogue_ids("prismatic") and "gravity" in fx.catalogue_ids("revolute") and "friction_drift" not in fx.catalogue_ids()
     assert "offset" not in fx.plant_ids() and "noise" in fx.plant_ids()
-    assert {"disturbance", "current_loop"} <= set(fx.plant_ids())  # plant effects diagnosis does not fit
+    assert {"disturbance", "current_loop", "coulomb_smoothing"} <= set(fx.plant_ids())  # plant effects diagnosis does not fit
+    assert "coulomb_smoothing" not in fx.catalogue_ids()  # a friction law the diagnosis reads for its replays (ilic_cli.diagnosis.friction_law)
     assert [e for e in EFFECTS if EFFECTS[e].shift] == ["delay"]
     assert [e for e in EFFECTS if EFFECTS[e].nonlinear] == ["stribeck", "position_ripple", "payload_change", "delay", "flexibility"]
     with pytest.raises(ValueError, match="already defined"):

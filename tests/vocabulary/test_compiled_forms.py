@@ -41,6 +41,9 @@ VALUES: dict[str, dict[str, float]] = {
 }
 """Values of the effects with a force on the axis (the others take their defaults)."""
 
+FRICTION_LAWS: dict[str, dict[str, float]] = {"coulomb_smoothing": {"vc": 0.02}}
+"""The effects that change the friction law rather than add a force (checked by their own test: no stiction)."""
+
 NO_FORCE = ("delay", "saturation", "quantization", "noise", "disturbance", "current_loop")
 """The plant effects that add no force to the axis: actuator, measurement and drive blocks."""
 
@@ -110,12 +113,34 @@ def check_against_definition(module: ModuleType, eff: Mapping[str, EffectParams]
 
 def test_every_plant_effect_is_covered() -> None:
     """Each registered plant effect is checked here: by its force, by its flexible load, or as adding no force."""
-    assert set(plant_ids()) == set(VALUES) | set(NO_FORCE)
+    assert set(plant_ids()) == set(VALUES) | set(NO_FORCE) | set(FRICTION_LAWS)
     for eid in VALUES:
         effect = EFFECTS[eid]
         linear = effect.linear_form(effect.values(VALUES[eid])) is not None
         assert linear == (eid not in ("friction_drift", "flexibility")), eid  # drift and flexibility: blocks on the columns
-    assert all(EFFECTS[eid].linear_form(EFFECTS[eid].values()) is None for eid in NO_FORCE)
+    assert all(EFFECTS[eid].linear_form(EFFECTS[eid].values()) is None for eid in (*NO_FORCE, *FRICTION_LAWS))
+
+
+@pytest.mark.parametrize("others", [(), ("stribeck", "asymmetric_friction")])
+def test_smoothed_coulomb_friction_agrees_with_the_definition_and_never_sticks(others: tuple[str, ...]) -> None:
+    """``coulomb_smoothing``: sliding, the kernel's acceleration is the definition's, ``tanh(qd/vc)`` in every column of the sign
+    (Stribeck's and an asymmetry's sides too); at rest no band of sticking forces: every force accelerates the axis by
+    ``(u - F(q, 0, 0, t)) / m``, the friction there 0."""
+    eff = make_effects({**FRICTION_LAWS, **{e: VALUES[e] for e in others}})
+    p = plant_vector(PARAMS, dict(eff))
+    rng = np.random.default_rng(5)
+    for sliding in (True, False):
+        q, qd, t = _states(6, sliding)
+        qd = qd * 0.2  # about vc: the smoothed part of the law
+        u = rng.uniform(-100.0, 100.0, N)
+        f0, m = definition(eff, q, qd, t)
+        got = np.array([compiled(kernel, p, u[i], q[i], qd[i], t[i]) for i in range(N)])
+        np.testing.assert_array_equal(got[:, 0], np.where(qd >= 0.0, 1, -1))
+        np.testing.assert_allclose(got[:, 1], (u - f0) / m, rtol=1e-12, atol=1e-12)
+        assert np.all(got[:, 1] != 0.0)  # nothing sticks
+    if not others:  # the law itself: Fc tanh(qd/vc) for the rigid axis's Fc, at qd = vc
+        at_vc = [definition(e, np.zeros(1), np.array([0.02]), np.zeros(1))[0][0] for e in (eff, make_effects({}))]
+        assert at_vc[0] - at_vc[1] == pytest.approx(PARAMS.Fc * (np.tanh(1.0) - 1.0), rel=1e-12)
 
 
 @pytest.mark.parametrize("eid", [None, *(e for e in VALUES if e != "flexibility")])
