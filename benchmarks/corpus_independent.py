@@ -28,9 +28,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 RATES_HZ = (500.0, 1000.0, 2000.0)
-LOOPS = ("same", "previous", "state", "same, tanh")
-"""The loop (:data:`tests.corpus.independent.LOOPS`); ``"same, tanh"``: the loop acting at its sample, the simulator's Coulomb
-friction smoothed by ``tanh(v / eps)`` without stiction, ``eps`` a hundredth of the axis's cruise speed."""
+LOOPS = ("same", "previous", "state", "continuous", "same, tanh")
+"""The loop (:data:`tests.corpus.independent.LOOPS`); ``"continuous"``: the law inside the dynamics, on the state at every Euler
+step (a solver's right-hand side), logged at the samples; ``"same, tanh"``: the loop acting at its sample, the simulator's
+Coulomb friction smoothed by ``tanh(v / eps)`` without stiction, ``eps`` a hundredth of the axis's cruise speed."""
 AXES = ("lin12", "rev0.5")
 TRAJECTORIES = ("trapezoid", "chirp")
 SEED = 7

@@ -123,6 +123,16 @@ def hold_of(sensor: str | None, fs_hz: float) -> float:
     return 0.5 / fs_hz if sensor == "command" else 0.0
 
 
+def force_hold_s(log: RunLog, fs_hz: float) -> float:
+    """How long the logged force at a sample is held: half a period for the drive's held command (:func:`hold_of` of
+    :func:`tau_sensor`), 0 for a PD law acting inside the dynamics (``continuous``: its command at the sample is the force
+    there, read from the recording by :mod:`ilic_cli.simulation.timing`)."""
+    controller = log.controller
+    if controller is not None and controller.kind == "pd" and controller.settings.get("continuous"):
+        return 0.0
+    return hold_of(tau_sensor(log), fs_hz)
+
+
 @dataclass(frozen=True)
 class PreparedLog:
     """A log with what the numerics need to know about it.
@@ -158,8 +168,8 @@ class PreparedLog:
 
     @property
     def hold_s(self) -> float:
-        """Half a period when the log's force is the drive's held command (:func:`tau_sensor`), else 0."""
-        return hold_of(tau_sensor(self.log), self.fs_hz)
+        """Half a period when the log's force is the drive's held command (:func:`force_hold_s`), else 0."""
+        return force_hold_s(self.log, self.fs_hz)
 
     def with_rest(self, rest: RestSamples) -> PreparedLog:
         """This log with the samples of ``rest`` masked too (:attr:`valid`: neither saturated nor at rest)."""

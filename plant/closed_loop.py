@@ -23,7 +23,7 @@ from ilic_cli.jointlog import channel_units
 from ilic_cli.prefault import populate_beside
 from ilic_cli.regressor import Model, get_model
 from ilic_cli.runlog import RunLog
-from plant.controllers import CTCSettings, OpenLoopSettings, PDSettings, chi_vector
+from plant.controllers import C_PD_CONTINUOUS, CTCSettings, OpenLoopSettings, PDSettings, chi_vector
 from plant.dynamics import P_LAG, STICK_VELOCITY, RigidParameters, drive_lag_s, plant_vector
 from plant.generic import kernel_for
 from plant.sensors import TAU_SENSORS, draw_disturbance, draw_noise, measured_force
@@ -223,9 +223,10 @@ def _online(
 
 
 def _fixed(loop: _Loop, chi: np.ndarray, chi_hist: np.ndarray, progress: Callable[[int, int], None] | None) -> None:
-    """Fixed parameters (the PD, or a CTC without update): one run, or 50 with a progress callback."""
+    """Fixed parameters (the PD, or a CTC without update): one run, or 50 with a progress callback (one for the PD law inside the
+    dynamics, whose drive lag keeps the commands of its last steps within a run: the output is the same either way)."""
     n = len(chi_hist)
-    step = max(1, n // 50) if progress is not None else n
+    step = max(1, n // 50) if progress is not None and loop.c[C_PD_CONTINUOUS] != 1.0 else n
     for a in range(0, n, step):
         b = min(a + step, n)
         loop.run(a, b, chi)

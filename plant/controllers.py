@@ -57,8 +57,8 @@ from ilic_cli import parameters
 from ilic_cli.errors import ParameterError
 
 # packed controller vector (read by the integrator)
-C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP, C_PD_SAME, C_PD_VELOCITY = range(13)
-N_CTRL = 13
+C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP, C_PD_SAME, C_PD_VELOCITY, C_PD_CONTINUOUS = range(14)
+N_CTRL = 14
 PULSE_INPUTS = ("held", "ramp")
 PD_VELOCITIES = ("averaged", "backward", "exact")
 """The PD loop's velocity estimates: the benchmark's difference of the position averaged over two samples, the plain
@@ -159,6 +159,10 @@ class PDSettings:
     pulse_input: str = "held"
     delay_samples: float = 1.0
     velocity: str = "averaged"
+    continuous: bool = False
+    """The law inside the dynamics: evaluated on the plant's state at every integration step, the reference interpolated
+    linearly over the period (a simulator's ODE right-hand side); logged at the samples. Its velocity is the plant's own
+    (``"exact"``) and it acts at once (``delay_samples`` 0)."""
 
     kind = "pd"
 
@@ -170,6 +174,8 @@ class PDSettings:
             raise ParameterError("delay_samples", self.delay_samples, "a number of control periods in [0, 1]")
         if self.velocity not in PD_VELOCITIES:
             raise ParameterError("velocity", self.velocity, f"one of {', '.join(PD_VELOCITIES)}")
+        if self.continuous and (self.velocity != "exact" or self.delay_samples != 0.0 or self.pulse_input != "held"):
+            raise ParameterError("continuous", self.continuous, "a law on the plant's state (velocity exact), acting at once (delay_samples 0), pulses held")
 
     @property
     def same_sample(self) -> bool:
@@ -180,6 +186,8 @@ class PDSettings:
         d, out = self.delay_samples, asdict(self)
         if self.velocity == "averaged":  # the benchmark's loop: its metadata as before the estimate was a setting
             del out["velocity"]
+        if not self.continuous:  # a discrete loop (every loop before the law inside the dynamics): its metadata as before
+            del out["continuous"]
         return {"kind": "pd", **out, "delay_samples": 1 if d == 1.0 else d, "position_filter": {"averaged": [0.5, 0.5], "backward": [1.0]}.get(self.velocity)}
 
     def vector(self) -> np.ndarray:
@@ -188,6 +196,7 @@ class PDSettings:
         c[C_PULSE_RAMP] = 1.0 if self.pulse_input == "ramp" else 0.0
         c[C_PD_SAME] = 1.0 if self.same_sample else 0.0
         c[C_PD_VELOCITY] = float(PD_VELOCITIES.index(self.velocity))
+        c[C_PD_CONTINUOUS] = 1.0 if self.continuous else 0.0
         return c
 
 

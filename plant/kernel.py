@@ -1,45 +1,12 @@
 """The compiled inner loop of the closed loop: controller per period, fixed-step RK4.
 
-One function, :func:`run_periods`, advances the closed loop over control
-periods ``k0 .. k1-1``. Everything it needs is in flat float64 vectors
-(``plant.dynamics.plant_vector``, ``plant.controllers`` ``vector()``), so it
-compiles once with numba (``cache=True``: the machine code is cached in
-``__pycache__``; the first compile takes a few seconds).
+One function, :func:`run_periods`, advances the closed loop over control periods ``k0 .. k1-1``. Everything it needs is in flat
+float64 vectors (``plant.dynamics.plant_vector``, ``plant.controllers`` ``vector()``), so it compiles once with numba
+(``cache=True``: the machine code is cached in ``__pycache__``; the first compile takes a few seconds).
 
-Integration
------------
-Each control period is split into ``substeps`` equal RK4 steps with the
-control force held constant. The friction direction ``s`` is frozen over a
-step (so each step integrates smooth dynamics) and chosen at its start:
-
-* ``|qd| > STICK_VELOCITY``: ``s = sign(qd)`` (sliding);
-* otherwise (Karnopp stick/slip): the net non-friction force ``f`` on the
-  motor is compared with the static level (``Fc + Fs`` in the direction of
-  ``f``): beyond it ``s = sign(f)`` (break-away), within it the axis sticks
-  (``s = 0``: ``qd = 0`` and no motion of the motor side over the step).
-
-If a sliding step ends with the velocity of the opposite sign, the step is
-redone up to the zero crossing (located by linear interpolation of the
-velocity), the velocity is set to exactly 0 and the rest of the step starts
-with a new stick/slip decision. The result is deterministic and does not
-depend on luck at zero crossings.
-
-Rigid axis without smooth effects (no Stribeck term, ripple, spring, gravity, friction drift,
-flexibility or smoothed Coulomb friction; payload change, asymmetric friction, offset and the measurement
-effects allowed): the closed-form RK4 step of :mod:`plant.kernel_linear`.
-
-Effects
--------
-The compiled forms of the built-in effects read the slots of the plant vector
-(:data:`plant.dynamics.SLOTS`); ``tests/vocabulary/test_compiled_forms.py``
-checks every one against its definition (:meth:`ilic_cli.effects.Effect.plant_force`)
-sliding, stuck and at break-away. An effect without a compiled form is linear
-in its own columns: a copy of this module is compiled with the columns' pointwise
-forms times their coefficients (:mod:`plant.generic`) in the net force.
-The stateful effects are blocks (:mod:`plant.blocks`), each advanced by its own
-function of a period: the current loop (:func:`_current_loop_period`), the
-drive lag (:func:`_lag_split`, the command of earlier periods) and the
-flexible load (the state ``x2, x3``).
+How it integrates (the Karnopp stick/slip rule and its zero crossings, the closed-form step of the rigid axis, the
+smoothed Coulomb friction, the PD law inside the dynamics) and how the effects are compiled: docs/simulation.md,
+"The compiled loop".
 """
 
 from __future__ import annotations
@@ -50,7 +17,22 @@ import numpy as np
 
 from ilic_cli.jit import njit
 from ilic_cli.parameters import STANDARD_GRAVITY
-from plant.controllers import C_ALPHA, C_ASYM, C_EXACT_VEL, C_GTAU, C_KIND, C_KP, C_KV, C_PD_KP, C_PD_KV, C_PD_SAME, C_PD_VELOCITY, C_PULSE_RAMP, C_VMAX
+from plant.controllers import (
+    C_ALPHA,
+    C_ASYM,
+    C_EXACT_VEL,
+    C_GTAU,
+    C_KIND,
+    C_KP,
+    C_KV,
+    C_PD_CONTINUOUS,
+    C_PD_KP,
+    C_PD_KV,
+    C_PD_SAME,
+    C_PD_VELOCITY,
+    C_PULSE_RAMP,
+    C_VMAX,
+)
 from plant.dynamics import (
     N_PLANT,
     P_CL_BW,
@@ -303,7 +285,7 @@ def _command(k, x0, x1, cs, q_r, qd_r, qdd_r, pulses, noise_q, c, chi, T, res, f
     if c[C_KIND] == 1.0:
         qfm = qm if c[C_PD_VELOCITY] == 1.0 else 0.5 * qm + 0.5 * cs[0]  # backward, or the benchmark's averaged position
         qdm = x1 if c[C_PD_VELOCITY] == 2.0 else (qfm - cs[1]) / T  # exact: the plant's own velocity
-        v = c[C_PD_KV] * (c[C_PD_KP] * (q_r[k] - qm) - qdm)
+        v = c[C_PD_KV] * (c[C_PD_KP] * (q_r[k] - (x0 if c[C_PD_CONTINUOUS] == 1.0 else qm)) - qdm)  # continuous: on the state
         vd = v if c[C_PD_SAME] == 1.0 else cs[2]  # same: computed from this sample, delayed by the drive lag (plant.controllers)
         if vd > c[C_VMAX]:
             vd = c[C_VMAX]
@@ -395,6 +377,38 @@ def _general_period(p, ua, ub, x0, x1, x2, x3, tk, h, substeps, lag, flex):
 
 
 @njit(cache=CACHE, nogil=True)
+def _continuous_period(p, c, u0, r0, r1, dk, x0, x1, x2, x3, tk, h, substeps, flex, fmax, hist, n, tau_i, y):
+    """One period of the PD law on the state at every step (``continuous``; ``u0`` at ``tk``, logged; the reference ``r0 -> r1``): a drive
+    lag of ``len(hist) - 1`` steps (``hist``: the last commands, ``n`` so far), the current loop (``tau_i``, its force ``y``)."""
+    m = len(hist)
+    e = math.exp(-h / tau_i) if tau_i > 0.0 else 0.0
+    g = tau_i / h * (1.0 - e) if tau_i > 0.0 else 0.0
+    qdd = 0.0
+    for j in range(substeps):
+        u = u0
+        if j:
+            v = c[C_PD_KV] * (c[C_PD_KP] * (r0 + (r1 - r0) * j / substeps - x0) - x1)
+            u = c[C_GTAU] * min(max(v, -c[C_VMAX]), c[C_VMAX])
+            u = min(max(u, -fmax), fmax)
+        hist[n % m] = u
+        a = hist[(n - m + 1) % m] if n >= m - 1 else hist[0]  # the command m - 1 steps back (the first before it)
+        n += 1
+        if tau_i > 0.0:
+            if math.isnan(y):
+                y = a
+            f = a + (y - a) * g
+            y = a + (y - a) * e
+        else:
+            f = a
+        t = tk + j * h
+        mm, ml = _masses(p, t, flex)
+        if j == 0:
+            qdd = _acceleration(p, f + dk, x0, x1, x2, x3, t, mm, ml, flex)
+        x0, x1, x2, x3 = _step(p, f + dk, x0, x1, x2, x3, t, h, mm, ml, flex)
+    return qdd, x0, x1, x2, x3, n, y
+
+
+@njit(cache=CACHE, nogil=True)
 def _finite(x0, x1, x2, x3):
     return math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2) and math.isfinite(x3)
 
@@ -445,6 +459,9 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
     cfs = (cf, linear_coefficients(p, h1, n1), linear_coefficients(p, h2, n2)) if phi > 0.0 else (cf, cf, cf)
     tau_i = 1.0 / (TWO_PI * p[P_CL_BW]) if p[P_CL_BW] > 0.0 else 0.0
     y = x[4] if len(x) > 4 else math.nan
+    continuous = c[C_KIND] == 1.0 and c[C_PD_CONTINUOUS] == 1.0
+    hist = np.zeros(int(round(p[P_LAG] / h)) + 1)  # continuous: the commands of the drive lag's steps
+    n_steps = 0
     for k in range(k0, k1):
         if drift:
             _drifted(p, base, (k + 0.5) * T)
@@ -460,7 +477,12 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
             ub = out_u[max(k - lag_n, 0)]
             ua = out_u[max(k - lag_n - 1, 0)] if phi > 0.0 else ub
         dk = dist[k]
-        if tau_i > 0.0:  # current loop: the applied force y lags the (lagged) command
+        if continuous:  # the law inside the dynamics, on the state at every step
+            r1 = q_r[k + 1] if k + 1 < len(q_r) else q_r[k]
+            out_qdd[k], x0, x1, x2, x3, n_steps, y = _continuous_period(
+                p, c, u, q_r[k], r1, dk, x0, x1, x2, x3, tk, h, substeps, flex, fmax, hist, n_steps, tau_i, y
+            )
+        elif tau_i > 0.0:  # current loop: the applied force y lags the (lagged) command
             out_qdd[k], x0, x1, x2, x3, y = _current_loop_period(p, ua, ub, y, dk, x0, x1, x2, x3, tk, h, substeps, lag, flex, tau_i)
         elif du != 0.0:  # the ramped pulses' path: the disturbance with the command (out_u keeps the command)
             out_qdd[k], x0, x1, x2, x3 = _ramped_period(p, u + dk, du, x0, x1, x2, x3, tk, h, substeps, fmax, flex)

@@ -58,6 +58,7 @@ def controller_from_log(log: RunLog) -> CTCSettings | PDSettings:
                 pulse_input=str(ctl.get("pulse_input", "held")),
                 delay_samples=float(ctl.get("delay_samples", 1.0)),
                 velocity=str(ctl.get("velocity", "averaged")),
+                continuous=bool(ctl.get("continuous", False)),
             )
         except (TypeError, ValueError):
             raise SimulationError(log.provenance.source, "the log's PD controller lacks kp, kv or drive_gain in its metadata") from None

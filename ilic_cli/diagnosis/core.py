@@ -20,8 +20,10 @@ from ilic_cli.diagnosis.decide import Decision, ReplayVerdict, decide, proposal_
 from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, detect_drift, fitted_with, with_drift
 from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.fold_plant import fitted_plant
-from ilic_cli.diagnosis.friction_law import FrictionLaw, read_friction_law, with_friction_law
+from ilic_cli.diagnosis.friction_law import FrictionLaw
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
+from ilic_cli.diagnosis.loop_read import Model as Model_
+from ilic_cli.diagnosis.loop_read import read_the_loop
 from ilic_cli.diagnosis.model_values import effect_fit, model_parameters, model_std, steps_from_effects
 from ilic_cli.diagnosis.propose import Proposal, base_model, propose
 from ilic_cli.diagnosis.propose import prepare_system as _prepare
@@ -41,7 +43,7 @@ from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, weight
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.replay import DRIVE_LAGS
-from ilic_cli.simulation.timing import ControlTiming, recorded_loop
+from ilic_cli.simulation.timing import ControlTiming
 from ilic_cli.usable import UsableRows, usable_rows
 
 __all__ = [  # the pipeline, and the names its callers import from here as before the stages were split out
@@ -274,16 +276,16 @@ def diagnose(
     res0 = base.res
     timing, law = None, None
     if settings.simulate and against is None and settings.pd_timing == "recorded":  # the replays run the loop that ran: its timing read from the recording
-        timed = _timing_model(prop, base, model_doc)
-        timed_log, timing = recorded_loop(log, *timed, settings.ls)
-        if timing is None and timed != (base.params, base.effects):  # the proposal does not replay: the rigid fit
-            timed = base.params, base.effects
-            timed_log, timing = recorded_loop(log, *timed, settings.ls)
-        law_model = timed if timed == (base.params, base.effects) else _timing_model(prop, base, model_doc, lags=True)
-        law = read_friction_law(timed_log, prop.data, prop.base, prop.known, prop.rows, law_model, settings.ls, settings.select.alpha)
-        log = with_friction_law(timed_log, law)  # and the friction law it shows near zero speed
-        if validate is not None:
-            validate = with_friction_law(recorded_loop(validate, *timed, settings.ls)[0], law)
+        first, given = prop, validate
+
+        def models(p: Proposal) -> tuple[Model_, Model_, Model_]:
+            b = base if p is first else _baseline(p, model_doc, settings)
+            return _timing_model(p, b, model_doc), _timing_model(p, b, model_doc, lags=True), (b.params, b.effects)
+
+        prop, log, validate, timing, law = read_the_loop(prop, settings, log, validate, models, lambda lg: propose(lg, settings, model_doc, given))
+        if prop is not first:  # proposed again under the loop read (a law inside the dynamics: no hold)
+            base = _baseline(prop, model_doc, settings)
+            res0 = base.res
     decision = decide(log, prop, settings, validate, against)  # 2. decide
     replayed = settings.simulate and against is None and "q_ref" in log
     decision, at_dwells = refit_at_dwells(log, prop, decision, settings, replayed)  # 3. refit

@@ -17,8 +17,8 @@ The law is read as the loop's timing is (:mod:`ilic_cli.simulation.timing`): the
    independent simulator's trapezoid with a 1.5 ms drive lag the inverse model proposes no law.
 2. **Decided by the replay**: the model the timing was read with is replayed with the law (``coulomb_smoothing`` at that
    ``vc``) and without. Not closer in position, stick/slip stays (one replay more than the diagnosis made before). Closer,
-   ``vc`` is searched on the closed loop (:data:`SCAN_STRIDE`), and the law is kept when its replay is closer to the recording
-   in both the position and the force (the relative errors of the benchmark's simulation table,
+   ``vc`` is searched on the closed loop (:data:`SCAN_STRIDE`), and the law is kept when its replay halves the position error
+   (:data:`CLEAR_GAIN`) and lowers the force error (the relative errors of the benchmark's simulation table,
    :func:`ilic_cli.simulation.replay.relative_errors`). Measured on the independent simulator (10 s, 1 kHz, PD at its sample):
    with ``tanh`` friction the best ``vc`` puts the position error at 0.08 to 0.41 of stick/slip's and the force at 0.86 to 0.93;
    with stiction every ``vc`` of the grid raises both (position 1.25 to 36 times, the 12 kg axis's and the 0.5 kg·m² joint's
@@ -153,10 +153,18 @@ def read_friction_law(
         f"{who}, vc searched on the closed loop: the replay's position error {before['position']:.3g} % -> {after['position']:.3g} %, "
         f"force {before['force']:.3g} % -> {after['force']:.3g} %"
     )
-    if not (after["position"] < before["position"] and after["force"] < before["force"]):
+    if not (after["position"] < CLEAR_GAIN * before["position"] and after["force"] < before["force"]):
         return FrictionLaw(None, vc, p_value, level, before, after, f"a smoothed law is not closer to the recording in both: {figures}", data.joint)
     return FrictionLaw(vc, vc, p_value, level, before, after, figures, data.joint)
 
+
+CLEAR_GAIN = 0.5
+"""A reading of the plant's law or of the loop changes the replays only when its replay halves their error in the measure it
+acts on: the smoothed friction the position error (where the axis creeps or holds), a law inside the dynamics the force error
+(:data:`ilic_cli.diagnosis.loop_read.INSIDE_FORCE_SHARE`). The two hypotheses' replays are near one another where the law hardly
+acts: on a corpus log of the plant's stick/slip (a 1.8 ms delay on the multisine under the current loop) the law at 0.55 mm/s,
+nearly a switch, moved the position error by 1 % and the force by 0.1 %, and was kept until this margin. Measured with tanh
+friction: 0.08-0.41 of stick/slip's position error."""
 
 SCAN_STRIDE = 4
 """The closed-loop search of ``vc`` replays every fourth point of :func:`smoothing_grid` (8 replays, a factor 1.8 apart), then

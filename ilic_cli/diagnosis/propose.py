@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.baseline import held, hold_s
+from ilic_cli.diagnosis.baseline import held
 from ilic_cli.diagnosis.drift import GivenDrift, detect_drift
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
@@ -25,10 +25,9 @@ from ilic_cli.effects import EFFECTS, applicable
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
 from ilic_cli.parameters import structure_of
-from ilic_cli.prepare import PreparedLog, prepare_log
+from ilic_cli.prepare import PreparedLog, force_hold_s, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
 from ilic_cli.runlog import RunLog, joint_type
-from ilic_cli.simulation.replay import tau_sensor
 from ilic_cli.usable import identification_speed_noise, too_few_rows, with_rest
 
 
@@ -87,7 +86,7 @@ def prepare_system(prepared: PreparedLog, model: Model, settings: LSSettings) ->
         data = lsq_rows(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid, speed_noise=identification_speed_noise(prepared))
     except ValueError as exc:
         raise IdentificationError(prepared.source, str(exc)) from None
-    data = held(data, model, hold_s(tau_sensor(log), prepared.fs_hz))
+    data = held(data, model, force_hold_s(log, prepared.fs_hz))
     noise = measurement_std(*position_noise(np.asarray(log["q"]), prepared.fs_hz, settings.at_rate(prepared.fs_hz)))
     # the noise a flexibility's columns carry (system.column_noise); the joint, whose units the reasons write
     return replace(data, position_noise_std=noise, joint=joint_type(log.units.get("q")))
@@ -135,7 +134,7 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
         W, _, names = system(data, base, known, rows)
         given = drift.columns(data.t_dec[rows], W, names)
     selection = forward_select(data, base, fs, sel, validation=vdata, known=known, given=given)
-    hold = hold_s(tau_sensor(log), fs)
+    hold = force_hold_s(log, fs)
     return Proposal(prepared, log, data, base, known, selection, sel, rows, hold, joint, validate, vprepared, vdata, warnings, drift)
 
 

@@ -224,6 +224,11 @@ class ControlTiming:
     negative_flexibility: bool = False
     lag_found: bool = False
     replay_velocity: str = PD_VELOCITIES[0]
+    continuous: bool = False
+    """The law on the plant's velocity is replayed inside the dynamics (:attr:`plant.controllers.PDSettings.continuous`), as the
+    diagnosis decides it (:mod:`ilic_cli.diagnosis.loop_read`)."""
+    held: dict[str, float] = field(default_factory=dict)
+    """Replay errors of the law on the plant's velocity held over the period from its sample (tried beside :attr:`continuous`)."""
 
     @property
     def velocity_mismatch(self) -> bool:
@@ -233,8 +238,8 @@ class ControlTiming:
     @property
     def mismatch(self) -> bool:
         """The replay's loop is not the recording's: the command follows the same sample while the replay delays it by a
-        period (and a delay was read), or its velocity estimate is another."""
-        return (self.law.follows == "same" and bool(self.tried)) or self.velocity_mismatch
+        period (and a delay was read), or its velocity estimate is another, or the law acts inside the dynamics."""
+        return (self.law.follows == "same" and bool(self.tried)) or self.velocity_mismatch or self.continuous
 
     def sentence(self) -> str:
         """One sentence for reports (empty when the replay's loop is the recording's)."""
@@ -249,7 +254,14 @@ class ControlTiming:
             if self.velocity_mismatch
             else ""
         )
-        if self.tried and self.best is not None:
+        if self.continuous:
+            head = (
+                f"The recorded command follows the PD law{estimate} on the same sample's position ({law.same_pct:.2g} % of its RMS left), and its "
+                f"replays are closest with the law inside the dynamics, on the plant's state at every integration step (as a solver's "
+                f"right-hand side; held over the period from its sample: force {self.held['force']:.2f} %, position {self.held['position']:.3g} %): "
+                "the replays here run that loop"
+            )
+        elif self.tried and self.best is not None:
             ms = self.best * self.period_s * 1e3
             where = f"acting {ms:.2g} ms after its sample" if self.at_edge is None else f"acting {ms:.2g} ms after its sample ({self.at_edge})"
             head = (
@@ -289,6 +301,8 @@ class ControlTiming:
             "best_delay_s": None if self.best is None else self.best * self.period_s,
             "at_edge": self.at_edge,
             "lag_found": self.lag_found,
+            "continuous": self.continuous,
+            "held": self.held,
             "documented": self.documented,
             "refined": self.refined,
             "sentence": self.sentence(),
@@ -368,7 +382,9 @@ def with_recorded_timing(log: RunLog, timing: ControlTiming | None) -> RunLog:
         return log
     recorded = log.controller
     controller = {**(recorded.settings if recorded is not None else {}), "kind": "pd"}
-    if timing.tried and timing.best is not None:
+    if timing.continuous:  # the law inside the dynamics, on the plant's state: it acts at once
+        controller["delay_samples"], controller["continuous"] = 0.0, True
+    elif timing.tried and timing.best is not None:
         controller["delay_samples"], controller[LAG_READ] = float(timing.best), True
     if timing.velocity_mismatch:
         controller["velocity"] = timing.law.velocity

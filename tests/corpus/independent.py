@@ -36,7 +36,7 @@ SUBSTEPS = 10
 """Euler steps a period by default (the tests'). At 0.2 ms (500 Hz) its steps lag a break-away from Stribeck friction enough for
 the diagnosis to see a delay of a tenth of a millisecond beside it; with 40 (50 µs) that is gone (:mod:`benchmarks.corpus_independent`)."""
 G = 9.81
-LOOPS = ("same", "previous", "state")
+LOOPS = ("same", "previous", "state", "continuous")
 
 
 def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, float]], seed: int, repeat: int = 1, smooth_speed: float = 0.0) -> RunLog:
@@ -84,11 +84,16 @@ def run_loop(
     for k in range(len(t)):
         meas = round((q + noise[k]) / axis.resolution) * axis.resolution
         law = kv * (kp * (q_ref[k] - meas) - (v if loop == "state" else (meas - (q_prev if k else meas)) / T))
+        if loop == "continuous":  # logged at the sample: the law on the state there
+            law = kv * (kp * (q_ref[k] - q) - v)
         u = u_prev if loop == "previous" else law
         u = min(max(u, -10.0), 10.0)
         u_prev, q_prev = law, meas
         qm[k], effort[k] = meas, axis.drive_gain * u
         for s in range(substeps):
+            if loop == "continuous" and s:  # the law inside the dynamics (a solver's right-hand side): on the state, every step
+                r = q_ref[k] + (q_ref[min(k + 1, len(t) - 1)] - q_ref[k]) * s / substeps
+                u = min(max(kv * (kp * (r - q) - v), -10.0), 10.0)
             pending.append(axis.drive_gain * u)
             force = pending.pop(0)
             time = t[k] + s * h

@@ -76,6 +76,7 @@ def test_gravity_under_a_loop_fed_the_plant_s_velocity() -> None:
     10 % (37 % and 48 % off when no law was read and the replays ran the documented loop)."""
     diag = diagnose(simulate("revolute", 500.0, "state", {"gravity": {"MX": 0.02, "MY": 0.01}}, 3), settings=DiagnoseSettings())
     assert diag.timing is not None and diag.timing.law.velocity == "exact" and diag.timing.law.follows == "same"
+    assert not diag.timing.continuous  # a discrete loop: held over the period (the law inside the dynamics does not halve its error)
     got = _values(diag, "gravity")
     assert got["MX"] == pytest.approx(0.02, rel=TOLERANCE) and got["MY"] == pytest.approx(0.01, rel=TOLERANCE)
 

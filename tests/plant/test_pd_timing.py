@@ -6,9 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ilic_cli.effects import make_effects
 from ilic_cli.errors import ParameterError
 from ilic_cli.simulation.timing import pd_law_residuals
+from plant.closed_loop import simulate_loop
 from plant.controllers import PDSettings
+from plant.dynamics import RigidParameters
 from plant.replay import simulate_replay
 from tests.conftest import make_synthetic_log
 
@@ -95,3 +98,48 @@ def test_delay_samples_is_checked() -> None:
         simulate_replay(log, PARAMS, controller=PDSettings(delay_samples=0.5, pulse_input="ramp"))
     with pytest.raises(ParameterError, match="velocity"):
         simulate_replay(log, PARAMS, controller=PDSettings(velocity="filtered"))
+
+
+def test_a_law_inside_the_dynamics_is_evaluated_every_step_on_the_state() -> None:
+    """``continuous``: the law on the plant's state at every integration step (a solver's right-hand side). Logged at the samples as the
+    law on the plant's velocity there; between them the force follows the state, so a log of such a simulator (the independent
+    simulator's ``"continuous"`` loop, 40 Euler steps a period) replays with the true model far closer than with the law held over
+    the period. A drive lag delays the force by whole steps; the run is the same in one piece or in the chunks a progress bar asks."""
+    from dataclasses import replace
+
+    from ilic_cli.idim_ls import LSSettings
+    from ilic_cli.simulation.replay import relative_errors, replay
+    from plant.replay import controller_from_log
+    from tests.corpus.independent import run_loop
+    from tests.logs.test_rates import AXES, reference
+
+    axis = AXES["linear"]
+    _, q_ref = reference(axis, 500.0)
+    log = run_loop(axis, 500.0, q_ref, "continuous", {}, 3, "linear", 40)
+    held = replace(controller_from_log(log), velocity="exact", delay_samples=0.0)
+    truth = {k: axis.truth[k] for k in ("M", "Fv", "Fc")}
+    errors = [relative_errors(log, replay(log, truth, {}, controller=c), LSSettings().at_rate(500.0)) for c in (held, replace(held, continuous=True))]
+    assert errors[1]["force"] < 0.1 * errors[0]["force"] and errors[1]["position"] < 0.5 * errors[0]["position"], errors
+    sim = replay(log, truth, {}, controller=replace(held, continuous=True))  # noise-free: its q is the plant's
+    v = held.kv * (held.kp * (sim["q_ref"] - sim["q"]) - sim["qd_plant"])  # logged: the law on the state at the sample
+    np.testing.assert_allclose(sim["vir"], np.clip(v, -held.vmax, held.vmax), atol=1e-9)
+    assert sim.meta["controller"]["continuous"] is True and "continuous" not in PDSettings().to_dict()
+    inside = replace(held, continuous=True)
+    run = {
+        chunks: simulate_loop(
+            q_r=log["q_ref"],
+            qd_r=np.zeros(len(log)),
+            qdd_r=np.zeros(len(log)),
+            params=RigidParameters(**truth),
+            effects=make_effects({"delay": {"delay": -0.0016}}),
+            controller=inside,
+            fs_hz=500.0,
+            progress=(lambda a, b: None) if chunks else None,
+        ).q
+        for chunks in (False, True)
+    }
+    np.testing.assert_array_equal(run[False], run[True])  # the lag's commands kept across what would be chunks
+    assert not np.allclose(run[False], sim["q"], atol=1e-6)  # and the lag acts
+    for bad in ({"velocity": "backward"}, {"delay_samples": 0.5}):
+        with pytest.raises(ParameterError, match="continuous"):
+            simulate_replay(log, truth, controller=replace(held, continuous=True, **bad))

@@ -1,0 +1,48 @@
+"""A PD law inside the simulator's dynamics (its ODE's right-hand side), read from the recording (:mod:`ilic_cli.diagnosis.loop_read`).
+
+The independent simulator's ``"continuous"`` loop (:mod:`tests.corpus.independent`, 40 Euler steps a period) evaluates the law on
+its state at every step and logs it at the samples. Read as the discrete loop fed the state, the inverse model's half-period hold
+mistimed its force: a drive lag came out half a period short, and clean chirps got a viscous friction rising with the chirp's
+frequency (corpus, 12 kg axis, 500 Hz: +6.7 %, named a drift).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ilic_cli.diagnosis import DiagnoseSettings, diagnose
+from ilic_cli.diagnosis.loop_read import INSIDE_FORCE_SHARE
+from ilic_cli.diagnosis.report import to_markdown
+from tests.corpus.independent import run_loop
+from tests.logs.test_rates import AXES, reference
+
+
+def _log(name: str, fs_hz: float, effects: dict[str, dict[str, float]], seed: int) -> object:
+    _, q_ref = reference(AXES[name], fs_hz)
+    return run_loop(AXES[name], fs_hz, q_ref, "continuous", effects, seed, name, 40)
+
+
+def test_a_law_inside_the_dynamics_is_read_and_a_chirp_stays_clean() -> None:
+    """The robot corpus's 12 kg axis on its chirp at 500 Hz (benchmarks/corpus_independent.py's case): read as held, a drift of
+    Fv was named; read inside the dynamics (its replay's force error 0.08 of the held law's), nothing."""
+    from tests.corpus.robot import AXES as ROBOT_AXES
+    from tests.corpus.robot import reference as robot_reference
+
+    axis = ROBOT_AXES["lin12"]
+    _, q_ref = robot_reference(axis, "chirp", 500.0, 7, 10.0)
+    diag = diagnose(run_loop(axis, 500.0, q_ref, "continuous", {}, 7, "lin12", 40), settings=DiagnoseSettings())
+    timing = diag.timing
+    assert timing is not None and timing.continuous and timing.refined["force"] < INSIDE_FORCE_SHARE * timing.held["force"], timing
+    assert diag.findings == []
+    assert "the law inside the dynamics, on the plant's state at every integration step" in to_markdown(diag)
+    assert diag.to_dict()["timing"]["continuous"] is True
+
+
+def test_a_drive_lag_beside_a_law_inside_the_dynamics_is_whole() -> None:
+    """A 1.5 ms actuator delay at 1 kHz: -1.52 ms (read as held: -1.12 ms, the hold's half period taken off it)."""
+    diag = diagnose(_log("linear", 1000.0, {"delay": {"delay": 0.0015}}, 18), settings=DiagnoseSettings())
+    assert diag.timing is not None and diag.timing.continuous
+    (f,) = diag.findings
+    assert f.effect.id == "delay" and f.parameters["delay"].value == pytest.approx(-0.0015, rel=0.05)
+    assert np.isfinite(diag.timing.held["force"])
