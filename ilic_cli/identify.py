@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ilic_cli import parameters
-from ilic_cli.closed_loop_id import ClosedLoopResult, ClosedLoopSettings, plant_of, require_closed_loop
+from ilic_cli.closed_loop_id import ClosedLoopResult, ClosedLoopSettings, plant_of, relative_errors, require_closed_loop
 from ilic_cli.drive_lag import DriveLag, drive_lag, lag_rows
 from ilic_cli.effects import unit_of
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
@@ -33,6 +33,7 @@ from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.loop import PLANT_LOOP
+from ilic_cli.simulation.pd_law import follows_the_law_on_the_state, inside_is_closer
 from ilic_cli.usable import UNKNOWN_FORCE_TIMING, UsableRows, force_timing_unknown, identification_hold_s, identification_speed_noise, usable_rows, with_rest
 
 if TYPE_CHECKING:
@@ -334,6 +335,10 @@ def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[Run
     )
     if force_timing_unknown(prepared):
         report.warnings.append(UNKNOWN_FORCE_TIMING)
+    if settings.pd_timing == "recorded" and (inside := _law_inside(prepared, settings, loop)) is not None:  # before the hold is used
+        prepared, log = inside, inside.log
+        report.usable = usable_rows(prepared, settings.ls)
+        report.warnings.append(f"loop: {LAW_INSIDE}")
     closed = [label(m) for m in runs if METHODS[m].closed_loop]
     report.drive_lag = _drive_lag(prepared, spec, model, settings.ls) if "ls" in runs else None
     if report.drive_lag is not None and report.drive_lag.applied:  # the model's lag from here, as if stated: every fit, replay, validation
@@ -365,6 +370,34 @@ def _drive_lag(prepared: PreparedLog, spec: ModelSpec, model: Model, ls: LSSetti
         return drive_lag(lambda lag: decimated_systems(log.t, log["q"], log["tau"], fs, model, ls, v, seg, hold + lag, noise)[:2], 1.0 / fs)
     except ValueError as exc:  # as IDIM-LS's own fit says it (estimators.inverse.IDIMLS.run)
         raise IdentificationError(prepared.source, str(exc)) from None
+
+
+LAW_INSIDE = (
+    "the recorded command follows the PD law on the plant's velocity at its sample, and the law inside the dynamics (on the state at "
+    "every integration step, as a solver's right-hand side) replays the recording clearly closer than the law held over the period: "
+    "every fit takes the force at a sample as the force there, not a command held half a period"
+)
+"""What ``identify`` says when it reads a PD law inside the dynamics (:func:`_law_inside`)."""
+
+
+def _law_inside(prepared: PreparedLog, settings: IdentifySettings, loop: LoopSimulator) -> PreparedLog | None:
+    """``prepared`` with its PD law inside the dynamics when the recording says so (:func:`ilic_cli.simulation.timing.inside_is_closer`:
+    IDIM-LS fitted under each hypothesis's hold, each replayed with its own loop), else ``None``; a log whose command does not follow
+    the law on the plant's velocity at its sample is not asked (no replay)."""
+    if not follows_the_law_on_the_state(prepared.log):  # read without a replay: most logs stop here, the plant not imported
+        return None
+    from ilic_cli.simulation.timing import with_pd_law  # deferred: the plant pulls in numba
+
+    ls, spec = METHODS["ls"].bind(loop), settings.model
+    errors = []
+    hypotheses = [replace(prepared, log=with_pd_law(prepared.log, continuous)) for continuous in (False, True)]
+    for p in hypotheses:
+        fit = ls.fit(p, spec, settings.of("ls", None))
+        try:
+            errors.append(relative_errors(p.log, loop.replay(p.log, *plant_of(fit.names, fit.theta, spec.effects)), settings.ls))
+        except IlicError:  # a fit that does not replay: the held law stays
+            return None
+    return hypotheses[1] if inside_is_closer(*errors) else None
 
 
 def _run_fits(report: IdentifyReport, prepared: PreparedLog, runs: tuple[str, ...], settings: IdentifySettings, loop: LoopSimulator) -> None:

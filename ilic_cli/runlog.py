@@ -99,6 +99,11 @@ def _whole(value: Any) -> int | None:
         return None
 
 
+PD_VELOCITIES = ("averaged", "backward", "exact")
+"""The velocity estimates a PD controller entry may declare (``velocity``): the benchmark's difference of the position averaged over
+two samples, the plain backward difference of the measured position, or the plant's own velocity (:class:`plant.controllers.PDSettings`)."""
+
+
 @dataclass(frozen=True)
 class Controller:
     """The loop that ran, as the log records it (``meta["controller"]`` and ``meta["drive_gain"]``).

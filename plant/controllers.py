@@ -55,14 +55,12 @@ import numpy as np
 
 from ilic_cli import parameters
 from ilic_cli.errors import ParameterError
+from ilic_cli.runlog import PD_VELOCITIES  # packed as the index in that tuple
 
 # packed controller vector (read by the integrator)
 C_KIND, C_KP, C_KV, C_ALPHA, C_PD_KP, C_PD_KV, C_GTAU, C_VMAX, C_ASYM, C_EXACT_VEL, C_PULSE_RAMP, C_PD_SAME, C_PD_VELOCITY, C_PD_CONTINUOUS = range(14)
 N_CTRL = 14
 PULSE_INPUTS = ("held", "ramp")
-PD_VELOCITIES = ("averaged", "backward", "exact")
-"""The PD loop's velocity estimates: the benchmark's difference of the position averaged over two samples, the plain
-backward difference of the measured position, or the plant's own velocity (packed as the index in this tuple)."""
 VELOCITY_ESTIMATES = ("backward", "exact")
 KIND_CTC, KIND_PD = 0.0, 1.0
 

@@ -293,7 +293,9 @@ def diagnose(
     refit = refit_stage(log, prop, decision, final, at_dwells, settings, replayed)
     res0 = with_std(res0, gls_covariance(base.W, base.y, res0.theta))
     findings = _findings(prop, decision, final, refit)  # 4. the findings, the model file and the figures the report renders
-    doc = _model_file(prop, decision, final, refit) if law is None else law.in_model_file(_model_file(prop, decision, final, refit))
+    doc = _model_file(prop, decision, final, refit)
+    if law is not None:  # the friction law the replays ran (none for stick/slip): ilic replay of the model file runs it too
+        doc = law.in_model_file(doc)
     kept = [*prop.known, *decision.kept]
     judge = (lambda drift: replay_drift(log, prop, kept, drift, settings, decision.sensor)) if replayed else None
     diag = _assembled(prop, replace(base, res=res0), decision, final, refit, findings, doc, settings, timing, judge)

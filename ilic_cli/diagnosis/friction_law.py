@@ -46,6 +46,7 @@ from ilic_cli.lm import minimise
 from ilic_cli.lsq import lstsq
 from ilic_cli.regressor import Kinematics, Model
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.pd_law import CLEAR_GAIN
 from ilic_cli.simulation.replay import FRICTION_LAW, relative_errors, replay
 
 SMOOTHING = "coulomb_smoothing"
@@ -157,14 +158,6 @@ def read_friction_law(
         return FrictionLaw(None, vc, p_value, level, before, after, f"a smoothed law is not closer to the recording in both: {figures}", data.joint)
     return FrictionLaw(vc, vc, p_value, level, before, after, figures, data.joint)
 
-
-CLEAR_GAIN = 0.5
-"""A reading of the plant's law or of the loop changes the replays only when its replay halves their error in the measure it
-acts on: the smoothed friction the position error (where the axis creeps or holds), a law inside the dynamics the force error
-(:data:`ilic_cli.diagnosis.loop_read.INSIDE_FORCE_SHARE`). The two hypotheses' replays are near one another where the law hardly
-acts: on a corpus log of the plant's stick/slip (a 1.8 ms delay on the multisine under the current loop) the law at 0.55 mm/s,
-nearly a switch, moved the position error by 1 % and the force by 0.1 %, and was kept until this margin. Measured with tanh
-friction: 0.08-0.41 of stick/slip's position error."""
 
 SCAN_STRIDE = 4
 """The closed-loop search of ``vc`` replays every fourth point of :func:`smoothing_grid` (8 replays, a factor 1.8 apart), then

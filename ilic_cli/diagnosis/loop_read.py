@@ -28,16 +28,18 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
-from ilic_cli.diagnosis.friction_law import CLEAR_GAIN, FrictionLaw, read_friction_law, with_friction_law
+from ilic_cli.diagnosis.friction_law import FrictionLaw, read_friction_law, with_friction_law
 from ilic_cli.diagnosis.propose import Proposal
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.errors import IlicError
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.pd_law import CLEAR_GAIN, inside_is_closer, law_may_act_inside
 from ilic_cli.simulation.replay import relative_errors, replay
-from ilic_cli.simulation.timing import ControlTiming, recorded_loop, with_recorded_timing
+from ilic_cli.simulation.timing import ControlTiming, recorded_loop, with_pd_law
 
 INSIDE_FORCE_SHARE = CLEAR_GAIN
-"""A law inside the dynamics is taken when its replay's force error is below this share of the held law's (module docstring)."""
+"""A law inside the dynamics is taken when its replay's force error is below this share of the held law's
+(:func:`ilic_cli.simulation.timing.inside_is_closer`)."""
 
 Model = tuple[dict[str, float], dict[str, Any]]
 """Rigid parameters and plant effects of a replay."""
@@ -61,7 +63,7 @@ def read_the_loop(
     if timing is None and timed != rigid:  # the proposal does not replay: the rigid fit
         timed = lagged = rigid
         timed_log, timing = recorded_loop(log, *timed, settings.ls)
-    if timing is not None and timing.law.follows == "same" and timing.law.velocity == "exact":
+    if timing is not None and law_may_act_inside(timing.law):
         inside = _inside_the_dynamics(log, timed_log, timing, lagged, models, proposed_again, settings)
         if inside is not None:
             prop, timed_log, timing = inside
@@ -84,13 +86,13 @@ def _inside_the_dynamics(
     """The proposal, log and timing of the law inside the dynamics when its replay explains the recording clearly better than the
     held law's (:data:`INSIDE_FORCE_SHARE`), each with the inverse model's proposal under its own hold; else ``None``."""
     inside = replace(timing, continuous=True)
-    inside_log = with_recorded_timing(log, inside)
+    inside_log = with_pd_law(log, continuous=True)
     try:
         held = relative_errors(log, replay(timed_log, *lagged), settings.ls)
         prop = proposed_again(inside_log)
         errors = relative_errors(log, replay(inside_log, *models(prop)[1]), settings.ls)
     except IlicError:  # either model does not replay: the held law stays
         return None
-    if not (errors["position"] < held["position"] and errors["force"] < INSIDE_FORCE_SHARE * held["force"]):
+    if not inside_is_closer(held, errors):
         return None
     return prop, inside_log, replace(inside, held=held, refined=errors)
