@@ -381,7 +381,7 @@ LAW_INSIDE = (
 
 
 def _law_inside(prepared: PreparedLog, settings: IdentifySettings, loop: LoopSimulator) -> PreparedLog | None:
-    """``prepared`` with its PD law inside the dynamics when the recording says so (:func:`ilic_cli.simulation.timing.inside_is_closer`:
+    """``prepared`` with its PD law inside the dynamics when the recording says so (:func:`ilic_cli.simulation.pd_law.inside_is_closer`:
     IDIM-LS fitted under each hypothesis's hold, each replayed with its own loop), else ``None``; a log whose command does not follow
     the law on the plant's velocity at its sample is not asked (no replay)."""
     if not follows_the_law_on_the_state(prepared.log):  # read without a replay: most logs stop here, the plant not imported
