@@ -126,7 +126,7 @@ def hold_of(sensor: str | None, fs_hz: float) -> float:
 def force_hold_s(log: RunLog, fs_hz: float) -> float:
     """How long the logged force at a sample is held: half a period for the drive's held command (:func:`hold_of` of
     :func:`tau_sensor`), 0 for a PD law acting inside the dynamics (``continuous``: its command at the sample is the force
-    there, read from the recording by :mod:`ilic_cli.simulation.timing`)."""
+    there, read from the recording by the diagnosis and by ``identify``: :func:`ilic_cli.simulation.pd_law.inside_is_closer`)."""
     controller = log.controller
     if controller is not None and controller.kind == "pd" and controller.settings.get("continuous"):
         return 0.0

@@ -39,7 +39,7 @@ from ilic_cli.simulation.timing import ControlTiming, recorded_loop, with_pd_law
 
 INSIDE_FORCE_SHARE = CLEAR_GAIN
 """A law inside the dynamics is taken when its replay's force error is below this share of the held law's
-(:func:`ilic_cli.simulation.timing.inside_is_closer`)."""
+(:func:`ilic_cli.simulation.pd_law.inside_is_closer`)."""
 
 Model = tuple[dict[str, float], dict[str, Any]]
 """Rigid parameters and plant effects of a replay."""
