@@ -8,8 +8,8 @@ RunLog before writing -- and runs ``info`` and ``convert`` in-process.
 Every run must end with status 0 and a correct result (``info``: the
 original sample count) or status 2 and one line ``ilic: error: FILE: ...``;
 never status 1 or a traceback, never a partial output, within the deadline.
-``derandomize=True`` makes CI deterministic; 150 examples per format in ``make test`` (its 300 s budget: each kind of
-mutation still 16 times or more a format), more with ``ILIC_FUZZ_EXAMPLES=N``.
+``derandomize=True`` makes CI deterministic; 100 examples per format in ``make test`` (its 300 s budget: each kind of
+mutation still 9 times or more a format), more with ``ILIC_FUZZ_EXAMPLES=N``.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from tests.clirun import run_cli
 from tests.conftest import make_synthetic_log
 
 N = 200
-EXAMPLES = int(__import__("os").environ.get("ILIC_FUZZ_EXAMPLES", "150"))
+EXAMPLES = int(__import__("os").environ.get("ILIC_FUZZ_EXAMPLES", "100"))
 
 # format id -> (file or folder name, write options, output name for convert)
 FORMATS: dict[str, tuple[str, WriteOptions, str]] = {
