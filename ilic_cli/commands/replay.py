@@ -23,6 +23,7 @@ from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import write_log
 from ilic_cli.io.atomic import same_path
 from ilic_cli.prepare import prepare_log
+from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.replay import relative_errors
 from plant.replay import simulate_open_loop, simulate_replay
 
@@ -113,6 +114,7 @@ def command(
     run = prepared.log  # an irregularly sampled log is on a uniform grid now
     for w in prepared.warnings:
         note(f"ilic: warning: {w}")
+    kept: RunLog | None = None  # the replay of the loop kept, when the loop was chosen by replays
     if pd_timing == "recorded":  # the loop that ran: a PD log's timing read from the recording with this model
         from ilic_cli.simulation.pd_law import inside_is_closer, law_may_act_inside  # deferred: with the replay (the IDIM filter)
         from ilic_cli.simulation.timing import recorded_loop, with_pd_law  # deferred: with the replay
@@ -122,14 +124,16 @@ def command(
             note(f"ilic: loop timing: {timing.sentence()} (--pd-timing documented: the loop as its metadata states it)")
         if timing is not None and law_may_act_inside(timing.law):  # the law on the plant's velocity: held, or inside the dynamics?
             inside = with_pd_law(run, continuous=True)
-            held_e, inside_e = (relative_errors(r, simulate_replay(r, params, effects, substeps=substeps, seed=seed), LSSettings()) for r in (run, inside))
+            held_sim, inside_sim = (simulate_replay(r, params, effects, substeps=substeps, seed=seed) for r in (run, inside))
+            held_e, inside_e = (relative_errors(r, sm, LSSettings()) for r, sm in ((run, held_sim), (inside, inside_sim)))
+            kept = held_sim
             if inside_is_closer(held_e, inside_e):
-                run = inside
+                run, kept = inside, inside_sim
                 note(
                     f"ilic: loop: the law inside the dynamics, on the plant's state at every integration step, replays the recording "
                     f"clearly closer than the law held over the period (force error {held_e['force']:.3g} % -> {inside_e['force']:.3g} %)"
                 )
-    sim = simulate_replay(run, params, effects, substeps=substeps, seed=seed)
+    sim = kept if kept is not None else simulate_replay(run, params, effects, substeps=substeps, seed=seed)
     sim.meta["model_file"] = str(model_file)
     write_log(sim, output, out_format, inputs=(log,))
     note(f"ilic: replayed {log} with {model_file}: wrote {output} ({len(sim)} samples)")

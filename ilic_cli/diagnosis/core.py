@@ -276,16 +276,18 @@ def diagnose(
     res0 = base.res
     timing, law = None, None
     if settings.simulate and against is None and settings.pd_timing == "recorded":  # the replays run the loop that ran: its timing read from the recording
-        first, given = prop, validate
+        given, bases = validate, [(prop, base)]  # each proposal's baseline, fitted once
 
         def models(p: Proposal) -> tuple[Model_, Model_, Model_]:
-            b = base if p is first else _baseline(p, model_doc, settings)
+            b = next((b for q, b in bases if q is p), None)
+            if b is None:
+                b = _baseline(p, model_doc, settings)
+                bases.append((p, b))
             return _timing_model(p, b, model_doc), _timing_model(p, b, model_doc, lags=True), (b.params, b.effects)
 
         prop, log, validate, timing, law = read_the_loop(prop, settings, log, validate, models, lambda lg: propose(lg, settings, model_doc, given))
-        if prop is not first:  # proposed again under the loop read (a law inside the dynamics: no hold)
-            base = _baseline(prop, model_doc, settings)
-            res0 = base.res
+        base = next(b for q, b in bases if q is prop)  # proposed again under the loop read (a law inside the dynamics: no hold)
+        res0 = base.res
     decision = decide(log, prop, settings, validate, against)  # 2. decide
     replayed = settings.simulate and against is None and "q_ref" in log
     decision, at_dwells = refit_at_dwells(log, prop, decision, settings, replayed)  # 3. refit

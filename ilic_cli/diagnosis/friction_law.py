@@ -77,11 +77,9 @@ class FrictionLaw:
         return {} if self.vc is None else {SMOOTHING: {"vc": self.vc}}
 
     def sentence(self) -> str:
-        """The report's words, ``""`` when the recording gave no candidate."""
-        if self.candidate is None:
-            return ""
+        """The report's words for a law kept, ``""`` for stick/slip (the plant's own law goes unsaid; :meth:`to_dict` says why)."""
         if self.vc is None:
-            return f"stick/slip (Coulomb friction switching with the direction of motion); {self.reason}"
+            return ""
         return (
             f"smooth near zero speed, Coulomb friction Fc tanh(qd/vc) with vc = {_speed(self.vc, self.joint)} and no stiction; "
             f"the replays run that law ({self.reason})"

@@ -12,7 +12,7 @@ Three readings, each proposed by the inverse model and decided by replays of the
    mistimes the force by half a period: a 500 Hz chirp's clean log got a rising viscous friction (a drift, +6.7 %), and a
    1.5 ms drive lag came out 1.03 ms. When the law reads on the plant's velocity at its sample, each hypothesis is proposed
    by the inverse model with its own hold and replayed with its own loop (:attr:`plant.controllers.PDSettings.continuous`),
-   and the law inside the dynamics is taken when its replay's force error is below :data:`INSIDE_FORCE_SHARE` of the held
+   and the law inside the dynamics is taken when its replay's force error is below :data:`~ilic_cli.simulation.pd_law.CLEAR_GAIN` of the held
    law's and its position error lower. Each hypothesis's fit absorbs most of the other's timing (the held law's proposes a lag
    of about half a period), so the decision asks for a clear margin. Measured on the independent simulator
    (:mod:`tests.corpus.independent`, 64 logs: the 12 kg axis and the 0.5 kg·m² joint, trapezoids and chirps, 500 Hz and
@@ -33,13 +33,9 @@ from ilic_cli.diagnosis.propose import Proposal
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.errors import IlicError
 from ilic_cli.runlog import RunLog
-from ilic_cli.simulation.pd_law import CLEAR_GAIN, inside_is_closer, law_may_act_inside
+from ilic_cli.simulation.pd_law import inside_is_closer, law_may_act_inside
 from ilic_cli.simulation.replay import relative_errors, replay
 from ilic_cli.simulation.timing import ControlTiming, recorded_loop, with_pd_law
-
-INSIDE_FORCE_SHARE = CLEAR_GAIN
-"""A law inside the dynamics is taken when its replay's force error is below this share of the held law's
-(:func:`ilic_cli.simulation.pd_law.inside_is_closer`)."""
 
 Model = tuple[dict[str, float], dict[str, Any]]
 """Rigid parameters and plant effects of a replay."""
@@ -66,8 +62,7 @@ def read_the_loop(
     if timing is not None and law_may_act_inside(timing.law):
         inside = _inside_the_dynamics(log, timed_log, timing, lagged, models, proposed_again, settings)
         if inside is not None:
-            prop, timed_log, timing = inside
-            lagged = models(prop)[1]
+            prop, timed_log, timing, lagged = inside
     law = read_friction_law(timed_log, prop.data, prop.base, prop.known, prop.rows, lagged, settings.ls, settings.select.alpha)
     if validate is not None:
         validate = with_friction_law(recorded_loop(validate, *timed, settings.ls)[0], law)
@@ -82,17 +77,19 @@ def _inside_the_dynamics(
     models: Callable[[Proposal], tuple[Model, Model, Model]],
     proposed_again: Callable[[RunLog], Proposal],
     settings: DiagnosisSettings,
-) -> tuple[Proposal, RunLog, ControlTiming] | None:
-    """The proposal, log and timing of the law inside the dynamics when its replay explains the recording clearly better than the
-    held law's (:data:`INSIDE_FORCE_SHARE`), each with the inverse model's proposal under its own hold; else ``None``."""
+) -> tuple[Proposal, RunLog, ControlTiming, Model] | None:
+    """The proposal, log, timing and model (with its drive lag) of the law inside the dynamics when its replay explains the recording
+    clearly better than the held law's (:func:`~ilic_cli.simulation.pd_law.inside_is_closer`), each with the inverse model's
+    proposal under its own hold; else ``None``."""
     inside = replace(timing, continuous=True)
     inside_log = with_pd_law(log, continuous=True)
     try:
         held = relative_errors(log, replay(timed_log, *lagged), settings.ls)
         prop = proposed_again(inside_log)
-        errors = relative_errors(log, replay(inside_log, *models(prop)[1]), settings.ls)
+        model = models(prop)[1]
+        errors = relative_errors(log, replay(inside_log, *model), settings.ls)
     except IlicError:  # either model does not replay: the held law stays
         return None
     if not inside_is_closer(held, errors):
         return None
-    return prop, inside_log, replace(inside, held=held, refined=errors)
+    return prop, inside_log, replace(inside, held=held, refined=errors), model

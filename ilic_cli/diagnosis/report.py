@@ -238,8 +238,9 @@ def _estimates_and_simulation(diag: Diagnosis, at_dwells: bool) -> list[str]:
     timing = diag.timing.sentence() if diag.timing is not None else ""
     if timing:
         lines += [f"Control timing: {timing}.", ""]
-    if diag.friction_law is not None and diag.friction_law.vc is not None:  # stick/slip, the plant's own law, goes unsaid
-        lines += [f"Friction near zero speed: {diag.friction_law.sentence()}.", ""]
+    law = diag.friction_law.sentence() if diag.friction_law is not None else ""
+    if law:
+        lines += [f"Friction near zero speed: {law}.", ""]
     return lines
 
 

@@ -160,15 +160,25 @@ def law_may_act_inside(law: LawResiduals) -> bool:
     return law.follows == "same" and law.velocity == "exact"
 
 
+def log_law(log: RunLog, kp: float, kv: float, vmax: float) -> LawResiduals | None:
+    """The law ``log``'s recorded PD command follows (:func:`pd_law_residuals`) with the gains ``kp, kv`` and saturation ``vmax``;
+    ``None`` for a log without a recorded PD command (``vir``, or its force with a declared drive gain:
+    :func:`ilic_cli.prepare.drive_command`) or ``q_ref``."""
+    command = drive_command(log)  # its vir, or its force over the declared drive gain (the one definition)
+    if command is None or "q_ref" not in log or "q" not in log:
+        return None
+    pulses = log["pulses"] if "pulses" in log else None
+    return pd_law_residuals(log["q"], log["q_ref"], command, pulses, kp, kv, vmax, log.dt_s)
+
+
 def follows_the_law_on_the_state(log: RunLog) -> bool:
     """Whether ``log``'s recorded PD command follows the law on the plant's velocity at its sample (:func:`law_may_act_inside`),
-    read with the loop's gains its metadata declares; ``False`` for a log without a recorded PD command, ``q_ref`` or gains."""
-    command, view = drive_command(log), log.controller
-    if command is None or "q_ref" not in log or "q" not in log or view is None or view.kind != "pd" or not (view.kp and view.kv):
+    read with the loop's gains its controller entry declares (:func:`log_law`); ``False`` without a PD entry and its gains."""
+    view = log.controller
+    if view is None or view.kind != "pd" or not (view.kp and view.kv):
         return False
-    pulses = log["pulses"] if "pulses" in log else None
-    vmax = float(view.settings.get("vmax", 10.0))
-    return law_may_act_inside(pd_law_residuals(log["q"], log["q_ref"], command, pulses, float(view.kp), float(view.kv), vmax, log.dt_s))
+    law = log_law(log, float(view.kp), float(view.kv), float(view.settings.get("vmax", 10.0)))
+    return law is not None and law_may_act_inside(law)
 
 
 def inside_is_closer(held: dict[str, float], inside: dict[str, float]) -> bool:

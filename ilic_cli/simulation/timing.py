@@ -4,7 +4,7 @@ The EMPS benchmark documents its PD loop with one period of computation delay
 (the command computed from ``qm(k-1)`` acts over ``[kT, (k+1)T)``), and the
 replay runs it so (:class:`plant.controllers.PDSettings`, ``delay_samples = 1``).
 A recording that logs the command (``vir``) beside the position tells which
-sample the command was computed from: :func:`pd_law_residuals` evaluates the
+sample the command was computed from: :func:`~ilic_cli.simulation.pd_law.pd_law_residuals` evaluates the
 law on the same sample's position and on the previous one's. When the command
 follows the same sample, the documented loop holds each command one period too
 long, and :func:`control_timing` replays the log with the command acting a
@@ -32,9 +32,8 @@ import numpy as np
 
 from ilic_cli.errors import ParameterError, SimulationError
 from ilic_cli.idim_ls import LSSettings
-from ilic_cli.prepare import drive_command
 from ilic_cli.runlog import RunLog
-from ilic_cli.simulation.pd_law import LawResiduals, pd_law_residuals
+from ilic_cli.simulation.pd_law import LawResiduals, log_law
 from ilic_cli.simulation.replay import LAG_READ, relative_errors, replay
 from plant.controllers import PD_VELOCITIES, PDSettings
 from plant.replay import controller_from_log
@@ -185,20 +184,16 @@ class ControlTiming:
 
 
 def recorded_law(log: RunLog) -> tuple[PDSettings, LawResiduals] | None:
-    """The PD loop ``log`` declares and the law its recorded command follows (:func:`pd_law_residuals`); ``None`` for a log without a
-    recorded PD command (``vir``, or its force with a declared drive gain: :func:`ilic_cli.prepare.drive_command`), ``q_ref`` or
-    the loop's gains."""
-    command = drive_command(log)  # its vir, or its force over the declared drive gain (the one definition)
-    if command is None or "q_ref" not in log or "q" not in log:
-        return None
+    """The PD loop ``log`` declares and the law its recorded command follows (:func:`ilic_cli.simulation.pd_law.log_law`); ``None``
+    for a log without a recorded PD command, ``q_ref`` or the loop's gains."""
     try:
         ctl = controller_from_log(log)
     except (SimulationError, ParameterError):  # no recorded controller (or an invalid one): nothing to read the timing of
         return None
     if not isinstance(ctl, PDSettings) or ctl.pulse_input != "held":
         return None
-    pulses = log["pulses"] if "pulses" in log else None
-    return ctl, pd_law_residuals(log["q"], log["q_ref"], command, pulses, ctl.kp, ctl.kv, ctl.vmax, log.dt_s)
+    law = log_law(log, ctl.kp, ctl.kv, ctl.vmax)
+    return None if law is None else (ctl, law)
 
 
 def with_pd_law(log: RunLog, continuous: bool) -> RunLog:
@@ -280,9 +275,7 @@ def with_recorded_timing(log: RunLog, timing: ControlTiming | None) -> RunLog:
         return log
     recorded = log.controller
     controller = {**(recorded.settings if recorded is not None else {}), "kind": "pd"}
-    if timing.continuous:  # the law inside the dynamics, on the plant's state: it acts at once
-        controller["delay_samples"], controller["continuous"] = 0.0, True
-    elif timing.tried and timing.best is not None:
+    if timing.tried and timing.best is not None:
         controller["delay_samples"], controller[LAG_READ] = float(timing.best), True
     if timing.velocity_mismatch:
         controller["velocity"] = timing.law.velocity

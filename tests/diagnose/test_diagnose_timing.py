@@ -10,7 +10,8 @@ from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.idim_ls import LSSettings
 from ilic_cli.io import read_log
 from ilic_cli.runlog import RunLog
-from ilic_cli.simulation.timing import control_timing, pd_law_residuals, vertex
+from ilic_cli.simulation.pd_law import pd_law_residuals
+from ilic_cli.simulation.timing import control_timing, vertex
 from plant.controllers import PDSettings
 from plant.replay import simulate_replay
 from tests.conftest import make_synthetic_log, require_shared

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
-from ilic_cli.diagnosis.loop_read import INSIDE_FORCE_SHARE
 from ilic_cli.diagnosis.report import to_markdown
 from ilic_cli.runlog import RunLog
+from ilic_cli.simulation.pd_law import CLEAR_GAIN
 from tests.corpus.independent import run_loop
 from tests.logs.test_rates import AXES, reference
 
@@ -36,7 +36,7 @@ def test_a_law_inside_the_dynamics_is_read_and_a_chirp_stays_clean() -> None:
     _, q_ref = robot_reference(axis, "chirp", 500.0, 7, 10.0)
     diag = diagnose(run_loop(axis, 500.0, q_ref, "continuous", {}, 7, "lin12", 40), settings=DiagnoseSettings())
     timing = diag.timing
-    assert timing is not None and timing.continuous and timing.refined["force"] < INSIDE_FORCE_SHARE * timing.held["force"], timing
+    assert timing is not None and timing.continuous and timing.refined["force"] < CLEAR_GAIN * timing.held["force"], timing
     assert diag.findings == []
     text = to_markdown(diag)
     assert "the law inside the dynamics, on the plant's state at every integration step" in text and "a drive lag this short" not in text

@@ -8,7 +8,7 @@ import pytest
 
 from ilic_cli.effects import make_effects
 from ilic_cli.errors import ParameterError
-from ilic_cli.simulation.timing import pd_law_residuals
+from ilic_cli.simulation.pd_law import pd_law_residuals
 from plant.closed_loop import simulate_loop
 from plant.controllers import PDSettings
 from plant.dynamics import RigidParameters
