@@ -99,6 +99,19 @@ def _whole(value: Any) -> int | None:
         return None
 
 
+FRICTION_LAW = "friction_law_read"
+"""The key of a log's metadata holding the smoothed Coulomb friction read from the recording (``{"vc": ...}``, the parameters of
+the plant's ``coulomb_smoothing``: :mod:`ilic_cli.diagnosis.friction_law`): every replay of the log runs that law unless the model
+it replays states its own (:func:`ilic_cli.simulation.replay.replay`), and the inverse model's sign is that law's
+(:func:`ilic_cli.diagnosis.propose.prepare_system`)."""
+
+
+def friction_law_speed(meta: Mapping[str, Any]) -> float | None:
+    """The smoothing speed ``vc`` of the friction law a log's metadata holds (:data:`FRICTION_LAW`), ``None`` for stick/slip."""
+    law = meta.get(FRICTION_LAW)
+    return None if law is None else float(law["vc"])
+
+
 PD_VELOCITIES = ("averaged", "backward", "exact")
 """The velocity estimates a PD controller entry may declare (``velocity``): the benchmark's difference of the position averaged over
 two samples, the plain backward difference of the measured position, or the plant's own velocity (:class:`plant.controllers.PDSettings`)."""

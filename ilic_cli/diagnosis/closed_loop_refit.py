@@ -167,7 +167,7 @@ def closed_loop_refit(
     """
     steps = [*known, *kept]
     names0 = extended(base, steps, prepared.fs_hz).names
-    loop = _Loop(log, prepared, base, ls, simulate or (lambda params, effects: replay(log, params, effects)), hold_s)
+    loop = ReplayLoop(log, prepared, base, ls, simulate or (lambda params, effects: replay(log, params, effects)), hold_s)
     loop.round_gain, loop.max_rounds = round_gain, max_rounds
     if problem := plant_problem(steps, names0, theta0, joint=loop.joint):
         return Refit(False, f"no closed-loop refit: the inverse model's estimate is no plant ({problem})", list(kept), names0, outcome=RefitOutcome.NO_PLANT)
@@ -188,7 +188,7 @@ def closed_loop_refit(
     return _with_didim(loop, out, known, steps, grids, run0, confirm)
 
 
-class _Loop:
+class ReplayLoop:
     """The replays of one recording for the refit, and the closed-loop output error they give (DIDIM's criterion)."""
 
     def __init__(
@@ -220,20 +220,22 @@ class _Loop:
             return Point(math.inf, anchor, at_anchor, 0.0, anchor)
         return Point(100.0 * math.sqrt(rss) / self.y_norm, anchor + delta, at_anchor, lag1_autocorrelation(r - d.W @ delta), anchor)
 
-    def replayed(self, model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> RunLog | None:
-        """The replay of the estimate (one replay), ``None`` when it is no plant or does not simulate the whole log."""
+    def replayed(self, model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray, plant: Mapping[str, Any] | None = None) -> RunLog | None:
+        """The replay of the estimate (one replay; ``plant``: effects of the plant beside the model's), ``None`` when it is no plant
+        or does not simulate the whole log."""
         if plant_problem(model_steps, names, theta, joint=self.joint):
             return None
         try:
-            sim = self.sim_of(*plant_of(names, theta, self.values_of(model_steps), self.hold_s))
+            params, effects = plant_of(names, theta, self.values_of(model_steps), self.hold_s)
+            sim = self.sim_of(params, {**effects, **(plant or {})})
         except IlicError:
             return None
         self.replays[0] += 1
         return sim if len(sim) == len(self.log) else None
 
-    def residual_of(self, model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray) -> np.ndarray | None:
+    def residual_of(self, model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray, plant: Mapping[str, Any] | None = None) -> np.ndarray | None:
         """The recorded minus the replayed force of the estimate (decimated; one replay), ``None`` when it does not replay."""
-        sim = self.replayed(model_steps, names, theta)
+        sim = self.replayed(model_steps, names, theta, plant)
         return None if sim is None else self.y - self.recorded.decimate(np.asarray(sim["tau"], dtype=np.float64)[self.ls.trim :])
 
     def profile(self, model_steps: list[Step], anchor: np.ndarray) -> Point:
@@ -278,7 +280,7 @@ class _Loop:
 
 
 def _without_didim(
-    loop: _Loop,
+    loop: ReplayLoop,
     out: Refit,
     known: list[Step],
     steps: list[Step],
@@ -340,7 +342,7 @@ def _without_didim(
 
 
 def _with_didim(
-    loop: _Loop,
+    loop: ReplayLoop,
     out: Refit,
     known: list[Step],
     steps: list[Step],
@@ -416,7 +418,7 @@ def _didim_reason(res: ClosedLoopResult, searches: list[ValueSearch], error_inve
 
 
 def _output_error_fit(
-    loop: _Loop,
+    loop: ReplayLoop,
     known: list[Step],
     steps: list[Step],
     names: tuple[str, ...],
@@ -434,7 +436,7 @@ def _output_error_fit(
         names,
         theta,
         grids,
-        lambda s, th: loop.residual_of(s, names, th),
+        lambda s, th, _: loop.residual_of(s, names, th),
         error_from,
         loop.y_norm,
         loop.round_gain,
@@ -452,7 +454,7 @@ def _output_error_fit(
 
 
 def _polished(
-    loop: _Loop,
+    loop: ReplayLoop,
     known: list[Step],
     steps: list[Step],
     theta: np.ndarray,

@@ -21,6 +21,7 @@ from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, detect_drift, fitt
 from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.fold_plant import fitted_plant
 from ilic_cli.diagnosis.friction_law import FrictionLaw
+from ilic_cli.diagnosis.law_refit import refit_with_the_law
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.loop_read import Model as Model_
 from ilic_cli.diagnosis.loop_read import read_the_loop
@@ -278,21 +279,27 @@ def diagnose(
     if settings.simulate and against is None and settings.pd_timing == "recorded":  # the replays run the loop that ran: its timing read from the recording
         given, bases = validate, [(prop, base)]  # each proposal's baseline, fitted once
 
-        def models(p: Proposal) -> tuple[Model_, Model_, Model_]:
+        def baseline_of(p: Proposal) -> Baseline:
             b = next((b for q, b in bases if q is p), None)
             if b is None:
                 b = _baseline(p, model_doc, settings)
                 bases.append((p, b))
+            return b
+
+        def models(p: Proposal) -> tuple[Model_, Model_, Model_]:
+            b = baseline_of(p)
             return _timing_model(p, b, model_doc), _timing_model(p, b, model_doc, lags=True), (b.params, b.effects)
 
         prop, log, validate, timing, law = read_the_loop(prop, settings, log, validate, models, lambda lg: propose(lg, settings, model_doc, given))
-        base = next(b for q, b in bases if q is prop)  # proposed again under the loop read (a law inside the dynamics: no hold)
+        base = baseline_of(prop)  # proposed again under the loop read (a law inside the dynamics: no hold; a friction law: its sign)
         res0 = base.res
     decision = decide(log, prop, settings, validate, against)  # 2. decide
     replayed = settings.simulate and against is None and "q_ref" in log
     decision, at_dwells = refit_at_dwells(log, prop, decision, settings, replayed)  # 3. refit
     final = final_fit(prop, decision.kept, settings.ls, len(base.y))
     refit = refit_stage(log, prop, decision, final, at_dwells, settings, replayed)
+    if law is not None:  # a smoothed law's speed and a Stribeck friction beside it, fitted at once
+        refit, law, log = refit_with_the_law(log, prop, decision, final, refit, law, settings, replayed)
     res0 = with_std(res0, gls_covariance(base.W, base.y, res0.theta))
     findings = _findings(prop, decision, final, refit)  # 4. the findings, the model file and the figures the report renders
     doc = _model_file(prop, decision, final, refit)

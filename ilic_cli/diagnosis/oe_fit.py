@@ -4,7 +4,7 @@ with the closed loop's own sensitivities taken by finite differences of replays 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -18,18 +18,30 @@ from ilic_cli.diagnosis.verdicts import RefitOutcome
 from ilic_cli.parallel import ordered_map
 
 
+class ExtraValue(NamedTuple):
+    """A value the output error is fitted with that is no kept effect's (the friction law's ``vc``): its name, start and range."""
+
+    effect: str
+    parameter: str
+    unit: str
+    start: float
+    bounds: tuple[float, float]
+
+
 def output_error_refit(
     known: list[Step],
     steps: list[Step],
     names: tuple[str, ...],
     theta0: np.ndarray,
     grids: Mapping[str, np.ndarray],
-    residual_of: Callable[[list[Step], np.ndarray], np.ndarray | None],
+    residual_of: Callable[[list[Step], np.ndarray, tuple[float, ...]], np.ndarray | None],
     error_inverse: float,
     y_norm: float,
     round_gain: float = ROUND_GAIN,
     joint: str = "prismatic",
     lead: str = "refitted instead by",
+    extra: Sequence[ExtraValue] = (),
+    tol: float = 1e-3,
 ) -> Refit | str:
     """The refit by :func:`output_error_gauss_newton`: the linear parameters ``names`` and every searched value of the kept effects at once.
 
@@ -37,35 +49,42 @@ def output_error_refit(
     refused (the reason returned) when it lowers the output error by less
     than ``round_gain`` (:data:`ROUND_GAIN`) of ``error_inverse`` (%), or ends with a value on
     the edge of the range the closed loop searches it in
-    (:func:`~ilic_cli.diagnosis.select.at_edge`). Its covariance is that of the
+    (:func:`~ilic_cli.diagnosis.select.at_edge`), or an ``extra`` value on its bounds. ``residual_of(steps, theta,
+    extra_values)``; ``tol``: :func:`output_error_gauss_newton`'s. Its covariance is that of the
     final Jacobian, the residual's autocorrelation accounted for
     (:func:`~ilic_cli.diagnosis.stats.gls_covariance`). ``lead``: the words the reason starts with.
     """
     slots = slots_of(known, steps, grids, joint)
-    v0 = np.array([slot_value(steps[j].value, k) for j, _, _, k in slots])
-    n_lin = len(theta0)
+    v0 = np.array([*(slot_value(steps[j].value, k) for j, _, _, k in slots), *(x.start for x in extra)])
+    n_lin, n_slots = len(theta0), len(slots)
 
     def steps_at(ratio: np.ndarray) -> list[Step]:
         new = list(steps)
-        for (j, _, _, k), v in zip(slots, v0 * ratio, strict=True):
+        for (j, _, _, k), v in zip(slots, v0[:n_slots] * ratio, strict=True):
             new[j] = Step(new[j].effect, with_slot(new[j].value, k, float(v)))
         return new
 
-    fit = output_error_gauss_newton(lambda z: residual_of(steps_at(z[n_lin:]), z[:n_lin]), np.r_[theta0, np.ones(len(slots))], first_gain=round_gain)
+    def residual(z: np.ndarray) -> np.ndarray | None:
+        return residual_of(steps_at(z[n_lin : n_lin + n_slots]), z[:n_lin], tuple(v0[n_slots:] * z[n_lin + n_slots :]))
+
+    fit = output_error_gauss_newton(residual, np.r_[theta0, np.ones(len(v0))], first_gain=round_gain, tol=tol)
     error = 100.0 * float(np.linalg.norm(fit.residual)) / y_norm
-    found = steps_at(fit.z[n_lin:])
-    values = [slot_value(found[j].value, k) for j, _, _, k in slots]
+    found = steps_at(fit.z[n_lin : n_lin + n_slots])
+    values = [*(slot_value(found[j].value, k) for j, _, _, k in slots), *(v0[n_slots:] * fit.z[n_lin + n_slots :])]
     if not error < (1.0 - round_gain) * error_inverse:
         return f"the {OE_METHOD} gives {error:.3g} %, not {round_gain:.0%} lower ({fit.stop})"
-    ranges = [slot_range(steps[j], k, grids[steps[j].effect.id]) for j, _, _, k in slots]
-    for (j, _, _, k), sub in zip(slots, ranges, strict=True):
+    ranges = [*(slot_range(steps[j], k, grids[steps[j].effect.id]) for j, _, _, k in slots), *(np.asarray(x.bounds) for x in extra)]
+    for (j, _, _, k), sub in zip(slots, ranges[:n_slots], strict=True):
         if k == 0 and (edge := at_edge(found[j].effect, sub, found[j].value, joint)):
             return f"the {OE_METHOD} ends with {edge}"
+    for x, v in zip(extra, values[n_slots:], strict=True):
+        if not x.bounds[0] < v < x.bounds[1]:
+            return f"the {OE_METHOD} ends with {x.parameter} = {v:.4g} {x.unit} outside the range searched ({x.bounds[0]:.4g} to {x.bounds[1]:.4g})"
     cov = gls_covariance(fit.sensitivity, fit.residual + fit.sensitivity @ fit.z, fit.z)
     std = np.abs(v0) * np.sqrt(np.clip(np.diag(cov)[n_lin:], 0.0, None))
     searches = [
         ValueSearch(
-            steps[j].effect.id,
+            effect,
             pname,
             unit,
             float(v0[i]),
@@ -80,7 +99,9 @@ def output_error_refit(
             f"fitted on the closed loop with the linear parameters: {pname} {v0[i]:.4g} -> {values[i]:.4g} {unit}".strip(),
             k == 0,
         )
-        for i, (j, pname, unit, k) in enumerate(slots)
+        for i, (effect, pname, unit, k) in enumerate(
+            [*((steps[j].effect.id, p, u, k) for j, p, u, k in slots), *((x.effect, x.parameter, x.unit, 1) for x in extra)]
+        )
     ]
     return Refit(
         True,

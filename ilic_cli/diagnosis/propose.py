@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.baseline import held
+from ilic_cli.diagnosis.baseline import held, rebuilt
 from ilic_cli.diagnosis.drift import GivenDrift, detect_drift
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
@@ -27,7 +27,7 @@ from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
 from ilic_cli.parameters import structure_of
 from ilic_cli.prepare import PreparedLog, force_hold_s, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
-from ilic_cli.runlog import RunLog, joint_type
+from ilic_cli.runlog import RunLog, friction_law_speed, joint_type
 from ilic_cli.usable import identification_speed_noise, too_few_rows, with_rest
 
 
@@ -80,12 +80,16 @@ class Proposal:
 
 
 def prepare_system(prepared: PreparedLog, model: Model, settings: LSSettings) -> IDIMData:
-    """The IDIM system of ``prepared``, its regressor evaluated like the logged force (:func:`ilic_cli.diagnosis.baseline.held`)."""
+    """The IDIM system of ``prepared``, its regressor evaluated like the logged force (:func:`ilic_cli.diagnosis.baseline.held`),
+    the sign in its friction columns ``tanh(qd/vc)`` when the log holds a friction law read from it (:data:`~ilic_cli.runlog.FRICTION_LAW`,
+    as the plant's ``coulomb_smoothing`` puts it in every friction column)."""
     log = prepared.log
     try:
         data = lsq_rows(log.t, log["q"], log["tau"], prepared.fs_hz, model, settings, valid=prepared.valid, speed_noise=identification_speed_noise(prepared))
     except ValueError as exc:
         raise IdentificationError(prepared.source, str(exc)) from None
+    if (vc := friction_law_speed(log.meta)) is not None:  # the friction law the replays run: the sign of every friction column is it
+        data = rebuilt(data, model, replace(data.kin, sign_qd=np.tanh(data.kin.qd / vc)))
     data = held(data, model, force_hold_s(log, prepared.fs_hz))
     noise = measurement_std(*position_noise(np.asarray(log["q"]), prepared.fs_hz, settings.at_rate(prepared.fs_hz)))
     # the noise a flexibility's columns carry (system.column_noise); the joint, whose units the reasons write

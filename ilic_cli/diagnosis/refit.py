@@ -108,6 +108,15 @@ def held_strategy(kept: list[Step]) -> IdentificationStrategy | None:
     return strategy_of(kept[-1].effect) if held == [len(kept) - 1] else None
 
 
+def columns_held(kept: list[Step], final: FinalFit) -> tuple[list[Step], np.ndarray]:
+    """The kept effects as columns of a closed-loop refit, and its start: a level held at the closed loop's estimate (the last
+    candidate judged) joins as a column, the estimate its start (the final fit has no column of it)."""
+    level = kept[-1].level if kept else None
+    if level is None:
+        return list(kept), final.res.theta
+    return [*kept[:-1], Step(kept[-1].effect, kept[-1].value)], np.r_[final.res.theta, level]
+
+
 def at_dwells(decision: Decision, log: RunLog, replayed: bool, settings: DiagnosisSettings) -> bool:
     """Whether the last kept effect, alone of them with a level held, is a closed-loop proposal whose strategy applies to the log
     (Stribeck friction at the reference's dwells: :mod:`ilic_cli.diagnosis.strategies.stribeck`)."""
@@ -164,9 +173,7 @@ def refit(
     inverse_fit: InverseFit | None = lambda s: _inverse_fit(data, base, s, rows)
     columns, theta0 = kept, final.res.theta
     if held:
-        level = kept[-1].level
-        assert level is not None
-        columns, theta0, inverse_fit = [*kept[:-1], Step(kept[-1].effect, kept[-1].value)], np.r_[final.res.theta, level], None
+        (columns, theta0), inverse_fit = columns_held(kept, final), None
     confirm: Callable[[Refit], str | None] | None = None
     if noise := decision.sensor:
         # the inverse model's estimate replayed with the noise: once, whichever refits (an output-error fit, then a search) are judged

@@ -82,7 +82,8 @@ class Searcher:
         shifted force too; ``None``: none."""
         k = data.kin
         dec = data.decimate
-        self.kin_dec = Kinematics(qd=dec(k.qd), qdd=dec(k.qdd), q=None if k.q is None else dec(k.q), t=data.t_dec, speed_noise=k.speed_noise)
+        sign = None if k.sign_qd is None else dec(k.sign_qd)  # a friction law's sign (diagnosis.propose.prepare_system), decimated
+        self.kin_dec = Kinematics(qd=dec(k.qd), qdd=dec(k.qdd), q=None if k.q is None else dec(k.q), t=data.t_dec, sign_qd=sign, speed_noise=k.speed_noise)
         self._cache: dict[str, tuple[np.ndarray, np.ndarray, bool]] = {}
         self._rate_cache: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 

@@ -16,7 +16,7 @@ from typing import Any
 
 from ilic_cli.closed_loop_id import relative_errors
 from ilic_cli.prepare import tau_sensor
-from ilic_cli.runlog import RunLog
+from ilic_cli.runlog import FRICTION_LAW, RunLog
 from plant.controllers import PDSettings
 from plant.replay import controller_from_log, simulate_replay
 
@@ -34,11 +34,6 @@ there, as the inverse model's rows say)."""
 DRIVE_LAGS = ("delay", "current_loop")
 """The plant's entries that realise a drive lag (a ``delay`` effect's value: a lag shorter than a sample is the current loop's,
 :func:`ilic_cli.effects.drive` ``_delay_realise``)."""
-
-FRICTION_LAW = "friction_law_read"
-"""The key of a log's metadata holding the smoothed Coulomb friction read from the recording (``{"vc": ...}``, the parameters of
-the plant's ``coulomb_smoothing``: :mod:`ilic_cli.diagnosis.friction_law`): every replay of the log runs that law unless the model
-it replays states its own."""
 
 REPLAY_STEP_S = 1e-4
 """The finest integration step the diagnosis's replays need (s): a tenth of the 1 kHz period, the step every EMPS figure and the

@@ -59,20 +59,24 @@ def test_a_fit_predicted_to_gain_less_than_asked_stops_after_its_first_jacobian(
     assert len(ran.history) > 1 and ran.history[-1] < ran.history[0]
 
 
-def _delay_refit(optimum_s: float):  # type: ignore[no-untyped-def]
-    """``_output_error_refit`` of one linear parameter (optimum 2.0) and a delay (optimum ``optimum_s``), from 1.0 and -1 ms."""
+def _delay_refit(optimum_s: float, law_optimum: float | None = None):  # type: ignore[no-untyped-def]
+    """``_output_error_refit`` of one linear parameter (optimum 2.0) and a delay (optimum ``optimum_s``), from 1.0 and -1 ms;
+    with ``law_optimum``, an extra value too (a friction law's ``vc``: from 1.0, bounds 0.5 to 2)."""
+    from ilic_cli.diagnosis.oe_fit import ExtraValue
     from ilic_cli.diagnosis.refit import _output_error_refit
     from ilic_cli.diagnosis.select import Step
     from ilic_cli.effects import EFFECTS
 
     grids = {"delay": np.linspace(-0.003, 0.003, 13)}  # 0.5 ms steps: the closed loop searches -3 ms to 1 ms around -1 ms
+    extra = [] if law_optimum is None else [ExtraValue("coulomb_smoothing", "vc", "m/s", 1.0, (0.5, 2.0))]
 
-    def residual_of(steps: list, theta: np.ndarray) -> np.ndarray:
-        return np.array([theta[0] - 2.0, 1e3 * (steps[0].value - optimum_s), 0.01])
+    def residual_of(steps: list, theta: np.ndarray, values: tuple[float, ...]) -> np.ndarray:
+        law = [] if law_optimum is None else [values[0] - law_optimum]
+        return np.array([theta[0] - 2.0, 1e3 * (steps[0].value - optimum_s), 0.01, *law])
 
-    start = residual_of([Step(EFFECTS["delay"], -0.001)], np.array([1.0]))
+    start = residual_of([Step(EFFECTS["delay"], -0.001)], np.array([1.0]), (1.0,))
     error = 100.0 * float(np.linalg.norm(start))
-    return _output_error_refit([], [Step(EFFECTS["delay"], -0.001)], ("a",), np.array([1.0]), grids, residual_of, error, 1.0)
+    return _output_error_refit([], [Step(EFFECTS["delay"], -0.001)], ("a",), np.array([1.0]), grids, residual_of, error, 1.0, extra=extra)
 
 
 def test_the_refit_by_output_error_keeps_an_optimum_inside_its_search_range() -> None:
@@ -88,3 +92,18 @@ def test_the_refit_by_output_error_keeps_an_optimum_inside_its_search_range() ->
 def test_the_refit_by_output_error_refuses_an_optimum_on_the_edge_of_its_search_range() -> None:
     refit = _delay_refit(-0.0029)
     assert isinstance(refit, str) and "ends with delay" in refit and "lower end of the range searched" in refit, refit
+
+
+def test_an_extra_value_is_fitted_with_the_effects_and_refused_beyond_its_bounds() -> None:
+    """An extra value (:class:`~ilic_cli.diagnosis.oe_fit.ExtraValue`, the friction law's ``vc`` of
+    :mod:`ilic_cli.diagnosis.law_refit`) is fitted at once with the linear parameters and the effects' values, reported as a
+    search of its own (not an effect's primary value), and a fit that ends outside its bounds is refused."""
+    from ilic_cli.diagnosis.refit import Refit
+
+    refit = _delay_refit(-0.0015, law_optimum=1.6)
+    assert isinstance(refit, Refit) and refit.accepted and abs(refit.steps[0].value + 0.0015) < 1e-6
+    law = refit.searches[-1]
+    assert (law.effect, law.parameter, law.primary) == ("coulomb_smoothing", "vc", False) and abs(law.value - 1.6) < 1e-4, law
+    assert "coulomb_smoothing" not in refit.value_std and law.bounds == (0.5, 2.0)
+    beyond = _delay_refit(-0.0015, law_optimum=2.4)
+    assert isinstance(beyond, str) and "ends with vc = " in beyond and "outside the range searched (0.5 to 2)" in beyond, beyond
