@@ -111,7 +111,7 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: R
             kept_so_far.append(st)
     material_ids = {s.effect.id for s in material}
     immaterial = [s for s in selection.steps if s.effect.id not in material_ids]
-    if replayable and (on_loop := closed_loop_proposal(log, data, base, [*known, *immaterial], rows, settings, selection)) is not None:
+    if replayable and (on_loop := closed_loop_proposal(log, data, base, known, immaterial, rows, settings, selection)) is not None:
         material = [s for s in material if s.effect.id != on_loop.effect.id] + [on_loop]  # at the dwells, the strategy values it
     if replayable and material:
         plant_of = proposal_plant(prop)

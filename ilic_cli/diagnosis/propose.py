@@ -195,7 +195,8 @@ def closed_loop_proposal(
     log: RunLog,
     data: IDIMData,
     base: Model,
-    proposed: list[Step],
+    known: list[Step],
+    immaterial: list[Step],
     rows: np.ndarray,
     settings: DiagnosisSettings,
     selection: SelectionResult,
@@ -203,11 +204,13 @@ def closed_loop_proposal(
     """An effect proposed on the closed loop by its identification strategy (:mod:`ilic_cli.diagnosis.strategies`: Stribeck friction at
     a reference's dwells, :mod:`ilic_cli.diagnosis.dwell`), or ``None``.
 
-    Not when the model file has it or the inverse model proposed it and found it immaterial (``proposed``). Where its
-    strategy applies to the log (the reference dwells), the strategy proposes it, in place of the inverse model's
-    material proposal if it made one (the caller's :func:`ilic_cli.diagnosis.decide.decide`): the filtered kinematics do not
-    resolve the stick and break-away at the dwells, so the inverse model's level is no estimate there (corpus s292, a
-    200 kg axis: Fs 106 N for 306 N; the closed loop's search, 306 N). Elsewhere, only when the inverse model's last
+    Not when the model file has it (``known``). Where its strategy applies to the log (the reference dwells), the strategy
+    proposes it, in place of the inverse model's proposal if it made one, material or not (the caller's
+    :func:`ilic_cli.diagnosis.decide.decide`): the filtered kinematics do not resolve the stick and break-away at the dwells,
+    so the inverse model's level is no estimate there (corpus s292, a 200 kg axis: Fs 106 N for 306 N; the closed loop's
+    search, 306 N), nor its force on the rows, which leave the dwells out, a measure of it (the independent simulator's
+    12 kg trapezoid at 500 Hz with tanh friction: 0.022 N RMS, 0.16 % of the force, for a peak 2 N above Coulomb's 4 N).
+    Elsewhere, not when the inverse model found it immaterial (``immaterial``), and only when the inverse model's last
     word on it was that its F-test passed and its held-out test did not confirm it at
     :attr:`~ilic_cli.diagnosis.select.SelectSettings.alpha_confirm` (:meth:`~ilic_cli.diagnosis.select.SelectionResult.unconfirmed`):
     a proposal confirmed only at the held-out level of 0.05 is the closed loop's to estimate (the EMPS reference with a
@@ -215,9 +218,11 @@ def closed_loop_proposal(
     """
     for effect in EFFECTS.values():
         strategy = strategy_of(effect)
-        if strategy is None or effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in proposed):
+        if strategy is None or effect.id not in settings.select.effects or effect.scan is None or any(s.effect.id == effect.id for s in known):
             continue
-        if not selection.unconfirmed(effect.id, settings.select.alpha_confirm) and not strategy.applies(log, settings.dwell_min_s, settings.dwell_min_count):
+        if not strategy.applies(log, settings.dwell_min_s, settings.dwell_min_count) and (
+            any(s.effect.id == effect.id for s in immaterial) or not selection.unconfirmed(effect.id, settings.select.alpha_confirm)
+        ):
             continue
         return strategy.propose(effect, data, base, rows)
     return None
