@@ -24,7 +24,7 @@ from ilic_cli.diagnosis.friction_law import FrictionLaw
 from ilic_cli.diagnosis.law_refit import refit_with_the_law
 from ilic_cli.diagnosis.locate import Region, force_lag, locate
 from ilic_cli.diagnosis.loop_read import Model as Model_
-from ilic_cli.diagnosis.loop_read import read_the_loop
+from ilic_cli.diagnosis.loop_read import lag_if_inside, read_the_loop
 from ilic_cli.diagnosis.model_values import effect_fit, model_parameters, model_std, steps_from_effects
 from ilic_cli.diagnosis.propose import Proposal, base_model, propose
 from ilic_cli.diagnosis.propose import prepare_system as _prepare
@@ -85,6 +85,7 @@ class Finding:
     note: str = ""
     method: str = "IDIM-LS"
     inverse_parameters: dict[str, Estimate] = field(default_factory=dict)
+    if_inside: dict[str, float] = field(default_factory=dict)  # the values were the PD law inside the dynamics (loop_read.lag_if_inside)
 
     def to_dict(self) -> dict[str, Any]:
         ev = self.evidence.to_dict()
@@ -105,6 +106,7 @@ class Finding:
             "evidence": ev,
             "note": self.note,
             **({"indistinct_from": self.evidence.indistinct_from} if self.evidence.indistinct_from is not None else {}),
+            **({"if_the_pd_law_acts_inside_the_dynamics": self.if_inside} if self.if_inside else {}),
         }
 
 
@@ -454,6 +456,9 @@ def _assembled(
     if timing is not None:  # a flexibility refused for its negative mass (its only impossibility) says what the drive lag is
         timing.negative_flexibility = any(ev.effect == "flexibility" and ev.outcome is Selection.IMPOSSIBLE for step in prop.selection.tried for ev in step)
         timing.lag_found = any(st.effect.id in DRIVE_LAGS for st in decision.kept)  # its replays act at the sample (replay.LAG_READ)
+        for f in (f for f in diag.findings if f.effect.id == "delay"):  # the lag a law inside the dynamics would have instead
+            if (inside := lag_if_inside(timing, prop.data.fs_hz, f.parameters["delay"].value)) is not None:
+                f.if_inside, f.note = {"delay": inside[0]}, "; ".join(n for n in (f.note, inside[1]) if n)
     diag.timing = timing
     if any(v.force_before is not None for v in decision.verdicts):
         diag.replay_sensor = decision.sensor

@@ -50,6 +50,26 @@ def test_a_drive_lag_beside_a_law_inside_the_dynamics_is_whole() -> None:
     (f,) = diag.findings
     assert f.effect.id == "delay" and f.parameters["delay"].value == pytest.approx(-0.0015, rel=0.05)
     assert np.isfinite(diag.timing.held["force"])
+    assert f.if_inside == {} and "if_the_pd_law_acts_inside_the_dynamics" not in f.to_dict()  # taken inside: nothing to add
+
+
+def test_a_drive_lag_read_as_held_says_the_lag_of_a_law_inside_the_dynamics() -> None:
+    """The robot corpus's 12 kg axis on its chirp at 1 kHz (``benchmarks/corpus_independent.py``'s case), the law inside the
+    dynamics with a 1.5 ms lag: the two loops' replays differ by less than the reading's margin (force error ratio 3.4, the held
+    law's lag found 1.04 ms), so the replays hold the command, and the finding says the lag the other loop gives: 1.54 ms, typed
+    and in words (``diagnosis.loop_read.lag_if_inside``)."""
+    from tests.corpus.robot import AXES as ROBOT_AXES
+    from tests.corpus.robot import reference as robot_reference
+
+    axis = ROBOT_AXES["lin12"]
+    _, q_ref = robot_reference(axis, "chirp", 1000.0, 7, 10.0)
+    diag = diagnose(run_loop(axis, 1000.0, q_ref, "continuous", {"delay": {"delay": 0.0015}}, 7, "lin12", 40), settings=DiagnoseSettings())
+    assert diag.timing is not None and not diag.timing.continuous
+    (f,) = diag.findings
+    held, inside = f.parameters["delay"].value, f.if_inside["delay"]
+    assert inside == pytest.approx(held - 0.0005) and inside == pytest.approx(-0.0015, rel=0.05), (held, inside)
+    assert f.to_dict()["if_the_pd_law_acts_inside_the_dynamics"] == {"delay": inside}
+    assert f"the lag is half a period longer, {-1e3 * inside:.3g} ms" in to_markdown(diag)
 
 
 def test_identify_reads_the_law_inside_the_dynamics() -> None:
