@@ -38,8 +38,17 @@ SEED = 7
 SUBSTEPS = 40
 """Euler steps a period (50 µs at 500 Hz): with 10 (0.2 ms) the simulator's own steps lag a Stribeck break-away, and the
 diagnosis saw a delay of 0.12 ms beside the friction on 4 of 12 logs; with 100, as with 40, on none."""
-EFFECTS = ("clean", "gravity", "stribeck", "spring", "friction_drift", "payload_change", "delay")
-SIZE = {"stribeck": 0.5, "spring": 0.3, "gravity": 0.3, "friction_drift": 0.25, "payload_change": 0.25, "delay": 1.5}
+EFFECTS = ("clean", "gravity", "stribeck", "spring", "friction_drift", "payload_change", "delay", "position_ripple", "asymmetric_friction")
+SIZE = {
+    "stribeck": 0.5,
+    "spring": 0.3,
+    "gravity": 0.3,
+    "friction_drift": 0.25,
+    "payload_change": 0.25,
+    "delay": 1.5,
+    "position_ripple": 0.3,
+    "asymmetric_friction": 0.2,
+}
 """Relative size of each effect (:func:`tests.corpus.robot.effect_of_size`; the warm-up: a quarter of Fv, the delay in ms)."""
 
 
@@ -62,6 +71,10 @@ def plant_and_truth(eid: str, axis: Any) -> tuple[dict[str, dict[str, float]], d
         return {"payload": {"dM": p["dM"], "t": p["t_change"]}}, p
     if eid == "spring":
         return {"spring": p}, {"k": p["k"]}
+    if eid == "position_ripple":
+        return {"ripple": p}, {"A": p["A"], "L": p["L"]}
+    if eid == "asymmetric_friction":
+        return {"asymmetric": {"Fv_neg": p["Fv_neg"]}}, {"Fv_pos": p["Fv_pos"], "Fv_neg": p["Fv_neg"]}
     return {eid: p}, p
 
 

@@ -16,7 +16,8 @@ use. A log from elsewhere need not share any of it. This simulator shares nothin
 - the effects written out in the force balance: a warm-up of the viscous coefficient ``Fv + dFv (1 - exp(-t / tau))``,
   gravity ``g (MX cos q - MY sin q)``, a spring ``k (q - q0)``, Stribeck friction (the Coulomb level rising to ``Fs`` at
   rest, ``Fc + (Fs - Fc) exp(-(v / vs)^2)``, and breaking away there), a payload ``dM`` added at ``t``, an actuator delay
-  (the force acts ``delay`` s after the command);
+  (the force acts ``delay`` s after the command), cogging ``A sin(2 pi q / L + phase)``, and a viscous coefficient of its
+  own when moving backwards (``Fv_neg``);
 - position noise and encoder quantisation as the axis states.
 
 Pure Python, one loop over the substeps (0.1 s for 9 s at 500 Hz, 10 steps a period).
@@ -42,8 +43,8 @@ LOOPS = ("same", "previous", "state", "continuous")
 def simulate(name: str, fs_hz: float, loop: str, effects: dict[str, dict[str, float]], seed: int, repeat: int = 1, smooth_speed: float = 0.0) -> RunLog:
     """The axis ``name`` of :data:`tests.logs.test_rates.AXES` following its moves ``repeat`` times (each repetition from where the last
     ended) at ``fs_hz`` under the textbook PD loop, with ``effects`` (``drift``: ``dFv, tau``; ``gravity``: ``MX, MY``; ``spring``:
-    ``k, q0``; ``stribeck``: ``Fs, vs``; ``payload``: ``dM, t``; ``delay``: ``delay`` s); the log as a user's CSV is read with the
-    loop declared: ``t, q, q_ref, tau``, no ``vir``."""
+    ``k, q0``; ``stribeck``: ``Fs, vs``; ``payload``: ``dM, t``; ``delay``: ``delay`` s; ``ripple``: ``A, L, phase``;
+    ``asymmetric``: ``Fv_neg``); the log as a user's CSV is read with the loop declared: ``t, q, q_ref, tau``, no ``vir``."""
     axis = AXES[name]
     _, q1 = reference(axis, fs_hz)
     q_ref = np.concatenate([q1 + i * q1[-1] for i in range(repeat)])
@@ -74,6 +75,7 @@ def run_loop(
     noise = rng.normal(0.0, axis.noise, len(t))
     drift, gravity, lag = effects.get("drift"), effects.get("gravity"), effects.get("delay")
     spring, stribeck, payload = effects.get("spring"), effects.get("stribeck"), effects.get("payload")
+    ripple, asymmetric = effects.get("ripple"), effects.get("asymmetric")
     breakaway = stribeck["Fs"] if stribeck else Fc
     pending = [0.0] * (int(round(lag["delay"] / h)) + 1 if lag else 1)  # the commanded force on its way to the axis
     q = v = 0.0
@@ -102,6 +104,10 @@ def run_loop(
                 force -= G * (gravity["MX"] * math.cos(q) - gravity["MY"] * math.sin(q))
             if spring:
                 force -= spring["k"] * (q - spring["q0"])
+            if ripple:  # cogging: a force periodic in the position
+                force -= ripple["A"] * math.sin(2.0 * math.pi * q / ripple["L"] + ripple["phase"])
+            if asymmetric and v < 0.0:  # viscous friction of its own when moving backwards
+                fv += asymmetric["Fv_neg"] - Fv
             if smooth_speed > 0.0:  # no stiction: the sign smoothed
                 direction = math.tanh(v / smooth_speed)
             elif v == 0.0 and abs(force) <= breakaway:  # stuck
