@@ -13,8 +13,9 @@ The law is read as the loop's timing is (:mod:`ilic_cli.simulation.timing`): the
 1. **Proposed**: the column ``tanh(qd/vc) - sign(qd)`` (:attr:`~ilic_cli.regressor.Kinematics.sgn`, the expected sign) added
    to the model of the rows every fit uses, ``vc`` searched on :func:`smoothing_grid`, by the prewhitened F-test at the
    selection's level (Bonferroni over the grid), its level positive (friction below the Coulomb level near zero speed); else
-   four speeds of the grid are tried (:data:`PROBES`) and the closest kept. At a dwell the rows every fit uses leave out the samples near rest, where the law acts: on the
-   independent simulator's trapezoid with a 1.5 ms drive lag the inverse model proposes no law.
+   four speeds of the grid are tried (:data:`PROBES`) and the closest kept. At a dwell the rows every fit uses leave out the
+   samples near rest, where the law acts: on the independent simulator's trapezoid with a 1.5 ms drive lag the inverse model
+   proposes no law.
 2. **Decided by the replay**: the model the timing was read with is replayed with the law (``coulomb_smoothing`` at that
    ``vc``) and without. Not closer in position, stick/slip stays (two replays more than the diagnosis made before, five where four
    speeds are tried). Closer,
