@@ -41,7 +41,6 @@ def output_error_refit(
     joint: str = "prismatic",
     lead: str = "refitted instead by",
     extra: Sequence[ExtraValue] = (),
-    tol: float = 1e-3,
 ) -> Refit | str:
     """The refit by :func:`output_error_gauss_newton`: the linear parameters ``names`` and every searched value of the kept effects at once.
 
@@ -50,7 +49,7 @@ def output_error_refit(
     than ``round_gain`` (:data:`ROUND_GAIN`) of ``error_inverse`` (%), or ends with a value on
     the edge of the range the closed loop searches it in
     (:func:`~ilic_cli.diagnosis.select.at_edge`), or an ``extra`` value on its bounds. ``residual_of(steps, theta,
-    extra_values)``; ``tol``: :func:`output_error_gauss_newton`'s. Its covariance is that of the
+    extra_values)``. Its covariance is that of the
     final Jacobian, the residual's autocorrelation accounted for
     (:func:`~ilic_cli.diagnosis.stats.gls_covariance`). ``lead``: the words the reason starts with.
     """
@@ -67,7 +66,7 @@ def output_error_refit(
     def residual(z: np.ndarray) -> np.ndarray | None:
         return residual_of(steps_at(z[n_lin : n_lin + n_slots]), z[:n_lin], tuple(v0[n_slots:] * z[n_lin + n_slots :]))
 
-    fit = output_error_gauss_newton(residual, np.r_[theta0, np.ones(len(v0))], first_gain=round_gain, tol=tol)
+    fit = output_error_gauss_newton(residual, np.r_[theta0, np.ones(len(v0))], first_gain=round_gain)
     error = 100.0 * float(np.linalg.norm(fit.residual)) / y_norm
     found = steps_at(fit.z[n_lin : n_lin + n_slots])
     values = [*(slot_value(found[j].value, k) for j, _, _, k in slots), *(v0[n_slots:] * fit.z[n_lin + n_slots :])]
