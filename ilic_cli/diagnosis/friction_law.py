@@ -120,9 +120,11 @@ def read_friction_law(
     model: tuple[dict[str, float], dict[str, Any]],
     ls: LSSettings,
     alpha: float,
+    stick_slip: Mapping[str, float] | None = None,
 ) -> FrictionLaw:
     """The law of ``log`` (its loop's timing read: the replays' log), proposed on ``data``'s ``rows`` (the model ``base + known``)
-    and decided by replays of ``model`` (the rigid parameters and effects the timing was read with)."""
+    and decided by replays of ``model`` (the rigid parameters and effects the timing was read with). ``stick_slip``: the replay
+    errors of stick/slip with a model of its own (the law's ``model`` then fitted under the law's sign), else ``model``'s."""
     params, effects = model
     effects = {k: v for k, v in effects.items() if k != SMOOTHING}
     grid = smoothing_grid(data.kin)
@@ -133,7 +135,7 @@ def read_friction_law(
         return relative_errors(log, replay(log, params, effects if vc is None else {**effects, SMOOTHING: {"vc": vc}}), ls)
 
     try:
-        before, tried = errors(None), {vc: errors(vc) for vc in probes}
+        before, tried = dict(stick_slip) if stick_slip is not None else errors(None), {vc: errors(vc) for vc in probes}
     except IlicError as exc:  # the model the timing was read with does not replay: the plant's law stays
         return FrictionLaw(None, probes[0], reason=f"not read: the model does not replay ({exc})", joint=data.joint)
     probe, at_probe = min(tried.items(), key=lambda kv: kv[1]["position"])

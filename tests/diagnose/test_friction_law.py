@@ -101,6 +101,21 @@ def test_gravity_beside_a_smoothed_law_is_proposed_with_the_law_in_the_inverse_m
     assert f.effect.id == "gravity" and all(f.parameters[k].value == pytest.approx(v, rel=0.05) for k, v in truth.items()), f.parameters
 
 
+def test_a_wide_smoothed_law_is_judged_with_a_model_fitted_under_it() -> None:
+    """The 12 kg axis's clean chirp at 1 kHz with eps 5 % of its cruise speed (12.5 mm/s). The rigid fit made with the plain
+    sign carries the wide tanh in its levels: the law's search with it brought the replay's position error to 0.55 of
+    stick/slip's only, the law was refused, and the clean log got a friction drift (Fv -50 %, Fc +56 %). Judged with the
+    inverse model's fit under the law's own sign (``diagnosis.loop_read``'s ``_with_its_own_fit``), the law is kept at
+    12.4 mm/s and nothing is a finding."""
+    axis = ROBOT_AXES["lin12"]
+    _, q_ref = reference(axis, "chirp", 1000.0, 7, 10.0)
+    diag = diagnose(run_loop(axis, 1000.0, q_ref, "same", {}, 7, "lin12", 40, smooth_speed=0.05 * axis.speed), settings=DiagnoseSettings())
+    law = diag.friction_law
+    assert law is not None and law.vc == pytest.approx(0.05 * axis.speed, rel=0.1), law
+    assert "the model fitted under the law's sign" in law.reason and law.after["position"] < 0.5 * law.before["position"], law
+    assert diag.findings == [], [f.effect.id for f in diag.findings]
+
+
 def test_the_inverse_model_of_a_log_with_a_smoothed_law_uses_its_sign() -> None:
     """Once the law is read, the inverse model's friction columns use ``tanh(qd/vc)`` for the sign, as the plant's
     ``coulomb_smoothing`` does in every friction column (:func:`ilic_cli.diagnosis.propose.prepare_system`), so that a Stribeck
