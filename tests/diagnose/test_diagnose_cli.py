@@ -54,16 +54,17 @@ def test_markdown_in_plain_words(ripple_log: Path) -> None:
     assert "Relative force error" in r.stdout
 
 
-def test_the_replays_sensor_noise_is_stated(ripple_log: Path) -> None:
-    """The log is quantised on 0.05 um (the EMPS encoder's step): the replays that decide carry it, and the report says so."""
-    r = run_cli("diagnose", str(ripple_log), "--format", "json")
+def test_the_replays_sensor_noise_is_stated(ripple_log: Path, tmp_path: Path) -> None:
+    """The log is quantised on 0.05 um (the EMPS encoder's step): the replays that decide carry it, and the report says so (the
+    JSON on stdout and the Markdown report of the same run)."""
+    r = run_cli("diagnose", str(ripple_log), "--format", "json", "--out", str(tmp_path / "d"))
     assert r.status == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["settings"]["replay_noise"] is True and doc["decisions"]
     assert doc["replay_sensor_noise"]["quantization"]["resolution"] == pytest.approx(5e-8, rel=1e-6)
-    md = run_cli("diagnose", str(ripple_log))
-    assert "Every replay here carries the recording's sensor noise, estimated from its position (less what the loop adds" in md.stdout
-    assert "encoder step 0.05 um" in md.stdout
+    md = (tmp_path / "d" / "report.md").read_text()
+    assert "Every replay here carries the recording's sensor noise, estimated from its position (less what the loop adds" in md
+    assert "encoder step 0.05 um" in md
     off = json.loads(run_cli("diagnose", str(ripple_log), "--format", "json", "--no-replay-noise").stdout)
     assert off["settings"]["replay_noise"] is False and off["replay_sensor_noise"] is None
     assert [f["effect"] for f in off["findings"]] == ["position_ripple"]
