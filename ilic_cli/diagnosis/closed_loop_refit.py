@@ -236,7 +236,11 @@ class ReplayLoop:
     def residual_of(self, model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray, plant: Mapping[str, Any] | None = None) -> np.ndarray | None:
         """The recorded minus the replayed force of the estimate (decimated; one replay), ``None`` when it does not replay."""
         sim = self.replayed(model_steps, names, theta, plant)
-        return None if sim is None else self.y - self.recorded.decimate(np.asarray(sim["tau"], dtype=np.float64)[self.ls.trim :])
+        return None if sim is None else self.residual(sim)
+
+    def residual(self, sim: RunLog) -> np.ndarray:
+        """The recorded minus ``sim``'s force, decimated as the rows (the closed-loop output error's residual)."""
+        return self.y - self.recorded.decimate(np.asarray(sim["tau"], dtype=np.float64)[self.ls.trim :])
 
     def profile(self, model_steps: list[Step], anchor: np.ndarray) -> Point:
         """One DIDIM step from ``anchor`` with ``model_steps`` (one replay); infinite errors when either estimate is no plant."""

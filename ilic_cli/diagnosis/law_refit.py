@@ -67,7 +67,7 @@ def refit_with_the_law(
     start = loop.replayed(model, names, theta0, law.effects())
     if start is None:
         return refit, law, log
-    error0 = 100.0 * float(np.linalg.norm(loop.y - loop.recorded.decimate(np.asarray(start["tau"], dtype=np.float64)[ls.trim :]))) / loop.y_norm
+    error0 = 100.0 * float(np.linalg.norm(loop.residual(start))) / loop.y_norm
     grid = smoothing_grid(data.kin)
     vc = ExtraValue(SMOOTHING, "vc", unit_on("m/s", law.joint), law.vc, (float(grid[0]), float(grid[-1])))
     oe = output_error_refit(
