@@ -33,7 +33,7 @@ from ilic_cli.diagnosis.fits import Refit
 from ilic_cli.diagnosis.friction_law import SMOOTHING, FrictionLaw, smoothing_grid, speed_text, with_friction_law
 from ilic_cli.diagnosis.oe_fit import ExtraValue, output_error_refit
 from ilic_cli.diagnosis.propose import Proposal
-from ilic_cli.diagnosis.refit import FinalFit, columns_held
+from ilic_cli.diagnosis.refit import FinalFit, columns_held, value_grids
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.system import extended
 from ilic_cli.diagnosis.verdicts import RefitOutcome
@@ -62,7 +62,7 @@ def refit_with_the_law(
     data, ls = prop.data, settings.ls
     model = [*known, *steps]
     names = extended(prop.base, model, data.fs_hz).names
-    grids = {s.effect.id: s.effect.scan.grid(data.kin, data.fs_hz) for s in steps if s.effect.scan is not None}
+    grids = value_grids(data, steps)
     loop = ReplayLoop(log, prop.prepared, prop.base, ls, lambda params, effects: replay(log, params, effects), prop.hold)
     start = loop.replayed(model, names, theta0, law.effects())
     if start is None:

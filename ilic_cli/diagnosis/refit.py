@@ -108,6 +108,11 @@ def held_strategy(kept: list[Step]) -> IdentificationStrategy | None:
     return strategy_of(kept[-1].effect) if held == [len(kept) - 1] else None
 
 
+def value_grids(data: IDIMData, steps: list[Step]) -> dict[str, np.ndarray]:
+    """Effect id -> the grid its nonlinear value is searched on (:attr:`ilic_cli.effects.Effect.scan`), for the steps that have one."""
+    return {s.effect.id: s.effect.scan.grid(data.kin, data.fs_hz) for s in steps if s.effect.scan is not None}
+
+
 def columns_held(kept: list[Step], final: FinalFit) -> tuple[list[Step], np.ndarray]:
     """The kept effects as columns of a closed-loop refit, and its start: a level held at the closed loop's estimate (the last
     candidate judged) joins as a column, the estimate its start (the final fit has no column of it)."""
@@ -167,7 +172,7 @@ def refit(
         # a drift, and the refit still places the current loop's lag (skipped: -0.41 ms kept for 0.227, a false alarm)
         return at_the_replays_values(prop, decision, final, ls)
     data, base, rows = prop.data, prop.base, prop.rows
-    grids = {s.effect.id: s.effect.scan.grid(data.kin, data.fs_hz) for s in kept if s.effect.scan is not None}
+    grids = value_grids(data, kept)
     at_log_rate = {s.effect.id for s in kept if s.effect.id in grids and searched_at_log_rate(s.effect, data)}
     wide = wide_band(ls, data.fs_hz, max(float(grids[e][-1]) for e in at_log_rate)) if at_log_rate else None
     inverse_fit: InverseFit | None = lambda s: _inverse_fit(data, base, s, rows)
