@@ -17,13 +17,14 @@ import numpy as np
 from ilic_cli import parameters
 from ilic_cli.closed_loop_id import ClosedLoopResult, ClosedLoopSettings, plant_of, relative_errors, require_closed_loop
 from ilic_cli.drive_lag import DriveLag, drive_lag, lag_rows
-from ilic_cli.effects import unit_of
+from ilic_cli.effects import unit_of, unit_on
 from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.estimators.base import Fit, LoopSimulator, ModelSpec, states_lag, with_effects
 from ilic_cli.estimators.closed_loop import ClosedLoopFitSettings
 from ilic_cli.estimators.inverse import TRACKING_LIMIT, ilic_unusable
 from ilic_cli.estimators.output import OutputErrorFitSettings, inverse_model_error
 from ilic_cli.filtering import kept_indices
+from ilic_cli.friction_shape import FrictionShape, shape_of
 from ilic_cli.idim_ilic import ILICResult, ILICSettings
 from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, decimated_systems
 from ilic_cli.lsq import LSResult
@@ -87,6 +88,8 @@ class IdentifyReport:
     """The rows every method fits and the rule for samples at rest (:func:`ilic_cli.usable.with_rest`)."""
     drive_lag: DriveLag | None = None
     """The drive's lag estimated on the log (:func:`ilic_cli.drive_lag.drive_lag`; ``None``: not sought, :func:`_drive_lag`)."""
+    friction_shape: FrictionShape | None = None
+    """How far IDIM-LS's Fv and Fc rest on the sign in the Coulomb column (:func:`ilic_cli.friction_shape.shape_of`; ``None``: not asked)."""
 
     def fit(self, name: str) -> Fit | None:
         """The fit of method ``name`` (``ls``, ``ilic``, ...), if run."""
@@ -164,6 +167,7 @@ class IdentifyReport:
             "loop_timing": None if self.timing is None else self.timing.to_dict(),
             "usable_rows": None if self.usable is None else self.usable.to_dict(),
             "drive_lag": None if self.drive_lag is None else self.drive_lag.to_dict(),
+            "friction_shape": None if self.friction_shape is None else self.friction_shape.to_dict(),
             "warnings": list(self.warnings),
         }
 
@@ -349,6 +353,10 @@ def identify_with(log: RunLog, settings: IdentifySettings, *, validate: list[Run
         if METHODS[m].output_error:
             prepared.require_contiguous(label(m))
     _run_fits(report, prepared, runs, settings, loop)
+    if (ls := report.ls) is not None and ls.robust is not None:
+        report.friction_shape = shape_of(prepared, settings.model.regressor(prepared.fs_hz), ls.settings, ls.hold_s, ls.robust.std)
+        if report.friction_shape is not None and report.friction_shape.material:
+            report.warnings.append(report.friction_shape.warning(unit_on("m/s", report.joint_type), {n: report.unit(n) for n in ("Fv", "Fc")}))
     report.fits.sort(key=lambda f: list(METHODS).index(f.name))
     if prepared.saturated is not None:
         report.warnings.append(_masked_summary(report, prepared.saturated, str(prepared.saturation_note())))

@@ -13,7 +13,7 @@ The law is read as the loop's timing is (:mod:`ilic_cli.simulation.timing`): the
 1. **Proposed**: the column ``tanh(qd/vc) - sign(qd)`` (:attr:`~ilic_cli.regressor.Kinematics.sgn`, the expected sign) added
    to the model of the rows every fit uses, ``vc`` searched on :func:`smoothing_grid`, by the prewhitened F-test at the
    selection's level (Bonferroni over the grid), its level positive (friction below the Coulomb level near zero speed); else
-   four speeds of the grid are tried (:data:`PROBES`) and the closest kept. At a dwell the rows every fit uses leave out the
+   four speeds of the grid are tried (:data:`ilic_cli.effects.grids.SMOOTHING_PROBES`) and the closest kept. At a dwell the rows every fit uses leave out the
    samples near rest, where the law acts: on the independent simulator's trapezoid with a 1.5 ms drive lag the inverse model
    proposes no law.
 2. **Decided by the replay**: the model the timing was read with is replayed with the law (``coulomb_smoothing`` at that
@@ -43,7 +43,7 @@ import numpy as np
 from ilic_cli.diagnosis.stats import nested_f_test
 from ilic_cli.diagnosis.system import Step, system
 from ilic_cli.effects import unit_on
-from ilic_cli.effects.grids import top_speed
+from ilic_cli.effects.grids import SMOOTHING_PROBES, smoothing_speeds, top_speed
 from ilic_cli.errors import IlicError
 from ilic_cli.idim_ls import IDIMData, LSSettings
 from ilic_cli.lm import minimise
@@ -58,9 +58,8 @@ SMOOTHING = "coulomb_smoothing"
 
 
 def smoothing_grid(kin: Kinematics) -> np.ndarray:
-    """Smoothing speeds ``vc`` searched: 32 log-spaced from 0.2 % to 20 % of the log's top speed (:func:`ilic_cli.effects.grids.top_speed`)."""
-    v = top_speed(kin)
-    return np.geomspace(0.002 * v, 0.2 * v, 32)
+    """Smoothing speeds ``vc`` searched: :func:`ilic_cli.effects.grids.smoothing_speeds` of the log's top speed."""
+    return smoothing_speeds(top_speed(kin))
 
 
 @dataclass(frozen=True)
@@ -129,7 +128,7 @@ def read_friction_law(
     effects = {k: v for k, v in effects.items() if k != SMOOTHING}
     grid = smoothing_grid(data.kin)
     proposed = _proposed(data, base, known, rows, grid, alpha)
-    probes = [proposed[0]] if proposed is not None else [float(vc) for vc in grid[PROBES]]
+    probes = [proposed[0]] if proposed is not None else [float(vc) for vc in grid[SMOOTHING_PROBES]]
 
     def errors(vc: float | None) -> dict[str, float]:
         return relative_errors(log, replay(log, params, effects if vc is None else {**effects, SMOOTHING: {"vc": vc}}), ls)
@@ -171,12 +170,6 @@ def read_friction_law(
         return FrictionLaw(None, vc, p_value, level, before, after, why, data.joint)
     return FrictionLaw(vc, vc, p_value, level, before, after, figures, data.joint)
 
-
-PROBES = slice(4, None, 8)
-"""Where the inverse model proposes no law, the grid's points tried first (the 5th, 13th, 21st and 29th of :func:`smoothing_grid`:
-0.36 %, 1.1 %, 3.6 % and 12 % of the top speed, a factor 3.3 apart, on the closed-loop search's points). One probe at the grid's
-middle (1.4 %) missed a chirp's law at 2.5 mm/s on the 12 kg axis with a Stribeck friction beside it: at 5.8 mm/s the replay's
-position error rose 1.23 times, at 1.4 mm/s it fell to 0.30 of stick/slip's."""
 
 SCAN_STRIDE = 4
 """The closed-loop search of ``vc`` replays every fourth point of :func:`smoothing_grid` (8 replays, a factor 1.8 apart), then

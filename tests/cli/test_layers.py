@@ -69,6 +69,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "ilic_cli.estimators",
             "ilic_cli.idim_ls",
             "ilic_cli.drive_lag",
+            "ilic_cli.friction_shape",
             "ilic_cli.usable",
             "ilic_cli.idim_ilic",
             "ilic_cli.closed_loop_id",

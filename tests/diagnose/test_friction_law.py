@@ -64,7 +64,7 @@ def test_every_replay_of_the_log_runs_the_law_unless_the_model_states_its_own() 
 def test_a_stribeck_friction_beside_a_smoothed_law_is_fitted_at_once_with_it() -> None:
     """The independent simulator's 12 kg axis on its chirp at 1 kHz, its friction ``(Fc + (Fs - Fc) exp(-(v/vs)^2)) tanh(v/eps)``
     (Fs 2 N above Coulomb's 4 N at vs = 10 mm/s, eps = 2.5 mm/s). The inverse model proposes no law; of the four speeds tried on
-    the closed loop (:data:`~ilic_cli.diagnosis.friction_law.PROBES`) the lowest-but-one brings the replay closer (the grid's middle,
+    the closed loop (:data:`~ilic_cli.effects.grids.SMOOTHING_PROBES`) the lowest-but-one brings the replay closer (the grid's middle,
     5.8 mm/s, the one probe before, did not: the law was not read, and the Stribeck level came out 52 % low). The law's speed then
     takes part of the Stribeck friction (1.94 mm/s), until the two are fitted at once on the closed loop
     (:func:`~ilic_cli.diagnosis.law_refit.refit_with_the_law`): vc 2.50 mm/s, Fs 2.01 N, vs 9.93 mm/s."""

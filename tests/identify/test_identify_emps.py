@@ -44,6 +44,9 @@ def test_rigid_offset_table_every_digit(emps: Path) -> None:
     for key in ("condition_number", "error_norm", "relative_error_pct", "error_std"):
         assert_printed_digits(ls[key], table[key], key)
     assert doc["ilic"] is None
+    # the rows prefer the sign to any smoothed Coulomb law (the grid's lowest speed, 0.25 mm/s): no friction-shape warning
+    assert doc["friction_shape"]["at_edge_of_range"] is True and doc["friction_shape"]["material"] is False
+    assert abs(doc["friction_shape"]["change"]["Fc"]) < 0.01
 
 
 def test_rigid_offset_markdown_prints_published_numbers(emps: Path) -> None:
