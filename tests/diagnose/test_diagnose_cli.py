@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ilic_cli.diagnosis.null import REPLAY_ALPHA
 from ilic_cli.io import write_log
 from ilic_cli.modelfile import load_model_file
 from ilic_cli.runlog import RunLog
@@ -62,6 +63,9 @@ def test_the_replays_sensor_noise_is_stated(ripple_log: Path, tmp_path: Path) ->
     doc = json.loads(r.stdout)
     assert doc["settings"]["replay_noise"] is True and doc["decisions"]
     assert doc["replay_sensor_noise"]["quantization"]["resolution"] == pytest.approx(5e-8, rel=1e-6)
+    # the replay test by default: Diebold-Mariano, named as such, at the level it ran at (the Monte-Carlo null: tests/diagnose/test_null.py)
+    assert doc["decisions"][0]["test"]["test"].startswith("Diebold-Mariano") and doc["settings"]["replay_test"]["null"] == "dm"
+    assert doc["settings"]["replay_test"]["alpha"] == REPLAY_ALPHA == 0.05
     md = (tmp_path / "d" / "report.md").read_text()
     assert "Every replay here carries the recording's sensor noise, estimated from its position (less what the loop adds" in md
     assert "encoder step 0.05 um" in md
