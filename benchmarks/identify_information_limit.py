@@ -34,6 +34,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.corpus_robot import RESEED_STEP  # noqa: E402
+from ilic_cli.estimators.base import ModelSpec  # noqa: E402
+from ilic_cli.identify import identify  # noqa: E402
+from ilic_cli.idim_ls import LSSettings, decimated_systems  # noqa: E402
+from ilic_cli.lsq import lstsq  # noqa: E402
+from ilic_cli.prepare import prepare_log  # noqa: E402
+from ilic_cli.usable import identification_speed_noise, with_rest  # noqa: E402
 from tests.corpus import robot  # noqa: E402
 
 PARAMS = ("M", "Fv", "Fc")
@@ -73,13 +79,6 @@ def within_chance(cov: np.ndarray, truth: np.ndarray, draws: int = 200_000, seed
 
 def one(case: robot.Case) -> dict[str, object]:
     """The oracle's figures on ``case``'s clean log (see the module's docstring)."""
-    from ilic_cli.estimators.base import ModelSpec
-    from ilic_cli.identify import identify
-    from ilic_cli.idim_ls import LSSettings, decimated_systems
-    from ilic_cli.lsq import lstsq
-    from ilic_cli.prepare import prepare_log
-    from ilic_cli.usable import identification_speed_noise, with_rest
-
     axis = robot.ALL_AXES[case.axis]
     log = robot.simulate(case, {})
     report = identify(log, method="ls").to_dict()["ls"]
@@ -105,7 +104,8 @@ def one(case: robot.Case) -> dict[str, object]:
     same = all(np.isclose(theta[names.index(p)], report["parameters"][p]["value"], rtol=1e-9) for p in PARAMS)
     dist = robot.noise_effects(axis, case.noise)["disturbance"]
     span = int(np.ceil((t_rows[-1] - t_rows[0]) * prepared.fs_hz)) + 1
-    ols, blue = oracle_cov(W, t_rows, prepared.fs_hz, disturbance_autocovariance(dist["std"], dist["bandwidth_hz"], prepared.fs_hz, min(span, 4000)))
+    lags = min(span, int(40 * prepared.fs_hz / dist["bandwidth_hz"]))  # 4 s at 10 Hz: the autocorrelation has died out long before
+    ols, blue = oracle_cov(W, t_rows, prepared.fs_hz, disturbance_autocovariance(dist["std"], dist["bandwidth_hz"], prepared.fs_hz, lags))
     idx = [names.index(p) for p in PARAMS]
     truth = np.array([axis.truth[p] for p in PARAMS])
     return {
