@@ -370,18 +370,24 @@ class RobustStd:
         }
 
 
-def robust_std(W: np.ndarray, e: np.ndarray) -> RobustStd:
-    """Newey-West (HAC) standard deviations of the least-squares estimate on ``W`` whose residual is ``e`` (:data:`ROBUST_RULE`).
+def robust_covariance(W: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """Newey-West (HAC) covariance of the least-squares estimate on ``W`` whose residual is ``e`` (:data:`ROBUST_RULE`).
 
-    ``(W'W)^-1 S (W'W)^-1 n/(n-b)`` with ``S`` the residual-weighted columns' autocovariance summed over ``L`` lags with
-    weights ``1 - l/(L+1)``; a white residual gives eq. 9's covariance (to sampling error).
+    ``(W'W)^-1 S (W'W)^-1 n/(n-b)`` with ``S`` the residual-weighted columns' autocovariance summed over
+    :func:`newey_west_lags` lags with weights ``1 - l/(L+1)`` (:func:`bartlett_sum`); a white residual gives eq. 9's covariance
+    (to sampling error). The one covariance of an inverse model's least-squares estimate under an autocorrelated residual:
+    ``identify``'s robust standard deviations and the diagnosis's stated ones.
     """
     n, b = W.shape
-    L = newey_west_lags(n)
-    S = bartlett_sum(W * e[:, None], L)
     A = pinv(W.T @ W)
-    var = np.diag(A @ S @ A) * n / max(n - b, 1)
-    std = np.sqrt(np.maximum(var, 0.0))
+    cov: np.ndarray = A @ bartlett_sum(W * e[:, None], newey_west_lags(n)) @ A * n / max(n - b, 1)
+    return cov
+
+
+def robust_std(W: np.ndarray, e: np.ndarray) -> RobustStd:
+    """Newey-West (HAC) standard deviations of the least-squares estimate on ``W`` whose residual is ``e`` (:func:`robust_covariance`)."""
+    n = W.shape[0]
+    std = np.sqrt(np.maximum(np.diag(robust_covariance(W, e)), 0.0))
     c = e - e.mean()
     lag1 = float(c[1:] @ c[:-1] / (c @ c)) if n > 1 and c @ c > 0 else 0.0
-    return RobustStd(std=std, lags=L, lag1=lag1)
+    return RobustStd(std=std, lags=newey_west_lags(n), lag1=lag1)

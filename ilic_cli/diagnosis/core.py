@@ -33,13 +33,13 @@ from ilic_cli.diagnosis.refit import refit as refit_stage
 from ilic_cli.diagnosis.refit import segment_refit as _segment_refit
 from ilic_cli.diagnosis.select import Evaluation, Selection, validation_error
 from ilic_cli.diagnosis.settings import DiagnoseSettings, DiagnosisSettings, replay_alpha
-from ilic_cli.diagnosis.stats import folds_either_side, gls_covariance, heldout_errors
+from ilic_cli.diagnosis.stats import folds_either_side, heldout_errors
 from ilic_cli.diagnosis.strategies import strategy_of
 from ilic_cli.diagnosis.system import change_time, system
 from ilic_cli.diagnosis.verdicts import Verdict
 from ilic_cli.effects import EFFECTS, Effect, Estimate, unit_of
 from ilic_cli.errors import ParameterError
-from ilic_cli.lsq import LSResult, relative_error_pct, solve
+from ilic_cli.lsq import LSResult, relative_error_pct, robust_covariance, solve
 from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, weight
 from ilic_cli.runlog import RunLog
@@ -302,7 +302,7 @@ def diagnose(
     refit = refit_stage(log, prop, decision, final, at_dwells, settings, replayed)
     if law is not None:  # a smoothed law's speed and a Stribeck friction beside it, fitted at once
         refit, law, log = refit_with_the_law(log, prop, decision, final, refit, law, settings, replayed)
-    res0 = with_std(res0, gls_covariance(base.W, base.y, res0.theta))
+    res0 = with_std(res0, robust_covariance(base.W, base.y - base.W @ res0.theta))
     findings = _findings(prop, decision, final, refit)  # 4. the findings, the model file and the figures the report renders
     doc = _model_file(prop, decision, final, refit)
     if law is not None:  # the friction law the replays ran (none for stick/slip): ilic replay of the model file runs it too

@@ -36,7 +36,6 @@ from ilic_cli.diagnosis.oe_fit import output_error_refit as _output_error_refit
 from ilic_cli.diagnosis.propose import Proposal
 from ilic_cli.diagnosis.search import log_rate_factor, searched_at_log_rate
 from ilic_cli.diagnosis.settings import DiagnosisSettings
-from ilic_cli.diagnosis.stats import gls_covariance
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
 from ilic_cli.diagnosis.strategies.stribeck import NOT_REFITTED, segment_refit
 from ilic_cli.diagnosis.system import Step, column_noise, fit_system, system
@@ -44,7 +43,7 @@ from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, RefitOutcome
 from ilic_cli.errors import IdentificationError
 from ilic_cli.filtering import decimated_band_hz
 from ilic_cli.idim_ls import IDIMData, LSSettings
-from ilic_cli.lsq import LSResult, evaluate, noise_corrected_lstsq, solve
+from ilic_cli.lsq import LSResult, evaluate, noise_corrected_lstsq, robust_covariance, solve
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 from ilic_cli.usable import too_few_rows
@@ -82,7 +81,7 @@ class FinalFit:
 
 
 def with_std(res: LSResult, cov: np.ndarray) -> LSResult:
-    """``res`` with standard deviations from the autocorrelation-aware covariance."""
+    """``res`` with standard deviations from the autocorrelation-robust covariance (:func:`ilic_cli.lsq.robust_covariance`)."""
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(res.theta != 0, 100.0 * std / np.abs(res.theta), np.inf)
@@ -98,7 +97,7 @@ def final_fit(prop: Proposal, kept: list[Step], ls: LSSettings, n_rows: int) -> 
     noise = column_noise(prop.data, prop.base, [*prop.known, *kept], prop.rows)
     if noise is not None:  # the estimate fit_system gives the replays (a flexibility's columns carry the position's noise)
         res1 = evaluate(W1, y1, noise_corrected_lstsq(W1, y1, noise)[0], names1, sigma=ls.sigma)
-    cov1 = gls_covariance(W1, y1, res1.theta)
+    cov1 = robust_covariance(W1, y1 - W1 @ res1.theta)
     return FinalFit(W1, y1, names1, with_std(res1, cov1), cov1)
 
 
@@ -269,9 +268,9 @@ def at_the_replays_values(prop: Proposal, decision: Decision, final: FinalFit, l
 
 
 def _inverse_fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarray) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
-    """The inverse model's fit of ``base + steps`` on ``rows``: names, estimate, autocorrelation-aware covariance."""
+    """The inverse model's fit of ``base + steps`` on ``rows``: names, estimate, autocorrelation-robust covariance."""
     fit = fit_system(data, base, steps, rows)
-    return fit.names, fit.theta, gls_covariance(fit.W, fit.y, fit.theta)
+    return fit.names, fit.theta, robust_covariance(fit.W, fit.y - fit.W @ fit.theta)
 
 
 def _drift_found(prop: Proposal, final: FinalFit, settings: DiagnosisSettings) -> bool:
