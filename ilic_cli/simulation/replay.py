@@ -20,7 +20,7 @@ from ilic_cli.runlog import FRICTION_LAW, RunLog
 from plant.controllers import PDSettings
 from plant.replay import controller_from_log, simulate_replay
 
-__all__ = ["DRIVE_LAGS", "FRICTION_LAW", "LAG_READ", "REPLAY_STEP_S", "relative_errors", "replay", "replay_substeps", "tau_sensor"]
+__all__ = ["DRIVE_LAGS", "LAG_READ", "REPLAY_STEP_S", "relative_errors", "replay", "replay_substeps", "tau_sensor"]
 
 LAG_READ = "delay_samples_read"
 """The key of a PD controller's metadata saying that its ``delay_samples`` (below one period: the command acts within its sample)
