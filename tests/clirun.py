@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import contextlib
 import io
+import shutil
 from dataclasses import dataclass
+from pathlib import Path
 
 from ilic_cli.cli import main
+from tests.shared_cache import folder_for, shared
 
 
 @dataclass
@@ -26,3 +29,19 @@ def run_cli(*args: str) -> CliResult:
         except SystemExit as exc:
             status = int(exc.code or 0)
     return CliResult(status, out.getvalue(), err.getvalue())
+
+
+def shared_run(*args: str) -> tuple[CliResult, Path]:
+    """``ilic ARGS --out FOLDER`` once per test session, for every test (in either xdist worker) that asserts on that run:
+    its status and output, and the folder it wrote (:func:`tests.shared_cache.folder_for`; read it, do not change it).
+
+    ``ilic diagnose DATA_EMPS.mat --format json`` costs some 3 s of CPU, and three tests assert on it.
+    """
+    key = "cli:" + "\0".join(args)
+    out = folder_for(key)
+
+    def run() -> CliResult:
+        shutil.rmtree(out, ignore_errors=True)  # a folder a killed run left: written anew
+        return run_cli(*args, "--out", str(out))
+
+    return shared(key, run), out

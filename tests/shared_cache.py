@@ -11,11 +11,14 @@ cache is enough there.
 
 from __future__ import annotations
 
+import atexit
 import fcntl
 import hashlib
 import io
 import os
 import pickle
+import shutil
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
@@ -25,6 +28,9 @@ T = TypeVar("T")
 _folder: list[Path] = []
 """The session's shared folder, when one is set (:func:`use_folder`)."""
 
+_own: list[Path] = []
+"""This process's temporary folder for :func:`folder_for` when no shared folder is set."""
+
 
 def use_folder(folder: Path | None) -> None:
     """Keep artefacts in ``folder`` from now on (``None``: keep none)."""
@@ -32,6 +38,18 @@ def use_folder(folder: Path | None) -> None:
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
         _folder.append(folder)
+
+
+def folder_for(key: str) -> Path:
+    """A folder for the files of artefact ``key`` (made by its :func:`shared` ``compute``): in the session's shared folder, so the
+    other workers read what the first wrote; without one (``-n 0``), in a temporary folder of this process."""
+    stem = hashlib.sha256(key.encode()).hexdigest()[:32]
+    if _folder:
+        return _folder[0] / f"{stem}.files"
+    if not _own:
+        _own.append(Path(tempfile.mkdtemp(prefix="ilic-tests-")))
+        atexit.register(shutil.rmtree, _own[0], True)
+    return _own[0] / f"{stem}.files"
 
 
 def shared(key: str, compute: Callable[[], T], pickler: type[pickle.Pickler] = pickle.Pickler) -> T:

@@ -17,7 +17,7 @@ import pytest
 
 from ilic_cli.io import read_log
 from ilic_cli.simulation.scenarios import Overrides, run_scenario
-from tests.clirun import run_cli
+from tests.clirun import run_cli, shared_run
 from tests.conftest import require_shared
 from tests.plant.test_plant_emps import _relative_errors
 
@@ -128,7 +128,7 @@ def test_replay_table_as_printed(name: str, published_setup: bool) -> None:
 
 def test_replay_of_the_diagnosed_model_file() -> None:
     """docs/diagnosis.md: "Replaying the model file through the loop that ran takes the simulated force error from 4.55 % to 3.42 %"."""
-    res = run_cli("diagnose", str(require_shared() / "DATA_EMPS.mat"), "--format", "json")
+    res, _ = shared_run("diagnose", str(require_shared() / "DATA_EMPS.mat"), "--format", "json")  # test_diagnose_emps.py's run
     assert res.status == 0, res.stderr
     sim = json.loads(res.stdout)["fit"]["simulation_force_relative_error_pct"]
     assert (printed(sim["before"], 2), printed(sim["after"], 2)) == ("4.55", "3.42")
@@ -164,10 +164,11 @@ def test_paper_sim_study_setting_and_k2_edge() -> None:
 def test_diagnosed_model_on_the_pulse_run(tmp_path: Path) -> None:
     """docs/methods.md: "diagnosed: asymmetric + position ripple | 4.81 | 11.73 | 85.8" (trained on DATA_EMPS, held out on the pulses)."""
     shared = require_shared()
-    assert run_cli("diagnose", str(shared / "DATA_EMPS.mat"), "--out", str(tmp_path / "diag")).status == 0
-    model = json.loads((tmp_path / "diag" / "model.json").read_text())
+    res, out = shared_run("diagnose", str(shared / "DATA_EMPS.mat"), "--format", "json")  # test_diagnose_emps.py's run
+    assert res.status == 0, res.stderr
+    model = json.loads((out / "model.json").read_text())
     assert set(model["effects"]) == {"asymmetric_friction", "position_ripple"}
-    args = ("replay", str(shared / "DATA_EMPS_PULSES.mat"), "--model", str(tmp_path / "diag" / "model.json"))
+    args = ("replay", str(shared / "DATA_EMPS_PULSES.mat"), "--model", str(out / "model.json"))
     closed = run_cli(*args, "-o", str(tmp_path / "cl.mcap"))
     assert closed.status == 0 and "force error 4.809 %" in closed.stderr, closed.stderr
     opened = run_cli(*args, "--open-loop", "-o", str(tmp_path / "ol.mcap"))

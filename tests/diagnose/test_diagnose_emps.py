@@ -10,7 +10,7 @@ import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, diagnose
 from ilic_cli.io import read_log
-from tests.clirun import run_cli
+from tests.clirun import shared_run
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +50,8 @@ def test_emps_validated_on_pulses_no_worse_than_rigid(emps_diagnosis) -> None:  
     assert d.fit["relative_error_pct"]["after"] <= 3.2
 
 
-def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> None:
-    r = run_cli("diagnose", str(emps_mat), "--format", "json", "--out", str(tmp_path / "diag"))
+def test_emps_cli_json_and_model_file_replay(emps_mat: Path) -> None:
+    r, out = shared_run("diagnose", str(emps_mat), "--format", "json")  # the run tests/cli/test_readme_claims.py asserts on too
     assert r.status == 0, r.stderr
     doc = json.loads(r.stdout)
     assert doc["findings"][0]["effect"] == "asymmetric_friction"
@@ -75,7 +75,7 @@ def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> 
     # the same replays in the inverse model's band: the rigid one's is the closed-loop output error the refit starts from
     band = doc["simulation"]["before"]["force_in_band"], doc["simulation"]["after"]["force_in_band"]
     assert band == (pytest.approx(4.50, abs=0.005), pytest.approx(3.38, abs=0.005))
-    assert "force error 4.55 % -> 3.42 % (in the inverse model's band 4.50 % -> 3.38 %), position" in (tmp_path / "diag" / "report.md").read_text()
+    assert "force error 4.55 % -> 3.42 % (in the inverse model's band 4.50 % -> 3.38 %), position" in (out / "report.md").read_text()
     effects = doc["model_file"]["effects"]
     # friction below Coulomb at low speed (Fs = -6.3 N) is seen and not named Stribeck
     assert "stribeck" not in effects and "static friction below Coulomb (Fs = -6.3" in r.stdout and "is not Stribeck friction" in r.stdout
@@ -91,7 +91,7 @@ def test_emps_cli_json_and_model_file_replay(emps_mat: Path, tmp_path: Path) -> 
         ho = decisions[eid]["heldout_simulated_force_relative_error_pct"]
         assert decisions[eid]["accepted"] and ho["after"] < ho["before"]
     for name in ("report.md", "report.json", "model.json", "residual.png", "spectrum.png", "force_fit.png"):
-        assert (tmp_path / "diag" / name).is_file()
+        assert (out / name).is_file()
 
 
 def test_pulses_report_the_pulse_excited_dynamics(emps_pulses_mat: Path) -> None:

@@ -210,10 +210,13 @@ def ripple_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_cli_montecarlo_names_the_test_and_its_null(ripple_csv: Path) -> None:
-    args = ("diagnose", str(ripple_csv), "--effects", "position_ripple", "--format", "json")
+    """The Monte-Carlo null through the command line, with the replays noise-free (``--no-replay-noise``: its replicates draw the
+    noise model all the same; the replays' sensor noise by default: tests/diagnose/test_diagnose_cli.py)."""
+    args = ("diagnose", str(ripple_csv), "--effects", "position_ripple", "--format", "json", "--no-replay-noise")
     r = run_cli(*args, "--null", "montecarlo", "--replicates", "9", "--replay-alpha", "0.1", "--seed", "3")
     assert r.status == 0, r.stderr
     doc = json.loads(r.stdout)
+    assert doc["settings"]["replay_noise"] is False and doc["replay_sensor_noise"] is None
     assert doc["settings"]["replay_test"] == {"null": "montecarlo", "replicates": 9, "seed": 3, "alpha": 0.1}
     (d,) = doc["decisions"]
     assert d["test"]["test"].startswith("Monte-Carlo null") and d["test"]["replicates"] == 9

@@ -78,3 +78,12 @@ def test_a_diagnosis_s_effects_come_back_as_the_registry_s_objects() -> None:
     assert loaded["kept"][0] is delay and loaded["kept"][1] is EFFECTS["stribeck"] and loaded["x"].tolist() == [0.0, 1.0, 2.0]
     with pytest.raises(pickle.PicklingError, match="not the registry's"):
         DiagnosisPickler(io.BytesIO()).dump(replace(delay, title="a copy"))
+
+
+def test_an_artefact_s_files_are_in_the_shared_folder_under_its_key(folder: Path) -> None:
+    """:func:`tests.shared_cache.folder_for`: the files one worker's ``compute`` wrote are where the other looks, one folder per key."""
+    a, b = shared_cache.folder_for("cli:diagnose\0x"), shared_cache.folder_for("cli:diagnose\0y")
+    assert a.parent == b.parent == folder and a != b and a == shared_cache.folder_for("cli:diagnose\0x")
+    shared_cache.use_folder(None)
+    alone = shared_cache.folder_for("cli:diagnose\0x")  # -n 0: a temporary folder of this process
+    assert folder not in alone.parents and alone.parent == shared_cache.folder_for("k").parent
