@@ -40,10 +40,16 @@ def use_folder(folder: Path | None) -> None:
         _folder.append(folder)
 
 
+def _stem(key: str) -> str:
+    """The file name of artefact ``key`` (the whole key: ``name@sSEED`` is another artefact than ``name``)."""
+    stem = hashlib.sha256(key.encode()).hexdigest()[:32]
+    return stem
+
+
 def folder_for(key: str) -> Path:
     """A folder for the files of artefact ``key`` (made by its :func:`shared` ``compute``): in the session's shared folder, so the
     other workers read what the first wrote; without one (``-n 0``), in a temporary folder of this process."""
-    stem = hashlib.sha256(key.encode()).hexdigest()[:32]
+    stem = _stem(key)
     if _folder:
         return _folder[0] / f"{stem}.files"
     if not _own:
@@ -71,7 +77,7 @@ def shared(key: str, compute: Callable[[], T], pickler: type[pickle.Pickler] = p
     """
     if not _folder:
         return compute()
-    stem = hashlib.sha256(key.encode()).hexdigest()[:32]
+    stem = _stem(key)
     path = _folder[0] / f"{stem}.pickle"
     with open(_folder[0] / f"{stem}.lock", "a+b") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes: the other workers wait for this one's result

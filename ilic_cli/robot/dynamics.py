@@ -284,7 +284,7 @@ def cholesky_solve(M: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
         out[i] = s / M[i, i]
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def forward_at(prismatic, parents, axes, rotations, translations, gravity, pi, q, qd, tau, locked, qdd, ws):
     """Fill ``qdd`` with ``M^-1 (tau - h(q, qd))`` using the workspace ``ws``; joints with ``locked`` True are held (``qdd = 0``)."""
     n = len(q)
