@@ -72,9 +72,9 @@ The estimate is **accepted** only when every effect stays a valid plant of
 the physics it is named (a load fraction in (0, 1), a Stribeck level above 0
 and above ``-Fc``, ...) and DIDIM did not fail; otherwise the inverse model's
 estimates are kept and the reason is given. The standard deviations are
-those of the final DIDIM step's regressor, with the residual's
+those of the final DIDIM step's least squares, with the residual's
 autocorrelation accounted for as in the inverse model's
-(:func:`ilic_cli.diagnosis.stats.gls_covariance`); a searched value's, from
+(:func:`ilic_cli.lsq.robust_covariance`, the Newey-West sandwich); a searched value's, from
 the curvature of the profile.
 
 Pure numerics on run logs in memory: no file I/O.
@@ -94,12 +94,12 @@ from ilic_cli.diagnosis.fits import INVERSE_METHOD, METHOD, OE_METHOD, InverseFi
 from ilic_cli.diagnosis.oe_fit import output_error_refit
 from ilic_cli.diagnosis.refit_search import MAX_ROUNDS, ROUND_GAIN, search_all
 from ilic_cli.diagnosis.search import SEARCH_STEPS
-from ilic_cli.diagnosis.stats import gls_covariance, lag1_autocorrelation
+from ilic_cli.diagnosis.stats import lag1_autocorrelation
 from ilic_cli.diagnosis.system import Step, extended
 from ilic_cli.diagnosis.verdicts import RefitOutcome
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.idim_ls import LSSettings, lsq_rows
-from ilic_cli.lsq import lstsq
+from ilic_cli.lsq import lstsq, robust_covariance
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog, joint_type
@@ -406,7 +406,7 @@ def _with_didim(
     tau_s = d.decimate(np.asarray(sim["tau"], dtype=np.float64)[loop.ls.trim :])
     out.accepted, out.steps, out.names, out.theta, out.didim, out.simulated = True, chosen[len(known) :], model.names, theta, res0, sim
     out.outcome = RefitOutcome.DIDIM
-    out.cov = gls_covariance(d.W, loop.y - tau_s + d.W @ theta, theta)
+    out.cov = robust_covariance(d.W, loop.y - tau_s)
     out.searches, out.error_pct = searches, error
     out.value_std = {s.effect: s.std for s in searches if s.accepted and s.primary}
     out.reason = _didim_reason(res0, searches, error_inverse, error)

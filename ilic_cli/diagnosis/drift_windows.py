@@ -13,8 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ilic_cli.diagnosis.stats import gls_covariance
-from ilic_cli.lsq import finite_or_none
+from ilic_cli.lsq import finite_or_none, robust_covariance
 
 WINDOWS = 10
 """Number of windows of equal duration the per-window estimates are shown on (a 30 s log: 3 s each)."""
@@ -101,7 +100,7 @@ def window_estimates(t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[s
             active = _independent(Wk)
             sol, *_ = np.linalg.lstsq(Wk[:, active], yk, rcond=None)
             theta[active] = sol
-            std[active] = np.sqrt(np.clip(np.diag(gls_covariance(Wk[:, active], yk, sol)), 0.0, None))
+            std[active] = np.sqrt(np.clip(np.diag(robust_covariance(Wk[:, active], yk - Wk[:, active] @ sol)), 0.0, None))
         mids.append(float(np.mean(t[sel])) if n else 0.5 * (edges[k] + edges[k + 1]))
         thetas.append(theta)
         stds.append(std)

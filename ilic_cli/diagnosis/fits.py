@@ -33,7 +33,9 @@ CLOSED_LOOP_SPREAD = (
     "no bias of the estimate is in it, and the difference from the inverse model's may show one"
 )
 """What the standard deviations of a :data:`METHOD` or :data:`OE_METHOD` estimate are (the report says it with them). Measured on
-the robot corpus's five sets: of its flexibilities beyond 15 %, 13 of 14 lie beyond 1.96 of this σ; payload changes 6 of 6."""
+the robot corpus's five sets (``python benchmarks/corpus_robot.py --jobs 2``, and ``--reseed 1`` to ``4``): of its flexibilities
+beyond 15 %, 4 of 6 lie beyond 1.96 of this σ; payload changes 3 of 5 (the covariance whitened by the residual's AR model,
+stated before the sandwich of the least squares: 5 of 5, s401 and s491 within it now)."""
 
 INVERSE_METHOD = "closed-loop value search with IDIM-LS"
 """The method named when DIDIM does not lower the output error but the closed-loop search of the nonlinear values does

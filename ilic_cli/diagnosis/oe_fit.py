@@ -12,9 +12,9 @@ import numpy as np
 from ilic_cli.diagnosis.fits import OE_METHOD, Refit, ValueSearch, count
 from ilic_cli.diagnosis.refit_search import ROUND_GAIN, slot_range, slot_value, slots_of, with_slot
 from ilic_cli.diagnosis.search import at_edge
-from ilic_cli.diagnosis.stats import gls_covariance
 from ilic_cli.diagnosis.system import Step
 from ilic_cli.diagnosis.verdicts import RefitOutcome
+from ilic_cli.lsq import robust_covariance
 from ilic_cli.parallel import ordered_map
 
 
@@ -50,8 +50,8 @@ def output_error_refit(
     the edge of the range the closed loop searches it in
     (:func:`~ilic_cli.diagnosis.select.at_edge`), or an ``extra`` value on its bounds. ``residual_of(steps, theta,
     extra_values)``. Its covariance is that of the
-    final Jacobian, the residual's autocorrelation accounted for
-    (:func:`~ilic_cli.diagnosis.stats.gls_covariance`). ``lead``: the words the reason starts with.
+    least squares on the final Jacobian, the residual's autocorrelation accounted for
+    (:func:`~ilic_cli.lsq.robust_covariance`). ``lead``: the words the reason starts with.
     """
     slots = slots_of(known, steps, grids, joint)
     v0 = np.array([*(slot_value(steps[j].value, k) for j, _, _, k in slots), *(x.start for x in extra)])
@@ -79,7 +79,7 @@ def output_error_refit(
     for x, v in zip(extra, values[n_slots:], strict=True):
         if not x.bounds[0] < v < x.bounds[1]:
             return f"the {OE_METHOD} ends with {x.parameter} = {v:.4g} {x.unit} outside the range searched ({x.bounds[0]:.4g} to {x.bounds[1]:.4g})"
-    cov = gls_covariance(fit.sensitivity, fit.residual + fit.sensitivity @ fit.z, fit.z)
+    cov = robust_covariance(fit.sensitivity, fit.residual)
     std = np.abs(v0) * np.sqrt(np.clip(np.diag(cov)[n_lin:], 0.0, None))
     searches = [
         ValueSearch(

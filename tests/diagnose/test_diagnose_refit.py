@@ -151,6 +151,9 @@ def test_coupled_values_the_coordinate_search_leaves_short_are_fitted_at_once() 
     assert sc["exact"] and sc["parameter_error"]["flexibility"] < 0.05, sc
     (f_res,) = [s for s in refit.searches if s.parameter == "f_res"]
     assert f_res.accepted and f_res.inverse < 27.0 and abs(f_res.value - 31.0) < 0.5 and "then fitted on the closed loop" in f_res.reason
+    # stated with the Newey-West sandwich of the least squares on the final sensitivities (lsq.robust_covariance): ± 0.68 Hz;
+    # the covariance whitened by the residual's AR model stated ± 0.37
+    assert 0.5 < f_res.std < 1.0, f_res.std
     # the report says what its standard deviations are, and are not: the closed-loop fit's given the model, no bias in them
     assert f"Estimated by the {OE_METHOD} (the inverse model's estimate beside it); std: {CLOSED_LOOP_SPREAD}." in to_markdown(diag)
 
@@ -316,6 +319,11 @@ def test_a_change_time_whose_closed_loop_interval_is_wider_than_its_search_keeps
     (payload,) = [f for f in diag.findings if f.effect.id == "payload_change"]
     t = payload.parameters["t_change"]
     assert t.std is not None and t.std < 0.5 and abs(t.value - 6.0) < Z95 * t.std and all(e.determined for e in payload.parameters.values()), t
+    # DIDIM's dM (0.0382 for 0.0298, 28 % off) stated with the Newey-West sandwich of its least squares (lsq.robust_covariance):
+    # ± 0.0045, the truth within 1.96 σ; the covariance whitened by the residual's AR model stated ± 0.0028 (3.0 σ off)
+    dm = payload.parameters["dM"]
+    assert payload.method == "DIDIM closed-loop refit" and dm.std is not None and dm.std > 0.004, dm
+    assert abs(dm.value - built.effects["payload_change"]["dM"]) < Z95 * dm.std, dm
     assert diag.refit is not None
     (search,) = [s for s in diag.refit.searches if s.parameter == "t_change"]
     assert not search.accepted and "is flat at its optimum" in search.reason
