@@ -6,6 +6,7 @@ import contextlib
 import io
 import shutil
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 
 from ilic_cli.cli import main
@@ -31,11 +32,13 @@ def run_cli(*args: str) -> CliResult:
     return CliResult(status, out.getvalue(), err.getvalue())
 
 
+@cache
 def shared_run(*args: str) -> tuple[CliResult, Path]:
     """``ilic ARGS --out FOLDER`` once per test session, for every test (in either xdist worker) that asserts on that run:
     its status and output, and the folder it wrote (:func:`tests.shared_cache.folder_for`; read it, do not change it).
 
-    ``ilic diagnose DATA_EMPS.mat --format json`` costs some 3 s of CPU, and three tests assert on it.
+    ``ilic diagnose DATA_EMPS.mat --format json`` costs some 3 s of CPU, and three tests assert on it. Once per process too
+    (``-n 0``: no shared folder, :func:`tests.shared_cache.shared` only computes).
     """
     key = "cli:" + "\0".join(args)
     out = folder_for(key)
