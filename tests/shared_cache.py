@@ -42,8 +42,7 @@ def use_folder(folder: Path | None) -> None:
 
 def _stem(key: str) -> str:
     """The file name of artefact ``key`` (the whole key: ``name@sSEED`` is another artefact than ``name``)."""
-    stem = hashlib.sha256(key.encode()).hexdigest()[:32]
-    return stem
+    return hashlib.sha256(key.encode()).hexdigest()[:32]
 
 
 def folder_for(key: str) -> Path:

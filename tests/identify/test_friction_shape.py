@@ -11,13 +11,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ilic_cli.effects.grids import smoothing_speeds
 from ilic_cli.friction_shape import SHAPE_MOVE, friction_shape
+from ilic_cli.friction_shape import SPEEDS as FITTED
 from ilic_cli.identify import identify
 from tests.corpus.independent import run_loop
 from tests.corpus.robot import AXES, reference
 
-SPEEDS = np.geomspace(0.002, 0.2, 16)
-"""A grid of smoothing speeds for a top speed of 1 (as :func:`ilic_cli.effects.grids.smoothing_speeds`, every second point)."""
+SPEEDS = smoothing_speeds(1.0)[FITTED]
+"""The smoothing speeds ``identify`` fits, for a top speed of 1."""
 
 
 def _rows(sign: np.ndarray, qd: np.ndarray, qdd: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
