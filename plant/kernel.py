@@ -461,7 +461,7 @@ def run_periods(k0, k1, x, cs, q_r, qd_r, qdd_r, pulses, noise_q, p, c, chi, sub
     y = x[4] if len(x) > 4 else math.nan
     continuous = c[C_KIND] == 1.0 and c[C_PD_CONTINUOUS] == 1.0
     hist = np.zeros(int(round(p[P_LAG] / h)) + 1)  # continuous: the commands of the drive lag's steps
-    n_steps = 0
+    n_steps = np.int64(0)  # not the literal 0: _continuous_period would compile a second time for it (0.4 s of CPU)
     for k in range(k0, k1):
         if drift:
             _drifted(p, base, (k + 0.5) * T)

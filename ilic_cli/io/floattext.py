@@ -334,11 +334,11 @@ def _layout(d: np.uint64, k: int, out: np.ndarray, pos: int) -> int:
 
 @njit(cache=True, nogil=True)
 def _texts(bits: np.ndarray, out: np.ndarray, ends: np.ndarray, g1: np.ndarray, g0: np.ndarray, f: np.ndarray, kr: np.ndarray, ki: np.ndarray) -> int:
-    pos = 0
+    pos = np.int64(0)  # not the literal 0: put would compile a second time for it (3 s of CPU)
     for i in range(bits.shape[0]):
         pos = put(bits[i], out, pos, g1, g0, f, kr, ki)
         ends[i] = pos
-    return pos
+    return int(pos)
 
 
 def texts(values: np.ndarray) -> list[bytes]:
@@ -358,7 +358,7 @@ def _rows(bits: np.ndarray, out: np.ndarray, g1: np.ndarray, g0: np.ndarray, f: 
     width = bits.shape[0]
     last_start = np.zeros(width, dtype=np.int64)
     last_len = np.full(width, -1, dtype=np.int64)
-    pos = 0
+    pos = np.int64(0)  # not the literal 0: put would compile a second time for it (3 s of CPU)
     for i in range(bits.shape[1]):
         for j in range(width):
             b = bits[j, i]
@@ -374,7 +374,7 @@ def _rows(bits: np.ndarray, out: np.ndarray, g1: np.ndarray, g0: np.ndarray, f: 
             last_len[j] = pos - start
             out[pos] = 44 if j < width - 1 else 10
             pos += 1
-    return pos
+    return int(pos)
 
 
 def csv_rows(columns: list[np.ndarray], start: int, stop: int, buffer: np.ndarray | None = None) -> tuple[np.ndarray, int]:

@@ -327,9 +327,11 @@ def decimate_columns(columns: np.ndarray, r: int) -> np.ndarray:
     pad = 3 * 8
     if n <= pad:
         raise ValueError(f"The length of the input vector x must be greater than padlen, which is {pad}.")
-    out = np.empty((len(keep), parts * c))
-    ordered_map(lambda i: filtfilt_kept(split[i], sections, k, gain, pad, int(keep[0]), r, out[:, i * c : (i + 1) * c], 0, c), range(parts))
-    return out
+    # each part's output a contiguous page of its own (a column slice of one array would compile the kernel a second
+    # time, for a strided output: 1.9 s of CPU), laid side by side at the end (a copy of the kept samples only)
+    out = np.empty((parts, len(keep), c))
+    ordered_map(lambda i: filtfilt_kept(split[i], sections, k, gain, pad, int(keep[0]), r, out[i], 0, c), range(parts))
+    return out[0] if parts == 1 else np.ascontiguousarray(out.transpose(1, 0, 2)).reshape(len(keep), parts * c)
 
 
 def plain_pages(shape: tuple[int, ...]) -> np.ndarray:

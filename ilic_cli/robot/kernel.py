@@ -272,7 +272,8 @@ def filtfilt_kept(x: np.ndarray, a: np.ndarray, k: float, gain: float, pad: int,
     # backward, from the steady state of the last forward output
     w1[:] = 0.0
     w2[:] = 0.0
-    x0[:] = tail[pad - 1]
+    for c in range(m):  # element by element: an array assignment compiles a shape check's error message (2.3 s of CPU)
+        x0[c] = tail[pad - 1, c]
     for i in range(pad - 1, -1, -1):
         for c in range(m):
             u[c] = tail[i, c] - x0[c]

@@ -31,7 +31,7 @@ other four cost 18 s of CPU; ``python benchmarks/diagnose_corpus.py`` diagnoses 
 ONE_PER_EFFECT = [
     "asymmetric_friction-multisine-disturbance-s201",
     "stribeck-trapezoid-sensor-s210",  # diagnosed for tests/diagnose/test_dwell.py too (shared); the multisine's s212 costs 12 s of CPU more
-    "position_ripple-paper-current_loop-s222",
+    "position_ripple-emps-disturbance-s221",  # the paper trajectory's s222 (10 s of CPU more) is diagnosed resampled below
     "spring-emps-sensor-s230",
     "payload_change-trapezoid-current_loop-s242",
     "delay-multisine-current_loop-s252",
