@@ -7,6 +7,7 @@ float64 vectors (``plant.dynamics.plant_vector``, ``plant.controllers`` ``vector
 How it integrates (the Karnopp stick/slip rule and its zero crossings, the closed-form step of the rigid axis, the
 smoothed Coulomb friction, the PD law inside the dynamics) and how the effects are compiled: docs/simulation.md,
 "The compiled loop".
+The force and the derivative are inlined at numba's level (``inline="always"``): docs/simulation.md, "Speed".
 """
 
 from __future__ import annotations
@@ -87,7 +88,7 @@ TWO_PI = 2.0 * math.pi
 TWO_OVER_PI = 2.0 / math.pi
 
 
-@njit(cache=CACHE, nogil=True)
+@njit(cache=CACHE, nogil=True, inline="always")
 def _nonfriction(p, u, x0, x1, x2, x3, t, flex):
     """Net force on the motor side at time ``t`` without friction, and the coupling force on the load."""
     f = u - p[P_OFFSET]
@@ -106,7 +107,7 @@ def _nonfriction(p, u, x0, x1, x2, x3, t, flex):
     return f, fc
 
 
-@njit(cache=CACHE, nogil=True)
+@njit(cache=CACHE, nogil=True, inline="always")
 def _deriv(p, s, u, x0, x1, x2, x3, t, mm, ml, flex):
     f, fc = _nonfriction(p, u, x0, x1, x2, x3, t, flex)
     al = fc / ml if flex else 0.0

@@ -35,7 +35,7 @@ def test_diagnose_names_gravity_on_a_small_revolute_joint(tmp_path: Path) -> Non
     """The command line on a CSV log (its units say radians: the joint is revolute)."""
     path = tmp_path / "wrist.csv"
     write_log(revolute_log("small", {"gravity": SMALL}, seed=2, duration_s=12.0), path)
-    res = run_cli("diagnose", str(path), "--format", "json")
+    res = run_cli("diagnose", str(path), "--format", "json", "--out", str(tmp_path / "d"))
     assert res.status == 0, res.stderr
     doc = json.loads(res.stdout)
     named = [f["effect"] for f in doc["findings"]]
@@ -44,11 +44,11 @@ def test_diagnose_names_gravity_on_a_small_revolute_joint(tmp_path: Path) -> Non
     assert doc["model_file"]["effects"]["gravity"].keys() == {"MX", "MY"}
     spring = [ev for step in doc["selection"] for ev in step if ev["effect"] == "spring"]
     assert spring and not any(ev["accepted"] for ev in spring)  # tried, and not named
-    md = run_cli("diagnose", str(path))
-    regions = [line for line in md.stdout.splitlines() if line.startswith("- position in [")]
-    assert md.status == 0 and regions, md.stdout  # a revolute joint's regions in its units: rad, N·m (they said m and N)
+    md = (tmp_path / "d" / "report.md").read_text()  # the same run's Markdown report
+    regions = [line for line in md.splitlines() if line.startswith("- position in [")]
+    assert regions, md  # a revolute joint's regions in its units: rad, N·m (they said m and N)
     assert all("] rad: mean residual" in line and " N·m (standard error" in line for line in regions), regions
-    assert "] m" not in md.stdout and "mean residual" in md.stdout and " N (standard error" not in md.stdout, md.stdout
+    assert "] m" not in md and "mean residual" in md and " N (standard error" not in md, md
 
 
 @pytest.mark.parametrize("fs_hz", [500.0, 1000.0])
