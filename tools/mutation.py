@@ -46,8 +46,10 @@ import difflib  # noqa: E402
 import importlib.abc  # noqa: E402
 import importlib.util  # noqa: E402
 import random  # noqa: E402
+import shutil  # noqa: E402
 import signal  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 import tomllib  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
@@ -197,6 +199,10 @@ def run_child(tests: list[str], timeout_s: float, mutant: tuple[str, str, str] |
     str
         ``"passed"``, ``"failed"`` or ``"timeout"``.
     """
+    # a mutant of a module numba compiles gets a numba cache of its own: numba keys a cached function on its file and its
+    # own bytecode, so a caller would load machine code with the original callee linked in (an inlined callee's mutant
+    # then ran the original), and the mutant's compiles would go into the tree's cache index
+    own_cache = tempfile.mkdtemp(prefix="ilic-mutant-numba-") if mutant is not None and "@njit" in mutant[2] else None
     pid = os.fork()
     if pid == 0:  # child
         try:
@@ -205,6 +211,8 @@ def run_child(tests: list[str], timeout_s: float, mutant: tuple[str, str, str] |
             os.dup2(devnull, 2)
             signal.signal(signal.SIGALRM, signal.SIG_DFL)
             signal.setitimer(signal.ITIMER_REAL, timeout_s)
+            if own_cache is not None:
+                os.environ["NUMBA_CACHE_DIR"] = own_cache  # read when the child first imports numba
             if mutant is not None:
                 name, path, source = mutant
                 sys.meta_path.insert(0, _MutantFinder(name, str(ROOT / path), source))
@@ -215,6 +223,8 @@ def run_child(tests: list[str], timeout_s: float, mutant: tuple[str, str, str] |
         except BaseException:  # noqa: BLE001 - anything the mutant breaks is a detection
             os._exit(1)
     _, status = os.waitpid(pid, 0)
+    if own_cache is not None:
+        shutil.rmtree(own_cache, ignore_errors=True)
     if os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGALRM:
         return "timeout"
     return "passed" if os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0 else "failed"
