@@ -28,7 +28,7 @@ demo: $(STAMP)
 	$(BIN)/ilic identify out/demo/paper-sim.mcap --out out/demo
 	@echo "demo: report and plots in out/demo/"
 
-# the suite in TEST_WORKERS processes (pytest-xdist; CI has 2 cores): 268 s in two with one BLAS thread each, 332 s with BLAS threads on top (2-core machine)
+# the suite in TEST_WORKERS processes (pytest-xdist; CI has 2 cores): a clean clone 231 s in two with one BLAS thread each (2-core machine, 2026-12-06), BLAS threads on top oversubscribed the cores (332 s against 268 s then)
 TEST_WORKERS ?= 2
 
 # one BLAS thread a worker: the TEST_WORKERS processes already share the cores (BLAS's own threads on top oversubscribed them).
@@ -36,7 +36,7 @@ TEST_WORKERS ?= 2
 # the tree's modules compiled once, not each anew, and pytest keeps its assertion-rewritten test modules
 TEST_ENV := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 PYTHONDONTWRITEBYTECODE=
 
-# the tests' CPU time, steady under other load (wall time is not): make test PYTEST_ARGS="-p tests.cpu_durations --cpu-durations=30"
+# the tests' CPU time, steadier than wall time under other load (yet 10 % apart between hours here): make test PYTEST_ARGS="-p tests.cpu_durations --cpu-durations=30"
 PYTEST_ARGS ?=
 
 test: $(STAMP)
