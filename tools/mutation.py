@@ -42,10 +42,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import ast  # noqa: E402
+import atexit  # noqa: E402
 import difflib  # noqa: E402
 import importlib.abc  # noqa: E402
 import importlib.util  # noqa: E402
 import random  # noqa: E402
+import re  # noqa: E402
 import shutil  # noqa: E402
 import signal  # noqa: E402
 import sys  # noqa: E402
@@ -53,6 +56,7 @@ import tempfile  # noqa: E402
 import time  # noqa: E402
 import tomllib  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
+from functools import cache  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -191,6 +195,31 @@ def _list(ctx):  # noqa: ANN001, ANN202
     return list_mutations(ctx)
 
 
+@cache
+def _frozen_names() -> dict[str, set[str]]:
+    """Module name -> the names that modules numba compiles import from it: numba freezes their values into the machine code."""
+    out: dict[str, set[str]] = {}
+    for path in sorted([*ROOT.glob("ilic_cli/**/*.py"), *ROOT.glob("plant/**/*.py")]):
+        text = path.read_text()
+        if "@njit" in text:
+            for node in ast.walk(ast.parse(text)):
+                if isinstance(node, ast.ImportFrom) and node.module:
+                    out.setdefault(node.module, set()).update(a.name for a in node.names)
+    return out
+
+
+def _reaches_compiled_code(name: str, path: str, source: str) -> bool:
+    """Whether a mutant changes what numba compiles: a module with compiled functions, or a line that sets a name such a
+    module imports. Such a mutant is run with a numba cache of its own: numba keys a cached function on its file and its
+    own bytecode (not its callees', nor the globals it froze), so the run's cache would give the original machine code."""
+    if "@njit" in source:
+        return True
+    names = _frozen_names().get(name, set())
+    original = (ROOT / path).read_text().splitlines()
+    changed = [line for line in difflib.ndiff(original, source.splitlines()) if line.startswith("+ ")]
+    return any(re.match(rf"\+ \s*{re.escape(n)}\s*[:=]", line) for line in changed for n in names)
+
+
 def run_child(tests: list[str], timeout_s: float, mutant: tuple[str, str, str] | None) -> str:
     """Run ``tests`` in a forked child, with ``mutant`` ``(module name, path, source)`` imported instead of the file.
 
@@ -199,10 +228,7 @@ def run_child(tests: list[str], timeout_s: float, mutant: tuple[str, str, str] |
     str
         ``"passed"``, ``"failed"`` or ``"timeout"``.
     """
-    # a mutant of a module numba compiles gets a numba cache of its own: numba keys a cached function on its file and its
-    # own bytecode, so a caller would load machine code with the original callee linked in (an inlined callee's mutant
-    # then ran the original), and the mutant's compiles would go into the tree's cache index
-    own_cache = tempfile.mkdtemp(prefix="ilic-mutant-numba-") if mutant is not None and "@njit" in mutant[2] else None
+    own_cache = tempfile.mkdtemp(prefix="ilic-mutant-numba-") if mutant is not None and _reaches_compiled_code(*mutant) else None
     pid = os.fork()
     if pid == 0:  # child
         try:
@@ -320,6 +346,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--planted-only", action="store_true", help="run only the planted bugs (of the given modules)")
     args = ap.parse_args(argv)
     os.chdir(ROOT)
+    # numba's machine code of this run in a folder of its own, not the tree's: a mutant may make numba compile a kernel
+    # for other argument types, which the tree's cache index would keep (tests/unit/test_compiled_once.py reads it)
+    run_cache = tempfile.mkdtemp(prefix="ilic-mutation-numba-")
+    os.environ["NUMBA_CACHE_DIR"] = run_cache
+    atexit.register(shutil.rmtree, run_cache, True)
     sys.path.insert(0, str(ROOT))
     for mod in WARM_IMPORTS:
         __import__(mod)
