@@ -214,10 +214,11 @@ def _reaches_compiled_code(name: str, path: str, source: str) -> bool:
     own bytecode (not its callees', nor the globals it froze), so the run's cache would give the original machine code."""
     if "@njit" in source:
         return True
-    names = _frozen_names().get(name, set())
-    original = (ROOT / path).read_text().splitlines()
-    changed = [line for line in difflib.ndiff(original, source.splitlines()) if line.startswith("+ ")]
-    return any(re.match(rf"\+ \s*{re.escape(n)}\s*[:=]", line) for line in changed for n in names)
+    names = _frozen_names().get(name)
+    if not names:
+        return False
+    changed = [line[1:] for line in diff(path, (ROOT / path).read_text(), source).splitlines() if line.startswith("+") and not line.startswith("+++")]
+    return any(names & set(re.findall(r"\w+", line.split("=", 1)[0])) for line in changed if "=" in line)  # an assignment's targets
 
 
 def run_child(tests: list[str], timeout_s: float, mutant: tuple[str, str, str] | None) -> str:
