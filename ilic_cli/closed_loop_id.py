@@ -45,7 +45,7 @@ from ilic_cli.errors import IdentificationError, IlicError, ParameterError
 from ilic_cli.estimators.base import LoopSimulator
 from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.idim_ls import LSSettings, lsq_rows
-from ilic_cli.lsq import LSResult, finite_or_none, relative_error_pct, solve, solve_iv
+from ilic_cli.lsq import LSResult, finite_or_none, norm_pct, relative_error_pct, solve, solve_iv
 from ilic_cli.parameters import PARAMETERS
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import Model
@@ -358,7 +358,7 @@ def closed_loop_identify(
 
     history, res, theta, eps, sim, tau_s, converged, reason = iterate(theta, replay_at, residual, step, y_norm, settings)
     if method == "didim":  # the criterion DIDIM minimises, at the final estimate
-        res = replace(res, error_norm=eps, relative_error_pct=100.0 * eps / y_norm)
+        res = replace(res, error_norm=eps, relative_error_pct=norm_pct(eps, y_norm))
     return ClosedLoopResult(
         method=name,
         model=model.name,
@@ -398,7 +398,7 @@ def iterate(
     """
     sim, Ws, tau_s = replay_at(theta, 0)
     eps = residual(theta, tau_s)
-    history = [Iteration(0, theta, eps, 100.0 * eps / y_norm)]
+    history = [Iteration(0, theta, eps, norm_pct(eps, y_norm))]
     converged, reason = False, f"iteration limit ({settings.max_iterations}) reached"
     res: LSResult | None = None
     tol = settings.tolerance_pct
@@ -413,7 +413,7 @@ def iterate(
         sim, Ws, tau_s = replay_at(new, k)
         new_eps = residual(new, tau_s)
         deps = 100.0 * abs(new_eps - eps) / eps if eps > 0 else 0.0
-        history.append(Iteration(k, new, new_eps, 100.0 * new_eps / y_norm, dtheta, deps))
+        history.append(Iteration(k, new, new_eps, norm_pct(new_eps, y_norm), dtheta, deps))
         theta, eps = new, new_eps
         if deps < tol:
             converged, reason = True, f"the residual norm moved by {deps:.3g} % (< {tol:g} %) at iteration {k}"

@@ -143,8 +143,13 @@ def noise_corrected_lstsq(W: np.ndarray, y: np.ndarray, noise: np.ndarray) -> tu
 
 def relative_error_pct(y: np.ndarray, y_hat: np.ndarray) -> float:
     """The one relative error: ``100 ||y - y_hat|| / ||y||`` (``inf`` for a zero ``y``)."""
-    ny = float(np.linalg.norm(y))
-    return float(100.0 * np.linalg.norm(np.asarray(y) - np.asarray(y_hat)) / ny) if ny > 0 else float("inf")
+    return norm_pct(float(np.linalg.norm(np.asarray(y) - np.asarray(y_hat))), float(np.linalg.norm(y)))
+
+
+def norm_pct(error_norm: float, y_norm: float) -> float:
+    """:func:`relative_error_pct` from norms already taken: ``100 error_norm / y_norm`` (``inf`` for a zero ``y_norm``),
+    for the output-error fits, which keep the measured force's norm and take each residual's."""
+    return float(100.0 * error_norm / y_norm) if y_norm > 0 else float("inf")
 
 
 def relative_std_pct(theta: np.ndarray, std: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ import numpy as np
 from ilic_cli.closed_loop_id import RESIDUAL
 from ilic_cli.io.atomic import atomic_path
 from ilic_cli.jointlog import UNITS
+from ilic_cli.lsq import norm_pct
 
 if TYPE_CHECKING:
     from ilic_cli.identify import IdentifyReport
@@ -236,7 +237,7 @@ def plot_joint_torques(
         ax2.legend(fontsize=8, loc="upper right")
         for ax in (ax1, ax2):
             ax.grid(alpha=0.3)
-        rel = 100.0 * float(np.linalg.norm(residual) / np.linalg.norm(y)) if np.linalg.norm(y) > 0 else float("nan")
+        rel = norm_pct(float(np.linalg.norm(residual)), float(np.linalg.norm(y)))
         fig.suptitle(f"{joint}: measured vs model torque (relative error {rel:.3g} %)\n{title}", fontsize=10)
         written.append(_save(fig, outdir / f"torque_{joint}.{image_format}"))
     return written

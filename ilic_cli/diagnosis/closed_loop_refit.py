@@ -99,7 +99,7 @@ from ilic_cli.diagnosis.system import Step, extended
 from ilic_cli.diagnosis.verdicts import RefitOutcome
 from ilic_cli.errors import IlicError, ParameterError
 from ilic_cli.idim_ls import LSSettings, lsq_rows
-from ilic_cli.lsq import lstsq, robust_covariance
+from ilic_cli.lsq import lstsq, norm_pct, robust_covariance
 from ilic_cli.prepare import PreparedLog
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog, joint_type
@@ -176,8 +176,8 @@ def closed_loop_refit(
     if isinstance(run0, str):
         return Refit(False, f"the closed-loop refit failed ({run0}): the inverse model's estimates are kept", list(kept), names0, outcome=RefitOutcome.FAILED)
     res0, sims0 = run0
-    error_inverse = 100.0 * res0.iterations[0].error_norm / loop.y_norm
-    error0 = 100.0 * res0.result.error_norm / loop.y_norm
+    error_inverse = norm_pct(res0.iterations[0].error_norm, loop.y_norm)
+    error0 = norm_pct(res0.result.error_norm, loop.y_norm)
     out = Refit(False, "", list(kept), names0, error_inverse_pct=error_inverse, error_pct=error0, didim=res0, simulated=sims0[0])
     if not error0 < error_inverse:
         out.reason = (
@@ -215,10 +215,10 @@ class ReplayLoop:
         d = lsq_rows(self.t, sim["q"], self.tau, self.fs, extended(self.base, model_steps, self.fs), self.ls, valid=self.prepared.valid)
         r = self.y - d.decimate(np.asarray(sim["tau"], dtype=np.float64)[self.ls.trim :])
         delta, rss = lstsq(d.W, r)
-        at_anchor = 100.0 * float(np.linalg.norm(r)) / self.y_norm
+        at_anchor = norm_pct(float(np.linalg.norm(r)), self.y_norm)
         if plant_problem(model_steps, names, anchor + delta, joint=self.joint):
             return Point(math.inf, anchor, at_anchor, 0.0, anchor)
-        return Point(100.0 * math.sqrt(rss) / self.y_norm, anchor + delta, at_anchor, lag1_autocorrelation(r - d.W @ delta), anchor)
+        return Point(norm_pct(math.sqrt(rss), self.y_norm), anchor + delta, at_anchor, lag1_autocorrelation(r - d.W @ delta), anchor)
 
     def replayed(self, model_steps: list[Step], names: tuple[str, ...], theta: np.ndarray, plant: Mapping[str, Any] | None = None) -> RunLog | None:
         """The replay of the estimate (one replay; ``plant``: effects of the plant beside the model's), ``None`` when it is no plant
@@ -317,7 +317,7 @@ def _without_didim(
         r = loop.residual_of(model_steps, names, theta)
         if r is None:
             return Point(math.inf, theta, math.inf, 0.0, theta)
-        e = 100.0 * float(np.linalg.norm(r)) / y_norm
+        e = norm_pct(float(np.linalg.norm(r)), y_norm)
         return Point(e, theta, e, lag1_autocorrelation(r), theta)
 
     start0 = profile_inverse(steps, theta_0)
@@ -379,7 +379,7 @@ def _with_didim(
     if any(s.accepted for s in searches):
         # 3. DIDIM at the values found; kept only when it does better than DIDIM at the inverse model's values
         run1 = loop.didim(steps, start.theta)
-        error1 = 100.0 * run1[0].result.error_norm / loop.y_norm if not isinstance(run1, str) else math.inf
+        error1 = norm_pct(run1[0].result.error_norm, loop.y_norm) if not isinstance(run1, str) else math.inf
         if not isinstance(run1, str) and error1 < error0:
             chosen, error, sim, res0 = steps, error1, run1[1][-1], run1[0]
         else:

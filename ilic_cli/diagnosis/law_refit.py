@@ -38,6 +38,7 @@ from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.system import extended
 from ilic_cli.diagnosis.verdicts import RefitOutcome
 from ilic_cli.effects import unit_on
+from ilic_cli.lsq import norm_pct
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.replay import relative_errors, replay
 
@@ -67,7 +68,7 @@ def refit_with_the_law(
     start = loop.replayed(model, names, theta0, law.effects())
     if start is None:
         return refit, law, log
-    error0 = 100.0 * float(np.linalg.norm(loop.residual(start))) / loop.y_norm
+    error0 = norm_pct(float(np.linalg.norm(loop.residual(start))), loop.y_norm)
     grid = smoothing_grid(data.kin)
     vc = ExtraValue(SMOOTHING, "vc", unit_on("m/s", law.joint), law.vc, (float(grid[0]), float(grid[-1])))
     oe = output_error_refit(

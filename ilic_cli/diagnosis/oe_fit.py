@@ -14,7 +14,7 @@ from ilic_cli.diagnosis.refit_search import ROUND_GAIN, slot_range, slot_value, 
 from ilic_cli.diagnosis.search import at_edge
 from ilic_cli.diagnosis.system import Step
 from ilic_cli.diagnosis.verdicts import RefitOutcome
-from ilic_cli.lsq import robust_covariance
+from ilic_cli.lsq import norm_pct, robust_covariance
 from ilic_cli.parallel import ordered_map
 
 
@@ -67,7 +67,7 @@ def output_error_refit(
         return residual_of(steps_at(z[n_lin : n_lin + n_slots]), z[:n_lin], tuple(v0[n_slots:] * z[n_lin + n_slots :]))
 
     fit = output_error_gauss_newton(residual, np.r_[theta0, np.ones(len(v0))], first_gain=round_gain)
-    error = 100.0 * float(np.linalg.norm(fit.residual)) / y_norm
+    error = norm_pct(float(np.linalg.norm(fit.residual)), y_norm)
     found = steps_at(fit.z[n_lin : n_lin + n_slots])
     values = [*(slot_value(found[j].value, k) for j, _, _, k in slots), *(v0[n_slots:] * fit.z[n_lin + n_slots :])]
     if not error < (1.0 - round_gain) * error_inverse:

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from ilic_cli.lsq import bartlett_sum, column_basis, evaluate, lstsq, newey_west_lags, solve, solve_batch
+from ilic_cli.lsq import bartlett_sum, column_basis, evaluate, lstsq, newey_west_lags, norm_pct, relative_error_pct, solve, solve_batch
 
 X = np.array([0.0, 1.0, 2.0, 3.0])
 W_LINE = np.c_[np.ones(4), X]
@@ -264,3 +264,10 @@ def test_noise_corrected_least_squares_undoes_the_attenuation_of_a_noisy_column(
     assert rss == pytest.approx(float(np.sum((y - W @ corrected) ** 2)))
     too_much = noise_corrected_lstsq(W, y, 3.0 * noise)  # more noise than the column holds: not resolved, plain least squares
     assert np.allclose(too_much[0], plain)
+
+
+def test_one_relative_error_from_arrays_or_from_norms() -> None:
+    """The output-error fits keep the force's norm and take each residual's: the same figure, to the bit."""
+    y, y_hat = np.array([3.0, -4.0, 12.0]), np.array([2.5, -4.0, 11.0])
+    assert relative_error_pct(y, y_hat) == norm_pct(float(np.linalg.norm(y - y_hat)), 13.0) == 100.0 * math.sqrt(1.25) / 13.0
+    assert norm_pct(1.0, 0.0) == math.inf and relative_error_pct(np.zeros(3), np.ones(3)) == math.inf
