@@ -205,7 +205,7 @@ def _rows_lines(report: IdentifyReport, ls_result: IDIMLSResult) -> list[str]:
         rule = f"; rows decimated by {ls.decimation} ({DECIMATION_RULE if ls.band_hz is not None else 'as given'})"
         timing = f"; {held}" if held else ""
         sign = f"; {words}" if (words := u.sign_words(position_unit(report.joint_type))) else ""
-        rest = f"{u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule})"
+        rest = f"{u.at_rest} at rest left out ({u.rest.dwells} dwells: {u.rest.rule}){u.gap_words()}"
         return [f"{u.usable} of {u.decimated} decimated rows fitted: {rest}{timing}{sign}{rule}.", "", *_suggested_lag(lag)]
     return [f"{held[0].upper()}{held[1:]}.", ""] if held else []
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from ilic_cli.derivatives import derivative
 from ilic_cli.filtering import butter_lowpass_zero_phase
-from ilic_cli.idim_ls import LSSettings, min_samples, valid_rows
+from ilic_cli.idim_ls import LSSettings, min_samples, part_valid, valid_rows
 from ilic_cli.prepare import PreparedLog, RestSamples, tau_sensor
 
 STANDSTILL_FRACTION = 0.01
@@ -87,16 +87,18 @@ def with_rest(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> Pre
     return prepared.with_rest(rest_samples(prepared.log["q"], prepared.fs_hz, settings, prepared.segments))
 
 
-def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[int, int], ...] | None = None) -> tuple[int, int]:
+def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[int, int], ...] | None = None, *, gap_edges: bool = False) -> tuple[int, int]:
     """``(decimated rows, rows whose span touches a True sample of mask)`` over the parts IDIM-LS fits
-    (:func:`ilic_cli.idim_ls.decimated_systems`; ``settings`` at the log's rate)."""
+    (:func:`ilic_cli.idim_ls.decimated_systems`; ``settings`` at the log's rate); ``gap_edges``: and those the edge before a
+    gap leaves out (:func:`ilic_cli.idim_ls.part_valid`)."""
     spans = segments or ((0, len(mask)),)
     total = touched = 0
-    for a, b in spans:
+    for i, (a, b) in enumerate(spans):
         if b - a < min_samples(settings) and len(spans) > 1:
             continue
-        part = np.asarray(mask[a:b], dtype=bool)[settings.trim :]
-        rows = valid_rows(~part, settings.decimation)
+        usable = part_valid(~np.asarray(mask[a:b], dtype=bool), b - a, gap_edges and i < len(spans) - 1, settings.trim)
+        assert usable is not None
+        rows = valid_rows(usable[settings.trim :], settings.decimation)
         total += len(rows)
         touched += int(np.count_nonzero(~rows))
     return total, touched
@@ -128,6 +130,8 @@ class UsableRows:
         is the drive's held command and rows at rest are left out (:func:`identification_hold_s`), else 0.
     speed_noise : float
         The velocity's noise whose expected sign the Coulomb column is (:func:`identification_speed_noise`; 0: the sign).
+    gap_edges : int
+        Rows left out, beyond those at rest or saturated, at the edge before a gap (:func:`ilic_cli.idim_ls.part_valid`).
     """
 
     decimated: int
@@ -137,6 +141,11 @@ class UsableRows:
     rest: RestSamples | None
     hold_s: float = 0.0
     speed_noise: float = 0.0
+    gap_edges: int = 0
+
+    def gap_words(self) -> str:
+        """``"; N at the edge before a gap"`` when the gaps' edges leave rows out, else ``""``."""
+        return f"; {self.gap_edges} at the edge before a gap (the filters' edge, as at every part's start)" if self.gap_edges else ""
 
     def sign_words(self, position_unit: str) -> str:
         """The Coulomb column's sign in a phrase (the JSON and docs/methods.md state :data:`SIGN_RULE` whole), with the velocity's
@@ -165,6 +174,7 @@ class UsableRows:
             "rows_at_rest": self.at_rest,
             "rows_saturated": self.saturated,
             "usable_rows": self.usable,
+            "rows_at_gap_edges": self.gap_edges,
             "dwells": None if self.rest is None else self.rest.dwells,
             "samples_at_rest": None if self.rest is None else self.rest.count,
             "rest_speed_threshold": None if self.rest is None else self.rest.speed_threshold,
@@ -230,8 +240,12 @@ def usable_rows(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> U
     none = np.zeros(n, dtype=bool)
     total, at_rest = rows_left_out(none if prepared.rest is None else prepared.rest.mask, settings, segs)
     _, saturated = rows_left_out(none if prepared.saturated is None else prepared.saturated, settings, segs)
-    _, unusable = rows_left_out(none if prepared.valid is None else ~prepared.valid, settings, segs)
-    return UsableRows(total, at_rest, saturated, total - unusable, prepared.rest, identification_hold_s(prepared), identification_speed_noise(prepared))
+    mask = none if prepared.valid is None else ~prepared.valid
+    _, unusable = rows_left_out(mask, settings, segs, gap_edges=True)
+    _, masked = rows_left_out(mask, settings, segs) if len(segs) > 1 else (total, unusable)
+    return UsableRows(
+        total, at_rest, saturated, total - unusable, prepared.rest, identification_hold_s(prepared), identification_speed_noise(prepared), unusable - masked
+    )
 
 
 def too_few_rows(prepared: PreparedLog, settings: LSSettings, fitted: int, columns: int) -> str | None:

@@ -14,7 +14,7 @@ from ilic_cli import idim_ilic
 from ilic_cli.derivatives import central_difference
 from ilic_cli.filtering import butter_lowpass_zero_phase, lowpass_decimate
 from ilic_cli.idim_ilic import tracking_error_ratio
-from ilic_cli.idim_ls import LSSettings, _columns, _decimate, decimated_systems, held, lsq_rows, valid_rows
+from ilic_cli.idim_ls import LSSettings, _columns, _decimate, decimated_systems, held, lsq_rows, part_valid, valid_rows
 from ilic_cli.regressor import GRAVITY_COLUMNS, Column, Kinematics, Model, get_model
 from tests.unit.synth import FS, motion, rigid_force
 
@@ -104,9 +104,11 @@ def test_segments_are_the_parts_stacked(log: tuple[np.ndarray, ...]) -> None:
     t, q, tau = log
     model = get_model("rigid-offset")
     W, y, td, kept = decimated_systems(t, q, tau, FS, model, LSSettings(), None, ((0, 2500), (2600, 6000)), 0.0)
-    parts = [lsq_rows(t[a:b], q[a:b], tau[a:b], FS, model) for a, b in ((0, 2500), (2600, 6000))]
+    # the first part ends at a gap: its last trim samples, the filters' edge, are left out (part_valid)
+    spans = ((0, 2500), (2600, 6000))
+    parts = [lsq_rows(t[a:b], q[a:b], tau[a:b], FS, model, valid=part_valid(None, b - a, i == 0, LSSettings().trim)) for i, (a, b) in enumerate(spans)]
     assert np.array_equal(W, np.concatenate([p.W for p in parts])) and np.array_equal(y, np.concatenate([p.y for p in parts]))
-    assert np.array_equal(td, np.concatenate([p.t_dec for p in parts])) and kept is None
+    assert np.array_equal(td, np.concatenate([p.t_dec for p in parts])) and kept is not None and (~kept).sum() == 6  # rows within 49 + 9 samples of the end
 
 
 @pytest.mark.parametrize("n", [2, 3, 4, 1001])
