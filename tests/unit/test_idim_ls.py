@@ -192,6 +192,25 @@ def test_a_part_that_ends_at_a_gap_loses_its_filters_edge(log: tuple[np.ndarray,
     assert rows_left_out(np.zeros(len(tg), dtype=bool), LSSettings().at_rate(FS), segments) == (total, 0)
 
 
+def test_a_part_with_few_rows_of_its_own_adds_them_to_the_others(log: tuple[np.ndarray, ...]) -> None:
+    """Too few rows is judged on the parts together: a part after a gap that is almost all at rest (a long last dwell) gives its
+    few rows beside the other part's, where alone it is refused (the 200 kg axis at 8 kHz: the drive lag's 20 Hz rows, none
+    left in the part after the gap, refused the whole log)."""
+    from ilic_cli.idim_ls import decimated_systems, part_valid
+
+    t, q, tau = log
+    model = get_model("rigid-offset")
+    valid = np.ones(len(t), dtype=bool)
+    valid[5000:9950] = False  # the second part's rows all touch a sample left out but its last 4
+    W, y, _, kept = decimated_systems(t, q, tau, FS, model, LSSettings(), valid, ((0, 5000), (5000, len(t))))
+    first = decimated_systems(t[:5000], q[:5000], tau[:5000], FS, model, LSSettings(), part_valid(valid[:5000], 5000, True, LSSettings().trim), None)
+    assert kept is not None and 0 < len(y) - len(first[1]) <= len(model.columns) + 1  # the few rows of the second part
+    with pytest.raises(ValueError, match="too few for 4 parameters"):
+        lsq_rows(t[5000:], q[5000:], tau[5000:], FS, model, valid=valid[5000:])
+    theta = idim_ls(t, q, tau, FS, model, valid=valid, segments=((0, 5000), (5000, len(t)))).result.theta
+    assert theta[:3] == pytest.approx([95.0, 200.0, 20.0], rel=5e-3)  # fitted, not refused (Fc -0.25 %: the 4 rows at the log's end)
+
+
 def test_no_invalid_sample_is_bit_identical(log: tuple[np.ndarray, ...]) -> None:
     t, q, tau = log
     a = idim_ls(t, q, tau, FS, get_model("rigid-offset"))
