@@ -373,16 +373,33 @@ def min_samples(settings: LSSettings) -> int:
     return settings.trim + 3 * settings.decimation * 9 + 1
 
 
-def part_valid(valid: np.ndarray | None, n: int, ends_at_gap: bool, trim: int) -> np.ndarray | None:
-    """The samples of a contiguous part of ``n`` samples that IDIM-LS may use: ``valid`` (``None``: every one) and, where the part ends
-    at a gap, not its last ``trim``: the position filter and the derivatives have an edge there as at the part's start, whose first
-    ``trim`` samples no part keeps. A 0.3 s gap cut in a move of the 0.5 kg·m² joint's 500 Hz trapezoid left Fv +3.75 % and Fc
-    -2.8 % off, -0.38 and +0.24 % with this (the whole log: -0.40 and +0.25 %). A log's own end keeps its samples (the published
-    procedure's)."""
-    if not ends_at_gap:
+GAP_EDGE_SPANS = 4
+"""How many decimation spans either side of a gap a part leaves out (:func:`part_valid`): the anti-alias filter's reach, where a
+part's edge mixes the filters' transients into its rows. On 120 logs with a 0.3 s gap (``benchmarks/identify_gaps.py``: four axes,
+250 Hz to 8 kHz, S-curves and trapezoids, the gap at 30, 55 and 80 % of the log), 120 within 2 % of M, Fv and Fc with 4 or 8 spans,
+112 with the start's ``trim`` alone (49 samples: 6 ms at 8 kHz)."""
+
+
+def gap_edge(settings: LSSettings) -> int:
+    """Samples a part leaves out at an edge that is a gap (``settings`` at the log's rate): :data:`GAP_EDGE_SPANS` decimation
+    spans, and never fewer than the ``trim`` every part's start leaves out."""
+    return max(settings.trim, GAP_EDGE_SPANS * settings.decimation)
+
+
+def part_valid(valid: np.ndarray | None, n: int, after_gap: bool, before_gap: bool, settings: LSSettings) -> np.ndarray | None:
+    """The samples of a contiguous part of ``n`` samples that IDIM-LS may use: ``valid`` (``None``: every one), and not the
+    :func:`gap_edge` samples at an edge that is a gap: the position filter, the derivatives and the anti-alias filter have an
+    edge there, mid-motion where a log's own start and end are at rest. A 0.3 s gap cut in a move of the 0.5 kg·m² joint's 500 Hz
+    trapezoid left Fv +3.75 % and Fc -2.8 % off, -0.38 and +0.24 % without its edges (the whole log: -0.40 and +0.25 %). A log's
+    own start and end keep the published procedure's (``trim`` at the start)."""
+    if not (after_gap or before_gap):
         return valid
     out = np.ones(n, dtype=bool) if valid is None else np.array(valid, dtype=bool)
-    out[max(n - trim, 0) :] = False
+    edge = gap_edge(settings)
+    if after_gap:
+        out[:edge] = False
+    if before_gap:
+        out[max(n - edge, 0) :] = False
     return out
 
 
@@ -400,9 +417,9 @@ def decimated_systems(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """``(W, y, t_dec, kept)`` of the contiguous ``segments`` (default: the whole log), each filtered and decimated on its own, stacked.
 
-    Segments shorter than :func:`min_samples` are left out; none left is an error; a part that ends at a gap loses its last
-    ``trim`` samples (:func:`part_valid`); too few rows is an error of the parts together, not of one (a 0.3 s gap before the
-    200 kg axis's last move at 8 kHz left the part after it 6 % of samples not at rest, and no row at the drive lag's 20 Hz). ``hold_s``: the regressor is
+    Segments shorter than :func:`min_samples` are left out; none left is an error; a part leaves out its edges at a gap
+    (:func:`part_valid`); too few rows is an error of the parts together, not of one (a 0.3 s gap before the
+    200 kg axis's last move at 8 kHz left the part after it almost all at rest, and no row at the drive lag's 20 Hz). ``hold_s``: the regressor is
     evaluated that much later (:func:`held`); ``speed_noise``: :func:`lsq_rows`'. ``kept``: the rows fitted among all
     decimated rows of the parts (``None``: all).
     """
@@ -412,7 +429,7 @@ def decimated_systems(
     for i, (a, b) in enumerate(spans):
         if b - a < min_samples(settings) and len(spans) > 1:
             continue
-        v = part_valid(None if valid is None else valid[a:b], b - a, i < len(spans) - 1, settings.trim)
+        v = part_valid(None if valid is None else valid[a:b], b - a, i > 0, i < len(spans) - 1, settings)
         _, W, y, rows = _system(t[a:b], q[a:b], tau[a:b], fs_hz, model, settings, v, hold_s, speed_noise=speed_noise, one_part=len(spans) == 1)
         td = t[a:b][settings.trim :][kept_indices(b - a - settings.trim, settings.decimation)]
         parts.append((W, y, td if rows is None else td[rows], np.ones(len(td), dtype=bool) if rows is None else rows))

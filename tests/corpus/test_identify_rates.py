@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from ilic_cli.identify import identify
-from tests.corpus.robot import AXES, DWELL_TRAJECTORIES, Case, simulate
+from ilic_cli.runlog import RunLog
+from tests.corpus.robot import ALL_AXES, AXES, DWELL_TRAJECTORIES, Case, simulate
 
 SEED0 = 7000
 """Seeds beyond the corpus's (1-999, and 3000 more with ``--reseed 1``)."""
@@ -37,3 +38,29 @@ def test_identify_is_within_2_percent_below_1_khz(fs: float) -> None:
     assert within == len(e), (within, np.round(100 * e, 2).tolist())
     assert abs(float(e[:, 0].mean())) < 2.5e-3, np.round(100 * e[:, 0], 2).tolist()
     assert abs(float(e[:, 1].mean())) < 3e-3, np.round(100 * e[:, 1], 2).tolist()  # the noise's sign no longer leans Fv
+
+
+@pytest.mark.parametrize(
+    ("axis", "trajectory", "fs", "seed", "at"),
+    [
+        ("lin12", "s-curve", 8000.0, 4758, 0.8),
+        ("lin200", "trapezoid", 8000.0, 4522, 0.8),
+        ("rev0.5", "s-curve", 2000.0, 5037, 0.8),
+        ("rev0.01", "trapezoid", 250.0, 4596, 0.8),
+    ],
+)
+def test_a_log_with_a_gap_is_identified_from_its_parts(axis: str, trajectory: str, fs: float, seed: int, at: float) -> None:
+    """A 0.3 s gap at 80 % of a clean dwell-and-move log: each part leaves out its edges at the gap (``idim_ls.part_valid``: four
+    decimation spans, 40 ms at 8 kHz), the rest threshold is the log's top speed (``usable.rest_samples``), and too few rows is
+    judged on the parts together. Within 2 % of M, Fv and Fc; before, Fv +7.2 % and Fc -14 %, refused ('only 0 decimated rows'),
+    Fv +29 % and +24 %. (On 120 such logs, four axes, 250 Hz to 8 kHz, the gap at 30, 55 and 80 %: 120 within 2 %, 87 and 3
+    refused before.)"""
+    log = simulate(Case(axis, trajectory, fs, "sensor", seed), {})
+    t = log.t
+    keep = (t < at * t[-1]) | (t > at * t[-1] + 0.3)
+    gapped = RunLog({k: np.asarray(log[k])[keep] for k in ("t", "q", "tau", "q_ref")}, log.units, log.meta)
+    fit = identify(gapped, method="ls").ls
+    assert fit is not None
+    theta = dict(zip(fit.result.names, fit.result.theta, strict=True))
+    e = {p: theta[p] / ALL_AXES[axis].truth[p] - 1.0 for p in ("M", "Fv", "Fc")}
+    assert max(abs(v) for v in e.values()) <= 0.02, e

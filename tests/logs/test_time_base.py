@@ -45,7 +45,7 @@ def test_a_gap_splits_identification_into_its_segments(emps: RunLog, tmp_path: P
     model, s = get_model("rigid-offset"), LSSettings()
     spans = ((0, 12000), (12000, len(gapped)))
     parts = [
-        lsq_rows(gapped.t[a:b], gapped["q"][a:b], gapped["tau"][a:b], 1000.0, model, s, valid=part_valid(None, b - a, i == 0, s.trim))
+        lsq_rows(gapped.t[a:b], gapped["q"][a:b], gapped["tau"][a:b], 1000.0, model, s, valid=part_valid(None, b - a, i > 0, i == 0, s.at_rate(1000.0)))
         for i, (a, b) in enumerate(spans)
     ]
     stacked = solve(np.concatenate([p.W for p in parts]), np.concatenate([p.y for p in parts]), model.names, sigma=s.sigma)

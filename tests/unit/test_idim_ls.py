@@ -203,7 +203,9 @@ def test_a_part_with_few_rows_of_its_own_adds_them_to_the_others(log: tuple[np.n
     valid = np.ones(len(t), dtype=bool)
     valid[5000:9950] = False  # the second part's rows all touch a sample left out but its last 4
     W, y, _, kept = decimated_systems(t, q, tau, FS, model, LSSettings(), valid, ((0, 5000), (5000, len(t))))
-    first = decimated_systems(t[:5000], q[:5000], tau[:5000], FS, model, LSSettings(), part_valid(valid[:5000], 5000, True, LSSettings().trim), None)
+    first = decimated_systems(
+        t[:5000], q[:5000], tau[:5000], FS, model, LSSettings(), part_valid(valid[:5000], 5000, False, True, LSSettings().at_rate(FS)), None
+    )
     assert kept is not None and 0 < len(y) - len(first[1]) <= len(model.columns) + 1  # the few rows of the second part
     with pytest.raises(ValueError, match="too few for 4 parameters"):
         lsq_rows(t[5000:], q[5000:], tau[5000:], FS, model, valid=valid[5000:])

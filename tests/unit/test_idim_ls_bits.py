@@ -106,7 +106,9 @@ def test_segments_are_the_parts_stacked(log: tuple[np.ndarray, ...]) -> None:
     W, y, td, kept = decimated_systems(t, q, tau, FS, model, LSSettings(), None, ((0, 2500), (2600, 6000)), 0.0)
     # the first part ends at a gap: its last trim samples, the filters' edge, are left out (part_valid)
     spans = ((0, 2500), (2600, 6000))
-    parts = [lsq_rows(t[a:b], q[a:b], tau[a:b], FS, model, valid=part_valid(None, b - a, i == 0, LSSettings().trim)) for i, (a, b) in enumerate(spans)]
+    parts = [
+        lsq_rows(t[a:b], q[a:b], tau[a:b], FS, model, valid=part_valid(None, b - a, i > 0, i == 0, LSSettings().at_rate(FS))) for i, (a, b) in enumerate(spans)
+    ]
     assert np.array_equal(W, np.concatenate([p.W for p in parts])) and np.array_equal(y, np.concatenate([p.y for p in parts]))
     assert np.array_equal(td, np.concatenate([p.t_dec for p in parts])) and kept is not None and (~kept).sum() == 6  # rows within 49 + 9 samples of the end
 

@@ -88,3 +88,18 @@ def test_the_expected_sign_of_a_noisy_velocity() -> None:
     kin = Kinematics(qd=v, qdd=np.zeros_like(v), t=np.arange(5.0), speed_noise=0.01)
     assert np.array_equal(kin.sgn, s) and kin.later(0.5).speed_noise == 0.01
     assert np.array_equal(Kinematics(qd=v, qdd=v, sign_qd=np.ones(5), speed_noise=0.01).sgn, np.ones(5))  # the CTC law's own
+
+
+def test_a_part_after_a_gap_that_holds_no_move_is_at_rest() -> None:
+    """The top speed is the log's, not each part's: a part between gaps that holds only a dwell (its position noise, 1 um) is at
+    rest, where against 1 % of its own noise most of it was not (and a fit took the stuck axis's force for friction)."""
+    t, q = _position(0.2)
+    rng = np.random.default_rng(5)
+    dwell = q[-1] + 1e-6 * rng.standard_normal(3000)
+    q2 = np.r_[q, dwell]
+    segments = ((0, len(q)), (len(q), len(q2)))
+    rest = rest_samples(q2, FS, LSSettings(), segments)
+    alone = rest_samples(dwell, FS, LSSettings())
+    assert rest.mask[len(q) :].all(), float(rest.mask[len(q) :].mean())
+    assert alone.mask.mean() < 0.5  # its own top speed is its noise's: the rule, part by part, had found it moving
+    assert rest.speed_threshold == rest_samples(q, FS, LSSettings()).speed_threshold  # the moving part's top speed
