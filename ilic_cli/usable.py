@@ -93,8 +93,8 @@ def with_rest(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> Pre
 
 def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[int, int], ...] | None = None, *, gap_edges: bool = False) -> tuple[int, int]:
     """``(decimated rows, rows whose span touches a True sample of mask)`` over the parts IDIM-LS fits
-    (:func:`ilic_cli.idim_ls.decimated_systems`; ``settings`` at the log's rate); ``gap_edges``: and those the edge before a
-    gap leaves out (:func:`ilic_cli.idim_ls.part_valid`)."""
+    (:func:`ilic_cli.idim_ls.decimated_systems`; ``settings`` at the log's rate); ``gap_edges``: and those a gap's edges leave out
+    (:func:`ilic_cli.idim_ls.part_valid`)."""
     spans = segments or ((0, len(mask)),)
     total = touched = 0
     for i, (a, b) in enumerate(spans):
@@ -135,7 +135,7 @@ class UsableRows:
     speed_noise : float
         The velocity's noise whose expected sign the Coulomb column is (:func:`identification_speed_noise`; 0: the sign).
     gap_edges : int
-        Rows left out, beyond those at rest or saturated, at the edge before a gap (:func:`ilic_cli.idim_ls.part_valid`).
+        Rows left out, beyond those at rest or saturated, at a gap's edges (:func:`ilic_cli.idim_ls.part_valid`).
     """
 
     decimated: int
@@ -148,8 +148,8 @@ class UsableRows:
     gap_edges: int = 0
 
     def gap_words(self) -> str:
-        """``"; N at the edge before a gap"`` when the gaps' edges leave rows out, else ``""``."""
-        return f"; {self.gap_edges} at the edge before a gap (the filters' edge, as at every part's start)" if self.gap_edges else ""
+        """``"; N at a gap's edges"`` when the gaps' edges leave rows out, else ``""``."""
+        return f"; {self.gap_edges} at a gap's edges (the filters' transients there, mid-motion)" if self.gap_edges else ""
 
     def sign_words(self, position_unit: str) -> str:
         """The Coulomb column's sign in a phrase (the JSON and docs/methods.md state :data:`SIGN_RULE` whole), with the velocity's

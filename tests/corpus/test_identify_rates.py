@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from ilic_cli.identify import identify
+from ilic_cli.identify_report import to_markdown
 from ilic_cli.runlog import RunLog
 from tests.corpus.robot import ALL_AXES, AXES, DWELL_TRAJECTORIES, Case, simulate
 
@@ -59,8 +60,13 @@ def test_a_log_with_a_gap_is_identified_from_its_parts(axis: str, trajectory: st
     t = log.t
     keep = (t < at * t[-1]) | (t > at * t[-1] + 0.3)
     gapped = RunLog({k: np.asarray(log[k])[keep] for k in ("t", "q", "tau", "q_ref")}, log.units, log.meta)
-    fit = identify(gapped, method="ls").ls
-    assert fit is not None
+    report = identify(gapped, method="ls")
+    fit = report.ls
+    assert fit is not None and report.usable is not None
     theta = dict(zip(fit.result.names, fit.result.theta, strict=True))
     e = {p: theta[p] / ALL_AXES[axis].truth[p] - 1.0 for p in ("M", "Fv", "Fc")}
     assert max(abs(v) for v in e.values()) <= 0.02, e
+    # the report counts the rows the fit uses, and says what the gap's edges left out
+    u, md = report.usable, to_markdown(report)
+    assert u.usable == fit.result.rows and f"{u.usable} of {u.decimated} decimated rows fitted" in md
+    assert (f"; {u.gap_edges} at a gap's edges" in md) is (u.gap_edges > 0)  # none where the edges fall at rest (lin12 at 8 kHz)
