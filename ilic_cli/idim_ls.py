@@ -311,7 +311,8 @@ def _trimmed(extra: dict[str, np.ndarray] | None, s: slice) -> dict[str, np.ndar
 def _too_few_rows(left: int, model: Model) -> None:
     """Refuse ``left`` decimated rows for ``model``: not more than one beyond its columns."""
     if left <= len(model.columns) + 1:
-        raise ValueError(f"only {left} decimated rows are left once the invalid (saturated) samples are masked; too few for {len(model.columns)} parameters")
+        why = "the samples left out (a saturated drive, the axis at rest, a gap's edges)"
+        raise ValueError(f"only {left} decimated rows are left once {why} are masked; too few for {len(model.columns)} parameters")
 
 
 def _system(

@@ -174,7 +174,9 @@ def test_a_size_whose_log_is_refused_is_beyond_the_band(monkeypatch: pytest.Monk
 
     def error_pct(log: object) -> float:
         if size[0] > 0.5:  # the doubling's 0.8 and the bisection's 0.566 saturate
-            raise IdentificationError("robot-corpus", "only 3 decimated rows are left once the invalid (saturated) samples are masked")
+            raise IdentificationError(
+                "robot-corpus", "only 3 decimated rows are left once the samples left out (a saturated drive, the axis at rest, a gap's edges) are masked"
+            )
         return 1.0 + size[0]
 
     monkeypatch.setattr(robot, "effect_of_size", sized)

@@ -228,7 +228,11 @@ def test_everything_masked_is_refused(log: tuple[np.ndarray, ...]) -> None:
     with pytest.raises(ValueError, match=r"^only 3 decimated rows are left .* too few for 3 parameters$"):
         lsq_rows(t, q, tau, FS, get_model("rigid"), valid=valid)
     valid[:90] = True  # rows 0, 10, 20, 30: one more than the parameters is still too few
-    with pytest.raises(ValueError, match=r"^only 4 decimated rows are left once the invalid \(saturated\) samples are masked; too few for 3 parameters$"):
+    with pytest.raises(
+        ValueError,
+        match=r"^only 4 decimated rows are left once the samples left out \(a saturated drive, the axis at rest, a gap's edges\) are masked; "
+        r"too few for 3 parameters$",
+    ):
         lsq_rows(t, q, tau, FS, get_model("rigid"), valid=valid)
     valid[:100] = True  # rows 0..40: five
     assert len(lsq_rows(t, q, tau, FS, get_model("rigid"), valid=valid).y) == 5
