@@ -52,7 +52,7 @@ def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(
 
     The speed is that of the fit (``settings``' position filter and
     derivative); the top speed is the log's, the largest of its parts' beyond the trimmed edge (a part after a gap that holds
-    no move had found most of its dwell above 1 % of its own noise, and fitted it: Fv up to +28 % on a 0.5 kg·m² S-curve with a
+    no move had found most of its dwell above 1 % of its own noise, and fitted it: Fv up to +29 % on a 0.5 kg·m² S-curve with a
     gap at 80 % of its length). A part shorter than :func:`min_samples` is left as it is (IDIM-LS leaves it out).
     """
     q = np.asarray(q, dtype=np.float64)
@@ -66,7 +66,7 @@ def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(
         if b - a < min_samples(settings):
             continue
         speed = derivative(butter_lowpass_zero_phase(q[a:b], settings.cutoff_hz, fs_hz, settings.order, matlab=settings.matlab), 1.0 / fs_hz, settings.stencil)
-        np.abs(speed, out=speed)  # in place: the filtered position is let go, one array of the part's length lives on
+        np.abs(speed, out=speed)  # in place: the filtered position is let go; each part's speed is kept until the log's top speed is known
         speeds.append((a, b, speed))
     # the top speed is the log's, over its parts: a part between gaps that holds no move has only its noise for a top speed
     below = threshold = STANDSTILL_FRACTION * max((float(np.percentile(v[settings.trim :], 99.5)) for _, _, v in speeds), default=0.0)

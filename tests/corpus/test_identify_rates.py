@@ -54,8 +54,8 @@ def test_a_log_with_a_gap_is_identified_from_its_parts(axis: str, trajectory: st
     """A 0.3 s gap at 80 % of a clean dwell-and-move log: each part leaves out its edges at the gap (``idim_ls.part_valid``: four
     decimation spans, 40 ms at 8 kHz), the rest threshold is the log's top speed (``usable.rest_samples``), and too few rows is
     judged on the parts together. Within 2 % of M, Fv and Fc; before, Fv +7.2 % and Fc -14 %, refused ('only 0 decimated rows'),
-    Fv +29 % and +24 %. (On 120 such logs, four axes, 250 Hz to 8 kHz, the gap at 30, 55 and 80 %: 120 within 2 %, 87 and 3
-    refused before.)"""
+    Fv +29 % and +24 %. (``benchmarks/identify_gaps.py``, 120 such logs, four axes, 250 Hz to 8 kHz, the gap at 30, 55 and 80 %:
+    120 within 2 %; 84, and 4 refused, before.)"""
     log = simulate(Case(axis, trajectory, fs, "sensor", seed), {})
     t = log.t
     keep = (t < at * t[-1]) | (t > at * t[-1] + 0.3)
