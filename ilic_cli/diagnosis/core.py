@@ -17,7 +17,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.compare import SimulationComparison, compare_simulation
 from ilic_cli.diagnosis.decide import Decision, ReplayVerdict, decide, proposal_plant, replay_drift, without_last
-from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, detect_drift, fitted_with, with_drift
+from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, fitted_with, with_drift
 from ilic_cli.diagnosis.drift import evaluation as drift_evaluation
 from ilic_cli.diagnosis.fold_plant import fitted_plant
 from ilic_cli.diagnosis.friction_law import FrictionLaw
@@ -28,7 +28,7 @@ from ilic_cli.diagnosis.loop_read import lag_if_inside, read_the_loop
 from ilic_cli.diagnosis.model_values import effect_fit, model_parameters, model_std, steps_from_effects
 from ilic_cli.diagnosis.propose import Proposal, base_model, propose
 from ilic_cli.diagnosis.propose import prepare_system as _prepare
-from ilic_cli.diagnosis.refit import NOT_REFITTED, FinalFit, Refit, final_fit, refit_at_dwells, with_std
+from ilic_cli.diagnosis.refit import NOT_REFITTED, FinalFit, Refit, drift_on, final_fit, refit_at_dwells, with_std
 from ilic_cli.diagnosis.refit import refit as refit_stage
 from ilic_cli.diagnosis.refit import segment_refit as _segment_refit
 from ilic_cli.diagnosis.select import Evaluation, Selection, validation_error
@@ -416,9 +416,7 @@ def _assembled(
         f.located = sorted([r for r in located if r.kind in f.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
     # friction that changes over time, from per-window estimates
     origin = float(prop.log.t[0])  # the plant's drift starts with the log, not with its first row in motion
-    drift_found = detect_drift(
-        td, W1, y1, final.names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change
-    )
+    drift_found = drift_on(prop, final, settings)
     if drift_found.found and judge_drift is not None:
         verdict, sensor = judge_drift(GivenDrift(list(drift_found.findings), origin))
         decision = replace(decision, verdicts=[*decision.verdicts, verdict], sensor=sensor)

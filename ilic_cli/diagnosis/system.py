@@ -77,6 +77,19 @@ def shifted_force(data: IDIMData, delay_s: float, *, remember: bool = True) -> n
     return data.decimate_once(("shift", delay_s), full) if remember else data.decimate(full())
 
 
+def shift_slopes(data: IDIMData, steps: list[Step] | tuple[Step, ...], rows: np.ndarray) -> np.ndarray:
+    """On ``rows``, the decimated force's slope with respect to each time shift among ``steps`` at its value (a central difference
+    of :func:`shifted_force` over a tenth of the log's period), one column each: the force a small change of that shift adds,
+    what a fit at the shift's value cannot otherwise take up (none: zero columns)."""
+    h = 0.1 / data.fs_hz
+    cols = [
+        (shifted_force(data, float(s.value or 0.0) + h, remember=False) - shifted_force(data, float(s.value or 0.0) - h, remember=False)) / (2 * h)
+        for s in steps
+        if s.effect.shift
+    ]
+    return np.column_stack(cols)[rows] if cols else np.empty((int(np.count_nonzero(rows)), 0))
+
+
 def effect_columns(data: IDIMData, effect: Effect, value: Any = None, *, remember: bool = True) -> np.ndarray:
     """Decimated columns of ``effect`` at ``value`` on ``data``.
 
