@@ -47,7 +47,8 @@ RUNNABLE = ("ls", "ilic", "iv", "didim")
 
 
 PARTS_RULE = (
-    "IDIM-LS filtered and decimated each contiguous part between the log's gaps on its own and stacked their rows (a part too short for the filters left out)"
+    "IDIM-LS filtered and decimated each contiguous part between the log's gaps on its own and stacked their rows, each part leaving "
+    "out its edges at a gap (four decimation spans, never fewer samples than its start's trim), a part too short for the filters left out"
 )
 """What ``identify --urdf --method ls`` says it did with a log that has gaps (the one-joint chain's rule)."""
 

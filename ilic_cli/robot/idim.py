@@ -31,7 +31,7 @@ from ilic_cli.derivatives import derivative
 from ilic_cli.filter_design import cheby1_ba, cheby1_sos
 from ilic_cli.filtering import MATLAB_DECIMATE_MAX, _polished_roots, butter_lowpass_zero_phase, kept_indices
 from ilic_cli.idim_ilic import essential_mask
-from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, valid_rows  # the 1-DOF chain's decimation and row mask: one definition
+from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, part_valid, valid_rows  # the 1-DOF chain's decimation, row mask, gap edges: one definition
 from ilic_cli.jointlog import Parts
 from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve_tall
 from ilic_cli.parallel import ordered_map
@@ -129,6 +129,7 @@ def prepare(
     torque_held: bool = False,
     keep: tuple[np.ndarray, ...] = (),
     rows_needed: int | None = None,
+    valid: np.ndarray | None = None,
 ) -> RobotSystem:
     """Filter, differentiate, trim and decimate each joint as the 1-DOF chain; stack the joints' base systems.
 
@@ -154,6 +155,9 @@ def prepare(
     rows_needed : int, optional
         ``min_speed`` leaving this many rows or fewer is an error (default: the base parameters' number;
         -1: never, :func:`prepare_parts`, which leaves out a part with none and checks the stack).
+    valid : ndarray of bool (N,), optional
+        Samples that may be used (``None``: every one): every joint's rows whose span touches another are left out, beside
+        ``min_speed``'s (:func:`prepare_parts`: a part's edges at a gap, :func:`ilic_cli.idim_ls.part_valid`).
     """
     settings = settings.at_rate(fs_hz)  # the decimation by the log's rate, the 1-DOF chain's one rule (unless given: band_hz None)
     q, tau = np.asarray(q, dtype=np.float64), np.asarray(tau, dtype=np.float64)
@@ -183,10 +187,11 @@ def prepare(
         part[:, np.flatnonzero(np.append(active[j], True))] = d[:, rows[j] : rows[j + 1]]
         parts.append(part)
     kept: tuple[np.ndarray, ...] = ()
+    usable = np.ones(len(qd), dtype=bool) if valid is None else np.asarray(valid, dtype=bool)[s]
     if keep:
         kept = tuple(np.asarray(k, dtype=bool) for k in keep)
-    elif min_speed > 0:
-        kept = tuple(valid_rows(np.abs(qd[:, j]) > min_speed, settings.decimation) for j in range(robot.n))
+    elif min_speed > 0 or valid is not None:
+        kept = tuple(valid_rows(usable & (np.abs(qd[:, j]) > min_speed) if min_speed > 0 else usable, settings.decimation) for j in range(robot.n))
     if kept:
         parts = [p[k] for p, k in zip(parts, kept)]
         if sum(len(p) for p in parts) <= (base.b if rows_needed is None else rows_needed):
@@ -213,18 +218,21 @@ def prepare_parts(
 ) -> RobotSystem:
     """:func:`prepare` of each contiguous part ``(start, stop)`` of a log cut at its gaps (:func:`ilic_cli.timebase.segments`), stacked.
 
-    The one-joint chain's rule (``idim_ls.decimated_systems``): each part is filtered, differentiated and decimated on its own;
+    The one-joint chain's rule (``idim_ls.decimated_systems``): each part is filtered, differentiated and decimated on its own,
+    and leaves out its edges at a gap (:func:`ilic_cli.idim_ls.part_valid`: the filters' transients, mid-motion there);
     a part shorter than :func:`ilic_cli.idim_ls.min_samples` is left out, and none left is an error. Rows are
     joint-major within each part; :attr:`RobotSystem.sample` says which sample each stands for.
     """
     if len(parts) == 1:
         return prepare(q, tau, fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held)
-    shortest = min_samples(settings.at_rate(fs_hz))
+    at_rate = settings.at_rate(fs_hz)
+    shortest = min_samples(at_rate)
     systems = []
-    for a, b in parts:
+    for i, (a, b) in enumerate(parts):
         if b - a < shortest:
             continue
-        one = prepare(q[a:b], tau[a:b], fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held, rows_needed=-1)
+        valid = part_valid(None, b - a, i > 0, i < len(parts) - 1, at_rate)
+        one = prepare(q[a:b], tau[a:b], fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held, rows_needed=-1, valid=valid)
         if len(one.y):  # a part with no row fast enough (min_speed) adds nothing
             systems.append(replace(one, sample=one.sample + a, kept=()))
     if not systems:
