@@ -30,6 +30,7 @@ from ilic_cli.idim_ls import IDIMLSResult, LSSettings, cross_validate, decimated
 from ilic_cli.lsq import LSResult
 from ilic_cli.methods import CHOICES, METHODS, effect_methods, label, methods_of, model_method
 from ilic_cli.output_error import OEResult, OESettings
+from ilic_cli.plausible import opposed_force
 from ilic_cli.prepare import PreparedLog, prepare_log
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
@@ -427,6 +428,10 @@ def _run_fits(report: IdentifyReport, prepared: PreparedLog, runs: tuple[str, ..
         report.warnings.extend(fit.warnings)
         if m == "ls":
             start = fit.theta
+            assert report.ls is not None
+            r = report.ls.result
+            if (why := opposed_force(r.names, r.theta, r.std, report.joint_type)) is not None:  # before a method starts from it
+                raise IdentificationError(prepared.source, why)
 
 
 def _recorded_timing(report: IdentifyReport, prepared: PreparedLog, settings: IdentifySettings) -> PreparedLog:

@@ -24,7 +24,9 @@ from ilic_cli.diagnosis.system import Step, effect_columns, extended, moving_row
 from ilic_cli.effects import EFFECTS, applicable
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
+from ilic_cli.lsq import solve
 from ilic_cli.parameters import structure_of
+from ilic_cli.plausible import opposed_force
 from ilic_cli.prepare import PreparedLog, force_hold_s, prepare_log
 from ilic_cli.regressor import MODELS, Model, get_model
 from ilic_cli.runlog import RunLog, friction_law_speed, joint_type
@@ -132,6 +134,10 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
     rows = moving_rows(data)
     if (few := too_few_rows(prepared, settings.ls, int(np.count_nonzero(rows)), len(base.columns))) is not None:
         raise IdentificationError(prepared.source, f"{few}: nothing to diagnose")  # before any replay spends time on them
+    W0, y0, names0 = system(data, base, known, rows)
+    rigid = solve(W0, y0, names0, sigma=settings.ls.sigma)  # the rigid fit the diagnosis starts from (core._baseline's)
+    if (why := opposed_force(rigid.names, rigid.theta, rigid.std, joint)) is not None:
+        raise IdentificationError(prepared.source, f"{why}: nothing to diagnose")
     drift = drift_given(data, base, known, rows, float(log.t[0]), settings)
     given = None
     if drift is not None:

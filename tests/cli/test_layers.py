@@ -49,6 +49,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
         "vocabulary",
         (
             "ilic_cli.parameters",
+            "ilic_cli.plausible",
             "ilic_cli.effects",
             "ilic_cli.regressor",
             "ilic_cli.lsq",

@@ -1,0 +1,62 @@
+"""A force logged with the sign opposite to the position's is refused, not fitted into a negative mass (:mod:`ilic_cli.plausible`).
+
+Before: the 0.5 kg·m² joint's trapezoid with its force negated gave ``identify`` M = -0.4999 kg·m², Fv = -0.798, Fc = -1.50, exit 0
+and no word; ``diagnose`` said "Undecided" with exit 0.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from ilic_cli.plausible import opposed_force
+from tests.clirun import run_cli
+from tests.corpus.independent import run_loop
+from tests.corpus.robot import AXES, reference
+
+
+def test_a_determined_negative_mass_is_no_axis_and_an_undetermined_one_is_left_to_its_sigma() -> None:
+    names = ("M", "Fv", "Fc", "offset")
+    why = opposed_force(names, [-0.5, -0.8, -1.5, 0.0], [0.001, 0.01, 0.01, 0.01], "revolute")
+    assert why is not None and "inertia is negative, M = -0.5 ± 0.002 kg·m² (95 %) (Fv and Fc negative too)" in why
+    assert "sign opposite" in why
+    assert "mass is negative" in (opposed_force(names, [-95.0, 200.0, 20.0, 0.0], [1.0, 1.0, 1.0, 1.0]) or "")  # friction right: no "too"
+    assert opposed_force(names, [-0.5, 0.8, 1.5, 0.0], [0.3, 0.01, 0.01, 0.01]) is None  # its 95 % interval holds 0
+    assert opposed_force(names, [0.5, -0.8, 1.5, 0.0], [0.001, 0.01, 0.01, 0.01]) is None  # a positive mass
+    assert opposed_force(("Fv", "Fc"), [-1.0, -1.0], [0.1, 0.1]) is None  # no mass in the model
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, list[str]]:
+    axis = AXES["rev0.5"]
+    _, q_ref = reference(axis, "trapezoid", 500.0, 5, 6.0)
+    log = run_loop(axis, 500.0, q_ref, "same", {}, 5, "rev0.5")
+    frame = pd.DataFrame({k: np.asarray(log[k]) for k in ("t", "q", "q_ref", "tau")})
+    folder = tmp_path_factory.mktemp("opposed")
+    frame.to_csv(folder / "log.csv", index=False)
+    frame.assign(tau=-frame["tau"]).to_csv(folder / "negated.csv", index=False)
+    kp, kv = axis.gains()
+    flags = ["--controller", "pd", "--kp", repr(kp), "--kv", repr(kv), "--drive-gain", repr(axis.drive_gain), "--load-joint", "revolute"]
+    return folder / "log.csv", folder / "negated.csv", flags
+
+
+@pytest.mark.parametrize("command", [("identify", "--method", "ls"), ("diagnose",)])
+def test_a_negated_force_is_refused_in_one_line(logs: tuple[Path, Path, list[str]], command: tuple[str, ...]) -> None:
+    good, negated, flags = logs
+    res = run_cli(command[0], str(negated), *command[1:], *flags)
+    assert res.status == 2 and res.stdout == "", res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"ilic: error: {negated}: the force opposes the acceleration"), res.stderr
+    assert "M = -0.5" in lines[0] and "(Fv and Fc negative too)" in lines[0]
+
+
+def test_the_same_log_with_its_force_as_logged_is_identified(logs: tuple[Path, Path, list[str]]) -> None:
+    good, _, flags = logs
+    res = run_cli("identify", str(good), "--method", "ls", "--format", "json", *flags)
+    assert res.status == 0, res.stderr
+    values = {k: v["value"] for k, v in json.loads(res.stdout)["ls"]["parameters"].items()}
+    assert values["M"] == pytest.approx(0.5, rel=0.01)
