@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.derivatives import derivative
+from ilic_cli.errors import IdentificationError
 from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.idim_ls import LSSettings, min_samples, part_valid, valid_rows
 from ilic_cli.prepare import PreparedLog, RestSamples, tau_sensor
@@ -85,10 +86,25 @@ def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(
 
 def with_rest(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> PreparedLog:
     """``prepared`` with its samples at rest masked (:func:`rest_samples` of the measured position), the one
-    definition of the samples every fit of the log uses (identify's methods and the diagnosis alike)."""
+    definition of the samples every fit of the log uses (identify's methods and the diagnosis alike); a log whose position or
+    force never changes is refused (:func:`nothing_to_fit`)."""
     if prepared.rest is not None:
         return prepared
+    if (why := nothing_to_fit(prepared.log["q"], prepared.log["tau"])) is not None:
+        raise IdentificationError(prepared.source, why)
     return prepared.with_rest(rest_samples(prepared.log["q"], prepared.fs_hz, settings, prepared.segments))
+
+
+def nothing_to_fit(q: np.ndarray, tau: np.ndarray) -> str | None:
+    """Why a log whose position or force is the same at every sample has nothing to fit, else ``None``. Fitted, a frozen position
+    gave ``identify`` M = Fv = Fc = 0 (a rank-deficient matrix) and a force of zeros M = Fv = Fc = 0, both with exit 0, and the
+    diagnosis 'Undecided' with exit 0 and NumPy's warnings on stderr."""
+    q, tau = np.asarray(q), np.asarray(tau)
+    if len(q) and np.ptp(q) == 0.0:
+        return f"the position is {float(q[0]):.6g} at every sample: the axis never moves (a frozen sensor?), nothing to fit"
+    if len(tau) and np.ptp(tau) == 0.0:
+        return f"the force is {float(tau[0]):.6g} at every sample: it carries no dynamics (a channel not logged?), nothing to fit"
+    return None
 
 
 def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[int, int], ...] | None = None, *, gap_edges: bool = False) -> tuple[int, int]:

@@ -1,7 +1,9 @@
-"""A force logged with the sign opposite to the position's is refused, not fitted into a negative mass (:mod:`ilic_cli.plausible`).
+"""A force logged with the sign opposite to the position's is refused, not fitted into a negative mass (:mod:`ilic_cli.plausible`);
+so is a log whose position or force never changes (:func:`ilic_cli.usable.nothing_to_fit`).
 
 Before: the 0.5 kg·m² joint's trapezoid with its force negated gave ``identify`` M = -0.4999 kg·m², Fv = -0.798, Fc = -1.50, exit 0
-and no word; ``diagnose`` said "Undecided" with exit 0.
+and no word; ``diagnose`` said "Undecided" with exit 0. With its position frozen, or its force all zero, ``identify`` printed
+M = Fv = Fc = 0 with exit 0, and ``diagnose`` "Undecided" with NumPy's warnings on stderr.
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, list[str
     folder = tmp_path_factory.mktemp("opposed")
     frame.to_csv(folder / "log.csv", index=False)
     frame.assign(tau=-frame["tau"]).to_csv(folder / "negated.csv", index=False)
+    frame.assign(tau=0.0).to_csv(folder / "zero.csv", index=False)
+    frame.assign(q=0.1234).to_csv(folder / "frozen.csv", index=False)
     kp, kv = axis.gains()
     flags = ["--controller", "pd", "--kp", repr(kp), "--kv", repr(kv), "--drive-gain", repr(axis.drive_gain), "--load-joint", "revolute"]
     return folder / "log.csv", folder / "negated.csv", flags
@@ -60,3 +64,24 @@ def test_the_same_log_with_its_force_as_logged_is_identified(logs: tuple[Path, P
     assert res.status == 0, res.stderr
     values = {k: v["value"] for k, v in json.loads(res.stdout)["ls"]["parameters"].items()}
     assert values["M"] == pytest.approx(0.5, rel=0.01)
+
+
+@pytest.mark.parametrize("command", [("identify", "--method", "ls"), ("diagnose",)])
+@pytest.mark.parametrize(("name", "says"), [("zero.csv", "the force is 0 at every sample"), ("frozen.csv", "the position is 0.1234 at every sample")])
+def test_a_log_whose_force_or_position_never_changes_is_refused(logs: tuple[Path, Path, list[str]], command: tuple[str, ...], name: str, says: str) -> None:
+    good, _, flags = logs
+    path = good.parent / name
+    res = run_cli(command[0], str(path), *command[1:], *flags)
+    assert res.status == 2 and res.stdout == "", res.stderr
+    assert res.stderr.strip().splitlines() == [f"ilic: error: {path}: {says}" + res.stderr.split(says, 1)[1].strip()]
+    assert "nothing to fit" in res.stderr
+
+
+def test_nothing_to_fit_is_said_of_a_constant_channel_only() -> None:
+    from ilic_cli.usable import nothing_to_fit
+
+    t = np.linspace(0.0, 1.0, 100)
+    assert nothing_to_fit(np.sin(t), np.cos(t)) is None
+    assert nothing_to_fit(np.sin(t), np.r_[np.zeros(99), 1e-9]) is None  # a force that changes once still changes
+    assert "never moves" in (nothing_to_fit(np.full(100, 2.0), np.cos(t)) or "")
+    assert "carries no dynamics" in (nothing_to_fit(np.sin(t), np.full(100, 3.0)) or "")
