@@ -13,7 +13,9 @@ identified with ``identify --method ls``, through the library, with the loop dec
 Prints one Markdown row per log (what the diagnosis names; each named value against the truth, the largest relative error;
 for the clean dwell-and-move logs ``identify``'s largest error of M, Fv, Fc), then the counts.
 
-Usage: python benchmarks/corpus_independent.py [--jobs 2] [--loops LOOP ...]
+Usage: python benchmarks/corpus_independent.py [--jobs 2] [--loops LOOP ...] [--axes AXIS ...] [--rates HZ ...]
+[--trajectories T ...] [--seed N] [--effects E ...] [--substeps N]: the defaults are the README's run; the options run the same simulator on the robot corpus's
+other axes (its ``--beyond`` ones too), rates, moves and seeds.
 """
 
 from __future__ import annotations
@@ -78,18 +80,18 @@ def plant_and_truth(eid: str, axis: Any) -> tuple[dict[str, dict[str, float]], d
     return {eid: p}, p
 
 
-def run(axis_name: str, trajectory: str, fs_hz: float, loop: str, eid: str) -> dict[str, Any]:
+def run(axis_name: str, trajectory: str, fs_hz: float, loop: str, eid: str, seed: int = SEED, substeps: int = SUBSTEPS) -> dict[str, Any]:
     from ilic_cli.diagnosis import DiagnoseSettings, diagnose
     from ilic_cli.identify import identify
     from tests.corpus.independent import run_loop
-    from tests.corpus.robot import AXES as ROBOT_AXES
+    from tests.corpus.robot import ALL_AXES as ROBOT_AXES
     from tests.corpus.robot import reference
 
     axis = ROBOT_AXES[axis_name]
-    _, q_ref = reference(axis, trajectory, fs_hz, SEED, 10.0)
+    _, q_ref = reference(axis, trajectory, fs_hz, seed, 10.0)
     effects, truth = plant_and_truth(eid, axis)
     smooth = 0.01 * axis.speed if loop.endswith("tanh") else 0.0
-    log = run_loop(axis, fs_hz, q_ref, loop.split(",")[0], effects, SEED, axis_name, SUBSTEPS, smooth)
+    log = run_loop(axis, fs_hz, q_ref, loop.split(",")[0], effects, seed, axis_name, substeps, smooth)
     diag = diagnose(log, settings=DiagnoseSettings())
     found = {f.effect.id: {k: v.value for k, v in f.parameters.items()} for f in diag.findings}
     named = None if eid == "clean" else eid
@@ -97,7 +99,7 @@ def run(axis_name: str, trajectory: str, fs_hz: float, loop: str, eid: str) -> d
     row["exact"] = sorted(found) == ([named] if named else [])
     row["law"] = diag.friction_law is not None and diag.friction_law.vc is not None  # the smoothed Coulomb law read and replayed
     row["error"] = max(abs(found[eid][k] / v - 1.0) for k, v in truth.items() if v) if named in found else None
-    if named is None and trajectory == "trapezoid":
+    if named is None and trajectory in ("trapezoid", "s-curve"):
         ls = identify(log, method="ls").ls
         assert ls is not None
         est = dict(zip(ls.result.names, ls.result.theta, strict=True))
@@ -109,10 +111,22 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--loops", nargs="+", choices=LOOPS, default=LOOPS, metavar="LOOP", help=f"the loops run (default all: {', '.join(LOOPS)})")
+    ap.add_argument("--axes", nargs="+", default=AXES, metavar="AXIS", help=f"axes of tests.corpus.robot.ALL_AXES (default {', '.join(AXES)})")
+    ap.add_argument("--rates", nargs="+", type=float, default=RATES_HZ, metavar="HZ")
+    ap.add_argument("--trajectories", nargs="+", choices=("trapezoid", "s-curve", "chirp", "multisine"), default=TRAJECTORIES, metavar="T")
+    ap.add_argument("--seed", type=int, default=SEED)
+    ap.add_argument("--effects", nargs="+", choices=EFFECTS, default=EFFECTS, metavar="EFFECT", help="the effects (default all, and clean)")
+    ap.add_argument("--substeps", type=int, default=SUBSTEPS, help=f"the simulator's Euler steps a period (default {SUBSTEPS})")
     args = ap.parse_args(argv)
     loops = tuple(loop for loop in LOOPS if loop in args.loops)
     jobs = [
-        (a, tr, fs, loop, e) for a in AXES for tr in TRAJECTORIES for fs in RATES_HZ for loop in loops for e in EFFECTS if e != "gravity" or a.startswith("rev")
+        (a, tr, fs, loop, e, args.seed, args.substeps)
+        for a in args.axes
+        for tr in args.trajectories
+        for fs in args.rates
+        for loop in loops
+        for e in args.effects
+        if e != "gravity" or a.startswith("rev")
     ]
     with ProcessPoolExecutor(args.jobs) as pool:
         rows = list(pool.map(run, *zip(*jobs, strict=True)))
