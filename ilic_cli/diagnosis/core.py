@@ -39,7 +39,7 @@ from ilic_cli.diagnosis.system import change_time, system
 from ilic_cli.diagnosis.verdicts import Verdict
 from ilic_cli.effects import EFFECTS, Effect, Estimate, unit_of
 from ilic_cli.errors import ParameterError
-from ilic_cli.lsq import LSResult, relative_error_pct, robust_covariance, solve
+from ilic_cli.lsq import LSResult, relative_error_pct, robust_covariance
 from ilic_cli.modelfile import model_document
 from ilic_cli.parameters import PARAMETERS, weight
 from ilic_cli.runlog import RunLog
@@ -219,9 +219,9 @@ class Baseline:
     effects: dict[str, Any]
 
 
-def _baseline(prop: Proposal, model_doc: dict[str, Any] | None, settings: DiagnosisSettings) -> Baseline:
+def _baseline(prop: Proposal, model_doc: dict[str, Any] | None) -> Baseline:
     W0, y0, names0 = system(prop.data, prop.base, prop.known, prop.rows)
-    res0 = solve(W0, y0, names0, sigma=settings.ls.sigma)
+    res0 = prop.rigid  # the least squares of (W0, y0), fitted once by the proposal
     before_params = dict(model_doc["parameters"]) if model_doc else {n: float(v) for n, v in zip(names0, res0.theta, strict=True) if n in PARAMETERS}
     before_effects = dict(model_doc.get("effects", {})) if model_doc else {}
     return Baseline(W0, y0, names0, res0, before_params, before_effects)
@@ -275,7 +275,7 @@ def diagnose(
     settings.null.check(replay_alpha(settings))
     prop = propose(log, settings, model_doc, validate)  # 1. propose
     log, validate = prop.log, prop.validate
-    base = _baseline(prop, model_doc, settings)
+    base = _baseline(prop, model_doc)
     res0 = base.res
     timing, law = None, None
     if settings.simulate and against is None and settings.pd_timing == "recorded":  # the replays run the loop that ran: its timing read from the recording
@@ -284,7 +284,7 @@ def diagnose(
         def baseline_of(p: Proposal) -> Baseline:
             b = next((b for q, b in bases if q is p), None)
             if b is None:
-                b = _baseline(p, model_doc, settings)
+                b = _baseline(p, model_doc)
                 bases.append((p, b))
             return b
 

@@ -24,7 +24,7 @@ from ilic_cli.diagnosis.system import Step, effect_columns, extended, moving_row
 from ilic_cli.effects import EFFECTS, applicable
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
-from ilic_cli.lsq import solve
+from ilic_cli.lsq import LSResult, solve
 from ilic_cli.parameters import structure_of
 from ilic_cli.plausible import opposed_force
 from ilic_cli.prepare import PreparedLog, force_hold_s, prepare_log
@@ -61,6 +61,9 @@ class Proposal:
         The validation log, prepared, and its IDIM system.
     warnings : list of str
         What the preparation noted.
+    rigid : LSResult
+        The fit of ``base + known`` on ``rows`` (eq. 9's σ), refused when no axis's (:func:`ilic_cli.plausible.opposed_force`):
+        the rigid fit the diagnosis starts from (:func:`ilic_cli.diagnosis.core` ``_baseline``).
     """
 
     prepared: PreparedLog
@@ -77,6 +80,7 @@ class Proposal:
     vprepared: PreparedLog | None
     vdata: IDIMData | None
     warnings: list[str]
+    rigid: LSResult
     drift: GivenDrift | None = None
     """The friction drift found on the rigid model (:func:`drift_given`), in the selection's model and the replays' plants; ``None``: none."""
 
@@ -135,7 +139,7 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
     if (few := too_few_rows(prepared, settings.ls, int(np.count_nonzero(rows)), len(base.columns))) is not None:
         raise IdentificationError(prepared.source, f"{few}: nothing to diagnose")  # before any replay spends time on them
     W0, y0, names0 = system(data, base, known, rows)
-    rigid = solve(W0, y0, names0, sigma=settings.ls.sigma)  # the rigid fit the diagnosis starts from (core._baseline's)
+    rigid = solve(W0, y0, names0, sigma=settings.ls.sigma)
     if (why := opposed_force(rigid.names, rigid.theta, rigid.std, joint)) is not None:
         raise IdentificationError(prepared.source, f"{why}: nothing to diagnose")
     drift = drift_given(data, base, known, rows, float(log.t[0]), settings)
@@ -145,7 +149,7 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
         given = drift.columns(data.t_dec[rows], W, names)
     selection = forward_select(data, base, fs, sel, validation=vdata, known=known, given=given)
     hold = force_hold_s(log, fs)
-    return Proposal(prepared, log, data, base, known, selection, sel, rows, hold, joint, validate, vprepared, vdata, warnings, drift)
+    return Proposal(prepared, log, data, base, known, selection, sel, rows, hold, joint, validate, vprepared, vdata, warnings, rigid, drift)
 
 
 def drift_given(data: IDIMData, base: Model, known: list[Step], rows: np.ndarray, origin: float, settings: DiagnosisSettings) -> GivenDrift | None:

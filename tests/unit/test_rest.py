@@ -41,7 +41,7 @@ def test_a_stop_shorter_than_a_dwell_is_not_at_rest() -> None:
 
 def test_the_prepared_log_masks_rest_apart_from_saturation() -> None:
     t, q = _position(0.3)
-    log = RunLog({"t": t, "q": q, "tau": np.zeros_like(q)}, {"t": "s", "q": "m", "tau": "N"}, {"source": "x"})
+    log = RunLog({"t": t, "q": q, "tau": np.sin(t)}, {"t": "s", "q": "m", "tau": "N"}, {"source": "x"})  # a force that changes
     prepared = with_rest(prepare_log(log))
     assert prepared.rest is not None and prepared.valid is not None
     assert np.array_equal(prepared.valid, ~prepared.rest.mask)
@@ -72,10 +72,10 @@ def test_the_coulomb_sign_of_a_log_with_rest_is_the_expected_sign_of_its_velocit
     """:func:`identification_speed_noise`: the dwells' velocity noise once rows at rest are left out, 0 (the sign) else."""
     t, q = _position(0.3)
     q = q + 2e-6 * np.random.default_rng(4).standard_normal(len(q))
-    log = RunLog({"t": t, "q": q, "tau": np.zeros_like(q)}, {"t": "s", "q": "m", "tau": "N"}, {"source": "x"})
+    log = RunLog({"t": t, "q": q, "tau": np.sin(t)}, {"t": "s", "q": "m", "tau": "N"}, {"source": "x"})  # a force that changes
     prepared = with_rest(prepare_log(log))
     assert prepared.rest is not None and identification_speed_noise(prepared) == prepared.rest.speed_noise > 0
-    sweep = RunLog({"t": t[:2000], "q": q[:2000], "tau": np.zeros(2000)}, {"t": "s", "q": "m", "tau": "N"}, {"source": "y"})
+    sweep = RunLog({"t": t[:2000], "q": q[:2000], "tau": np.sin(t[:2000])}, {"t": "s", "q": "m", "tau": "N"}, {"source": "y"})
     assert identification_speed_noise(with_rest(prepare_log(sweep))) == 0.0  # no standstill: the published procedure
 
 
