@@ -43,6 +43,9 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, list[str
     frame.assign(tau=-frame["tau"]).to_csv(folder / "negated.csv", index=False)
     frame.assign(tau=0.0).to_csv(folder / "zero.csv", index=False)
     frame.assign(q=0.1234).to_csv(folder / "frozen.csv", index=False)
+    spiked = frame.copy()
+    spiked.loc[2000, "tau"] = 1e6
+    spiked.to_csv(folder / "spike.csv", index=False)
     kp, kv = axis.gains()
     flags = ["--controller", "pd", "--kp", repr(kp), "--kv", repr(kv), "--drive-gain", repr(axis.drive_gain), "--load-joint", "revolute"]
     return folder / "log.csv", folder / "negated.csv", flags
@@ -67,14 +70,21 @@ def test_the_same_log_with_its_force_as_logged_is_identified(logs: tuple[Path, P
 
 
 @pytest.mark.parametrize("command", [("identify", "--method", "ls"), ("diagnose",)])
-@pytest.mark.parametrize(("name", "says"), [("zero.csv", "the force is 0 at every sample"), ("frozen.csv", "the position is 0.1234 at every sample")])
+@pytest.mark.parametrize(
+    ("name", "says"),
+    [
+        ("zero.csv", "the force is 0 at every sample"),
+        ("frozen.csv", "the position is 0.1234 at every sample"),
+        ("spike.csv", "the force has 1 sample(s) far outside all the others (1e+06 at t = 4 s"),
+    ],
+)
 def test_a_log_whose_force_or_position_never_changes_is_refused(logs: tuple[Path, Path, list[str]], command: tuple[str, ...], name: str, says: str) -> None:
     good, _, flags = logs
     path = good.parent / name
     res = run_cli(command[0], str(path), *command[1:], *flags)
     assert res.status == 2 and res.stdout == "", res.stderr
     assert res.stderr.strip().splitlines() == [f"ilic: error: {path}: {says}" + res.stderr.split(says, 1)[1].strip()]
-    assert "nothing to fit" in res.stderr
+    assert "nothing to fit" in res.stderr or "nothing is fitted to it" in res.stderr
 
 
 def test_nothing_to_fit_is_said_of_a_constant_channel_only() -> None:
@@ -85,3 +95,21 @@ def test_nothing_to_fit_is_said_of_a_constant_channel_only() -> None:
     assert nothing_to_fit(np.sin(t), np.r_[np.zeros(99), 1e-9]) is None  # a force that changes once still changes
     assert "never moves" in (nothing_to_fit(np.full(100, 2.0), np.cos(t)) or "")
     assert "carries no dynamics" in (nothing_to_fit(np.sin(t), np.full(100, 3.0)) or "")
+
+
+def test_a_glitch_is_a_sample_ten_band_widths_beyond_the_others() -> None:
+    """:func:`ilic_cli.usable.glitch`: a sample beyond the 0.1-99.9 % band by more than ten of its widths; pulses and a force's
+    steps, however sharp, are not (the EMPS pulses lie 0.27 widths beyond it)."""
+    from ilic_cli.usable import GLITCH_SPANS, glitch
+
+    t = np.arange(5000) / 1000.0
+    x = np.sin(2 * np.pi * t)
+    assert glitch("the force", x, t) is None
+    steps = np.where(t < 2.5, -1.0, 1.0) + np.where((t % 1.0) < 0.002, 0.5, 0.0)  # a step and 2 ms pulses
+    assert glitch("the force", steps, t) is None
+    y = x.copy()
+    y[1234] = 1.0 + 1.01 * GLITCH_SPANS * 2.0  # just beyond ten widths of [-1, 1]
+    why = glitch("the force", y, t)
+    assert why is not None and "1 sample(s)" in why and "t = 1.234 s" in why
+    y[1234] = 1.0 + 0.99 * GLITCH_SPANS * 2.0
+    assert glitch("the force", y, t) is None
