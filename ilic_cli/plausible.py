@@ -1,4 +1,5 @@
-"""Whether an inverse model's rigid estimate can be the axis's: its mass (inertia) is positive (``identify`` and ``diagnose``).
+"""Whether an inverse model's rigid estimate can be the axis's: its mass (inertia) is positive (``identify`` and ``diagnose``), and
+an arm's joint's friction takes energy out, not in (``identify --urdf``).
 
 The rigid model ``tau = M qdd + Fv qd + Fc sign(qd) + offset`` fitted to a force logged with the sign opposite to the
 position's gives every coefficient with its sign turned: the 0.5 kg·m² joint's trapezoid with its force negated came out
@@ -33,4 +34,26 @@ def opposed_force(names: Sequence[str], theta: Sequence[float] | np.ndarray, std
     return (
         f"the force opposes the acceleration: the rigid fit's {mass} is negative, M = {m:.4g} ± {Z95 * s:.2g} {unit('M', joint)} (95 %){also}; "
         "the force is logged with the sign opposite to the position's (negate one of them), or is not this axis's"
+    )
+
+
+def driving_friction(names: Sequence[str], theta: Sequence[float] | np.ndarray, std: Sequence[float] | np.ndarray, joints: Sequence[str]) -> str | None:
+    """Why an arm's estimate is no arm's: a joint whose viscous and Coulomb friction (``Fv_<joint>``, ``Fc_<joint>``) are both negative
+    beyond their 95 % intervals, a friction that would drive the joint; ``None`` else. An arm2 log with its torques negated gave
+    every base parameter turned (``Ia_shoulderR`` -1.385, ``Fv_shoulder`` -2.001, ``Fc_shoulder`` -2.999) with exit 0; its inertial
+    base parameters are combinations whose sign no one rule fixes, the friction's is."""
+    index = {n: i for i, n in enumerate(names)}
+    turned = []
+    for joint in joints:
+        ids = [index.get(f"Fv_{joint}"), index.get(f"Fc_{joint}")]
+        if None in ids:
+            continue
+        if all(math.isfinite(float(theta[i])) and float(theta[i]) + Z95 * float(std[i]) < 0.0 for i in ids if i is not None):
+            fv, fc = (float(theta[i]) for i in ids if i is not None)
+            turned.append(f"{joint} (Fv = {fv:.4g}, Fc = {fc:.4g})")
+    if not turned:
+        return None
+    return (
+        f"the torque opposes the motion at joint(s) {', '.join(turned)}: viscous and Coulomb friction both negative beyond their 95 % "
+        "intervals, a friction that would drive the joint; its torque is logged with the sign opposite to its position's (negate one of them)"
     )

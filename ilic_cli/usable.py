@@ -102,9 +102,9 @@ def nothing_to_fit(q: np.ndarray, tau: np.ndarray) -> str | None:
     diagnosis 'Undecided' with exit 0 and NumPy's warnings on stderr."""
     q, tau = np.asarray(q), np.asarray(tau)
     if len(q) and np.ptp(q) == 0.0:
-        return f"the position is {float(q[0]):.6g} at every sample: the axis never moves (a frozen sensor?), nothing to fit"
+        return f"the position is {float(q[0]) + 0.0:.6g} at every sample: the axis never moves (a frozen sensor?), nothing to fit"
     if len(tau) and np.ptp(tau) == 0.0:
-        return f"the force is {float(tau[0]):.6g} at every sample: it carries no dynamics (a channel not logged?), nothing to fit"
+        return f"the force is {float(tau[0]) + 0.0:.6g} at every sample: it carries no dynamics (a channel not logged?), nothing to fit"
     return None
 
 

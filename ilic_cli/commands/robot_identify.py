@@ -207,11 +207,14 @@ class _Validation:
 
 def _ls(log: JointLog, parts: Parts, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, sigma_max: float) -> dict[str, Any]:
     """IDIM-WLS on the log's ``parts`` between gaps, with its essential parameters and the fit of those alone (:func:`ilic_cli.robot.idim.essential_fit`)."""
+    from ilic_cli.plausible import driving_friction
     from ilic_cli.robot.idim import essential_fit, prepare_parts, solve_system  # deferred: numba only for an arm
 
     try:
         system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, min_speed=min_speed, torque_held=held)
         fit = solve_system(system)
+        if (why := driving_friction(fit.names, fit.theta, fit.std, robot.joints)) is not None:
+            raise ValueError(why)
         mask, reduced = essential_fit(system, fit, sigma_max)
     except ValueError as exc:
         raise IlicError(log.meta.get("source", "LOG"), str(exc)) from None

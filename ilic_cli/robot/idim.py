@@ -37,6 +37,7 @@ from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, sol
 from ilic_cli.parallel import ordered_map
 from ilic_cli.robot.base import BaseParameters
 from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel
+from ilic_cli.usable import glitch, nothing_to_fit
 
 ROBOT_BAND_HZ = 20.0
 """The band an arm's decimated rows keep: :func:`ilic_cli.filtering.rows_decimation` with it gives 20 at 1 kHz, 40 at 2 kHz.
@@ -218,11 +219,20 @@ def prepare_parts(
 ) -> RobotSystem:
     """:func:`prepare` of each contiguous part ``(start, stop)`` of a log cut at its gaps (:func:`ilic_cli.timebase.segments`), stacked.
 
+    A joint whose position or torque never changes, or holds a glitch, is refused as the one-joint chain refuses it
+    (:func:`ilic_cli.usable.nothing_to_fit`, :func:`ilic_cli.usable.glitch`): a frozen elbow had been refused with NumPy's
+    warnings on stderr and a message of ``np.float64(nan)``, a torque of zeros fitted with exit 0.
+
     The one-joint chain's rule (``idim_ls.decimated_systems``): each part is filtered, differentiated and decimated on its own,
     and leaves out its edges at a gap (:func:`ilic_cli.idim_ls.part_valid`: the filters' transients, mid-motion there);
     a part shorter than :func:`ilic_cli.idim_ls.min_samples` is left out, and none left is an error. Rows are
     joint-major within each part; :attr:`RobotSystem.sample` says which sample each stands for.
     """
+    t = np.arange(len(q)) / fs_hz  # the samples' times from the start, for a glitch's message
+    for j, name in enumerate(robot.joints):  # the one-joint chain's refusals (usable.with_rest), joint by joint
+        why = nothing_to_fit(q[:, j], tau[:, j]) or glitch("the position", q[:, j], t) or glitch("the torque", tau[:, j], t)
+        if why is not None:
+            raise ValueError(f"joint {name}: {why}")
     if len(parts) == 1:
         return prepare(q, tau, fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held)
     at_rate = settings.at_rate(fs_hz)

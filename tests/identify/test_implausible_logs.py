@@ -116,3 +116,18 @@ def test_a_glitch_is_a_sample_ten_band_widths_beyond_the_others() -> None:
     assert why is not None and "1 sample(s)" in why and "t = 1.234 s" in why
     y[1234] = 1.0 + 0.99 * GLITCH_SPANS * 2.0
     assert glitch("the force", y, t) is None
+
+
+def test_an_arm_s_joint_whose_friction_would_drive_it_is_named() -> None:
+    """:func:`ilic_cli.plausible.driving_friction`: a joint whose Fv and Fc are both negative beyond their 95 % intervals; one of them
+    negative, or both within their intervals of 0, is no such joint (a base parameter's sign alone is no rule)."""
+    from ilic_cli.plausible import driving_friction
+
+    names = ("Ia_a", "Fv_a", "Fc_a", "Fv_b", "Fc_b")
+    std = [0.01] * 5
+    assert driving_friction(names, [1.0, 2.0, 3.0, 0.5, 0.7], std, ("a", "b")) is None
+    assert driving_friction(names, [1.0, -2.0, 3.0, 0.5, -0.7], std, ("a", "b")) is None  # one negative each: not both
+    assert driving_friction(names, [1.0, -0.01, -0.01, 0.5, 0.7], std, ("a", "b")) is None  # within their intervals of 0
+    why = driving_friction(names, [1.0, 2.0, 3.0, -0.5, -0.7], std, ("a", "b"))
+    assert why is not None and "at joint(s) b (Fv = -0.5, Fc = -0.7)" in why and " a (" not in why
+    assert driving_friction(("M", "Fv", "Fc"), [1.0, -1.0, -1.0], [0.1] * 3, ("a",)) is None  # no joint's friction named

@@ -271,3 +271,26 @@ def test_one_joint_is_the_case_n_1_of_the_arm_chain(tmp_path: Path, capsys: pyte
     assert truth["Ia_carriageR"] == pytest.approx(95.0 + 0.35)  # the scenario's rotor inertia on the one joint
     for name, tol in (("Ia_carriageR", 1e-3), ("Fv_carriage", 0.03), ("Fc_carriage", 0.03)):
         assert fit[name]["value"] == pytest.approx(truth[name], rel=tol), name
+
+
+def test_an_arm_s_log_no_arm_could_make_is_refused_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str], sims: tuple[Path, Path, str]) -> None:
+    """The one-joint chain's refusals, joint by joint (:mod:`ilic_cli.plausible`, :func:`ilic_cli.usable.nothing_to_fit`, ``glitch``).
+    Before: arm2's log with its torques negated gave every base parameter turned (``Ia_shoulderR`` -1.385, ``Fv_shoulder`` -2.001)
+    with exit 0; a torque of zeros at the elbow was fitted with exit 0; a frozen elbow was refused with NumPy's warnings on stderr."""
+    from dataclasses import replace
+
+    from ilic_cli.io import jointlogs
+
+    first, _, _ = sims
+    log = jointlogs.read(first)
+    cases = {
+        "negated.csv": (replace(log, tau=-log.tau), "the torque opposes the motion at joint(s) shoulder (Fv = -"),
+        "zero.csv": (replace(log, tau=np.vstack([log.tau[0], 0.0 * log.tau[1]])), "joint elbow: the force is 0 at every sample"),
+        "frozen.csv": (replace(log, q=np.vstack([log.q[0], np.full_like(log.q[1], 0.3)])), "joint elbow: the position is 0.3 at every sample"),
+    }
+    spiked = log.tau.copy()
+    spiked[0, 5000] = 1e6
+    cases["spike.csv"] = (replace(log, tau=spiked), "joint shoulder: the torque has 1 sample(s) far outside all the others (1e+06 at t = 5 s")
+    for name, (bad, says) in cases.items():
+        jointlogs.write(bad, tmp_path / name)
+        assert f"ilic: error: {tmp_path / name}: {says}" in _error(capsys, "identify", str(tmp_path / name), "--urdf", ARM2, "--method", "ls"), name
