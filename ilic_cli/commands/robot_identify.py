@@ -207,7 +207,7 @@ class _Validation:
 
 def _ls(log: JointLog, parts: Parts, robot: Any, base: Any, ls: LSSettings, min_speed: float, held: bool, sigma_max: float) -> dict[str, Any]:
     """IDIM-WLS on the log's ``parts`` between gaps, with its essential parameters and the fit of those alone (:func:`ilic_cli.robot.idim.essential_fit`)."""
-    from ilic_cli.plausible import driving_friction
+    from ilic_cli.plausible import driving_friction  # deferred: the effects' vocabulary it reads Z95 from, only for an arm's IDIM-WLS
     from ilic_cli.robot.idim import essential_fit, prepare_parts, solve_system  # deferred: numba only for an arm
 
     try:
