@@ -45,12 +45,11 @@ def driving_friction(names: Sequence[str], theta: Sequence[float] | np.ndarray, 
     index = {n: i for i, n in enumerate(names)}
     turned = []
     for joint in joints:
-        ids = [index.get(f"Fv_{joint}"), index.get(f"Fc_{joint}")]
-        if None in ids:
+        iv, ic = index.get(f"Fv_{joint}"), index.get(f"Fc_{joint}")
+        if iv is None or ic is None:
             continue
-        if all(math.isfinite(float(theta[i])) and float(theta[i]) + Z95 * float(std[i]) < 0.0 for i in ids if i is not None):
-            fv, fc = (float(theta[i]) for i in ids if i is not None)
-            turned.append(f"{joint} (Fv = {fv:.4g}, Fc = {fc:.4g})")
+        if all(math.isfinite(float(theta[i])) and float(theta[i]) + Z95 * float(std[i]) < 0.0 for i in (iv, ic)):
+            turned.append(f"{joint} (Fv = {float(theta[iv]):.4g}, Fc = {float(theta[ic]):.4g})")
     if not turned:
         return None
     return (

@@ -93,7 +93,7 @@ def with_rest(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> Pre
     log = prepared.log
     if (why := nothing_to_fit(log["q"], log["tau"]) or glitch("the position", log["q"], log.t) or glitch("the force", log["tau"], log.t)) is not None:
         raise IdentificationError(prepared.source, why)
-    return prepared.with_rest(rest_samples(prepared.log["q"], prepared.fs_hz, settings, prepared.segments))
+    return prepared.with_rest(rest_samples(log["q"], prepared.fs_hz, settings, prepared.segments))
 
 
 def nothing_to_fit(q: np.ndarray, tau: np.ndarray) -> str | None:

@@ -144,9 +144,8 @@ def propose(log: RunLog, settings: DiagnosisSettings, model_doc: dict[str, Any] 
         raise IdentificationError(prepared.source, f"{why}: nothing to diagnose")
     drift = drift_given(data, base, known, rows, float(log.t[0]), settings)
     given = None
-    if drift is not None:
-        W, _, names = system(data, base, known, rows)
-        given = drift.columns(data.t_dec[rows], W, names)
+    if drift is not None:  # the trends' columns on the rigid system fitted above
+        given = drift.columns(data.t_dec[rows], W0, names0)
     selection = forward_select(data, base, fs, sel, validation=vdata, known=known, given=given)
     hold = force_hold_s(log, fs)
     return Proposal(prepared, log, data, base, known, selection, sel, rows, hold, joint, validate, vprepared, vdata, warnings, rigid, drift)
