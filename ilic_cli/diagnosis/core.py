@@ -31,6 +31,7 @@ from ilic_cli.diagnosis.propose import prepare_system as _prepare
 from ilic_cli.diagnosis.refit import NOT_REFITTED, FinalFit, Refit, drift_on, final_fit, refit_at_dwells, with_std
 from ilic_cli.diagnosis.refit import refit as refit_stage
 from ilic_cli.diagnosis.refit import segment_refit as _segment_refit
+from ilic_cli.diagnosis.rivals import finding_title, indistinct_note
 from ilic_cli.diagnosis.select import Evaluation, Selection, validation_error
 from ilic_cli.diagnosis.settings import DiagnoseSettings, DiagnosisSettings, replay_alpha
 from ilic_cli.diagnosis.stats import folds_either_side, heldout_errors
@@ -165,7 +166,7 @@ class Diagnosis:
         pending = "; not judged (its fit is no plant): " + ", ".join(self.unjudged_titles) if self.unjudged else ""
         if not self.findings:
             return ("undecided" if self.unjudged else "no significant mismatch") + pending
-        return "left out: " + ", ".join(f.effect.title for f in self.findings) + pending
+        return "left out: " + ", ".join(finding_title(f.effect, f.evidence) for f in self.findings) + pending
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -342,18 +343,8 @@ def _findings(prop: Proposal, decision: Decision, final: FinalFit, refit: Refit 
             if st_final.value != st.value or st.effect.columns:  # a value alone the refit held (a lag beside the segments' fit) is not its estimate
                 method = refit.method
         params, inverse = st.effect.on_joint(params, prop.joint), st.effect.on_joint(inverse, prop.joint)  # in the joint's units
-        findings.append(Finding(st.effect, params, plant, [], ev, "; ".join(n for n in [note, *notes, _indistinct(st.effect, ev)] if n), method, inverse))
+        findings.append(Finding(st.effect, params, plant, [], ev, "; ".join(n for n in [note, *notes, indistinct_note(st.effect, ev)] if n), method, inverse))
     return findings
-
-
-def _indistinct(effect: Effect, ev: Evaluation) -> str:
-    """The stated ambiguity of a finding the data cannot tell from another effect (:attr:`Evaluation.indistinct_from`), or ``""``."""
-    if ev.indistinct_from is None:
-        return ""
-    return (
-        f"{effect.id} or {ev.indistinct_from}: the data cannot tell them apart over the range the log visits (neither's fitted force "
-        f"adds significantly to the model with the other's); a log over a wider range decides"
-    )
 
 
 def _proposer(effect: Effect) -> str:

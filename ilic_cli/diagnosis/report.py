@@ -14,6 +14,7 @@ from ilic_cli.diagnosis.compare import SimulationComparison
 from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.fits import CLOSED_LOOP_SPREAD, INVERSE_METHOD, METHOD, OE_METHOD
 from ilic_cli.diagnosis.locate import Region
+from ilic_cli.diagnosis.rivals import indistinct_note
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, RefitOutcome
 from ilic_cli.effects import Estimate
 from ilic_cli.jointlog import position_unit
@@ -184,7 +185,8 @@ def _summary(diag: Diagnosis, force_unit: str, at_dwells: bool) -> list[str]:
             r = f.located[0]
             structured = f"The residual is structured {_where(r.label)} (mean {r.mean:+.3g} {force_unit}). "
             where = structured if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
-        lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}{_undetermined(f.parameters)}. {f.effect.explanation}")
+        other = f" {indistinct_note(f.effect, f.evidence)}." if f.evidence.indistinct_from is not None else ""
+        lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}{_undetermined(f.parameters)}. {f.effect.explanation}{other}")
     lines += [
         "",
         f"Relative force error {_pct(rel['before'])} -> {_pct(rel['after'])} (held out: {_pct(ho['before'])} -> {_pct(ho['after'])})"

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from ilic_cli.diagnosis.evaluation import Candidate, Evaluation
+from ilic_cli.diagnosis.rivals import beside_an_edge, parsimonious_first
 from ilic_cli.diagnosis.search import (
     DEFAULT_STEPS,
     EDGE_STEPS,
@@ -30,7 +32,7 @@ from ilic_cli.diagnosis.search import (
     search_range,
     searched_at_log_rate,
 )
-from ilic_cli.diagnosis.stats import HELDOUT_FALL_TEST, FTest, blocked_folds, folds_either_side, heldout_errors, heldout_fall_p, nested_f_test
+from ilic_cli.diagnosis.stats import blocked_folds, folds_either_side, heldout_errors, heldout_fall_p, nested_f_test
 from ilic_cli.diagnosis.system import Step, SystemFit, change_time, effect_columns, extended, fit_system, moving_rows, shifted_force, system
 from ilic_cli.diagnosis.verdicts import Selection
 from ilic_cli.effects import EFFECTS, Effect, applicable, catalogue_ids
@@ -59,8 +61,6 @@ __all__ = [  # the selection's own names, and the system's and the search's, imp
     "forward_select",
     "minimise",
     "moving_rows",
-    "parsimonious_first",
-    "rival_test",
     "search_range",
     "shifted_force",
     "system",
@@ -115,57 +115,6 @@ class SelectSettings:
         }
 
 
-@dataclass(frozen=True)
-class Evaluation:
-    """One candidate effect tried at one step of the selection."""
-
-    effect: str
-    value: Any
-    value_std: float | None
-    test: FTest
-    relative_error_pct: float = float("nan")
-    heldout_before_pct: float | None = None
-    heldout_after_pct: float | None = None
-    heldout_p_value: float | None = None
-    validation_before_pct: float | None = None
-    validation_after_pct: float | None = None
-    accepted: bool = False
-    reason: str = ""
-    outcome: Selection = Selection.PENDING
-    """The inverse model's decision, typed (``reason`` says it in words, and later stages may add to it)."""
-    indistinct_from: str | None = None
-    """An effect the data cannot tell from this one (:func:`parsimonious_first`): neither's fitted force adds significantly to the
-    model with the other's, over the range the log visits; ``None``: none. A typed ambiguity, stated with the finding."""
-
-    def unconfirmed_at(self, level: float | None = None) -> bool:
-        """Whether its F-test passed but its held-out test did not confirm it (:attr:`Selection.HELDOUT_UNCONFIRMED`), or, given a
-        ``level``, confirmed it on a p-value not below that level (a proposal, not confirmed at the level that decides)."""
-        if self.outcome is Selection.HELDOUT_UNCONFIRMED:
-            return True
-        return level is not None and self.outcome is Selection.ACCEPTED and self.heldout_p_value is not None and self.heldout_p_value >= level
-
-    def decided(self, outcome: Selection, detail: str | None = None, **figures: Any) -> Evaluation:
-        """This evaluation decided: ``outcome``, its sentence (:meth:`~ilic_cli.diagnosis.verdicts.Selection.sentence`) as the reason."""
-        return replace(self, outcome=outcome, reason=outcome.sentence(detail), accepted=outcome is Selection.ACCEPTED, **figures)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "effect": self.effect,
-            "nonlinear_value": list(self.value) if isinstance(self.value, tuple) else self.value,
-            "nonlinear_std": self.value_std,
-            **self.test.to_dict(),
-            "relative_error_pct": self.relative_error_pct,
-            "heldout_relative_error_pct": {"before": self.heldout_before_pct, "after": self.heldout_after_pct},
-            "heldout_test": None if self.heldout_p_value is None else {"test": f"{HELDOUT_FALL_TEST}, held-out IDIM rows", "p_value": self.heldout_p_value},
-            "validation_relative_error_pct": None
-            if self.validation_before_pct is None
-            else {"before": self.validation_before_pct, "after": self.validation_after_pct},
-            "accepted": self.accepted,
-            "reason": self.reason,
-            **({"indistinct_from": self.indistinct_from} if self.indistinct_from is not None else {}),
-        }
-
-
 HELDOUT_UNCONFIRMED = Selection.HELDOUT_UNCONFIRMED.value
 """The reason of a candidate whose F-test passed but whose held-out test did not confirm it (:attr:`Selection.HELDOUT_UNCONFIRMED`)."""
 
@@ -193,61 +142,6 @@ class SelectionResult:
         :meth:`Evaluation.unconfirmed_at`)."""
         ev = self.last_word(effect_id)
         return ev is not None and ev.unconfirmed_at(level)
-
-
-def parsimonious_first(evals: list[Candidate], W: np.ndarray, y: np.ndarray, alpha: float) -> list[Candidate]:
-    """Of two linear candidates of different column counts, put the simpler first unless the larger one's force adds to it.
-
-    Two linear effects can span nearly the same force over the range a log covers: gravity on a
-    revolute joint, ``g (MX cos q - MY sin q)``, is a straight line in ``q`` plus a curvature a spring
-    (``k q``) lacks, which over a swing of a radian or so is a few per cent of the force. The two-column
-    effect then always fits at least as well. Each is tested against the other by the non-nested J-test
-    (Davidson and MacKinnon): the rival's fitted force, one column, added to the model with the effect
-    (:func:`rival_test`). A gravity makes its curvature and its slope from the same two moments, so its
-    fitted force points where a true gravity's curvature is; the two columns apart would spend a degree
-    of freedom on any curvature, gravity's or not (corpus s480, a spring at 500 Hz: gravity's two columns
-    beyond the spring p = 0.0007, a wrong name; its fitted force p = 0.35, and the spring's beyond gravity
-    p = 0.0002). When the larger effect's force adds nothing significant (at ``alpha``) to the model with
-    the simpler one, the simpler one is proposed first (parsimony); where the swing shows the curvature
-    the larger one stays first. When, besides, the simpler one's adds nothing to the model with the larger
-    one, neither explains anything the other does not: the simpler one is proposed with the larger one as
-    :attr:`Evaluation.indistinct_from`, a stated ambiguity rather than a name the data do not decide. A larger one
-    that fits no better than the simpler stands for nothing. Whichever the ranking puts first, the decision is the same.
-    """
-    ok = [i for i, (ev, eff, _, _) in enumerate(evals) if not ev.outcome.never_a_finding and ev.test.p_adjusted < alpha]
-    if not ok:
-        return evals
-    top_ev, top, W_top, y_top = evals[t := ok[0]]
-    if top.nonlinear or top.shift:
-        return evals
-    k = W.shape[1]
-    for i in ok[1:]:
-        ev, eff, W_e, y_e = evals[i]
-        if eff.nonlinear or eff.shift or len(eff.columns) == len(top.columns):
-            continue
-        if len(eff.columns) < len(top.columns):  # a simpler one behind the top: first when the top's force adds nothing beyond it
-            if rival_test(W_e, W_top, k, y).p_value >= alpha:
-                indistinct = rival_test(W_top, W_e, k, y).p_value >= alpha
-                return [(replace(ev, indistinct_from=top_ev.effect) if indistinct else ev, eff, W_e, y_e), *evals[:i], *evals[i + 1 :]]
-            continue
-        # a larger one behind the top: no better fit, nothing; else the two tests as above, the other way round
-        if ev.relative_error_pct >= top_ev.relative_error_pct:
-            return evals
-        if rival_test(W_top, W_e, k, y).p_value < alpha:
-            return [evals[i], *evals[:i], *evals[i + 1 :]]
-        if rival_test(W_e, W_top, k, y).p_value >= alpha:
-            return [*evals[:t], (replace(top_ev, indistinct_from=ev.effect), top, W_top, y_top), *evals[t + 1 :]]
-        return evals
-    return evals
-
-
-def rival_test(W_own: np.ndarray, W_rival: np.ndarray, k: int, y: np.ndarray) -> FTest:
-    """The J-test (Davidson and MacKinnon 1981) of a rival effect against the model with one's own: the rival's fitted force,
-    ``W_rival[:, k:] @ theta[k:]`` of the least-squares fit of ``y`` on ``W_rival`` (its first ``k`` columns the model both
-    share), added to ``W_own`` as one column, by the prewhitened nested F-test on one degree of freedom."""
-    theta, _ = lstsq(W_rival, y)
-    force = W_rival[:, k:] @ theta[k:]
-    return nested_f_test(W_own, y, np.c_[W_own, force], y, 1)
 
 
 def forward_select(
@@ -324,6 +218,9 @@ def forward_select(
                 tried.append(ev)
                 if ev.accepted:
                     chosen = (ev, eff, W1, y1)
+        if chosen is not None and (rival := beside_an_edge(chosen[0], tried, settings.alpha)) is not None:
+            chosen = (replace(chosen[0], indistinct_from=rival.effect, beside_edge=rival), *chosen[1:])
+            tried = [chosen[0] if ev.effect == chosen[0].effect else ev for ev in tried]
         out.tried.append(tried)
         if chosen is None:
             break
@@ -332,10 +229,6 @@ def forward_select(
         out.accepted.append(ev)
         names = names + eff.column_names
     return out
-
-
-Candidate = tuple[Evaluation, Effect, np.ndarray, np.ndarray]
-"""A candidate's evaluation, its effect, and the system ``(W, y)`` with it."""
 
 
 def _beside_stronger(searcher: Searcher, ev: Evaluation, eff: Effect, evals: list[Candidate], n_candidates: int, alpha: float) -> str | None:
@@ -349,7 +242,7 @@ def _beside_stronger(searcher: Searcher, ev: Evaluation, eff: Effect, evals: lis
     Stribeck friction the lag's p is 0.44). Each stronger one's system gets the candidate fitted and tested again on top of it;
     not significant there, it is no proposal. Candidates searched at the log's rate (a resonance) are not tested again: their
     search runs on the model so far at that rate; nor two linear effects against each other, which the J-test of
-    :func:`parsimonious_first` orders and may state as indistinct (corpus s12711: a spring the data cannot tell from gravity,
+    :func:`~ilic_cli.diagnosis.rivals.parsimonious_first` orders and may state as indistinct (corpus s12711: a spring the data cannot tell from gravity,
     not significant beside gravity's two columns, would have been named gravity).
     """
     if searcher.at_log_rate(eff):
@@ -358,7 +251,7 @@ def _beside_stronger(searcher: Searcher, ev: Evaluation, eff: Effect, evals: lis
         if rev.effect == ev.effect or rev.outcome.never_a_finding or not rev.test.p_adjusted < min(ev.test.p_adjusted, alpha):
             continue
         if not (eff.nonlinear or eff.shift or reff.nonlinear or reff.shift):
-            continue  # two linear effects: :func:`parsimonious_first` decides between them (a spring, or gravity, or either)
+            continue  # two linear effects: :func:`~ilic_cli.diagnosis.rivals.parsimonious_first` decides between them (a spring, or gravity, or either)
         beside = _candidate(searcher, eff, W_r, y_r, n_candidates)[0]
         if beside.test.p_adjusted >= alpha:
             return f"p = {beside.test.p_adjusted:.2g} in the model with {rev.effect} (p = {rev.test.p_adjusted:.2g} alone)"

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from ilic_cli.derivatives import derivative
-from ilic_cli.diagnosis.select import Evaluation, Searcher, SelectSettings, at_edge, forward_select, moving_rows, parsimonious_first, system, validation_error
+from ilic_cli.diagnosis.rivals import parsimonious_first
+from ilic_cli.diagnosis.select import Evaluation, Searcher, SelectSettings, at_edge, forward_select, moving_rows, system, validation_error
 from ilic_cli.diagnosis.stats import HELDOUT_FALL_TEST, nested_f_test
 from ilic_cli.effects import EFFECTS, catalogue_ids
 from ilic_cli.effects.grids import flexible_acceleration

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ilic_cli.diagnosis.select import Evaluation, SelectSettings, forward_select, parsimonious_first, rival_test
+from ilic_cli.diagnosis.rivals import parsimonious_first, rival_test
+from ilic_cli.diagnosis.select import Evaluation, SelectSettings, forward_select
 from ilic_cli.diagnosis.stats import nested_f_test
 from ilic_cli.effects import EFFECTS, Effect
 from ilic_cli.idim_ls import IDIMData, lsq_rows
