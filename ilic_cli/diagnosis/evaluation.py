@@ -32,9 +32,9 @@ class Evaluation:
     outcome: Selection = Selection.PENDING
     """The inverse model's decision, typed (``reason`` says it in words, and later stages may add to it)."""
     indistinct_from: str | None = None
-    """An effect the data cannot tell from this one (:func:`ilic_cli.diagnosis.rivals.parsimonious_first`): neither's fitted force adds significantly to the
-    model with the other's, over the range the log visits; or one whose fit, on the edge of its search range, leaves less error
-    (:attr:`beside_edge`); ``None``: none. A typed ambiguity, stated with the finding."""
+    """An effect the data cannot tell from this one (:func:`ilic_cli.diagnosis.rivals.parsimonious_first`): neither's fitted
+    force adds significantly to the model with the other's, over the range the log visits; or one whose fit, on the edge of its
+    search range, leaves less error (:attr:`beside_edge`); ``None``: none. A typed ambiguity, stated with the finding."""
     beside_edge: Evaluation | None = None
     """The candidate :attr:`indistinct_from` names when it is one of the same step whose estimate is on the edge of its search range
     and leaves less error than this one (:func:`ilic_cli.diagnosis.rivals.beside_an_edge`), else ``None``."""

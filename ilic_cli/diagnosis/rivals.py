@@ -1,7 +1,7 @@
 """Rival effects: two the data cannot tell apart, and an effect accepted beside a better fit at its search's edge.
 
 The selection (:func:`ilic_cli.diagnosis.select.forward_select`) names one effect a step; where another explains the same
-force, the finding says so (:attr:`ilic_cli.diagnosis.select.Evaluation.indistinct_from`) rather than a bare name the data do
+force, the finding says so (:attr:`ilic_cli.diagnosis.evaluation.Evaluation.indistinct_from`) rather than a bare name the data do
 not decide: gravity or a spring over a short swing (:func:`parsimonious_first`, by the J-test :func:`rival_test`), or an effect
 accepted in place of a candidate whose estimate is on the edge of its search range (:func:`beside_an_edge`). The finding's
 words: :func:`indistinct_note`, :func:`finding_title`.
@@ -96,8 +96,8 @@ def indistinct_note(effect: Effect, ev: Evaluation) -> str:
     if (edge := ev.beside_edge) is not None:
         return (
             f"{effect.id} or {edge.effect}: {edge.effect}'s fit, {edge.reason}, leaves {edge.relative_error_pct:.3g} % of the force "
-            f"where {effect.id} leaves {ev.relative_error_pct:.3g} %; the log does not visit the range that would decide its value, "
-            f"and {effect.id} may stand for part of its force"
+            f"where {effect.id} leaves {ev.relative_error_pct:.3g} %; its value lies beyond the range searched, which the log does not "
+            f"decide, and {effect.id} may stand for part of its force"
         )
     return (
         f"{effect.id} or {ev.indistinct_from}: the data cannot tell them apart over the range the log visits (neither's fitted force "
