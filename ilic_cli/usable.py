@@ -15,10 +15,11 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.derivatives import derivative
-from ilic_cli.errors import IdentificationError
+from ilic_cli.errors import IdentificationError, IlicError
 from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.idim_ls import LSSettings, min_samples, part_valid, valid_rows
 from ilic_cli.prepare import PreparedLog, RestSamples, tau_sensor
+from ilic_cli.runlog import RunLog
 
 STANDSTILL_FRACTION = 0.01
 """A sample may be at rest when its filtered speed is below this fraction of the top speed (the 99.5th percentile)."""
@@ -91,7 +92,7 @@ def with_rest(prepared: PreparedLog, settings: LSSettings = LSSettings()) -> Pre
     if prepared.rest is not None:
         return prepared
     log = prepared.log
-    if (why := nothing_to_fit(log["q"], log["tau"]) or glitch("the position", log["q"], log.t) or glitch("the force", log["tau"], log.t)) is not None:
+    if (why := nothing_to_fit(log["q"], log["tau"]) or glitches(log)) is not None:
         raise IdentificationError(prepared.source, why)
     return prepared.with_rest(rest_samples(log["q"], prepared.fs_hz, settings, prepared.segments))
 
@@ -130,8 +131,22 @@ def glitch(name: str, x: np.ndarray, t: np.ndarray) -> str | None:
     i = int(np.argmax(beyond))
     return (
         f"{name} has {int(far.sum())} sample(s) far outside all the others ({x[i]:.4g} at t = {float(t[i]):.6g} s, 99.8 % of the "
-        f"samples within [{lo:.4g}, {hi:.4g}]): a logger's glitch? nothing is fitted to it; remove it"
+        f"samples within [{lo:.4g}, {hi:.4g}]): a logger's glitch? no model is fitted to it or compared with it; remove it"
     )
+
+
+def glitches(log: RunLog) -> str | None:
+    """Why a log's position or force holds a glitch (:func:`glitch`), else ``None``: the check of every command that reads the
+    recording against a model, the fits (:func:`with_rest`) and ``replay`` (:func:`refuse_glitches`)."""
+    force = glitch("the force", log["tau"], log.t) if "tau" in log else None
+    return glitch("the position", log["q"], log.t) or force
+
+
+def refuse_glitches(prepared: PreparedLog) -> None:
+    """Refuse a prepared log whose position or force holds a glitch (:func:`glitches`): a replay compared with it reported a
+    force error of 100 % for one sample at 1e6 N·m in a 0.5 kg·m² joint's log, whatever the model."""
+    if (why := glitches(prepared.log)) is not None:
+        raise IlicError(prepared.source, why)
 
 
 def rows_left_out(mask: np.ndarray, settings: LSSettings, segments: tuple[tuple[int, int], ...] | None = None, *, gap_edges: bool = False) -> tuple[int, int]:

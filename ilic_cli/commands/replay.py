@@ -25,6 +25,7 @@ from ilic_cli.io.atomic import same_path
 from ilic_cli.prepare import prepare_log
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.replay import relative_errors
+from ilic_cli.usable import refuse_glitches
 from plant.replay import simulate_open_loop, simulate_replay
 
 
@@ -99,6 +100,7 @@ def command(
     if open_loop:
         prepared = prepare_log(declared_joint(load(log, input_format, topic, ref_topic, joint, columns), load_joint))
         prepared.require_contiguous("an open-loop simulation")
+        refuse_glitches(prepared)
         run = prepared.log  # an irregularly sampled log is on a uniform grid now
         sim, figure = simulate_open_loop(run, params, effects, substeps=substeps)
         sim.meta["model_file"] = str(model_file)
@@ -111,6 +113,7 @@ def command(
     run = with_controller(declared_joint(load(log, input_format, topic, ref_topic, joint, columns), load_joint), log, controller, kp, kv, drive_gain)
     prepared = prepare_log(run)
     prepared.require_contiguous("a replay")
+    refuse_glitches(prepared)
     run = prepared.log  # an irregularly sampled log is on a uniform grid now
     for w in prepared.warnings:
         note(f"ilic: warning: {w}")

@@ -87,7 +87,7 @@ def test_a_log_with_nothing_to_fit_or_a_glitch_is_refused(logs: tuple[Path, Path
     assert res.status == 2 and res.stdout == "", res.stderr
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"ilic: error: {path}: {says}"), res.stderr
-    assert lines[0].endswith(("nothing to fit", "nothing is fitted to it; remove it"))
+    assert lines[0].endswith(("nothing to fit", "no model is fitted to it or compared with it; remove it"))
 
 
 def test_nothing_to_fit_is_said_of_a_constant_channel_only() -> None:
@@ -131,3 +131,20 @@ def test_an_arm_s_joint_whose_friction_would_drive_it_is_named() -> None:
     why = driving_friction(names, [1.0, 2.0, 3.0, -0.5, -0.7], std, ("a", "b"))
     assert why is not None and "at joint(s) b (Fv = -0.5, Fc = -0.7)" in why and " a (" not in why
     assert driving_friction(("M", "Fv", "Fc"), [1.0, -1.0, -1.0], [0.1] * 3, ("a",)) is None  # no joint's friction named
+
+
+def test_replay_refuses_a_glitch_as_the_fits_do(logs: tuple[Path, Path, list[str]], tmp_path: Path) -> None:
+    """``replay`` compares the model with the recording: one force sample at 1e6 made that comparison 100 % off whatever the model, with
+    exit 0. It is refused in the same line as the fits' (:func:`ilic_cli.usable.refuse_glitches`), and nothing is written; the
+    same log without the glitch replays."""
+    good, _, flags = logs
+    fitted = run_cli("identify", str(good), "--method", "ls", "--out", str(tmp_path / "fit"), *flags)
+    assert fitted.status == 0, fitted.stderr
+    model = str(tmp_path / "fit" / "model.json")
+    spike, out = good.parent / "spike.csv", tmp_path / "replayed.csv"
+    for extra in ((), ("--open-loop",)):
+        res = run_cli("replay", str(spike), "--model", model, "-o", str(out), *extra, *flags)
+        assert res.status == 2 and res.stdout == "" and not out.exists(), res.stderr
+        lines = res.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"ilic: error: {spike}: the force has 1 sample(s) far outside all the others"), res.stderr
+    assert run_cli("replay", str(good), "--model", model, "-o", str(out), *flags).status == 0
