@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import math
 import mmap
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -205,6 +206,16 @@ def prepare(
     return RobotSystem(W=W, y=y, joint=joint, names=base.names, joints=robot.joints, settings=settings, kept=kept, sample=sample)
 
 
+def joint_glitch(q: np.ndarray, tau: np.ndarray, fs_hz: float, joints: Sequence[str]) -> str | None:
+    """Why the first joint whose position or torque (``(samples, joints)``) holds a glitch is refused (:func:`ilic_cli.usable.glitch`),
+    else ``None``: the check of an arm's fits (:func:`prepare_parts`) and of its replay, as ``usable.glitches`` is a joint's."""
+    t = np.arange(len(q)) / fs_hz  # the samples' times from the start, for a glitch's message
+    for j, name in enumerate(joints):
+        if (why := glitch("the position", q[:, j], t) or glitch("the torque", tau[:, j], t)) is not None:
+            return f"joint {name}: {why}"
+    return None
+
+
 def prepare_parts(
     q: np.ndarray,
     tau: np.ndarray,
@@ -228,11 +239,11 @@ def prepare_parts(
     a part shorter than :func:`ilic_cli.idim_ls.min_samples` is left out, and none left is an error. Rows are
     joint-major within each part; :attr:`RobotSystem.sample` says which sample each stands for.
     """
-    t = np.arange(len(q)) / fs_hz  # the samples' times from the start, for a glitch's message
     for j, name in enumerate(robot.joints):  # the one-joint chain's refusals (usable.with_rest), joint by joint
-        why = nothing_to_fit(q[:, j], tau[:, j]) or glitch("the position", q[:, j], t) or glitch("the torque", tau[:, j], t)
-        if why is not None:
+        if (why := nothing_to_fit(q[:, j], tau[:, j])) is not None:
             raise ValueError(f"joint {name}: {why}")
+    if (why := joint_glitch(q, tau, fs_hz, robot.joints)) is not None:
+        raise ValueError(why)
     if len(parts) == 1:
         return prepare(q, tau, fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held)
     at_rate = settings.at_rate(fs_hz)

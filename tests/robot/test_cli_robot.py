@@ -294,3 +294,13 @@ def test_an_arm_s_log_no_arm_could_make_is_refused_in_one_line(tmp_path: Path, c
     for name, (bad, says) in cases.items():
         jointlogs.write(bad, tmp_path / name)
         assert f"ilic: error: {tmp_path / name}: {says}" in _error(capsys, "identify", str(tmp_path / name), "--urdf", ARM2, "--method", "ls"), name
+    # the arm's replay refuses the glitch in the same line (it had reported the comparison as it was, with exit 0); nothing is written
+    fitted = tmp_path / "fit"
+    code, _, err = run(capsys, "identify", str(first), "--urdf", ARM2, "--method", "ls", "--out", str(fitted))
+    assert code == 0, err
+    out = tmp_path / "replayed.csv"
+    says = cases["spike.csv"][1]
+    assert f"ilic: error: {tmp_path / 'spike.csv'}: {says}" in _error(
+        capsys, "replay", str(tmp_path / "spike.csv"), "--urdf", ARM2, "--model", str(fitted / "model.json"), "-o", str(out)
+    )
+    assert not out.exists()
