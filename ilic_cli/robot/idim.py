@@ -207,8 +207,9 @@ def prepare(
 
 
 def joint_glitch(q: np.ndarray, tau: np.ndarray, fs_hz: float, joints: Sequence[str]) -> str | None:
-    """Why the first joint whose position or torque (``(samples, joints)``) holds a glitch is refused (:func:`ilic_cli.usable.glitch`),
-    else ``None``: the check of an arm's fits (:func:`prepare_parts`) and of its replay, as ``usable.glitches`` is a joint's."""
+    """Why an arm's log is refused for a glitch: the first joint whose position or torque (arrays of ``(samples, joints)``) holds
+    one (:func:`ilic_cli.usable.glitch`), else ``None``. The arm's fits (:func:`prepare_parts`) and its replay check it, as a
+    one-joint log is checked by :func:`ilic_cli.usable.glitches`."""
     t = np.arange(len(q)) / fs_hz  # the samples' times from the start, for a glitch's message
     for j, name in enumerate(joints):
         if (why := glitch("the position", q[:, j], t) or glitch("the torque", tau[:, j], t)) is not None:
