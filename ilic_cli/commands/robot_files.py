@@ -95,7 +95,7 @@ def _torque_plots(log: JointLog, parts: Parts, robot: Any, base: Any, ls: Any, t
     from ilic_cli.robot.idim import prepare_parts  # deferred: numba only for an arm
 
     held = bool(log.meta.get("torque_held", False))
-    system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, torque_held=held)
+    system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, torque_held=held, t=log.t)
     model = system.W @ theta
     first = system.joint == 0  # every joint has a row at each kept sample (no min_speed): the first joint's times are all joints'
     measured = [system.y[system.joint == j] for j in range(robot.n)]

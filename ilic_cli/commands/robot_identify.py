@@ -193,7 +193,7 @@ class _Validation:
             from ilic_cli.robot.idim import prepare_parts  # deferred: numba only for an arm
 
             try:
-                self.system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, min_speed=min_speed, torque_held=held)
+                self.system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, min_speed=min_speed, torque_held=held, t=log.t)
             except ValueError as exc:
                 raise IlicError(self.where, str(exc)) from None
 
@@ -211,7 +211,7 @@ def _ls(log: JointLog, parts: Parts, robot: Any, base: Any, ls: LSSettings, min_
     from ilic_cli.robot.idim import essential_fit, prepare_parts, solve_system  # deferred: numba only for an arm
 
     try:
-        system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, min_speed=min_speed, torque_held=held)
+        system = prepare_parts(log.q.T, log.tau.T, log.fs_hz, robot, base, parts, ls, min_speed=min_speed, torque_held=held, t=log.t)
         fit = solve_system(system)
         if (why := driving_friction(fit.names, fit.theta, fit.std, robot.joints)) is not None:
             raise ValueError(why)

@@ -77,7 +77,7 @@ def replay(log_path: Path, urdf: Path, joints: list[str] | None, o: Mapping[str,
     log = read_log(log_path, robot, joints).contiguous(log_path)
     from ilic_cli.robot.idim import joint_glitch  # deferred: numba only for an arm
 
-    if (why := joint_glitch(log.q.T, log.tau.T, log.fs_hz, robot.joints)) is not None:  # the fits' refusal (identify --urdf)
+    if (why := joint_glitch(log.q.T, log.tau.T, log.t, robot.joints)) is not None:  # the fits' refusal (identify --urdf)
         raise IlicError(log_path, why)
     controller = recorded_controller(log, o, "a replay runs")
     from ilic_cli.io import jointlogs  # deferred: the writers only for an arm's log

@@ -206,12 +206,11 @@ def prepare(
     return RobotSystem(W=W, y=y, joint=joint, names=base.names, joints=robot.joints, settings=settings, kept=kept, sample=sample)
 
 
-def joint_glitch(q: np.ndarray, tau: np.ndarray, fs_hz: float, joints: Sequence[str]) -> str | None:
+def joint_glitch(q: np.ndarray, tau: np.ndarray, t: np.ndarray, joints: Sequence[str]) -> str | None:
     """Why an arm's log is refused for a glitch: the first joint whose position or torque (arrays of ``(samples, joints)``) holds
     one (:func:`ilic_cli.usable.glitch`), else ``None``. The arm's fits (:func:`prepare_parts`) and its replay check it, as a
     one-joint log is checked by :func:`ilic_cli.usable.glitches`."""
-    t = np.arange(len(q)) / fs_hz  # the samples' times from the start, for a glitch's message
-    for j, name in enumerate(joints):
+    for j, name in enumerate(joints):  # t: the samples' stamps (s), for the message
         if (why := glitch("the position", q[:, j], t) or glitch("the torque", tau[:, j], t)) is not None:
             return f"joint {name}: {why}"
     return None
@@ -228,6 +227,7 @@ def prepare_parts(
     *,
     min_speed: float = 0.0,
     torque_held: bool = False,
+    t: np.ndarray | None = None,
 ) -> RobotSystem:
     """:func:`prepare` of each contiguous part ``(start, stop)`` of a log cut at its gaps (:func:`ilic_cli.timebase.segments`), stacked.
 
@@ -238,12 +238,13 @@ def prepare_parts(
     The one-joint chain's rule (``idim_ls.decimated_systems``): each part is filtered, differentiated and decimated on its own,
     and leaves out its edges at a gap (:func:`ilic_cli.idim_ls.part_valid`: the filters' transients, mid-motion there);
     a part shorter than :func:`ilic_cli.idim_ls.min_samples` is left out, and none left is an error. Rows are
-    joint-major within each part; :attr:`RobotSystem.sample` says which sample each stands for.
+    joint-major within each part; :attr:`RobotSystem.sample` says which sample each stands for. ``t``: the samples' stamps (s),
+    the time a glitch's message gives (default: the sample's index over the rate, which a gap does not move).
     """
     for j, name in enumerate(robot.joints):  # the one-joint chain's refusals (usable.with_rest), joint by joint
         if (why := nothing_to_fit(q[:, j], tau[:, j])) is not None:
             raise ValueError(f"joint {name}: {why}")
-    if (why := joint_glitch(q, tau, fs_hz, robot.joints)) is not None:
+    if (why := joint_glitch(q, tau, np.arange(len(q)) / fs_hz if t is None else t, robot.joints)) is not None:
         raise ValueError(why)
     if len(parts) == 1:
         return prepare(q, tau, fs_hz, robot, base, settings, min_speed=min_speed, torque_held=torque_held)

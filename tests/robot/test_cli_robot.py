@@ -304,3 +304,8 @@ def test_an_arm_s_log_no_arm_could_make_is_refused_in_one_line(tmp_path: Path, c
         capsys, "replay", str(tmp_path / "spike.csv"), "--urdf", ARM2, "--model", str(fitted / "model.json"), "-o", str(out)
     )
     assert not out.exists()
+    # with a 0.2 s gap before it, the glitch is placed at its stamp, not at its index over the rate (4.8 s)
+    keep = np.r_[0:3000, 3200 : len(log.t)]
+    gapped = replace(log, t=log.t[keep], q=log.q[:, keep], tau=spiked[:, keep], **{k: getattr(log, k)[:, keep] for k in ("q_ref", "qd_ref", "qdd_ref")})
+    jointlogs.write(gapped, tmp_path / "gap_spike.csv")
+    assert "(1e+06 at t = 5 s" in _error(capsys, "identify", str(tmp_path / "gap_spike.csv"), "--urdf", ARM2, "--method", "ls")
