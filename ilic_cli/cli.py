@@ -22,7 +22,7 @@ import click
 
 from ilic_cli import __version__
 from ilic_cli.errors import IlicError
-from ilic_cli.parallel import threads
+from ilic_cli.parallel import one_blas_thread, threads
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("ilic_cli.commands.simulate", "Simulate the EMPS axis in closed loop and write a log."),
@@ -115,6 +115,7 @@ def main(argv: list[str] | None = None) -> None:
     except ValueError:  # not in the main thread (tests)
         pass
     status = 0
+    one_blas_thread()  # the same bits on any machine's cores: the command line owns its process, and numpy has not loaded
     try:
         if not HELP_ASKED.intersection(args):
             threads()  # a bad $ILIC_THREADS is refused before any work (help is no work)

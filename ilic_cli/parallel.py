@@ -43,6 +43,24 @@ def threads() -> int:
         return max(os.cpu_count() or 1, 1)
 
 
+BLAS_THREADS_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+"""Environment variables that set the BLAS's threads, read once, when numpy's BLAS loads."""
+
+
+def one_blas_thread() -> None:
+    """One BLAS thread for this process: set before numpy loads (after, it changes nothing).
+
+    The parallelism is :func:`ordered_map`'s, whose results do not depend on its threads. The BLAS's
+    threads split its sums, so the last bits followed the machine's cores: ``ilic diagnose DATA_EMPS.mat``
+    with two BLAS threads and with one differed from the lag locator's bound on (0.16723908713533895 ms
+    against ...522), ``identify --method iv`` in its estimates. Nor did they pay: on 2 cores two BLAS
+    threads took 1.72x the CPU of one and 1.10x the wall time (``diagnose DATA_EMPS.mat``), 1.19x and
+    1.03x on a 10-minute 6-joint arm's identification (``benchmarks/bench_robot.py identify``).
+    """
+    for name in BLAS_THREADS_ENV:
+        os.environ[name] = "1"
+
+
 PREFIX = "ilic-worker"
 """Name prefix of :func:`ordered_map`'s threads."""
 

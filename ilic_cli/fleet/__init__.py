@@ -13,5 +13,5 @@ The commands import these modules only when run (``ilic --help`` stays
 instant); :mod:`~ilic_cli.fleet.execute` and :mod:`~ilic_cli.fleet.batch`
 import no numpy, pandas, pyarrow or dask at import time, so that a spawned
 worker sets its BLAS threads before numpy loads
-(:func:`~ilic_cli.fleet.execute.one_blas_thread`).
+(:func:`~ilic_cli.fleet.execute.one_thread_worker`).
 """

@@ -24,9 +24,9 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from ilic_cli.errors import IlicError
-from ilic_cli.parallel import threads
+from ilic_cli.parallel import BLAS_THREADS_ENV, THREADS_ENV, threads
 
-BLAS_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS", "ILIC_THREADS")
+WORKER_THREAD_VARIABLES = (*BLAS_THREADS_ENV, "NUMBA_NUM_THREADS", THREADS_ENV)
 """Environment variables that set a worker's BLAS, numba and replay threads (:mod:`ilic_cli.parallel`): the workers share the cores."""
 
 
@@ -64,9 +64,9 @@ class Task:
     settings: TaskSettings
 
 
-def one_blas_thread() -> None:
+def one_thread_worker() -> None:
     """Initialise a worker process: one BLAS thread, as dask's workers have (set before numpy loads), and one replay thread."""
-    for name in BLAS_THREAD_VARIABLES:
+    for name in WORKER_THREAD_VARIABLES:
         os.environ[name] = "1"
 
 
@@ -104,7 +104,7 @@ def run_task(task: Task) -> dict[str, Any]:
 
 
 def _identify_into(doc: dict[str, Any], task: Task) -> None:
-    # deferred: these load numpy, and a spawned worker imports this module (to unpickle run_task) before one_blas_thread
+    # deferred: these load numpy, and a spawned worker imports this module (to unpickle run_task) before one_thread_worker
     # has set its BLAS threads; numpy must load after that (module docstring)
     from ilic_cli.identify import identify
     from ilic_cli.idim_ilic import ILICSettings
@@ -188,7 +188,7 @@ def local_processes(workers: int) -> Runner:
         # imports the numerics once (ilic_cli.fleet.preload), so the workers it forks start loaded
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(["ilic_cli.fleet.preload"])
-        ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=one_blas_thread)
+        ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=one_thread_worker)
         try:
             futures = [ex.submit(run_task, t) for t in tasks]
             for f in as_completed(futures):
@@ -213,7 +213,7 @@ def dask_runner(address: str | None = None, workers: int | None = None) -> Runne
             cluster = LocalCluster(n_workers=workers or 1, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster if cluster is not None else address)
         try:
-            client.run(one_blas_thread)  # the replays' threads (read at each call); the nanny has set BLAS's
+            client.run(one_thread_worker)  # the replays' threads (read at each call); the nanny has set BLAS's
             # a task's key is its log's key: the same log and settings are one task, whoever submits them
             futures = [client.submit(run_task, t, key=f"ilic-{t.key}", pure=False) for t in tasks]
             for f in as_completed(futures):

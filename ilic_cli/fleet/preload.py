@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import importlib
 
-from ilic_cli.fleet.execute import one_blas_thread
+from ilic_cli.fleet.execute import one_thread_worker
 
 PRELOADED = ("numpy", "ilic_cli.io", "ilic_cli.io.mcaplog", "ilic_cli.identify", "ilic_cli.diagnosis", "plant.kernel")
 """Modules every worker starts with."""
@@ -19,7 +19,7 @@ PRELOADED = ("numpy", "ilic_cli.io", "ilic_cli.io.mcaplog", "ilic_cli.identify",
 
 def preload() -> None:
     """One BLAS thread (before numpy), then import :data:`PRELOADED`."""
-    one_blas_thread()
+    one_thread_worker()
     for name in PRELOADED:
         importlib.import_module(name)
 
