@@ -97,7 +97,16 @@ def run(axis_name: str, trajectory: str, fs_hz: float, loop: str, eid: str, seed
     try:
         diag = diagnose(log, settings=DiagnoseSettings())
     except IlicError as exc:  # a log the command refuses (ilic: error:, exit 2): the row says why
-        return {"log": f"{axis_name} {trajectory} {eid}", "rate": fs_hz, "loop": loop, "found": [], "exact": False, "law": False, "error": None, "refused": exc.message()}
+        return {
+            "log": f"{axis_name} {trajectory} {eid}",
+            "rate": fs_hz,
+            "loop": loop,
+            "found": [],
+            "exact": False,
+            "law": False,
+            "error": None,
+            "refused": exc.message(),
+        }
     found = {f.effect.id: {k: v.value for k, v in f.parameters.items()} for f in diag.findings}
     named = None if eid == "clean" else eid
     row: dict[str, Any] = {"log": f"{axis_name} {trajectory} {eid}", "rate": fs_hz, "loop": loop, "found": sorted(found)}
