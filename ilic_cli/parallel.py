@@ -53,7 +53,7 @@ def one_blas_thread() -> None:
     The parallelism is :func:`ordered_map`'s, whose results do not depend on its threads. The BLAS's
     threads split its sums, so the last bits followed the machine's cores: ``ilic diagnose DATA_EMPS.mat``
     with two BLAS threads and with one differed from the lag locator's bound on (0.16723908713533895 ms
-    against ...522), ``identify --method iv`` in its estimates. Nor did they pay: on 2 cores two BLAS
+    against 0.1672390871352219), ``identify --method iv`` in its estimates. Nor did they pay: on 2 cores two BLAS
     threads took 1.72x the CPU of one and 1.10x the wall time (``diagnose DATA_EMPS.mat``), 1.19x and
     1.03x on a 10-minute 6-joint arm's identification (``benchmarks/bench_robot.py identify``).
     """
