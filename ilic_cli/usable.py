@@ -138,8 +138,7 @@ def glitch(name: str, x: np.ndarray, t: np.ndarray) -> str | None:
 def glitches(log: RunLog) -> str | None:
     """Why a log's position or force holds a glitch (:func:`glitch`), else ``None``: the check of every command that reads the
     recording against a model, the fits (:func:`with_rest`) and ``replay`` (:func:`refuse_glitches`)."""
-    force = glitch("the force", log["tau"], log.t) if "tau" in log else None
-    return glitch("the position", log["q"], log.t) or force
+    return glitch("the position", log["q"], log.t) or (glitch("the force", log["tau"], log.t) if "tau" in log else None)
 
 
 def refuse_glitches(prepared: PreparedLog) -> None:

@@ -87,6 +87,11 @@ class Decision:
     verdicts: list[ReplayVerdict]
     sensor: dict[str, Any] | None
 
+    def searched_on_folds(self) -> dict[str, tuple[Any, ...]]:
+        """Effect id -> the values its replay searched on each fold's training blocks (:attr:`ReplayVerdict.searched`), for each
+        effect the inverse model proposed and the replay kept."""
+        return {v.effect: v.searched for v in self.verdicts if v.accepted and v.searched and v.proposed_by == PROPOSED_BY_INVERSE}
+
 
 def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: RunLog | None, against: RunLog | None) -> Decision:
     """The proposed steps that are material and, when the log can be replayed, that the replay keeps.

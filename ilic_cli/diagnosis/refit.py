@@ -39,7 +39,7 @@ from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
 from ilic_cli.diagnosis.strategies.stribeck import NOT_REFITTED, segment_refit
 from ilic_cli.diagnosis.system import Step, column_noise, fit_system, shift_slopes, system
-from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, RefitOutcome
+from ilic_cli.diagnosis.verdicts import RefitOutcome
 from ilic_cli.errors import IdentificationError
 from ilic_cli.filtering import decimated_band_hz
 from ilic_cli.idim_ls import IDIMData, LSSettings
@@ -188,7 +188,7 @@ def with_folds_spread(out: Refit, decision: Decision) -> Refit:
     noise's difference they part: the 0.01 kg·m² joint's 1.5 ms drive lag at 8 kHz (the independent simulator's chirp,
     seed 41) was refitted to -1.753 ± 0.051 ms, 5 of its σ off, with the folds at -1.45 to -0.21 ms; their jackknife
     states it ± 0.87 ms."""
-    folds = {v.effect: v.searched for v in decision.verdicts if v.accepted and v.searched and v.proposed_by == PROPOSED_BY_INVERSE}
+    folds = decision.searched_on_folds()
     searches = []
     for s in out.searches:
         values = [float(x) for x in folds.get(s.effect) or () if isinstance(x, float)]
@@ -298,7 +298,7 @@ def at_the_replays_values(prop: Proposal, decision: Decision, final: FinalFit, l
     friction): the lag 0.369 ms from the inverse model, 0.218-0.265 ms on the folds, for the loop's 0.227 ms.
     Without such a value, the inverse model's estimates stand."""
     kept = decision.kept
-    searched = {v.effect: v.searched for v in decision.verdicts if v.accepted and v.searched and v.proposed_by == PROPOSED_BY_INVERSE}
+    searched = decision.searched_on_folds()
     steps = [
         Step(st.effect, float(np.median(values)), value_std=jackknife_std(np.asarray(values, dtype=np.float64)))
         if st.level is None and (values := searched.get(st.effect.id)) is not None and not isinstance(st.value, tuple)
