@@ -381,14 +381,39 @@ def simulate(case: Case, effects: dict[str, dict[str, float]]) -> RunLog:
 
 
 def relative_error_pct(log: RunLog) -> float:
-    """Relative error (%) of ``identify --method ls`` (the rigid fit on the rows it keeps), with no drive lag: the design's
-    measure of an effect's size, as it was before ``identify`` estimated a lag (:mod:`ilic_cli.drive_lag`), which takes a
-    ``delay`` or a current loop's share of the error and would resize every log."""
-    from ilic_cli.identify import identify  # deferred: scipy
+    """Relative error (%) of the rigid fit on the rows ``identify --method ls`` keeps, with no drive lag: the design's measure of an
+    effect's size, the corpus's own.
 
-    report = identify(log, method="ls", effects={"delay": 0.0})
-    assert report.ls is not None
-    return float(report.ls.result.relative_error_pct)
+    It is ``identify``'s preparation and IDIM-LS's rows as they were when the corpus was sized (b0588dd, bit for bit on every
+    log of the corpus and every size its calibration tries): the log prepared and its samples at rest found as every command's
+    are (:func:`ilic_cli.usable.with_rest`), the rows built from every sample and those whose span touches one it may not use
+    left out. Held apart from ``identify`` so that a change to how ``identify`` builds its rows is measured on the same logs,
+    not on logs it resized; with no lag, as before ``identify`` estimated one (:mod:`ilic_cli.drive_lag`), which takes a
+    ``delay`` or a current loop's share of the error and would resize every log. A log ``identify`` refuses (too few rows, a
+    glitch, nothing to fit) is refused here alike (:class:`ilic_cli.errors.IlicError`).
+    """
+    from ilic_cli.errors import IdentificationError  # deferred: scipy, as identify
+    from ilic_cli.estimators.base import ModelSpec
+    from ilic_cli.idim_ls import LSSettings, decimated_systems, valid_rows
+    from ilic_cli.lsq import solve
+    from ilic_cli.prepare import prepare_log
+    from ilic_cli.usable import identification_hold_s, identification_speed_noise, with_rest
+
+    prepared = prepare_log(log)
+    ls = LSSettings().at_rate(prepared.fs_hz)
+    prepared = with_rest(prepared, ls)
+    if prepared.segments is not None and len(prepared.segments) > 1:
+        raise ValueError(f"{prepared.source}: the corpus's logs have no gap")
+    model = ModelSpec("rigid-offset", {"delay": 0.0}).regressor(prepared.fs_hz)
+    run = prepared.log
+    hold, noise = identification_hold_s(prepared), identification_speed_noise(prepared)
+    W, y, _, _ = decimated_systems(run.t, run["q"], run["tau"], prepared.fs_hz, model, ls, None, prepared.segments, hold, noise)
+    if prepared.valid is not None:  # the rows whose span touches a sample the fit may not use, left out
+        rows = valid_rows(np.asarray(prepared.valid, dtype=bool)[ls.trim :], ls.decimation)
+        W, y = W[rows], y[rows]
+    if len(y) <= len(model.columns) + 1:  # as IDIM-LS refuses them (ilic_cli.idim_ls)
+        raise IdentificationError(prepared.source, f"only {len(y)} decimated rows are left once the samples at rest or saturated are masked")
+    return float(solve(W, y, model.names, sigma=ls.sigma).relative_error_pct)
 
 
 def calibrate(case: Case, eid: str, target: float, base: float) -> tuple[float, float]:
@@ -402,7 +427,7 @@ def calibrate(case: Case, eid: str, target: float, base: float) -> tuple[float, 
     change (infinite): the loop saturated the drive (``--reseed 9`` s27510, a flexibility behind the 0.5 kg·m² joint at 500 Hz:
     3 rows left once the saturated samples are masked).
     """
-    from ilic_cli.errors import IlicError  # deferred as relative_error_pct's identify
+    from ilic_cli.errors import IlicError  # deferred as relative_error_pct's imports
 
     axis = ALL_AXES[case.axis]
 

@@ -12,6 +12,7 @@ fits the rows ``diagnose`` fits.
 from __future__ import annotations
 
 from collections import Counter
+from pathlib import Path
 from statistics import NormalDist
 
 import numpy as np
@@ -184,3 +185,39 @@ def test_a_size_whose_log_is_refused_is_beyond_the_band(monkeypatch: pytest.Monk
     monkeypatch.setattr(robot, "relative_error_pct", error_pct)
     s, change = robot.calibrate(robot.case_named("rev0.5/trapezoid/500Hz/sensor/flexibility/s510"), "flexibility", 0.5, 1.0)
     assert 0.4 < s <= 0.5 and change == pytest.approx(s) and BAND_PTS[0] <= change <= BAND_PTS[1]
+
+
+SIZED_AT_B0588D = (
+    ("lin12/chirp/1000Hz/sensor/clean/s8", None, 4.707549068213841),
+    ("lin12/trapezoid/500Hz/current_loop/clean/s4", None, 0.5027450896269856),
+    ("lin12/trapezoid/250Hz/current_loop/clean/s103", "stribeck", 2.449920555752864),
+    ("rev0.5/s-curve/250Hz/sensor/clean/s113", "stribeck", 3.0713394248206485),
+)
+"""``identify --method ls``'s relative error (%) at b0588dd, with no lag, on logs of the corpus (clean, or with a Stribeck friction
+of 2.4 times the calibration's first size; every log of the corpus starts and ends at rest)."""
+
+
+@pytest.mark.parametrize(("name", "effect", "error_pct"), SIZED_AT_B0588D, ids=[f"{n}/{e}" for n, e, _ in SIZED_AT_B0588D])
+def test_the_corpus_sizes_its_effects_as_identify_did_when_it_was_sized(name: str, effect: str | None, error_pct: float) -> None:
+    """The corpus's own size measure (``robot.relative_error_pct``, held apart from ``identify`` so that a change to how ``identify``
+    builds its rows does not resize the corpus) gives ``identify``'s error of b0588dd bit for bit (measured on 510 logs: the
+    corpus's clean logs and its effects at twice and sixteen times the calibration's first size, all equal; planted: the rows at
+    rest kept, fails)."""
+    from tests.corpus import robot
+
+    case = robot.case_named(name)
+    effects = {} if effect is None else {effect: robot.effect_of_size(effect, 2.4, robot.ALL_AXES[case.axis], case.variant, case.duration_s)}
+    assert robot.relative_error_pct(robot.simulate(case, effects)) == error_pct
+
+
+def test_the_corpus_size_measure_is_identify_s_error_where_no_sample_is_left_out(emps_mat: Path) -> None:
+    """Where ``identify`` leaves no sample out (``DATA_EMPS.mat``: no dwell, no saturation) the corpus measure's rows are its rows:
+    the same preparation, model and rows, the same error bit for bit."""
+    from ilic_cli.identify import identify
+    from ilic_cli.io import read_log
+    from tests.corpus import robot
+
+    log = read_log(emps_mat)
+    report = identify(log, method="ls", effects={"delay": 0.0})
+    assert report.ls is not None and report.usable.at_rest == 0 and report.usable.saturated == 0
+    assert robot.relative_error_pct(log) == float(report.ls.result.relative_error_pct)
