@@ -12,7 +12,8 @@ the held drive command as the force, on
   band-limited force disturbance;
 * every catalogue effect the joint can have, gravity on the revolute joints, friction drift, and two-effect
   combinations (:data:`PAIRS`), each sized on its own log so that it changes the rigid fit's relative error
-  (``identify --method ls``) by :data:`TARGETS_PTS` points (:func:`calibrate`), the change measured and kept.
+  (``identify --method ls`` as it built its rows when the corpus was sized: :func:`relative_error_pct`) by
+  :data:`TARGETS_PTS` points (:func:`calibrate`), the change measured and kept.
 
 A case is named ``AXIS/TRAJECTORY/RATE/NOISE/EFFECTS/sSEED``; :func:`cases` lists the corpus and :func:`build` makes
 one log (deterministic: same case, bit-identical log). ``benchmarks/corpus_robot.py`` writes them to CSV and
