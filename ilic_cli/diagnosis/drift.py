@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ilic_cli import parameters
+from ilic_cli.diagnosis.drift_alike import Alike, alike
 from ilic_cli.diagnosis.drift_windows import WINDOWS, WindowEstimates, estimable_windows
 from ilic_cli.diagnosis.select import Evaluation, SelectSettings
 from ilic_cli.diagnosis.stats import FTest, blocked_folds, gls_covariance, heldout_errors, heldout_fall_p, nested_f_test
@@ -145,6 +146,8 @@ class DriftResult:
     heldout_p_value: float | None = None
     relative_error_after_pct: float | None = None
     """The relative error (%) of the whole fit with the trends' columns (in sample)."""
+    alike: Alike | None = None
+    """The coefficient whose trend the rows cannot tell from the finding's (:func:`ilic_cli.diagnosis.drift_alike.alike`)."""
 
     @property
     def found(self) -> bool:
@@ -209,6 +212,7 @@ class DriftResult:
             "trends": [t.to_dict() for t in self.trends],
             "windows": None if self.windows is None else self.windows.to_dict(),
             "reason": self.reason,
+            "alike": None if self.alike is None else self.alike.to_dict(),
             "relative_error_after_pct": self.relative_error_after_pct,
             "heldout_relative_error_pct": None
             if self.heldout_before_pct is None
@@ -449,7 +453,18 @@ def detect_drift(
     if p >= HELDOUT_ALPHA:
         why = f"the trend of {findings[0].parameter} does not lower the held-out error significantly ({before:.3g} % -> {after:.3g} %, p = {p:.2g})"
         return DriftResult(win, alone, [], why, before, after, p)
-    return DriftResult(win, alone, findings, "", before, after, p, relative_error_with(t, W_own, y, names_own, findings, origin))
+    others = [
+        (c.parameter, c.column, _df(c))
+        for c, tr in zip(first, alone, strict=True)
+        if c.parameter != kept[0].parameter and c.test.p_adjusted < alpha and _physical(tr) and abs(tr.relative_change) >= min_change
+    ]
+    same = alike(W, y, (kept[0].column, _df(kept[0])), others, trials(sum(n in DRIFTING for n in names)), alpha) if len(kept) == 1 else None
+    return DriftResult(win, alone, findings, "", before, after, p, relative_error_with(t, W_own, y, names_own, findings, origin), same)
+
+
+def _df(c: Candidate) -> int:
+    """The degrees of freedom a candidate's trend adds: its column, and a warm-up's searched time constant."""
+    return 1 if c.tau is None else 2
 
 
 def evaluation(result: DriftResult) -> Evaluation:
@@ -465,7 +480,8 @@ def evaluation(result: DriftResult) -> Evaluation:
         heldout_p_value=result.heldout_p_value,
         accepted=True,
         reason=f"a {tr.shape} trend of {tr.parameter} on the {tr.rows} rows (F = {tr.test.F:.3g}, p = {tr.test.p_adjusted:.2g} after Bonferroni over "
-        f"{tr.test.trials} trends, on the prewhitened system), and its columns lower the held-out error; not replayed",
+        f"{tr.test.trials} trends, on the prewhitened system), and its columns lower the held-out error; not replayed"
+        + ("" if result.alike is None else f"; {result.alike.words(tr.parameter)}"),
     )
 
 
