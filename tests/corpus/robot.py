@@ -385,13 +385,14 @@ def relative_error_pct(log: RunLog) -> float:
     """Relative error (%) of the rigid fit on the rows ``identify --method ls`` keeps, with no drive lag: the design's measure of an
     effect's size, the corpus's own.
 
-    It is ``identify``'s preparation and IDIM-LS's rows as they were when the corpus was sized (b0588dd, bit for bit on every
-    log of the corpus and every size its calibration tries): the log prepared and its samples at rest found as every command's
-    are (:func:`ilic_cli.usable.with_rest`), the rows built from every sample and those whose span touches one it may not use
-    left out. Held apart from ``identify`` so that a change to how ``identify`` builds its rows is measured on the same logs,
-    not on logs it resized; with no lag, as before ``identify`` estimated one (:mod:`ilic_cli.drive_lag`), which takes a
-    ``delay`` or a current loop's share of the error and would resize every log. A log ``identify`` refuses (too few rows, a
-    glitch, nothing to fit) is refused here alike (:class:`ilic_cli.errors.IlicError`).
+    It is ``identify``'s preparation and IDIM-LS's rows as they were when the corpus was sized (b0588dd; bit for bit on 510
+    logs compared directly, and the corpus's 189 sizes and base errors all the same through its calibration): the log
+    prepared and its samples at rest found as every command's are (:func:`ilic_cli.usable.with_rest`), the rows built from
+    every sample and those whose span touches one it may not use left out. Held apart from ``identify`` so that a change to
+    how ``identify`` builds its rows is measured on the same logs, not on logs it resized; with no lag, as before ``identify``
+    estimated one (:mod:`ilic_cli.drive_lag`), which takes a ``delay`` or a current loop's share of the error and would
+    resize every log. A log ``identify`` refuses (too few rows, a glitch, nothing to fit) is refused here alike
+    (:class:`ilic_cli.errors.IlicError`).
     """
     from ilic_cli.errors import IdentificationError  # deferred: scipy, as identify
     from ilic_cli.estimators.base import ModelSpec
