@@ -415,7 +415,10 @@ def _assembled(
             drift_found = replace(drift_found, findings=[], reason=verdict.reason)
     if drift_found.found:  # the model after is the effects' and the drift's: its fitted force and residual too, as its figures
         fitted = fitted_with(td, W1, y1, final.names, drift_found.findings, origin)
-        findings.append(Finding(EFFECTS["friction_drift"], drift_found.estimates(prop.joint), drift_found.plant_effect(), [], drift_evaluation(drift_found)))
+        alike = "" if drift_found.alike is None else drift_found.alike.words(drift_found.findings[0].parameter)
+        findings.append(
+            Finding(EFFECTS["friction_drift"], drift_found.estimates(prop.joint), drift_found.plant_effect(), [], drift_evaluation(drift_found), alike)
+        )
         doc = with_drift(doc, drift_found)
         fit["relative_error_pct"]["after"], fit["heldout_relative_error_pct"]["after"] = drift_found.relative_error_after_pct, drift_found.heldout_after_pct
     diag = Diagnosis(

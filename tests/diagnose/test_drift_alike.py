@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 
 from ilic_cli.diagnosis import DiagnoseSettings, Diagnosis, diagnose
+from ilic_cli.diagnosis.report import to_markdown
 from tests.corpus.independent import run_loop
 from tests.corpus.robot import ALL_AXES, reference
 
@@ -30,8 +31,10 @@ def test_a_drift_the_rows_cannot_place_is_stated_with_both_coefficients(diagnose
     alike = diag.drift.alike
     if loop == "previous":
         assert alike is not None and alike.parameter == "Fv" and "Fc_change" in finding.parameters
-        assert "the rows cannot tell which of Fc and Fv drifts" in finding.evidence.reason
-        assert diag.drift.to_dict()["alike"]["parameter"] == "Fv"
+        assert "the rows cannot tell which of Fc and Fv drifts" in finding.evidence.reason and finding.note.startswith("a trend of Fv explains")
+        assert diag.drift.to_dict()["alike"]["parameter"] == "Fv" and finding.to_dict()["note"] == finding.note
+        report = to_markdown(diag)
+        assert "(exponential, time constant 3.36 s)). " in report and "The rows cannot tell which of Fc and Fv drifts." in report
     else:
-        assert alike is None and "Fv_change" in finding.parameters and "cannot tell" not in finding.evidence.reason
+        assert alike is None and "Fv_change" in finding.parameters and "cannot tell" not in finding.evidence.reason + to_markdown(diag)
         assert diag.drift.to_dict()["alike"] is None
