@@ -454,17 +454,12 @@ def detect_drift(
         why = f"the trend of {findings[0].parameter} does not lower the held-out error significantly ({before:.3g} % -> {after:.3g} %, p = {p:.2g})"
         return DriftResult(win, alone, [], why, before, after, p)
     others = [
-        (c.parameter, c.column, _df(c))
+        (c.parameter, c.column, c.test.df1)
         for c, tr in zip(first, alone, strict=True)
         if c.parameter != kept[0].parameter and c.test.p_adjusted < alpha and _physical(tr) and abs(tr.relative_change) >= min_change
     ]
-    same = alike(W, y, (kept[0].column, _df(kept[0])), others, trials(sum(n in DRIFTING for n in names)), alpha) if len(kept) == 1 else None
+    same = alike(W, y, (kept[0].column, kept[0].test.df1), others, trials(sum(n in DRIFTING for n in names)), alpha) if len(kept) == 1 else None
     return DriftResult(win, alone, findings, "", before, after, p, relative_error_with(t, W_own, y, names_own, findings, origin), same)
-
-
-def _df(c: Candidate) -> int:
-    """The degrees of freedom a candidate's trend adds: its column, and a warm-up's searched time constant."""
-    return 1 if c.tau is None else 2
 
 
 def evaluation(result: DriftResult) -> Evaluation:

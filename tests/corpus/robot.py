@@ -396,7 +396,7 @@ def relative_error_pct(log: RunLog) -> float:
     """
     from ilic_cli.errors import IdentificationError  # deferred: scipy, as identify
     from ilic_cli.estimators.base import ModelSpec
-    from ilic_cli.idim_ls import LSSettings, decimated_systems, valid_rows
+    from ilic_cli.idim_ls import LSSettings, _too_few_rows, decimated_systems, valid_rows
     from ilic_cli.lsq import solve
     from ilic_cli.prepare import prepare_log
     from ilic_cli.usable import identification_hold_s, identification_speed_noise, with_rest
@@ -413,8 +413,10 @@ def relative_error_pct(log: RunLog) -> float:
     if prepared.valid is not None:  # the rows whose span touches a sample the fit may not use, left out
         rows = valid_rows(np.asarray(prepared.valid, dtype=bool)[ls.trim :], ls.decimation)
         W, y = W[rows], y[rows]
-    if len(y) <= len(model.columns) + 1:  # as IDIM-LS refuses them (ilic_cli.idim_ls)
-        raise IdentificationError(prepared.source, f"only {len(y)} decimated rows are left once the samples at rest or saturated are masked")
+    try:
+        _too_few_rows(len(y), model)  # as IDIM-LS refuses them, and identify says so
+    except ValueError as exc:
+        raise IdentificationError(prepared.source, str(exc)) from None
     return float(solve(W, y, model.names, sigma=ls.sigma).relative_error_pct)
 
 
