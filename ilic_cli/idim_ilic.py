@@ -19,9 +19,10 @@ import numpy as np
 
 from ilic_cli.derivatives import central_difference
 from ilic_cli.filtering import CHUNK_ELEMENTS, decimation_factor, lowpass_decimate
-from ilic_cli.idim_ls import _columns, usable_mask, valid_rows
+from ilic_cli.idim_ls import _columns
 from ilic_cli.lsq import LSResult, finite_or_none, solve_batch
 from ilic_cli.regressor import COLUMNS, Kinematics, Model
+from ilic_cli.row_spans import usable_mask, valid_rows
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ from ilic_cli.filtering import (
 )
 from ilic_cli.lsq import LSResult, RobustStd, SigmaConvention, evaluate, most_correlated, robust_std, solve
 from ilic_cli.regressor import Kinematics, Model
+from ilic_cli.row_spans import usable_mask, valid_rows
 
 
 @dataclass(frozen=True)
@@ -182,43 +183,6 @@ def _decimate(x: np.ndarray, settings: LSSettings, fs_hz: float) -> np.ndarray:
     if settings.matlab:
         return decimate_matlab(x, settings.decimation, axis=0)
     return lowpass_decimate(x, settings.decimation, decimated_band_hz(fs_hz, settings.decimation), fs_hz, 8, axis=0)
-
-
-def usable_mask(valid: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray | None:
-    """``valid`` as a boolean array checked against the log's ``shape``; ``None`` when every sample may be used."""
-    if valid is None:
-        return None
-    valid = np.asarray(valid, dtype=bool)
-    if valid.shape != shape:
-        raise ValueError(f"valid has {valid.shape} samples, the log {shape}")
-    return None if valid.all() else valid
-
-
-def valid_rows(valid: np.ndarray, r: int) -> np.ndarray:
-    """Decimated rows whose decimation span holds only valid full-rate samples.
-
-    Parameters
-    ----------
-    valid : ndarray of bool, shape (..., n)
-        Full-rate samples that may be used (False: e.g. a saturated drive).
-    r : int
-        Decimation factor; the kept samples are :func:`kept_indices` (end-aligned).
-
-    Returns
-    -------
-    ndarray of bool, shape (..., ceil(n / r))
-        False for a row whose kept sample lies within ``r - 1`` samples of an
-        invalid one (the zero-phase anti-alias filter mixes that neighbourhood).
-    """
-    valid = np.asarray(valid, dtype=bool)
-    n = valid.shape[-1]
-    # count of invalid samples in [i - (r - 1), i + (r - 1)] by a running sum (4 bytes a sample up to 2^31 samples)
-    csum = np.cumsum(~valid, axis=-1, dtype=np.int32 if n < 2**31 else np.int64)
-    idx = kept_indices(n, r)
-    hi = np.minimum(idx + r, n)
-    lo = np.maximum(idx - (r - 1), 0)
-    before = np.where(lo > 0, np.take(csum, np.maximum(lo - 1, 0), axis=-1), 0)  # invalid samples before lo
-    return (np.take(csum, hi - 1, axis=-1) - before) == 0
 
 
 def held(data: IDIMData, model: Model, shift_s: float) -> IDIMData:

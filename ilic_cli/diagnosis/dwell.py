@@ -56,7 +56,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.select import Step
 from ilic_cli.effects import EFFECTS, Effect, unit_on
-from ilic_cli.idim_ls import valid_rows
+from ilic_cli.row_spans import valid_rows
 
 DWELL_MIN_S = 0.05
 """A rest of the reference at least this long (s) is a dwell."""
@@ -117,7 +117,7 @@ def _still(q: np.ndarray) -> np.ndarray:
 
 def reference_moving(q_ref: np.ndarray, r: int) -> np.ndarray:
     """Whether each row of ``q_ref`` decimated by ``r`` (:func:`ilic_cli.filtering.kept_indices`) has a span that touches a
-    sample where the reference moves, into or out of it (the span of :func:`ilic_cli.idim_ls.valid_rows`): where a friction
+    sample where the reference moves, into or out of it (the span of :func:`ilic_cli.row_spans.valid_rows`): where a friction
     at low speed acts as the axis leaves and nears rest, beside where it holds it (:data:`IN_MOTION_ALPHA`)."""
     q = np.asarray(q_ref, dtype=np.float64)
     if len(q) == 0:

@@ -16,9 +16,10 @@ from ilic_cli.diagnosis.baseline import reversal_samples
 from ilic_cli.diagnosis.column_noise import noise_kinematics
 from ilic_cli.effects import Effect
 from ilic_cli.filtering import kept_indices
-from ilic_cli.idim_ls import IDIMData, rebuilt, valid_rows
+from ilic_cli.idim_ls import IDIMData, rebuilt
 from ilic_cli.lsq import lstsq, noise_corrected_lstsq
 from ilic_cli.regressor import Kinematics, Model, evaluated_later
+from ilic_cli.row_spans import valid_rows
 
 
 @dataclass(frozen=True)

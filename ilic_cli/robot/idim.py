@@ -32,12 +32,13 @@ from ilic_cli.derivatives import derivative
 from ilic_cli.filter_design import cheby1_ba, cheby1_sos
 from ilic_cli.filtering import MATLAB_DECIMATE_MAX, _polished_roots, butter_lowpass_zero_phase, kept_indices
 from ilic_cli.idim_ilic import essential_mask
-from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, part_valid, valid_rows  # the 1-DOF chain's decimation, row mask, gap edges: one definition
+from ilic_cli.idim_ls import LSSettings, _decimate, min_samples, part_valid  # the 1-DOF chain's decimation, gap edges: one definition
 from ilic_cli.jointlog import Parts
 from ilic_cli.lsq import LSResult, finite_or_none, pinv, relative_error_pct, solve_tall
 from ilic_cli.parallel import ordered_map
 from ilic_cli.robot.base import BaseParameters
 from ilic_cli.robot.model import INERTIAL, PER_JOINT, RobotModel
+from ilic_cli.row_spans import valid_rows
 from ilic_cli.usable import glitch, nothing_to_fit
 
 ROBOT_BAND_HZ = 20.0
@@ -140,7 +141,7 @@ def prepare(
     q, tau : ndarray (N, n)
         Measured joint positions and torques, sampled at ``fs_hz``, joints in ``robot.joints`` order.
     min_speed : float
-        A joint's decimated row is left out when its span (:func:`ilic_cli.idim_ls.valid_rows`)
+        A joint's decimated row is left out when its span (:func:`ilic_cli.row_spans.valid_rows`)
         holds a sample with that joint's filtered ``|qd| <= min_speed``: near rest the
         joint sticks and its friction is not ``Fc sign(qd)`` (0: every row is kept).
     torque_held : bool

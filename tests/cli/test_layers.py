@@ -54,6 +54,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "ilic_cli.regressor",
             "ilic_cli.lsq",
             "ilic_cli.filtering",
+            "ilic_cli.row_spans",
             "ilic_cli.derivatives",
             "ilic_cli.spectra",
             "ilic_cli.filter_design",

@@ -295,7 +295,7 @@ def test_no_saturation_means_no_mask_and_identical_results() -> None:
 
 def test_valid_rows_drop_the_span_of_an_invalid_sample() -> None:
     from ilic_cli.filtering import kept_indices
-    from ilic_cli.idim_ls import valid_rows
+    from ilic_cli.row_spans import valid_rows
 
     n, r = 100, 10
     valid = np.ones(n, dtype=bool)

@@ -396,9 +396,10 @@ def relative_error_pct(log: RunLog) -> float:
     """
     from ilic_cli.errors import IdentificationError  # deferred: scipy, as identify
     from ilic_cli.estimators.base import ModelSpec
-    from ilic_cli.idim_ls import LSSettings, _too_few_rows, decimated_systems, valid_rows
+    from ilic_cli.idim_ls import LSSettings, _too_few_rows, decimated_systems
     from ilic_cli.lsq import solve
     from ilic_cli.prepare import prepare_log
+    from ilic_cli.row_spans import valid_rows
     from ilic_cli.usable import identification_hold_s, identification_speed_noise, with_rest
 
     prepared = prepare_log(log)

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from ilic_cli.effects.grids import resonance_grid
-from ilic_cli.idim_ls import IDIMData, IDIMLSResult, LSSettings, cross_validate, idim_ls, lsq_rows, usable_mask, valid_rows
+from ilic_cli.idim_ls import IDIMData, IDIMLSResult, LSSettings, cross_validate, idim_ls, lsq_rows
 from ilic_cli.regressor import get_model
+from ilic_cli.row_spans import usable_mask, valid_rows
 from tests.unit.synth import FS, asymmetric_force, motion, rigid_force
 
 

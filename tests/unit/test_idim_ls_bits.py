@@ -14,8 +14,9 @@ from ilic_cli import idim_ilic
 from ilic_cli.derivatives import central_difference
 from ilic_cli.filtering import butter_lowpass_zero_phase, lowpass_decimate
 from ilic_cli.idim_ilic import tracking_error_ratio
-from ilic_cli.idim_ls import LSSettings, _columns, _decimate, decimated_systems, held, lsq_rows, part_valid, valid_rows
+from ilic_cli.idim_ls import LSSettings, _columns, _decimate, decimated_systems, held, lsq_rows, part_valid
 from ilic_cli.regressor import GRAVITY_COLUMNS, Column, Kinematics, Model, get_model
+from ilic_cli.row_spans import valid_rows
 from tests.unit.synth import FS, motion, rigid_force
 
 
