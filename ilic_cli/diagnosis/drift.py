@@ -405,6 +405,11 @@ def _physical(tr: Trend) -> bool:
     return not tr.parameter.startswith("Fc") or min(tr.start, tr.end, tr.asymptote if tr.asymptote is not None else tr.end) >= 0.0
 
 
+def _stated(tr: Trend, min_change: float) -> bool:
+    """A trend a finding may state: physical (:func:`_physical`), and moving its coefficient by at least ``min_change``."""
+    return _physical(tr) and abs(tr.relative_change) >= min_change
+
+
 def _why_not(trends: list[Trend], alone: list[Trend], alpha: float, min_change: float) -> str:
     """Why the significant trends (``trends``) or, without one, the trends alone (``alone``) are no finding."""
     unphysical = [tr for tr in trends if not _physical(tr)]
@@ -445,7 +450,7 @@ def detect_drift(
     chosen, first = select_trends(t, W, y, names, origin, alpha)
     alone = [tr for c in first for tr in estimated(t, W, y, names, [c], origin)]
     trends = estimated(t, W, y, names, chosen, origin)
-    kept = [c for c, tr in zip(chosen, trends, strict=True) if _physical(tr) and abs(tr.relative_change) >= min_change]
+    kept = [c for c, tr in zip(chosen, trends, strict=True) if _stated(tr, min_change)]
     if not kept:
         return DriftResult(win, alone, [], _why_not(trends, alone, alpha, min_change))
     findings = estimated(t, W, y, names, kept, origin)
@@ -456,7 +461,7 @@ def detect_drift(
     others = [
         (c.parameter, c.column, c.test.df1)
         for c, tr in zip(first, alone, strict=True)
-        if c.parameter != kept[0].parameter and c.test.p_adjusted < alpha and _physical(tr) and abs(tr.relative_change) >= min_change
+        if c.parameter != kept[0].parameter and c.test.p_adjusted < alpha and _stated(tr, min_change)
     ]
     same = alike(W, y, (kept[0].column, kept[0].test.df1), others, trials(sum(n in DRIFTING for n in names)), alpha) if len(kept) == 1 else None
     return DriftResult(win, alone, findings, "", before, after, p, relative_error_with(t, W_own, y, names_own, findings, origin), same)

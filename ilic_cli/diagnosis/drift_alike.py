@@ -33,10 +33,14 @@ class Alike(NamedTuple):
     p_given_finding: float
     """This trend tested given the finding's (adjusted p)."""
 
+    def cannot_tell(self, found: str) -> str:
+        """The conclusion, in words: which two coefficients the rows cannot tell (``found``: the finding's)."""
+        return f"the rows cannot tell which of {found} and {self.parameter} drifts"
+
     def words(self, found: str) -> str:
         return (
             f"a trend of {self.parameter} explains the rows as well (that of {found} given it: p = {self.p_given_it:.2g}; "
-            f"it given that of {found}: p = {self.p_given_finding:.2g}): the rows cannot tell which of {found} and {self.parameter} drifts"
+            f"it given that of {found}: p = {self.p_given_finding:.2g}): {self.cannot_tell(found)}"
         )
 
     def to_dict(self) -> dict[str, Any]:

@@ -187,7 +187,8 @@ def _summary(diag: Diagnosis, force_unit: str, at_dwells: bool) -> list[str]:
             where = structured if math.isfinite(r.mean) else f"The residual shows a {r.label}. "
         other = f" {indistinct_note(f.effect, f.evidence)}." if f.evidence.indistinct_from is not None else ""
         if f.effect.id == "friction_drift" and diag.drift is not None and (alike := diag.drift.alike) is not None:  # the coefficient the rows cannot tell
-            other = f" The rows cannot tell which of {diag.drift.findings[0].parameter} and {alike.parameter} drifts."
+            said = alike.cannot_tell(diag.drift.findings[0].parameter)
+            other = f" {said[0].upper()}{said[1:]}."
         lines.append(f"- {where}Left out: {f.effect.describe(f.parameters)}{_undetermined(f.parameters)}. {f.effect.explanation}{other}")
     lines += [
         "",
