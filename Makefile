@@ -13,12 +13,14 @@ STAMP := $(VENV)/.installed
 # pip itself first brought to a current release (best effort: the one venv bundles is kept when none can be had): the
 # packages install in 17-23 s with pip 26 against 30-37 s with Python 3.11's bundled pip 23.2 (the same versions resolved);
 # the packages' bytecode compiled on every core, their own test suites left out: pip compiles one file at a time
-# (a fresh venv 46 s -> 34 s on 2 cores); the bytecode is needed, a PYTHONDONTWRITEBYTECODE=1 process compiles its imports anew
+# (a fresh venv 46 s -> 34 s on 2 cores); the bytecode is needed, a PYTHONDONTWRITEBYTECODE=1 process compiles its imports anew.
+# Not compiled: the installers and mypy's compiler, which no command or test imports (pip, setuptools, mypyc: 720 of 4,600
+# modules; 12.3 s -> 11.2 s on 2 cores); fontTools and pygments are imported (matplotlib's PNGs, pytest's report)
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade 'pip>=25' || echo "make: pip not upgraded; installing with $$($(BIN)/python -m pip --version)"
 	$(BIN)/python -m pip install --quiet --no-compile -e '.[test]'
-	$(BIN)/python -m compileall -q -j 0 -x '/tests?/' $(VENV)/lib
+	$(BIN)/python -m compileall -q -j 0 -x '/tests?/|site-packages/(pip|setuptools|mypyc)/' $(VENV)/lib
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -31,6 +33,11 @@ demo: $(STAMP)
 # the suite in TEST_WORKERS processes (pytest-xdist; CI has 2 cores): a clean clone 231 s in two with one BLAS thread each (2-core machine, 2026-12-06), BLAS threads on top oversubscribed the cores (332 s against 268 s then)
 TEST_WORKERS ?= 2
 
+# --dist worksteal: a worker that runs out takes half of the other's queue. Measured and not kept, --dist loadfile (each module
+# whole in one worker): worksteal already computes all but 6 of the 58 module and session fixtures once (0.5 s of CPU twice),
+# and paired clean clones took 289 s both ways (2026-12-07; unpaired runs of either ranged 240-290 s in one afternoon)
+TEST_DIST := --dist worksteal
+
 # one BLAS thread a worker: the TEST_WORKERS processes already share the cores (BLAS's own threads on top oversubscribed them).
 # Bytecode written (PYTHONDONTWRITEBYTECODE emptied where the environment sets it): the `ilic` processes the tests start load
 # the tree's modules compiled once, not each anew, and pytest keeps its assertion-rewritten test modules
@@ -40,13 +47,13 @@ TEST_ENV := OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 PYTHONDON
 PYTEST_ARGS ?=
 
 test: $(STAMP)
-	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal $(PYTEST_ARGS)
+	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) $(TEST_DIST) $(PYTEST_ARGS)
 
 # the tiers without closed-loop diagnoses or long simulations
 FAST_TESTS := tests/unit tests/vocabulary tests/io
 
 test-fast: $(STAMP)
-	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal $(FAST_TESTS)
+	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) $(TEST_DIST) $(FAST_TESTS)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run_all.py

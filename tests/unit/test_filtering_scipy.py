@@ -22,10 +22,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy import signal
 
 from ilic_cli import filter_design, filtering
 from ilic_cli.filtering import bilinear_lfilter, butter_lowpass_zero_phase, decimate_matlab, filtfilt_matlab, kept_indices, lowpass_decimate
+from tests.lazy import lazy_module
+
+signal = lazy_module("scipy.signal")  # imported at first use (tests/lazy.py)
 
 ROOT = Path(__file__).parents[2]
 LENGTHS = (13, 31, 32, 33, 100, 1000, 20_003)
