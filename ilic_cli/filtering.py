@@ -1,17 +1,13 @@
 """Data filtering for identification (paper section III; benchmark procedure).
 
-Pure functions on arrays. The ``matlab`` helpers reproduce MATLAB's
-``filtfilt`` and ``decimate`` exactly where that decides published digits
-(see ``../shared/reference/emps-benchmark.md``): odd-reflection padding of
-length ``3*(max(len(a), len(b)) - 1)`` and decimation that keeps the samples
-aligned on the end of the record.
+Pure functions on arrays. The ``matlab`` helpers reproduce MATLAB's ``filtfilt`` and ``decimate`` exactly where that
+decides published digits (see ``../shared/reference/emps-benchmark.md``): odd-reflection padding of length
+``3*(max(len(a), len(b)) - 1)`` and decimation that keeps the samples aligned on the end of the record.
 
-Everything here is NumPy (``import scipy.signal`` alone costs about a
-second of start-up): the filters are designed by SciPy's algorithms
-(analog prototype, pre-warping, bilinear transform, pole-zero pairing into
-second-order sections) and the linear recursion runs blockwise (the designs: :mod:`ilic_cli.filter_design`)
-(:func:`_run`). ``tests/unit/test_filtering_scipy.py`` checks every
-function against ``scipy.signal``.
+Everything here is NumPy (``import scipy.signal`` alone costs about a second of start-up): the filters are designed by
+SciPy's algorithms (analog prototype, pre-warping, bilinear transform, pole-zero pairing into second-order sections; the
+designs: :mod:`ilic_cli.filter_design`) and the linear recursion runs blockwise (:func:`_run`).
+``tests/unit/test_filtering_scipy.py`` checks every function against ``scipy.signal``.
 """
 
 from __future__ import annotations
@@ -37,10 +33,9 @@ BLOCK = 32
 class _StateSpace:
     """``z' = A z + B u``, ``y = C z + D u`` and its block matrices for blocks of ``L`` samples.
 
-    ``TT`` (L x L): zero-state response of a block, transposed (upper-triangular
-    Toeplitz matrix of the impulse response); ``G`` (L x m): each sample's input to
-    the state after the block; ``Obs`` (m x L): each sample's response to the
-    state at the block's start; ``P = A^L``.
+    ``TT`` (L x L): zero-state response of a block, transposed (upper-triangular Toeplitz matrix of the impulse response);
+    ``G`` (L x m): each sample's input to the state after the block; ``Obs`` (m x L): each sample's response to the state at
+    the block's start; ``P = A^L``.
     """
 
     A: np.ndarray
@@ -75,6 +70,19 @@ def _blocks(A_key: bytes, B_key: bytes, C_key: bytes, D: float, m: int, L: int) 
 NEGLIGIBLE = 2.0**-100
 """The prefix scan stops once ``A^(dL)`` is below this (relative to 1): farther blocks' states no longer reach the result's rounding."""
 
+
+@functools.lru_cache(maxsize=256)
+def _doublings(A_key: bytes, B_key: bytes, C_key: bytes, D: float, m: int, L: int, count: int) -> tuple[np.ndarray, ...]:
+    """The prefix scan's steps ``(P^T)^(2^k)``, ``k < count``, up to the first below :data:`NEGLIGIBLE`: the same for every
+    call of :func:`_run` on that many blocks, which formed them anew each time (9-10 products and maxima, 10 s at 1 kHz)."""
+    out: list[np.ndarray] = []
+    step = _blocks(A_key, B_key, C_key, D, m, L).P.T.copy()
+    while len(out) < count and np.max(np.abs(step)) > NEGLIGIBLE:
+        out.append(step)
+        step = step @ step
+    return tuple(out)
+
+
 BLAS_ONE_THREAD = 1 << 18
 """Products of ``m x k`` by ``k x n`` are cut into row chunks with ``m k n`` below this: OpenBLAS then uses one thread
 (its threads cost several times the CPU time on these skinny products and compete with :func:`_in_threads`)."""
@@ -83,9 +91,8 @@ BLAS_ONE_THREAD = 1 << 18
 def _product(a: np.ndarray, b: np.ndarray, out: np.ndarray, *, add: bool = False) -> None:
     """``out = a @ b`` (or ``out += a @ b``) in chunks along ``a``'s second-last axis (:data:`BLAS_ONE_THREAD`), from the last.
 
-    ``out`` may be ``a`` itself: each chunk's product is formed before it is
-    stored. The chunks do not depend on ``a``'s leading axes, so a row's
-    result does not depend on the rows filtered with it.
+    ``out`` may be ``a`` itself: each chunk's product is formed before it is stored. The chunks do not depend on ``a``'s
+    leading axes, so a row's result does not depend on the rows filtered with it.
     """
     step = max(1, BLAS_ONE_THREAD // (b.shape[0] * b.shape[1]))
     for i in range(((a.shape[-2] - 1) // step) * step, -1, -step):
@@ -123,11 +130,9 @@ def _run(system: System, x: np.ndarray) -> None:
     """Zero-state output of ``system`` for rows ``x`` (R, n, contiguous), written over ``x``: the FIR numerator, then
     ``z' = A z + B u``, ``y = C z + D u``.
 
-    Blocks of :data:`BLOCK` samples: within a block the zero-state response is
-    ``T`` times the block and the state after it ``G^T u``; the state at
-    every block's start is the prefix sum ``sum_j P^(k-1-j) G^T u_j``,
-    computed by doubling (``log2`` of the blocks' count matrix products, all
-    blocks at once); each block's output adds ``Obs^T`` times its start state.
+    Blocks of :data:`BLOCK` samples: within a block the zero-state response is ``T`` times the block and the state after it
+    ``G^T u``; the state at every block's start is the prefix sum ``sum_j P^(k-1-j) G^T u_j``, computed by doubling (``log2``
+    of the blocks' count matrix products, all blocks at once); each block's output adds ``Obs^T`` times its start state.
     """
     fir, A, B, C, D, _ = system
     rows, n = x.shape
@@ -138,17 +143,17 @@ def _run(system: System, x: np.ndarray) -> None:
         x *= D
         return
     L = min(BLOCK, n)
-    s = _blocks(A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
+    key = (A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
+    s = _blocks(*key)
     nb, tail = divmod(n, L)
     full = x[:, : nb * L].reshape(rows, nb, L)
     # states at the blocks' starts, (row, block, state); block 0 starts at rest
     start = np.zeros((rows, nb + 1, m))
     _product(full, s.G, start[:, 1:])
-    step, d = s.P.T.copy(), 1
-    while d < nb and np.max(np.abs(step)) > NEGLIGIBLE:
+    for k, step in enumerate(_doublings(*key, max(nb - 1, 0).bit_length())):  # the d = 2^k below nb
         # start[k] += P^d start[k - d]; chunks from the last, so every source chunk is read before it is updated
+        d = 1 << k
         _product(start[:, 1 : nb + 1 - d], step, start[:, d + 1 :], add=True)
-        step, d = step @ step, 2 * d
     if tail:
         # (rows, 1, tail): one product per row, as for the full blocks
         x[:, None, nb * L :] = x[:, None, nb * L :] @ s.TT[:tail, :tail] + start[:, nb : nb + 1] @ s.Obs[:, :tail]
@@ -168,12 +173,10 @@ CHUNK_ELEMENTS = 1 << 21
 def _in_threads(func: Callable[[np.ndarray], np.ndarray], x: np.ndarray, axis: int, keep: np.ndarray | None = None) -> np.ndarray:
     """Apply ``func`` (a filter along the last axis) to ``x`` along ``axis``.
 
-    The rows along the filtered axis are filtered in contiguous blocks of
-    about :data:`CHUNK_ELEMENTS` samples (in threads when the array is large),
-    so the filter's temporaries stay bounded whatever the length of the log.
-    ``keep`` (indices along the filtered axis) decimates each block as soon as
-    it is filtered, so the full-rate output is never held. The result is
-    identical to filtering the whole array at once.
+    The rows along the filtered axis are filtered in contiguous blocks of about :data:`CHUNK_ELEMENTS` samples (in threads
+    when the array is large), so the filter's temporaries stay bounded whatever the length of the log. ``keep`` (indices
+    along the filtered axis) decimates each block as soon as it is filtered, so the full-rate output is never held. The
+    result is identical to filtering the whole array at once.
     """
     moved = np.moveaxis(np.asarray(x, dtype=np.float64), axis, -1)
 
@@ -233,8 +236,7 @@ def _cascade(sections: list[tuple[np.ndarray, np.ndarray]]) -> System:
 def _polished_roots(a: np.ndarray, steps: int = 3) -> np.ndarray:
     """Roots of ``a`` refined by Newton steps in extended precision (their conjugate pairs exact, real ones real).
 
-    ``np.roots`` is backward stable only: a low-pass's clustered poles come
-    out about 1e-9 off, which moves the output by 1e-7.
+    ``np.roots`` is backward stable only: a low-pass's clustered poles come out about 1e-9 off, which moves the output by 1e-7.
     """
     roots = np.roots(a)
     roots = np.where(abs(roots.imag) <= 1e-12 * abs(roots), roots.real, roots).astype(np.clongdouble)
@@ -258,8 +260,8 @@ def _tf_system(b: np.ndarray, a: np.ndarray) -> System:
 def _tf_sections(b_key: bytes, a_key: bytes) -> System:
     """``b/a`` as the FIR ``b`` followed by first- and second-order all-pole sections of the roots of ``a``.
 
-    The same transfer function as the direct form, without its ill-conditioned
-    recursion (an 8th-order low-pass's denominator amplifies rounding by 1e9).
+    The same transfer function as the direct form, without its ill-conditioned recursion (an 8th-order low-pass's
+    denominator amplifies rounding by 1e9).
     """
     b, a = np.frombuffer(b_key), np.frombuffer(a_key)
     b, a = b / a[0], a / a[0]

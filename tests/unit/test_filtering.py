@@ -13,10 +13,10 @@ import math
 
 import numpy as np
 import pytest
-from scipy import signal
 
 from ilic_cli import filtering, spectra
 from ilic_cli.derivatives import central_difference, derivative
+from ilic_cli.filter_design import cheby1_ba
 from ilic_cli.filtering import (
     butter_lowpass_zero_phase,
     decimate_matlab,
@@ -25,6 +25,9 @@ from ilic_cli.filtering import (
     kept_indices,
     lowpass_decimate,
 )
+from tests.lazy import lazy_module
+
+signal = lazy_module("scipy.signal")  # imported at first use (tests/lazy.py)
 
 
 @pytest.mark.parametrize("r", [1, 2, 3, 7, 10, 80])
@@ -270,3 +273,41 @@ def test_local_maxima_are_find_peaks() -> None:
     for _ in range(500):  # small integers: many flat tops and ties at the ends
         x = rng.integers(0, 4, size=int(rng.integers(0, 30))).astype(float)
         np.testing.assert_array_equal(spectra.local_maxima(x), signal.find_peaks(x)[0])
+
+
+def _scan_formed_anew(system: filtering.System, x: np.ndarray) -> None:
+    """:func:`ilic_cli.filtering._run` as it was before its scan's steps were cached: each step formed and tested in the loop."""
+    fir, A, B, C, D, _ = system
+    rows, n = x.shape
+    if fir is not None:
+        filtering._fir_in_place(x, fir)
+    m, L = len(B), min(filtering.BLOCK, n)
+    s = filtering._blocks(A.tobytes(), B.tobytes(), C.tobytes(), float(D), m, L)
+    nb, tail = divmod(n, L)
+    full = x[:, : nb * L].reshape(rows, nb, L)
+    start = np.zeros((rows, nb + 1, m))
+    filtering._product(full, s.G, start[:, 1:])
+    step, d = s.P.T.copy(), 1
+    while d < nb and np.max(np.abs(step)) > filtering.NEGLIGIBLE:
+        filtering._product(start[:, 1 : nb + 1 - d], step, start[:, d + 1 :], add=True)
+        step, d = step @ step, 2 * d
+    if tail:
+        x[:, None, nb * L :] = x[:, None, nb * L :] @ s.TT[:tail, :tail] + start[:, nb : nb + 1] @ s.Obs[:, :tail]
+    filtering._product(full, s.TT, full)
+    filtering._product(start[:, :nb], s.Obs, full, add=True)
+
+
+@pytest.mark.parametrize("r", [2, 10, 40])
+def test_the_cached_scan_is_the_scan_formed_anew_bit_for_bit(r: int) -> None:
+    """The prefix scan's cached steps (``filtering._doublings``) give the bits of forming them in the loop, at every block count
+    around the powers of two (where the count of doublings changes) and on a long record (12 doublings)."""
+    system = filtering._tf_system(*cheby1_ba(8, 0.05, 0.8 / r))
+    rng = np.random.default_rng(r)
+    L = filtering.BLOCK
+    for nb in (*range(1, 10), 15, 16, 17, 31, 32, 33, 64, 65, 3000):
+        for n in (nb * L, nb * L + 7):
+            x = rng.standard_normal((2, n))
+            ours, anew = x.copy(), x.copy()
+            filtering._run(system, ours)
+            _scan_formed_anew(system, anew)
+            assert np.array_equal(ours, anew), (nb, n)
