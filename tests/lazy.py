@@ -1,7 +1,8 @@
 """A module imported when first used, not when the test module is collected (``importlib.util.LazyLoader``).
 
-``scipy.signal`` costs 0.7-1.3 s to import (after numpy; 3 runs). Test modules that compare against it import it at module level, and
-pytest-xdist collects every test module in every worker: each worker paid that at its start whether or not it ran them.
+``scipy.signal`` costs 0.7-1.3 s to import (after numpy; 3 runs). pytest-xdist collects every test module in every worker,
+so a module-level import of it in the modules that compare against it was paid at every worker's start, whether or not that
+worker ran them.
 """
 
 from __future__ import annotations

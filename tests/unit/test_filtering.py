@@ -300,7 +300,7 @@ def _scan_formed_anew(system: filtering.System, x: np.ndarray) -> None:
 @pytest.mark.parametrize("r", [2, 10, 40])
 def test_the_cached_scan_is_the_scan_formed_anew_bit_for_bit(r: int) -> None:
     """The prefix scan's cached steps (``filtering._doublings``) give the bits of forming them in the loop, at every block count
-    around the powers of two (where the count of doublings changes) and on a long record (12 doublings)."""
+    around the powers of two (where the count of doublings changes) and on a long record (up to 12 doublings)."""
     system = filtering._tf_system(*cheby1_ba(8, 0.05, 0.8 / r))
     rng = np.random.default_rng(r)
     L = filtering.BLOCK
