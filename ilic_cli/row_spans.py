@@ -1,6 +1,5 @@
 """Which full-rate samples a decimated row may rest on, the one definition: the samples that may be used
-(:func:`usable_mask`), the rows whose span touches none of the others (:func:`valid_rows`), and the position filter's reach
-the rest rule widens a dwell by (:func:`filter_reach`).
+(:func:`usable_mask`) and the rows whose span touches none of the others (:func:`valid_rows`).
 
 A decimated row is a low-pass of its neighbourhood: the rows whose span touches a sample that may not be used (a saturated
 drive, the axis at rest) are left out. The filter's tail reaches further than a row's span; zeroing the dwells before it
@@ -49,9 +48,3 @@ def valid_rows(valid: np.ndarray, r: int) -> np.ndarray:
     lo = np.maximum(idx - (r - 1), 0)
     before = np.where(lo > 0, np.take(csum, np.maximum(lo - 1, 0), axis=-1), 0)  # invalid samples before lo
     return (np.take(csum, hi - 1, axis=-1) - before) == 0
-
-
-def filter_reach(fs_hz: float, cutoff_hz: float) -> int:
-    """The position filter's reach in samples, ``round(fs / cutoff)``: how far the rest rule widens a dwell
-    (:data:`ilic_cli.usable.REST_RULE`)."""
-    return int(round(fs_hz / cutoff_hz))

@@ -19,7 +19,7 @@ from ilic_cli.errors import IdentificationError, IlicError
 from ilic_cli.filtering import butter_lowpass_zero_phase
 from ilic_cli.idim_ls import LSSettings, min_samples, part_valid
 from ilic_cli.prepare import PreparedLog, RestSamples, tau_sensor
-from ilic_cli.row_spans import filter_reach, valid_rows
+from ilic_cli.row_spans import valid_rows
 from ilic_cli.runlog import RunLog
 
 STANDSTILL_FRACTION = 0.01
@@ -63,7 +63,7 @@ def rest_samples(q: np.ndarray, fs_hz: float, settings: LSSettings = LSSettings(
     mask = np.zeros(len(q), dtype=bool)
     dwells, threshold, square, still = 0, 0.0, 0.0, 0
     shortest = max(int(np.ceil(REST_MIN_S * fs_hz - 1e-9)), 1)
-    reach = filter_reach(fs_hz, settings.cutoff_hz)
+    reach = int(round(fs_hz / settings.cutoff_hz))  # the position filter's reach (samples)
     speeds = []
     for a, b in segments or ((0, len(q)),):
         if b - a < min_samples(settings):
