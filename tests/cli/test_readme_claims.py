@@ -145,6 +145,8 @@ def test_diagnosis_settings_as_described() -> None:
     s = SelectSettings()
     assert (s.alpha, s.alpha_heldout, s.alpha_confirm, s.folds) == (0.001, 0.05, 0.01, 5)
     assert (replay_alpha(DiagnosisSettings()), HELDOUT_ALPHA) == (0.05, 0.01)
+    # the replay's level is its own, not the inverse model's held-out level (both 0.05 by default)
+    assert replay_alpha(DiagnosisSettings(select=SelectSettings(alpha_heldout=0.02))) == 0.05
 
 
 def test_paper_sim_study_setting_and_k2_edge() -> None:
