@@ -1,13 +1,17 @@
-"""``-p tests.cpu_durations``: the tests' CPU time, a child's included, listed by cost (``tests/cpu_durations.py``)."""
+"""``-p tests.cpu_durations``: the tests' CPU time, a child's included, listed by cost (``tests/cpu_durations.py``).
+
+The inner session runs in this process (``pytester.runpytest_inprocess``) without assertion rewriting, so that it
+imports the plugin through this process's import system: ``tools/mutation.py`` serves its planted bugs from memory,
+and a session in a child process, or one rewriting its plugins' assertions, read the file and never saw them (both
+planted bugs survived)."""
 
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+import pytest
+
+pytest_plugins = ["pytester"]
 
 BURN = """
 import subprocess, sys, time
@@ -28,17 +32,13 @@ def test_sleeps():
 """
 
 
-def test_the_costliest_tests_are_listed_with_their_children_s_cpu(tmp_path: Path) -> None:
-    (tmp_path / "test_burn.py").write_text(BURN)
-    res = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "tests.cpu_durations", "--cpu-durations=2", "-o", "addopts=", str(tmp_path)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
-    )
-    assert res.returncode == 0, res.stdout + res.stderr
-    listed = re.findall(r"^\s*([\d.]+)s cpu (\S+)$", res.stdout, re.MULTILINE)
-    assert [name.split("::")[1] for _, name in listed] == ["test_spins_in_a_child", "test_spins_itself"], res.stdout  # the sleep costs none
-    assert float(listed[0][0]) >= 0.25 and 0.12 <= float(listed[1][0]) < 0.25, res.stdout
-    assert "most CPU time: 2 of 3 tests" in res.stdout
+def test_the_costliest_tests_are_listed_with_their_children_s_cpu(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_burn=BURN)
+    # --assert=plain: the inner session's assertion rewriting would load the plugin from its file, past the mutant's finder
+    res = pytester.runpytest_inprocess("-q", "-p", "no:cacheprovider", "--assert=plain", "-p", "tests.cpu_durations", "--cpu-durations=2", "-o", "addopts=")
+    out = res.stdout.str()
+    assert res.ret == 0, out
+    listed = re.findall(r"^\s*([\d.]+)s cpu (\S+)$", out, re.MULTILINE)
+    assert [name.split("::")[1] for _, name in listed] == ["test_spins_in_a_child", "test_spins_itself"], out  # the sleep costs none
+    assert float(listed[0][0]) >= 0.25 and 0.12 <= float(listed[1][0]) < 0.25, out
+    assert "most CPU time: 2 of 3 tests" in out
