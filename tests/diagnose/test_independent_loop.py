@@ -65,7 +65,8 @@ def test_a_warm_up_is_named_when_the_friction_has_no_stiction() -> None:
     """Coulomb friction smoothed by tanh (no stiction: the axis creeps at the dwells, where the plant's friction sticks): the replay
     judges the warm-up where the reference moves. Over every sample it was rejected (held-out 7.58 % -> 7.75 %) before the
     friction law was read from the recording and replayed (docs/diagnosis.md); with it, both judge alike here, and the
-    figures tell them apart: 2.79 % -> 1.25 % where the reference moves, 2.89 % -> 1.44 % over every sample."""
+    figures tell them apart: the force 2.79 % -> 1.25 % where the reference moves, 2.89 % -> 1.44 % over every sample, and
+    the position compared where the reference moves with it."""
     log = simulate("revolute", 500.0, "same", {"drift": {"dFv": -0.05, "tau": 2.0}}, 23, repeat=2, smooth_speed=0.02)
     diag = diagnose(log, settings=DiagnoseSettings())
     got = _values(diag, "friction_drift")
@@ -74,6 +75,9 @@ def test_a_warm_up_is_named_when_the_friction_has_no_stiction() -> None:
     assert v.accepted and "where the reference moves" in v.reason
     assert v.force_before is not None and v.force_after is not None
     assert (f"{v.force_before:.3g}", f"{v.force_after:.3g}") == ("2.79", "1.25")  # over every sample: 2.89, 1.44
+    # the position's too, where the reference moves: 0.00892 % -> 0.00334 % (over every sample 0.00744 % -> 0.00327 %)
+    assert v.position_before is not None and v.position_after is not None
+    assert (f"{v.position_before:.3g}", f"{v.position_after:.3g}") == ("0.00892", "0.00334")
 
 
 def test_gravity_under_a_loop_fed_the_plant_s_velocity() -> None:
