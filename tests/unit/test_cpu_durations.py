@@ -1,15 +1,17 @@
 """``-p tests.cpu_durations``: the tests' CPU time, a child's included, listed by cost (``tests/cpu_durations.py``).
 
-The inner session runs in this process (``pytester.runpytest_inprocess``) without assertion rewriting, so that it
-imports the plugin through this process's import system: ``tools/mutation.py`` serves its planted bugs from memory,
-and a session in a child process, or one rewriting its plugins' assertions, read the file and never saw them (both
-planted bugs survived)."""
+The inner session runs in this process (``pytester.runpytest_inprocess``) on the plugin this module imported, its totals
+emptied for it and put back after: ``tools/mutation.py`` serves its planted bugs from memory, and a session in a child process read the file
+and never saw them (both planted bugs survived); an outer session run with the plugin (``make test PYTEST_ARGS="-p
+tests.cpu_durations ..."``) keeps its own totals."""
 
 from __future__ import annotations
 
 import re
 
 import pytest
+
+from tests import cpu_durations
 
 pytest_plugins = ["pytester"]
 
@@ -34,8 +36,13 @@ def test_sleeps():
 
 def test_the_costliest_tests_are_listed_with_their_children_s_cpu(pytester: pytest.Pytester) -> None:
     pytester.makepyfile(test_burn=BURN)
-    # --assert=plain: the inner session's assertion rewriting would load the plugin from its file, past the mutant's finder
-    res = pytester.runpytest_inprocess("-q", "-p", "no:cacheprovider", "--assert=plain", "-p", "tests.cpu_durations", "--cpu-durations=2", "-o", "addopts=")
+    outer = dict(cpu_durations._totals)  # an outer session's with the plugin: put back before this test's own report
+    cpu_durations._totals.clear()
+    try:
+        res = pytester.runpytest_inprocess("-q", "-p", "no:cacheprovider", "-p", "tests.cpu_durations", "--cpu-durations=2", "-o", "addopts=")
+    finally:
+        cpu_durations._totals.clear()
+        cpu_durations._totals.update(outer)
     out = res.stdout.str()
     assert res.ret == 0, out
     listed = re.findall(r"^\s*([\d.]+)s cpu (\S+)$", out, re.MULTILINE)
