@@ -162,8 +162,8 @@ def decide(log: RunLog, prop: Proposal, settings: DiagnosisSettings, validate: R
 
 
 def in_its_place(material: list[Step], on_loop: Step, order: list[str]) -> list[Step]:
-    """``material`` with the closed loop's proposal ``on_loop`` where the inverse model proposed its effect in ``order`` (the
-    selection's steps, material or not), in place of that step; last when the inverse model did not propose it.
+    """``material`` (steps of ``order``, the selection's effects, material or not) with the closed loop's proposal ``on_loop``
+    where the inverse model proposed its effect, in place of that step; last when the inverse model did not propose it.
 
     The replay judges the steps in order, each on the plant of those before it (:func:`replay_decide`). Put last, a Stribeck
     friction the inverse model proposed first left the steps after it judged on a plant without it: on ``--beyond``'s
@@ -171,11 +171,10 @@ def in_its_place(material: list[Step], on_loop: Step, order: list[str]) -> list[
     model's second step, was kept for a held-out force error of 25.9 % -> 24.9 % beside the friction's 24.9 % -> 1.59 %;
     judged after the friction it is rejected (1.20 % -> 1.21 %), and only the friction is named.
     """
+    rank = {eid: i for i, eid in enumerate(order)}
+    place = rank.get(on_loop.effect.id, len(order))  # not proposed there: after every step
     out = [s for s in material if s.effect.id != on_loop.effect.id]
-    if on_loop.effect.id not in order:
-        return [*out, on_loop]
-    place = order.index(on_loop.effect.id)
-    at = next((i for i, s in enumerate(out) if s.effect.id in order and order.index(s.effect.id) > place), len(out))
+    at = next((i for i, s in enumerate(out) if rank[s.effect.id] > place), len(out))
     out.insert(at, on_loop)
     return out
 
