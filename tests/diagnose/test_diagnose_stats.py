@@ -9,6 +9,9 @@ from ilic_cli.diagnosis.locate import force_lag, velocity_bins
 from ilic_cli.diagnosis.stats import ar_fit, batched_rss, blocked_folds, diebold_mariano, nested_f_test, variance_inflation
 from ilic_cli.effects import EFFECTS, catalogue_ids
 from ilic_cli.lsq import lstsq
+from tests.lazy import lazy_module
+
+signal = lazy_module("scipy.signal")  # imported at first use (tests/lazy.py)
 
 
 def test_catalogue_ids_and_fields() -> None:
@@ -28,8 +31,6 @@ def test_prewhitened_f_test_is_calibrated_under_autocorrelated_noise() -> None:
     W0 = np.c_[np.ones(n), np.sin(2 * np.pi * 3 * t)]
     x = np.cos(2 * np.pi * 2 * t)  # a smooth candidate column, absent from the data
     W1 = np.c_[W0, x]
-    from scipy import signal  # deferred: scipy.signal's import (0.7-1.3 s) at collection, in every worker (tests/lazy.py)
-
     for _ in range(trials):
         e = signal.lfilter([1.0], [1.0, -0.7], rng.standard_normal(n))
         y = W0 @ np.array([1.0, 2.0]) + e
@@ -44,8 +45,6 @@ def test_prewhitened_f_test_is_calibrated_under_autocorrelated_noise() -> None:
 
 
 def test_ar_fit_recovers_ar1() -> None:
-    from scipy import signal  # deferred (above)
-
     rng = np.random.default_rng(1)
     e = signal.lfilter([1.0], [1.0, -0.6], rng.standard_normal(5000))
     a = ar_fit(e)
