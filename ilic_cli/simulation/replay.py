@@ -20,7 +20,7 @@ from ilic_cli.runlog import FRICTION_LAW, RunLog
 from plant.controllers import PDSettings
 from plant.replay import controller_from_log, simulate_replay
 
-__all__ = ["DRIVE_LAGS", "LAG_READ", "REPLAY_STEP_S", "relative_errors", "replay", "replay_substeps", "tau_sensor"]
+__all__ = ["DRIVE_LAGS", "LAG_READ", "LAW_INSIDE_STEP_S", "REPLAY_STEP_S", "relative_errors", "replay", "replay_substeps", "tau_sensor"]
 
 LAG_READ = "delay_samples_read"
 """The key of a PD controller's metadata saying that its ``delay_samples`` (below one period: the command acts within its sample)
@@ -35,19 +35,28 @@ DRIVE_LAGS = ("delay", "current_loop")
 """The plant's entries that realise a drive lag (a ``delay`` effect's value: a lag shorter than a sample is the current loop's,
 :func:`ilic_cli.effects.drive` ``_delay_realise``)."""
 
-REPLAY_STEP_S = 1e-4
-"""The finest integration step the diagnosis's replays need (s): a tenth of the 1 kHz period, the step every EMPS figure and the
-corpora were validated at; it resolves the fastest dynamics of the catalogue (a 700 Hz current loop's 0.23 ms time constant,
-flexibility modes up to 60 Hz) at any rate."""
+REPLAY_STEP_S = 2e-4
+"""The finest integration step the diagnosis's replays need (s): a fifth of the 1 kHz period, the 500 Hz logs' tenth. Against
+replays of the same plants at 20 substeps a period (50 us) it moves the noise-free replay of every catalogue effect at 1 kHz by at
+most 2e-5 % of the force's RMS, 0.023 % with the 700 Hz current loop (0.23 ms), and the position by under 1e-8 m; the
+sensor's own noise moves a replay by 0.6-2.6 % (a quantisation step flipped by a roundoff feeds the loop), whatever the step
+(``docs/simulation.md``, "The replays' step"). A law inside the dynamics steps at :data:`LAW_INSIDE_STEP_S`."""
+
+LAW_INSIDE_STEP_S = 1e-4
+"""The integration step of a replay whose PD law acts on the plant's state at every step (``PDSettings.continuous``, the law
+inside a simulator's dynamics): the law's own update interval there, which stands for a continuous law; at 0.2 ms it reads as a
+law held for part of the step (a 1.5 ms actuator delay beside it at 1 kHz was then read as the held law's)."""
 
 
-def replay_substeps(fs_hz: float) -> int:
-    """Integration steps per control period of a replay at ``fs_hz``: ten (a tenth of the period, as at 1 kHz and below), but
-    no finer than :data:`REPLAY_STEP_S`, and at least two (the drive lag's switch within a period; 5 at 2 kHz, 2 at 8 kHz).
+def replay_substeps(fs_hz: float, continuous: bool = False) -> int:
+    """Integration steps per control period of a replay at ``fs_hz``: ten (a tenth of the period, as at 500 Hz and below), but
+    no finer than :data:`REPLAY_STEP_S` (:data:`LAW_INSIDE_STEP_S` for a ``continuous`` law), and at least two (the drive
+    lag's switch within a period; 5 at 1 kHz, 3 at 2 kHz, 2 at 4 and 8 kHz).
 
     Ten at every rate spent 8 times the 1 kHz work per second of an 8 kHz log on steps of 12.5 us.
     """
-    return max(2, min(10, math.ceil(1.0 / (fs_hz * REPLAY_STEP_S) - 1e-9)))
+    step = LAW_INSIDE_STEP_S if continuous else REPLAY_STEP_S
+    return max(2, min(10, math.ceil(1.0 / (fs_hz * step) - 1e-9)))
 
 
 def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None, *, controller: PDSettings | None = None, seed: int = 0) -> RunLog:
@@ -66,7 +75,16 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
         controller = _at_the_sample(log)
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
-    return simulate_replay(log, params, effects, controller, substeps=replay_substeps(log.fs_hz), tau_sensor=tau_sensor(log), seed=seed)
+    steps = replay_substeps(log.fs_hz, _law_inside(log, controller))
+    return simulate_replay(log, params, effects, controller, substeps=steps, tau_sensor=tau_sensor(log), seed=seed)
+
+
+def _law_inside(log: RunLog, controller: PDSettings | None) -> bool:
+    """Whether the replay's PD law acts on the plant's state at every integration step (``controller``'s, else the log's)."""
+    if controller is not None:
+        return controller.continuous
+    recorded = log.controller
+    return recorded is not None and bool(recorded.settings.get("continuous"))
 
 
 def _at_the_sample(log: RunLog) -> PDSettings | None:
