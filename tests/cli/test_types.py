@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -12,10 +13,10 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("ilic_cli", "plant")
 
 
-def test_mypy_passes(tmp_path: Path) -> None:
-    """``mypy ilic_cli plant`` reports no error (one run, its cache in the test's own tmp dir: not in the tree, none shared between workers)."""
-    cache = tmp_path / "mypy_cache"
-    res = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(cache), "--no-color-output", *PACKAGES], cwd=ROOT, capture_output=True, text=True)
+def test_mypy_passes() -> None:
+    """``mypy ilic_cli plant`` reports no error: one cold run, no cache written (``--cache-dir /dev/null``, mypy's documented way:
+    not in the tree, none shared between workers; a run that writes its cache took 19.3-20.4 s against 18.0 s)."""
+    res = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", os.devnull, "--no-color-output", *PACKAGES], cwd=ROOT, capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr
 
 
