@@ -127,10 +127,16 @@ def force_hold_s(log: RunLog, fs_hz: float) -> float:
     """How long the logged force at a sample is held: half a period for the drive's held command (:func:`hold_of` of
     :func:`tau_sensor`), 0 for a PD law acting inside the dynamics (``continuous``: its command at the sample is the force
     there, read from the recording by the diagnosis and by ``identify``: :func:`ilic_cli.simulation.pd_law.inside_is_closer`)."""
-    controller = log.controller
-    if controller is not None and controller.kind == "pd" and controller.settings.get("continuous"):
+    if law_inside(log):
         return 0.0
     return hold_of(tau_sensor(log), fs_hz)
+
+
+def law_inside(log: RunLog) -> bool:
+    """Whether the log's PD law acts on the plant's state at every integration step (``continuous``: the law inside a
+    simulator's dynamics, as the log's controller entry says)."""
+    controller = log.controller
+    return controller is not None and controller.kind == "pd" and bool(controller.settings.get("continuous"))
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from dataclasses import replace
 from typing import Any
 
 from ilic_cli.closed_loop_id import relative_errors
-from ilic_cli.prepare import tau_sensor
+from ilic_cli.prepare import law_inside, tau_sensor
 from ilic_cli.runlog import FRICTION_LAW, RunLog
 from plant.controllers import PDSettings
 from plant.replay import controller_from_log, simulate_replay
@@ -75,16 +75,8 @@ def replay(log: RunLog, params: dict[str, float], effects: dict[str, Any] | None
         controller = _at_the_sample(log)
     if "payload_change" in effects:
         effects["payload_change"] = {**effects["payload_change"], "t_change": max(float(effects["payload_change"]["t_change"]) - float(log.t[0]), 0.0)}
-    steps = replay_substeps(log.fs_hz, _law_inside(log, controller))
-    return simulate_replay(log, params, effects, controller, substeps=steps, tau_sensor=tau_sensor(log), seed=seed)
-
-
-def _law_inside(log: RunLog, controller: PDSettings | None) -> bool:
-    """Whether the replay's PD law acts on the plant's state at every integration step (``controller``'s, else the log's)."""
-    if controller is not None:
-        return controller.continuous
-    recorded = log.controller
-    return recorded is not None and bool(recorded.settings.get("continuous"))
+    inside = controller.continuous if controller is not None else law_inside(log)  # the law the replay runs: given, else the log's
+    return simulate_replay(log, params, effects, controller, substeps=replay_substeps(log.fs_hz, inside), tau_sensor=tau_sensor(log), seed=seed)
 
 
 def _at_the_sample(log: RunLog) -> PDSettings | None:
