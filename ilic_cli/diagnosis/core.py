@@ -407,7 +407,7 @@ def _assembled(
         f.located = sorted([r for r in located if r.kind in f.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
     # friction that changes over time, from per-window estimates
     origin = float(prop.log.t[0])  # the plant's drift starts with the log, not with its first row in motion
-    drift_found = drift_on(prop, final, settings)
+    drift_found = drift_on(prop, final, settings, decision)
     if drift_found.found and judge_drift is not None:
         verdict, sensor = judge_drift(GivenDrift(list(drift_found.findings), origin))
         decision = replace(decision, verdicts=[*decision.verdicts, verdict], sensor=sensor)

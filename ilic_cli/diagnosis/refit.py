@@ -27,6 +27,7 @@ import numpy as np
 from ilic_cli.diagnosis.closed_loop_refit import closed_loop_refit
 from ilic_cli.diagnosis.decide import Decision, without_last
 from ilic_cli.diagnosis.drift import DriftResult, detect_drift
+from ilic_cli.diagnosis.drift_shift import found_both_ways
 from ilic_cli.diagnosis.dwell import jackknife_std
 from ilic_cli.diagnosis.fits import INVERSE_METHOD, METHOD, OE_METHOD, InverseFit, Refit, ValueSearch, plant_problem
 from ilic_cli.diagnosis.heldout_replay import noisy_output_error
@@ -38,7 +39,7 @@ from ilic_cli.diagnosis.search import log_rate_factor, searched_at_log_rate
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
 from ilic_cli.diagnosis.strategies.stribeck import NOT_REFITTED, segment_refit
-from ilic_cli.diagnosis.system import Step, column_noise, fit_system, shift_slopes, system
+from ilic_cli.diagnosis.system import Step, column_noise, fit_system, shift_slope, shift_slopes, shift_value, system
 from ilic_cli.diagnosis.verdicts import RefitOutcome
 from ilic_cli.errors import IdentificationError
 from ilic_cli.filtering import decimated_band_hz
@@ -83,25 +84,32 @@ class FinalFit:
     beside the drift's trends (:func:`drift_on`), never drifting themselves."""
 
 
-def drift_on(prop: Proposal, final: FinalFit, settings: DiagnosisSettings) -> DriftResult:
+def drift_on(prop: Proposal, final: FinalFit, settings: DiagnosisSettings, decision: Decision) -> DriftResult:
     """A friction drift on the final model (:func:`~ilic_cli.diagnosis.drift.detect_drift`), with each kept time shift's slope
-    beside its trends.
+    beside its trends, found the other way too (:func:`~ilic_cli.diagnosis.drift_shift.found_both_ways`): with the shift held
+    at the value the diagnosis states (the closed loop's searches' median, :func:`at_the_folds_values`; none where no lag is
+    kept, and the slope at none beside the model instead).
 
-    A delay's value is the closed loop's (the refit's) where the inverse model prefers another, and the rows keep the difference,
+    A delay's value is the closed loop's where the inverse model prefers another, and the rows keep the difference,
     a force that grows with the rate of change of the force. On a chirp, whose frequency rises with time, a linear trend of Fv took
     it up: an independent simulator's 1.5 ms drive lag on the 3 kg·m² joint's chirp at 1.5 kHz (the closed loop's -1.45 ms against
     the inverse model's -2.2 ms) was named with a friction drift of Fv +8.7 % (held-out 1.672 % -> 1.662 %), and is not now."""
-    return detect_drift(
-        prop.data.t_dec[prop.rows],
-        final.W,
-        final.y,
-        final.names,
-        origin=float(prop.log.t[0]),
-        n_windows=settings.drift_windows,
-        alpha=settings.drift_alpha,
-        min_change=settings.drift_min_change,
-        nuisance=final.shift_slopes,
-    )
+    t, origin = prop.data.t_dec[prop.rows], float(prop.log.t[0])
+
+    def drift(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], nuisance: np.ndarray | None) -> DriftResult:
+        return detect_drift(
+            t, W, y, names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change, nuisance=nuisance
+        )
+
+    shown = drift(final.W, final.y, final.names, final.shift_slopes)
+    if not shown.found:
+        return shown
+    if not final.shift_slopes.shape[1]:  # no lag kept: the trend must stand beside a shift's slope too
+        free = drift(final.W, final.y, final.names, shift_slope(prop.data, 0.0, prop.rows))
+        return found_both_ways(shown, free, "held at none", "free")
+    stated = [*prop.known, *at_the_folds_values(decision)]
+    held = drift(*system(prop.data, prop.base, stated, prop.rows), None)
+    return found_both_ways(shown, held, "free", f"held at {1e3 * shift_value(stated):.3g} ms")
 
 
 def with_std(res: LSResult, cov: np.ndarray) -> LSResult:
@@ -221,7 +229,7 @@ def _refit(
         return found_at_dwells or Refit(False, owner.not_refitted, list(kept), final.names, outcome=RefitOutcome.AT_DWELLS)
     if not (kept and replayed):
         return None
-    if prop.drift is not None and _drift_found(prop, final, settings):
+    if prop.drift is not None and _drift_found(prop, final, settings, decision):
         # the decisions replayed the drift (fold_plant.fitted_plant); the refit's plants have none, and its closed-loop fit put the
         # drift's error over time into the kept effects (corpus s730: gravity's MX 2.4 % -> 15 % off, DIDIM accepted). Only when the
         # drift is still found on the final model: one the rigid model showed for a missing effect (s451: asymmetric friction) is not
@@ -289,6 +297,18 @@ def wide_band(ls: LSSettings, fs_hz: float, top_hz: float) -> LSSettings:
     return replace(at, band_hz=None, decimation=log_rate_factor(fs_hz, at.decimation, top_hz))
 
 
+def at_the_folds_values(decision: Decision) -> list[Step]:
+    """The kept steps, each value the decisions' replays searched on the folds' training blocks at those values' median (their
+    :func:`~ilic_cli.diagnosis.dwell.jackknife_std` its spread); the others as kept."""
+    searched = decision.searched_on_folds()
+    return [
+        Step(st.effect, float(np.median(values)), value_std=jackknife_std(np.asarray(values, dtype=np.float64)))
+        if st.level is None and (values := searched.get(st.effect.id)) is not None and not isinstance(st.value, tuple)
+        else st
+        for st in decision.kept
+    ]
+
+
 def at_the_replays_values(prop: Proposal, decision: Decision, final: FinalFit, ls: LSSettings) -> Refit:
     """A friction drift is found: no closed-loop refit, whose plant carries none. The values the inverse model biases
     (:data:`~ilic_cli.diagnosis.search.SEARCH_STEPS`: a drive lag, Stribeck ``vs``) are the decisions' replays' instead, which
@@ -298,13 +318,7 @@ def at_the_replays_values(prop: Proposal, decision: Decision, final: FinalFit, l
     friction): the lag 0.369 ms from the inverse model, 0.218-0.265 ms on the folds, for the loop's 0.227 ms.
     Without such a value, the inverse model's estimates stand."""
     kept = decision.kept
-    searched = decision.searched_on_folds()
-    steps = [
-        Step(st.effect, float(np.median(values)), value_std=jackknife_std(np.asarray(values, dtype=np.float64)))
-        if st.level is None and (values := searched.get(st.effect.id)) is not None and not isinstance(st.value, tuple)
-        else st
-        for st in kept
-    ]
+    steps = at_the_folds_values(decision)
     why = "no closed-loop refit: a friction drift is found, which the refit's plant does not carry"
     moved = [st.effect.id for st, new in zip(kept, steps, strict=True) if new is not st]
     if not moved:
@@ -330,9 +344,9 @@ def _inverse_fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarra
     return fit.names, fit.theta, robust_covariance(fit.W, fit.y - fit.W @ fit.theta)
 
 
-def _drift_found(prop: Proposal, final: FinalFit, settings: DiagnosisSettings) -> bool:
+def _drift_found(prop: Proposal, final: FinalFit, settings: DiagnosisSettings, decision: Decision) -> bool:
     """Whether a friction drift is found on the final model (as :mod:`ilic_cli.diagnosis.core` then reports it: :func:`drift_on`)."""
-    return drift_on(prop, final, settings).found
+    return drift_on(prop, final, settings, decision).found
 
 
 def noise_objection(

@@ -14,7 +14,7 @@ from ilic_cli.diagnosis.compare import SimulationComparison
 from ilic_cli.diagnosis.core import Diagnosis, Finding
 from ilic_cli.diagnosis.fits import CLOSED_LOOP_SPREAD, INVERSE_METHOD, METHOD, OE_METHOD
 from ilic_cli.diagnosis.locate import Region
-from ilic_cli.diagnosis.rivals import indistinct_note
+from ilic_cli.diagnosis.rivals import finding_title, indistinct_note
 from ilic_cli.diagnosis.verdicts import PROPOSED_BY_DRIFT, PROPOSED_BY_INVERSE, RefitOutcome
 from ilic_cli.effects import Estimate
 from ilic_cli.jointlog import position_unit
@@ -253,7 +253,7 @@ def _finding_section(diag: Diagnosis, i: int, f: Finding, force_unit: str) -> li
     """The section of finding ``i``: its physics, its estimates, its evidence, where it is located."""
     ev = f.evidence
     lines = [
-        f"### {i}. `{f.effect.id}`: {f.effect.title}",
+        f"### {i}. `{f.effect.id}`: {finding_title(f.effect, ev)}",
         "",
         f"{f.effect.explanation}",
         "",

@@ -78,17 +78,24 @@ def shifted_force(data: IDIMData, delay_s: float, *, remember: bool = True) -> n
     return data.decimate_once(("shift", delay_s), full) if remember else data.decimate(full())
 
 
-def shift_slopes(data: IDIMData, steps: list[Step] | tuple[Step, ...], rows: np.ndarray) -> np.ndarray:
-    """On ``rows``, the decimated force's slope with respect to each time shift among ``steps`` at its value (a central difference
-    of :func:`shifted_force` over a tenth of the log's period), one column each: the force a small change of that shift adds,
-    what a fit at the shift's value cannot otherwise take up (none: zero columns)."""
+def shift_slope(data: IDIMData, delay_s: float, rows: np.ndarray) -> np.ndarray:
+    """On ``rows``, the decimated force's slope with respect to a time shift at ``delay_s`` (a central difference of
+    :func:`shifted_force` over a tenth of the log's period), one column: the force a small change of that shift adds."""
     h = 0.1 / data.fs_hz
-    cols = [
-        (shifted_force(data, float(s.value or 0.0) + h, remember=False) - shifted_force(data, float(s.value or 0.0) - h, remember=False)) / (2 * h)
-        for s in steps
-        if s.effect.shift
-    ]
-    return np.column_stack(cols)[rows] if cols else np.empty((int(np.count_nonzero(rows)), 0))
+    slope = (shifted_force(data, delay_s + h, remember=False) - shifted_force(data, delay_s - h, remember=False)) / (2 * h)
+    return slope[rows][:, None]
+
+
+def shift_slopes(data: IDIMData, steps: list[Step] | tuple[Step, ...], rows: np.ndarray) -> np.ndarray:
+    """:func:`shift_slope` at each time shift among ``steps``, one column each: what a fit at the shift's value cannot otherwise
+    take up (none: zero columns)."""
+    cols = [shift_slope(data, float(s.value or 0.0), rows) for s in steps if s.effect.shift]
+    return np.hstack(cols) if cols else np.empty((int(np.count_nonzero(rows)), 0))
+
+
+def shift_value(steps: list[Step] | tuple[Step, ...]) -> float:
+    """The time shift :func:`system` applies for ``steps`` (s; 0: none)."""
+    return next((float(s.value or 0.0) for s in reversed(steps) if s.effect.shift), 0.0)
 
 
 def effect_columns(data: IDIMData, effect: Effect, value: Any = None, *, remember: bool = True) -> np.ndarray:
@@ -120,9 +127,8 @@ def system(data: IDIMData, base: Model, steps: list[Step] | tuple[Step, ...], ro
     model = extended(base, steps, data.fs_hz)
     y = data.y
     cols = [data.W]
-    for s in steps:
-        if s.effect.shift:
-            y = shifted_force(data, float(s.value or 0.0))
+    if any(s.effect.shift for s in steps):
+        y = shifted_force(data, shift_value(steps))
     for s in steps:
         if s.level is not None:
             y = y - effect_columns(data, s.effect, s.value) @ np.asarray(s.level, dtype=np.float64)

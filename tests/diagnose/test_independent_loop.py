@@ -161,7 +161,7 @@ def test_an_effect_accepted_beside_a_better_fit_at_its_search_edge_is_stated_ind
     """The 0.5 kg·m² joint's chirp over 0.232 rad with a position ripple of period 0.24 rad (seed 41): the ripple's fit is at the
     grid's end, the stroke, and never a finding; gravity, accepted in its place and kept by the replay, fits part of the ripple's
     force (MX = 4.4 kg·m that an offset of -44 N·m cancels) and was named alone. It is now stated as indistinct from the ripple
-    (:func:`ilic_cli.diagnosis.rivals.beside_an_edge`), in the finding, the conclusion and the report's first line."""
+    (:func:`ilic_cli.diagnosis.rivals.beside_an_edge`), in the finding, the conclusion, the report's first line and the finding's section."""
     from tests.corpus.independent import run_loop
     from tests.corpus.robot import ALL_AXES, reference
 
@@ -174,4 +174,6 @@ def test_an_effect_accepted_beside_a_better_fit_at_its_search_edge_is_stated_ind
     edge = finding.evidence.beside_edge
     assert edge is not None and edge.relative_error_pct < finding.evidence.relative_error_pct
     assert diag.conclusion == "left out: gravity or position-dependent force ripple"
-    assert "gravity or position_ripple: position_ripple's fit, at the edge of its search range" in to_markdown(diag).splitlines()[2]
+    report = to_markdown(diag).splitlines()
+    assert "gravity or position_ripple: position_ripple's fit, at the edge of its search range" in report[2]
+    assert "### 1. `gravity`: gravity or position-dependent force ripple" in report  # the finding's own section says it too
