@@ -14,14 +14,13 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.baseline import held, rebuilt
-from ilic_cli.diagnosis.drift import DriftResult, GivenDrift, detect_drift
-from ilic_cli.diagnosis.drift_shift import found_both_ways
+from ilic_cli.diagnosis.drift import GivenDrift, detect_drift
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
 from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.settings import DiagnosisSettings
 from ilic_cli.diagnosis.strategies import strategy_of
-from ilic_cli.diagnosis.system import Step, effect_columns, extended, moving_rows, shift_slope, shift_value, system
+from ilic_cli.diagnosis.system import Step, effect_columns, extended, moving_rows, system
 from ilic_cli.effects import EFFECTS, applicable
 from ilic_cli.errors import IdentificationError
 from ilic_cli.idim_ls import IDIMData, LSSettings, lsq_rows
@@ -168,17 +167,9 @@ def drift_given(data: IDIMData, base: Model, known: list[Step], rows: np.ndarray
     W, y, names = system(data, base, known, rows)
     t = data.t_dec[rows]
     nuisance = static_linear(data, base, known, rows, settings.select.effects)
-
-    def drift(columns: np.ndarray) -> DriftResult:
-        return detect_drift(
-            t, W, y, names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change, nuisance=columns
-        )
-
-    found = drift(nuisance)
-    if found.found:  # the lag the model holds (none) free too (drift_shift): on a chirp a lag's force grows with time
-        shift = shift_value(known)
-        held = f"held at {1e3 * shift:.3g} ms" if any(s.effect.shift for s in known) else "held at none"
-        found = found_both_ways(found, drift(np.c_[nuisance, shift_slope(data, shift, rows)]), held, "free")
+    found = detect_drift(
+        t, W, y, names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change, nuisance=nuisance
+    )
     return GivenDrift(list(found.findings), origin) if found.findings else None
 
 
