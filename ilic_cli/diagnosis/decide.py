@@ -17,19 +17,12 @@ import numpy as np
 
 from ilic_cli.diagnosis.compare import band_force_error
 from ilic_cli.diagnosis.drift import GivenDrift
-from ilic_cli.diagnosis.heldout_replay import (
-    FOLD_XATOL_STEPS,
-    REPLAY_SEED,
-    HeldoutReplays,
-    decision_sensor,
-    fold_value,
-    noisy_output_error,
-    replay_decide,
-)
+from ilic_cli.diagnosis.heldout_replay import REPLAY_SEED, HeldoutReplays, decision_sensor, noisy_output_error, replay_decide
 from ilic_cli.diagnosis.materiality import MATERIAL_FORCE, MIN_DELAY_PERIODS, below_period, effect_force_rms, immaterial, materiality
 from ilic_cli.diagnosis.model_values import model_parameters
 from ilic_cli.diagnosis.null import MonteCarloNull
 from ilic_cli.diagnosis.propose import Proposal, closed_loop_proposal, prepare_system
+from ilic_cli.diagnosis.search import FOLD_XATOL_STEPS, fold_value
 from ilic_cli.diagnosis.select import SelectionResult, still_proposed
 from ilic_cli.diagnosis.settings import DiagnosisSettings, replay_alpha
 from ilic_cli.diagnosis.system import Step, change_time, system

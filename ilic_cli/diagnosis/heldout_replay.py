@@ -13,7 +13,7 @@ and the simulated force and position are compared with
 the recording on the block left out (the force in the band of the inverse
 model: the error decimated as the IDIM system is). A value the inverse model
 is known to bias (a drive lag, Stribeck ``vs``) is first searched on each
-fold's training blocks in closed loop (:func:`fold_value`), so the replay
+fold's training blocks in closed loop (:func:`~ilic_cli.diagnosis.search.fold_value`), so the replay
 judges the effect at a value the held-out block did not shape. The effect is
 kept when the held-out simulated force error falls (one-sided
 Diebold-Mariano on the held-out errors at the decimated rows, Newey-West
@@ -36,7 +36,7 @@ from ilic_cli.diagnosis.dwell import IN_MOTION_ALPHA, reference_moving
 from ilic_cli.diagnosis.fold_plant import MIN_PLANT_FOLDS, fitted_plant, fold_fit, not_a_plant
 from ilic_cli.diagnosis.materiality import MIN_DELAY_PERIODS, below_period
 from ilic_cli.diagnosis.replay_again import Heldout, judged_again
-from ilic_cli.diagnosis.search import SEARCH_STEPS, at_edge, search_range
+from ilic_cli.diagnosis.search import FOLD_XATOL_STEPS, SEARCH_STEPS, FoldValue, fold_value
 from ilic_cli.diagnosis.sensor import recorded_sensor
 from ilic_cli.diagnosis.stats import contiguous_runs, folds_either_side, heldout_fall_p
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
@@ -45,15 +45,11 @@ from ilic_cli.diagnosis.verdicts import PROPOSED_BY_INVERSE, PlantOf, ReplayNull
 from ilic_cli.errors import DivergedError, ParameterError
 from ilic_cli.filtering import decimate_matlab, kept_indices
 from ilic_cli.idim_ls import IDIMData, LSSettings
-from ilic_cli.lm import minimise
 from ilic_cli.lsq import relative_error_pct
 from ilic_cli.parallel import ordered_map
 from ilic_cli.regressor import Model
 from ilic_cli.runlog import RunLog
 from ilic_cli.simulation.replay import relative_errors, replay
-
-FOLD_XATOL_STEPS = 0.1
-"""Tolerance of :func:`fold_value`'s search, in steps of the effect's grid (a drive lag: 0.05 ms on its 0.5 ms grid)."""
 
 REPLAY_SEED = 0
 """Seed of the sensor noise in the replays that decide: one realisation, the same in every replay (common random numbers),
@@ -154,7 +150,7 @@ def replay_decide(
     min_delay_periods : float
         A judged delay shorter than this share of the sample period is not a finding (:func:`~ilic_cli.diagnosis.materiality.below_period`).
     fold_xatol_steps : float
-        Tolerance of the per-fold search of a biased value (:func:`fold_value`), in grid steps.
+        Tolerance of the per-fold search of a biased value (:func:`~ilic_cli.diagnosis.search.fold_value`), in grid steps.
     drift : GivenDrift, optional
         A friction drift found on the rigid model (:func:`ilic_cli.diagnosis.propose.drift_given`): every fold's fit has its
         trends' columns, every replayed plant its ``friction_drift`` (:func:`fitted_plant`), the baseline's and the sensor noise's too.
@@ -308,16 +304,18 @@ class HeldoutReplays:
 
         return replay_of, training_error
 
-    def searched_fold(self, given: list[Step], grid: np.ndarray, train: np.ndarray, fold: int) -> tuple[list[Step], RunLog | None]:
-        """``given`` with its last step's value searched on the fold's training blocks (:func:`fold_value`), and its replay.
+    def searched_fold(self, given: list[Step], grid: np.ndarray, train: np.ndarray, fold: int) -> tuple[list[Step], RunLog | None, FoldValue]:
+        """``given`` with its last step's value searched on the fold's training blocks, its replay, and the search
+        (:func:`~ilic_cli.diagnosis.search.fold_value`).
 
         The search replays noise-free: a value is estimated there, and the replay's own answer to its sensor noise,
         which the recording does not share, would pull it (a 1.0 ms drive lag: searched at 0.71-0.84 ms with the
         noise, 0.94-1.0 ms without). The replay returned, which the held-out block judges, has the noise.
         """
         replay_at, training_error = self.fold_search(train, fold, {})
-        steps = [*given[:-1], fold_value(given[:-1], given[-1], grid, training_error, self.fold_xatol_steps)]
-        return steps, self.fold_replay(steps, train) if self.sensor else replay_at(steps)
+        found = fold_value(given[:-1], given[-1], grid, training_error, self.fold_xatol_steps)
+        steps = [*given[:-1], found.step]
+        return steps, self.fold_replay(steps, train) if self.sensor else replay_at(steps), found
 
     def dwell_fold(self, given: list[Step], train: np.ndarray, fold: int) -> tuple[list[Step], RunLog | None, Step | None]:
         """``given`` with its last step, a closed-loop proposal, searched on the fold's training blocks (:func:`ilic_cli.diagnosis.dwell.search`).
@@ -336,8 +334,8 @@ class HeldoutReplays:
     def heldout(self, steps: list[Step], search: bool = False) -> Heldout | None:
         """Held-out simulated force (decimated) and position errors (blocks concatenated), or ``None`` when a fold is no valid plant.
 
-        ``search``: the last step's nonlinear value is searched on each fold's training blocks first (:func:`fold_value`);
-        the third item lists the values used, one per fold.
+        ``search``: the last step's nonlinear value is searched on each fold's training blocks first (:func:`~ilic_cli.diagnosis.search.fold_value`);
+        the third item lists the values used, one per fold (each fold's :class:`~ilic_cli.diagnosis.search.FoldValue` when searched; ``None``: left out).
         """
         given = list(steps)
         level = search and given[-1].level is not None
@@ -345,11 +343,15 @@ class HeldoutReplays:
 
         def fold(i: int) -> tuple[np.ndarray, np.ndarray, Any] | None:
             spans, train, sel = self.blocks[i], self.trains[i], self.in_block[i]
+            used: Any  # a closed-loop proposal's Step, a searched value's FoldValue, else the value (None: none)
             if level:
                 fold_steps, sim, used = self.dwell_fold(given, train, i)
             else:
-                fold_steps, sim = self.searched_fold(given, grid, train, i) if grid is not None else (given, self.fold_replay(given, train))
-                used = fold_steps[-1].value if fold_steps else None
+                if grid is not None:
+                    fold_steps, sim, used = self.searched_fold(given, grid, train, i)
+                else:
+                    fold_steps, sim = given, self.fold_replay(given, train)
+                    used = fold_steps[-1].value if fold_steps else None
             if sim is None:
                 return None
             if not_a_plant(fold_steps, *fold_fit(self.data, self.base, fold_steps, self.rows, train, self.drift)[:2]):
@@ -415,13 +417,19 @@ class HeldoutReplays:
         elif search:
             scan = st.effect.scan
             assert scan is not None
-            values = np.asarray([v for v in after[2] if v is not None], dtype=np.float64)
+            found: list[FoldValue] = [v for v in after[2] if v is not None]
+            values = np.asarray([float(v.step.value) for v in found], dtype=np.float64)
             unit = st.effect.unit_on(scan.unit, self.data.joint)
             judged = Step(st.effect, float(np.median(values)))
             searched = (
                 f"; {scan.name} searched on the closed loop of each fold's training blocks: "
                 f"{_fmt(values.min(), unit)} to {_fmt(values.max(), unit)} (inverse model {_fmt(float(st.value), unit)})"
             )
+            if edges := [v.edge for v in found if v.edge is not None]:
+                searched += (
+                    f"; in {len(edges)} of {len(after[2])} folds the search's optimum lay on the edge of the range searched "
+                    f"({_fmt(min(edges), unit)} to {_fmt(max(edges), unit)}): no estimate there, the inverse model's value replayed"
+                )
         vb = va = None
         if validate is not None:
             (vlog, vls), vsensor = validate
@@ -435,7 +443,7 @@ class HeldoutReplays:
         if proposed_here and verdict is Verdict.AGREES:
             verdict, why = self.in_motion(current, after, why)
         fold_values = (
-            tuple(float(v) for v in after[2] if v is not None)
+            tuple(float(v.step.value) for v in after[2] if v is not None)
             if search and not proposed_here
             else tuple(_strategy(st).fold_values(after[2]))
             if proposed_here
@@ -464,36 +472,3 @@ def _heldout_pct(e: np.ndarray, ref: np.ndarray, idx: np.ndarray) -> float:
 def _fmt(value: float, unit: str) -> str:
     """A searched value for the report (a time in ms)."""
     return f"{value * 1e3:.3g} ms" if unit == "s" else f"{value:.4g} {unit}".strip()
-
-
-def fold_value(prefix: list[Step], step: Step, grid: np.ndarray, training_error: Callable[[list[Step]], float], xatol_steps: float = FOLD_XATOL_STEPS) -> Step:
-    """``step`` with its nonlinear value searched on one fold's closed-loop training error (``prefix`` kept before it).
-
-    The inverse model's estimate of some effects is off by several steps of
-    its grid on closed-loop data (:data:`ilic_cli.diagnosis.select.SEARCH_STEPS`:
-    a drive lag 30-66 % too long), which can hide a real effect from the
-    replay. Within that range of ``grid`` around the inverse value, the value
-    is searched on the simulated force error of the fold's training blocks
-    (the linear parameters refitted by the inverse model at each value), so
-    the held-out block still judges a model it did not shape. An optimum on
-    the edge of the range, or one that does not lower the training error,
-    keeps the inverse value.
-    """
-    scan = step.effect.scan
-    assert scan is not None
-    v0 = float(step.value)
-    sub = search_range(step.effect, grid, v0)
-    lo, hi = float(sub[0]), float(sub[-1])
-    if not hi > lo:
-        return step
-    memo: dict[float, float] = {}
-
-    def err(v: float) -> float:
-        if v not in memo:
-            memo[v] = training_error([*prefix, Step(step.effect, v)])
-        return memo[v]
-
-    best = minimise(err, lo, hi, scan.log and lo > 0, rel_tol=xatol_steps / max(len(sub) - 1, 1))
-    if at_edge(step.effect, sub, best) or not err(best) < err(v0):
-        return step
-    return Step(step.effect, best)

@@ -13,10 +13,10 @@ from ilic_cli.diagnosis.drift import ALPHA as DRIFT_ALPHA
 from ilic_cli.diagnosis.drift import MIN_CHANGE as DRIFT_MIN_CHANGE
 from ilic_cli.diagnosis.drift import WINDOWS as DRIFT_WINDOWS
 from ilic_cli.diagnosis.dwell import DWELL_MIN_COUNT, DWELL_MIN_S
-from ilic_cli.diagnosis.heldout_replay import FOLD_XATOL_STEPS
 from ilic_cli.diagnosis.materiality import MATERIAL_FORCE, MIN_DELAY_PERIODS
 from ilic_cli.diagnosis.null import NullSettings
 from ilic_cli.diagnosis.refit_search import MAX_ROUNDS, ROUND_GAIN
+from ilic_cli.diagnosis.search import FOLD_XATOL_STEPS
 from ilic_cli.diagnosis.segments import LEVEL_Z, SEGMENT_S
 from ilic_cli.diagnosis.select import SelectSettings
 from ilic_cli.idim_ls import LSSettings
@@ -61,7 +61,7 @@ class DiagnosisSettings:
     lag from the sample timing, and the physical lags are well above it (:data:`ilic_cli.diagnosis.materiality.MIN_DELAY_PERIODS`)."""
     fold_xatol_steps: float = FOLD_XATOL_STEPS
     """Decide: tolerance of the per-fold closed-loop search of a value the inverse model biases, in steps of its grid (a drive lag:
-    0.05 ms on its 0.5 ms grid, :data:`ilic_cli.diagnosis.heldout_replay.FOLD_XATOL_STEPS`)."""
+    0.05 ms on its 0.5 ms grid, :data:`ilic_cli.diagnosis.search.FOLD_XATOL_STEPS`)."""
     dwell_min_s: float = DWELL_MIN_S
     """Propose, refit: a rest of the reference at least this long (s) is a dwell (:data:`ilic_cli.diagnosis.dwell.DWELL_MIN_S`)."""
     dwell_min_count: int = DWELL_MIN_COUNT

@@ -169,7 +169,7 @@ class ReplayVerdict:
     reason: str
     null: NullEvidence | None = None
     searched: tuple[Any, ...] | None = None
-    """The value used in each fold when it was searched on the fold's training blocks (:func:`ilic_cli.diagnosis.decide.fold_value`);
+    """The value used in each fold when it was searched on the fold's training blocks (:func:`ilic_cli.diagnosis.search.fold_value`);
     a closed-loop proposal's ``(vs, Fs)`` per fold, ``None`` where a fold found none (:mod:`ilic_cli.diagnosis.dwell`)."""
     proposed_by: str = PROPOSED_BY_INVERSE
     """Who proposed the effect: the inverse model, or the closed loop (:data:`ilic_cli.diagnosis.dwell.METHOD`)."""
