@@ -14,11 +14,11 @@ from typing import Any
 import numpy as np
 
 from ilic_cli.diagnosis.baseline import held, rebuilt
-from ilic_cli.diagnosis.drift import GivenDrift, detect_drift
+from ilic_cli.diagnosis.drift import GivenDrift
 from ilic_cli.diagnosis.model_values import steps_from_effects
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
 from ilic_cli.diagnosis.sensor import measurement_std, position_noise
-from ilic_cli.diagnosis.settings import DiagnosisSettings
+from ilic_cli.diagnosis.settings import DiagnosisSettings, drift_test
 from ilic_cli.diagnosis.strategies import strategy_of
 from ilic_cli.diagnosis.system import Step, effect_columns, extended, moving_rows, system
 from ilic_cli.effects import EFFECTS, applicable
@@ -167,9 +167,7 @@ def drift_given(data: IDIMData, base: Model, known: list[Step], rows: np.ndarray
     W, y, names = system(data, base, known, rows)
     t = data.t_dec[rows]
     nuisance = static_linear(data, base, known, rows, settings.select.effects)
-    found = detect_drift(
-        t, W, y, names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change, nuisance=nuisance
-    )
+    found = drift_test(settings, t, W, y, names, origin, nuisance)
     return GivenDrift(list(found.findings), origin) if found.findings else None
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from ilic_cli.diagnosis.closed_loop_refit import closed_loop_refit
 from ilic_cli.diagnosis.decide import Decision, without_last
-from ilic_cli.diagnosis.drift import DriftResult, detect_drift
+from ilic_cli.diagnosis.drift import DriftResult
 from ilic_cli.diagnosis.drift_shift import found_both_ways
 from ilic_cli.diagnosis.dwell import jackknife_std
 from ilic_cli.diagnosis.fits import INVERSE_METHOD, METHOD, OE_METHOD, InverseFit, Refit, ValueSearch, plant_problem
@@ -36,7 +36,7 @@ from ilic_cli.diagnosis.oe_fit import OutputErrorFit, output_error_gauss_newton
 from ilic_cli.diagnosis.oe_fit import output_error_refit as _output_error_refit
 from ilic_cli.diagnosis.propose import Proposal
 from ilic_cli.diagnosis.search import log_rate_factor, searched_at_log_rate
-from ilic_cli.diagnosis.settings import DiagnosisSettings
+from ilic_cli.diagnosis.settings import DiagnosisSettings, drift_test
 from ilic_cli.diagnosis.strategies import IdentificationStrategy, strategy_of
 from ilic_cli.diagnosis.strategies.stribeck import NOT_REFITTED, segment_refit
 from ilic_cli.diagnosis.system import Step, column_noise, fit_system, shift_slope, shift_slopes, shift_value, system
@@ -97,9 +97,7 @@ def drift_on(prop: Proposal, final: FinalFit, settings: DiagnosisSettings, decis
     t, origin = prop.data.t_dec[prop.rows], float(prop.log.t[0])
 
     def drift(W: np.ndarray, y: np.ndarray, names: tuple[str, ...], nuisance: np.ndarray | None) -> DriftResult:
-        return detect_drift(
-            t, W, y, names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change, nuisance=nuisance
-        )
+        return drift_test(settings, t, W, y, names, origin, nuisance)
 
     shown = drift(final.W, final.y, final.names, final.shift_slopes)
     if not shown.found:

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ilic_cli.diagnosis.drift import ALPHA as DRIFT_ALPHA
 from ilic_cli.diagnosis.drift import MIN_CHANGE as DRIFT_MIN_CHANGE
 from ilic_cli.diagnosis.drift import WINDOWS as DRIFT_WINDOWS
+from ilic_cli.diagnosis.drift import DriftResult, detect_drift
 from ilic_cli.diagnosis.dwell import DWELL_MIN_COUNT, DWELL_MIN_S
 from ilic_cli.diagnosis.materiality import MATERIAL_FORCE, MIN_DELAY_PERIODS
 from ilic_cli.diagnosis.null import NullSettings
@@ -95,3 +98,13 @@ DiagnoseSettings = DiagnosisSettings
 def replay_alpha(settings: DiagnosisSettings) -> float:
     """Level of the replay's test (:attr:`ilic_cli.diagnosis.null.NullSettings.level`)."""
     return settings.null.level
+
+
+def drift_test(
+    settings: DiagnosisSettings, t: np.ndarray, W: np.ndarray, y: np.ndarray, names: tuple[str, ...], origin: float, nuisance: np.ndarray | None
+) -> DriftResult:
+    """:func:`~ilic_cli.diagnosis.drift.detect_drift` at the ``settings``' windows, level and least change: the drift test of the
+    rigid model's proposal (:func:`ilic_cli.diagnosis.propose.drift_given`) and of the final model (:func:`ilic_cli.diagnosis.refit.drift_on`)."""
+    return detect_drift(
+        t, W, y, names, origin=origin, n_windows=settings.drift_windows, alpha=settings.drift_alpha, min_change=settings.drift_min_change, nuisance=nuisance
+    )
