@@ -120,6 +120,10 @@ class IDIMData:
     """The measured position's noise (m or rad; 0: not known), realised in the columns by :mod:`ilic_cli.diagnosis.column_noise`."""
     joint: str = "prismatic"
     """The joint's type (:func:`ilic_cli.runlog.joint_type`): the units the diagnosis's reasons write its values in."""
+    unaccelerated: tuple[tuple[float, float], ...] = ()
+    """The spans of the log (s, their first and last samples) where the reference does not accelerate, its cruises and dwells:
+    a payload's change there shows in no row but through the noise (:func:`ilic_cli.diagnosis.search.unaccelerated_spans`;
+    none without a reference)."""
 
     @property
     def t_dec(self) -> np.ndarray:

@@ -16,6 +16,7 @@ import numpy as np
 from ilic_cli.diagnosis.baseline import held, rebuilt
 from ilic_cli.diagnosis.drift import GivenDrift
 from ilic_cli.diagnosis.model_values import steps_from_effects
+from ilic_cli.diagnosis.search import unaccelerated_spans
 from ilic_cli.diagnosis.select import SelectionResult, SelectSettings, forward_select
 from ilic_cli.diagnosis.sensor import measurement_std, position_noise
 from ilic_cli.diagnosis.settings import DiagnosisSettings, drift_test
@@ -97,9 +98,12 @@ def prepare_system(prepared: PreparedLog, model: Model, settings: LSSettings) ->
     if (vc := friction_law_speed(log.meta)) is not None:  # the friction law the replays run: the sign of every friction column is it
         data = rebuilt(data, model, replace(data.kin, sign_qd=np.tanh(data.kin.qd / vc)))
     data = held(data, model, force_hold_s(log, prepared.fs_hz))
-    noise = measurement_std(*position_noise(np.asarray(log["q"]), prepared.fs_hz, settings.at_rate(prepared.fs_hz)))
-    # the noise a flexibility's columns carry (system.column_noise); the joint, whose units the reasons write
-    return replace(data, position_noise_std=noise, joint=joint_type(log.units.get("q")))
+    rate = settings.at_rate(prepared.fs_hz)
+    noise = measurement_std(*position_noise(np.asarray(log["q"]), prepared.fs_hz, rate))
+    # the noise a flexibility's columns carry (system.column_noise); the joint, whose units the reasons write; where the
+    # reference does not accelerate, over the rows' period (a payload's change time)
+    still = unaccelerated_spans(np.asarray(log.t), np.asarray(log["q_ref"]), rate.decimation) if "q_ref" in log else ()
+    return replace(data, position_noise_std=noise, joint=joint_type(log.units.get("q")), unaccelerated=still)
 
 
 def base_model(model_doc: dict[str, Any] | None, default: str) -> Model:

@@ -227,9 +227,10 @@ def test_plant_problem_names_an_effect_outside_its_physics() -> None:
 def test_a_change_time_on_a_flat_closed_loop_profile_keeps_the_inverse_model_s_interval() -> None:
     """A payload change of 0.21 kg at 4.0 s on the 12 kg axis's S-curves at 500 Hz under the current loop (robot corpus, seed 12240),
     during a cruise and dwell from 3.74 to 4.74 s. The inverse model states the change time as that plateau's 95 % interval (its
-    middle, half-width / 1.96); the closed-loop search, whose profile is flat there too, moved it by 20 ms for a gain of 0.0001 %
-    and left it without a standard deviation. Its value stays the inverse model's, with that interval (the search's move kept,
-    planted: no std, fails)."""
+    middle, half-width / 1.96), the whole rest (search.spans_reached); the closed-loop search, whose profile is flat there too,
+    moved it by 20 ms for a gain of 0.0001 % and left it without a standard deviation, and from the rest's middle lowers nothing.
+    Its value stays the inverse model's, with that interval (the flat profile's move kept, planted: killed by the s491 test
+    below)."""
     import dataclasses
 
     from ilic_cli.diagnosis.core import diagnose
@@ -244,7 +245,7 @@ def test_a_change_time_on_a_flat_closed_loop_profile_keeps_the_inverse_model_s_i
     assert abs(payload.parameters["dM"].value / built.effects["payload_change"]["dM"] - 1) < 0.05
     assert diag.refit is not None
     (search,) = [s for s in diag.refit.searches if s.parameter == "t_change"]
-    assert not search.accepted and "is flat at its optimum" in search.reason
+    assert not search.accepted and ("is flat at its optimum" in search.reason or "does not lower the output error" in search.reason), search.reason
 
 
 def _robot(name: str, seed: int):  # type: ignore[no-untyped-def]
