@@ -346,12 +346,11 @@ class HeldoutReplays:
             used: Any  # a closed-loop proposal's Step, a searched value's FoldValue, else the value (None: none)
             if level:
                 fold_steps, sim, used = self.dwell_fold(given, train, i)
+            elif grid is not None:
+                fold_steps, sim, used = self.searched_fold(given, grid, train, i)
             else:
-                if grid is not None:
-                    fold_steps, sim, used = self.searched_fold(given, grid, train, i)
-                else:
-                    fold_steps, sim = given, self.fold_replay(given, train)
-                    used = fold_steps[-1].value if fold_steps else None
+                fold_steps, sim = given, self.fold_replay(given, train)
+                used = fold_steps[-1].value if fold_steps else None
             if sim is None:
                 return None
             if not_a_plant(fold_steps, *fold_fit(self.data, self.base, fold_steps, self.rows, train, self.drift)[:2]):
