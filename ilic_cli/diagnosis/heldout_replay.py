@@ -383,6 +383,7 @@ class HeldoutReplays:
         p_dm = p
         mc, significant = None, p < alpha
         judged, searched = st, ""
+        fold_values: tuple[Any, ...] | None = None  # the value each fold used, for the verdict's record
         if proposed_here:
             judged_step, searched_text = _strategy(st).judged(after[2], self.data.joint)
             if judged_step is None:
@@ -411,6 +412,7 @@ class HeldoutReplays:
         if proposed_here:
             assert judged_step is not None  # refused above when None
             judged = judged_step
+            fold_values = tuple(_strategy(st).fold_values(after[2]))
             null_note = " (the Monte-Carlo null re-proposes through the inverse model, which cannot: Diebold-Mariano alone)" if null is not None else ""
             searched = "; " + searched_text + null_note
         elif search:
@@ -418,6 +420,7 @@ class HeldoutReplays:
             assert scan is not None
             found: list[FoldValue] = [v for v in after[2] if v is not None]
             values = np.asarray([float(v.step.value) for v in found], dtype=np.float64)
+            fold_values = tuple(float(v) for v in values)
             unit = st.effect.unit_on(scan.unit, self.data.joint)
             judged = Step(st.effect, float(np.median(values)))
             searched = (
@@ -441,13 +444,6 @@ class HeldoutReplays:
         verdict, why = replay_verdict((fb, fa), (pb, pa), (vb, va), significant, p_text, short)
         if proposed_here and verdict is Verdict.AGREES:
             verdict, why = self.in_motion(current, after, why)
-        fold_values = (
-            tuple(float(v.step.value) for v in after[2] if v is not None)
-            if search and not proposed_here
-            else tuple(_strategy(st).fold_values(after[2]))
-            if proposed_here
-            else None
-        )
         ok = verdict is Verdict.AGREES
         if left_out:
             searched += f"; judged on the folds whose fit is a plant of every effect ({1.0 - left_out:.0%} of the held-out samples)"

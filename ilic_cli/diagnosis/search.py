@@ -15,7 +15,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ilic_cli.diagnosis.stats import batched_rss, contiguous_runs, lag1_autocorrelation, shifted_rss, variance_inflation
-from ilic_cli.diagnosis.system import Step, effect_columns, shifted_force
+from ilic_cli.diagnosis.system import Step, effect_columns, shift_value, shifted_force
 from ilic_cli.effects import Effect
 from ilic_cli.effects.definition import Z95
 from ilic_cli.filtering import decimated_band_hz, kept_indices
@@ -120,9 +120,8 @@ class Searcher:
         assert t is not None
         y = np.asarray(data.tau, dtype=np.float64)
         cols = [np.asarray(base.matrix(k))]
-        for s in steps:
-            if s.effect.shift:
-                y = evaluated_later(t, data.tau, float(s.value or 0.0))
+        if any(s.effect.shift for s in steps):
+            y = evaluated_later(t, data.tau, shift_value(steps))
         for s in steps:
             if s.level is not None:
                 y = y - s.effect.matrix(k, s.value, self.fs) @ np.asarray(s.level, dtype=np.float64)
