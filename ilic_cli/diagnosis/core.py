@@ -300,6 +300,7 @@ def diagnose(
     replayed = settings.simulate and against is None and "q_ref" in log
     decision, at_dwells = refit_at_dwells(log, prop, decision, settings, replayed)  # 3. refit
     final = final_fit(prop, decision.kept, settings.ls, len(base.y))
+    final = replace(final, drift=drift_on(prop, final, settings, decision))  # tested once: the refit's plant and the findings read it
     refit = refit_stage(log, prop, decision, final, at_dwells, settings, replayed)
     if law is not None:  # a smoothed law's speed and a Stribeck friction beside it, fitted at once
         refit, law, log = refit_with_the_law(log, prop, decision, final, refit, law, settings, replayed)
@@ -407,7 +408,8 @@ def _assembled(
         f.located = sorted([r for r in located if r.kind in f.effect.signature_kinds and r.significant], key=lambda r: r.p_value)
     # friction that changes over time, from per-window estimates
     origin = float(prop.log.t[0])  # the plant's drift starts with the log, not with its first row in motion
-    drift_found = drift_on(prop, final, settings, decision)
+    assert final.drift is not None  # tested by diagnose once the final model is fitted
+    drift_found = final.drift
     if drift_found.found and judge_drift is not None:
         verdict, sensor = judge_drift(GivenDrift(list(drift_found.findings), origin))
         decision = replace(decision, verdicts=[*decision.verdicts, verdict], sensor=sensor)

@@ -82,6 +82,9 @@ class FinalFit:
     shift_slopes: np.ndarray
     """The force's slope with respect to each kept time shift (:func:`~ilic_cli.diagnosis.system.shift_slopes`), on the rows: fitted
     beside the drift's trends (:func:`drift_on`), never drifting themselves."""
+    drift: DriftResult | None = None
+    """A friction drift on this model (:func:`drift_on`, set once by :func:`ilic_cli.diagnosis.core.diagnose`: the refit's plant
+    and the findings read it); ``None``: not yet tested."""
 
 
 def drift_on(prop: Proposal, final: FinalFit, settings: DiagnosisSettings, decision: Decision) -> DriftResult:
@@ -227,7 +230,7 @@ def _refit(
         return found_at_dwells or Refit(False, owner.not_refitted, list(kept), final.names, outcome=RefitOutcome.AT_DWELLS)
     if not (kept and replayed):
         return None
-    if prop.drift is not None and _drift_found(prop, final, settings, decision):
+    if prop.drift is not None and final.drift is not None and final.drift.found:
         # the decisions replayed the drift (fold_plant.fitted_plant); the refit's plants have none, and its closed-loop fit put the
         # drift's error over time into the kept effects (corpus s730: gravity's MX 2.4 % -> 15 % off, DIDIM accepted). Only when the
         # drift is still found on the final model: one the rigid model showed for a missing effect (s451: asymmetric friction) is not
@@ -340,11 +343,6 @@ def _inverse_fit(data: IDIMData, base: Model, steps: list[Step], rows: np.ndarra
     """The inverse model's fit of ``base + steps`` on ``rows``: names, estimate, autocorrelation-robust covariance."""
     fit = fit_system(data, base, steps, rows)
     return fit.names, fit.theta, robust_covariance(fit.W, fit.y - fit.W @ fit.theta)
-
-
-def _drift_found(prop: Proposal, final: FinalFit, settings: DiagnosisSettings, decision: Decision) -> bool:
-    """Whether a friction drift is found on the final model (as :mod:`ilic_cli.diagnosis.core` then reports it: :func:`drift_on`)."""
-    return drift_on(prop, final, settings, decision).found
 
 
 def noise_objection(
