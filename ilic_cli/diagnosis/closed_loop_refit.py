@@ -34,8 +34,8 @@ the effects' columns) is refitted so:
 When DIDIM does not lower the output error (step 1), or fails there while the inverse model's estimate replays (an iterate
 outside the plant), the output error itself is minimised (:data:`OE_METHOD`, :func:`output_error_gauss_newton`): the linear
 parameters and every searched value of the kept effects at once, by Levenberg-Marquardt with the closed loop's own
-sensitivities, taken by finite differences of replays (one replay per parameter and step). Measured on the corpus's Stribeck
-+ flexibility reseed s303@s2303, where DIDIM's step raises the error (0.845 % -> 0.998 %): 0.704 % in 1 iteration and 22
+sensitivities, taken by finite differences of replays (one replay per parameter and step). Measured on the corpus's
+Stribeck + flexibility reseed s303@s2303, where DIDIM's step raises the error (0.845 % -> 0.998 %): 0.704 % in 1 iteration and 22
 replays, the Stribeck level 3.40 N for 3.53 (the folds' 2.32 N), ``vs`` 8.35 mm/s for 8, the resonance 35.04 Hz for 35.00
 and its damping ratio 0.155 for 0.150. It is kept when it lowers the output error by :data:`ROUND_GAIN` of it, no value ends
 on the edge of its search range, and the diagnosis's ``confirm`` (the output error replayed with the recording's sensor
@@ -46,8 +46,8 @@ inverse model is known to bias (:data:`SEARCH_STEPS`: Stribeck ``vs``, a delay, 
 closed loop, the linear parameters then the inverse model's fit at each value (one replay per value;
 :data:`INVERSE_METHOD`), and that estimate is kept when it lowers the output error.
 
-The estimate is **accepted** only when every effect stays a valid plant of the physics it is named (a load fraction in (0,
-1), a Stribeck level above 0 and above ``-Fc``, ...); otherwise the inverse model's estimates are kept and the reason is
+The estimate is **accepted** only when every effect stays a valid plant of the physics it is named (a load fraction in
+(0, 1), a Stribeck level above 0 and above ``-Fc``, ...); otherwise the inverse model's estimates are kept and the reason is
 given. The standard deviations are those of the final DIDIM step's least squares, with the residual's autocorrelation
 accounted for as in the inverse model's (:func:`ilic_cli.lsq.robust_covariance`, the Newey-West sandwich); a searched
 value's, from the curvature of the profile.
